@@ -1,0 +1,174 @@
+//! Streaming readers and writers for the JSON Lines pipe formats
+//! (`microcam.chains/1`, `microcam.toolpath/1`). See docs/formats.md.
+//!
+//! Readers hold one line at a time, so memory stays flat however long the
+//! input; they validate every record and name its line number on error.
+//! Writers format numbers themselves (shortest round-trip form after
+//! rounding to 1e-9 mm) so output is byte-identical for identical input.
+
+pub mod chains;
+pub mod toolpath;
+
+use crate::geometry::P3;
+use std::io::BufRead;
+use thiserror::Error;
+
+/// An error in a pipe-format stream. `line` is the 1-based line number of
+/// the offending record (the header is line 1).
+#[derive(Debug, Error)]
+pub enum FormatError {
+    #[error("line {line}: {msg}")]
+    Invalid { line: u64, msg: String },
+    #[error("line {line}: {source}")]
+    Io {
+        line: u64,
+        #[source]
+        source: std::io::Error,
+    },
+}
+
+impl FormatError {
+    pub fn invalid(line: u64, msg: impl Into<String>) -> Self {
+        FormatError::Invalid { line, msg: msg.into() }
+    }
+
+    /// The line the error is about.
+    pub fn line(&self) -> u64 {
+        match self {
+            FormatError::Invalid { line, .. } | FormatError::Io { line, .. } => *line,
+        }
+    }
+}
+
+/// Reads non-empty lines one at a time, counting line numbers.
+pub(crate) struct LineSource<R> {
+    input: R,
+    buf: String,
+    line: u64,
+}
+
+impl<R: BufRead> LineSource<R> {
+    pub(crate) fn new(input: R) -> Self {
+        LineSource {
+            input,
+            buf: String::new(),
+            line: 0,
+        }
+    }
+
+    /// The next non-blank line (trimmed), or `None` at end of input.
+    pub(crate) fn next_line(&mut self) -> Result<Option<(&str, u64)>, FormatError> {
+        loop {
+            self.buf.clear();
+            self.line += 1;
+            let n = self.input.read_line(&mut self.buf).map_err(|e| FormatError::Io {
+                line: self.line,
+                source: e,
+            })?;
+            if n == 0 {
+                return Ok(None);
+            }
+            if !self.buf.trim().is_empty() {
+                return Ok(Some((self.buf.trim(), self.line)));
+            }
+        }
+    }
+}
+
+/// Append a number in the pipe formats' canonical form: rounded to 1e-9,
+/// shortest round-trip digits, no trailing `.0`, no `-0`.
+pub fn push_num(out: &mut String, x: f64) {
+    let r = if x.abs() < 1e9 { (x * 1e9).round() / 1e9 } else { x };
+    let r = if r == 0.0 { 0.0 } else { r };
+    if r.fract() == 0.0 && r.abs() < 1e15 {
+        // Integers print without a fraction.
+        use std::fmt::Write;
+        let _ = write!(out, "{}", r as i64);
+    } else {
+        let mut b = ryu::Buffer::new();
+        out.push_str(b.format_finite(r));
+    }
+}
+
+/// Append `[x,y,z]`.
+pub fn push_point3(out: &mut String, p: &P3) {
+    out.push('[');
+    push_num(out, p.x);
+    out.push(',');
+    push_num(out, p.y);
+    out.push(',');
+    push_num(out, p.z);
+    out.push(']');
+}
+
+/// Append `[x,y]` when z is zero, else `[x,y,z]`.
+pub fn push_point_2or3(out: &mut String, p: &P3) {
+    if p.z == 0.0 {
+        out.push('[');
+        push_num(out, p.x);
+        out.push(',');
+        push_num(out, p.y);
+        out.push(']');
+    } else {
+        push_point3(out, p);
+    }
+}
+
+/// Append a JSON string literal.
+pub fn push_str_lit(out: &mut String, s: &str) {
+    // serde_json's escaping is the reference; strings are rare and short.
+    out.push_str(&serde_json::to_string(s).unwrap_or_else(|_| "\"\"".into()));
+}
+
+/// Turn a `[x, y]` or `[x, y, z]` array into a point.
+pub(crate) fn point_from(v: &[f64], line: u64, what: &str) -> Result<P3, FormatError> {
+    let p = match v {
+        [x, y] => P3::new(*x, *y, 0.0),
+        [x, y, z] => P3::new(*x, *y, *z),
+        _ => {
+            return Err(FormatError::invalid(
+                line,
+                format!("'{what}' must be [x, y] or [x, y, z], got {} numbers", v.len()),
+            ));
+        }
+    };
+    if !(p.x.is_finite() && p.y.is_finite() && p.z.is_finite()) {
+        return Err(FormatError::invalid(line, format!("'{what}' is not finite")));
+    }
+    Ok(p)
+}
+
+/// Parse a JSON line into `T`, naming the line on failure.
+pub(crate) fn parse_json<'a, T: serde::Deserialize<'a>>(text: &'a str, line: u64) -> Result<T, FormatError> {
+    serde_json::from_str(text).map_err(|e| FormatError::invalid(line, format!("bad JSON record: {e}")))
+}
+
+/// Read the header line and check its schema.
+pub(crate) fn check_schema(schema: Option<&str>, want: &str, line: u64) -> Result<(), FormatError> {
+    match schema {
+        Some(s) if s == want => Ok(()),
+        Some(s) => Err(FormatError::invalid(
+            line,
+            format!("unknown schema '{s}' (this tool reads '{want}')"),
+        )),
+        None => Err(FormatError::invalid(
+            line,
+            format!("the first record must be a header with \"schema\":\"{want}\""),
+        )),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn numbers_are_canonical() {
+        let mut s = String::new();
+        for x in [0.0, -0.0, 1.0, -2.5, 0.1 + 0.2, 1e-12, 123456.000000000001, 1e20] {
+            push_num(&mut s, x);
+            s.push(' ');
+        }
+        assert_eq!(s, "0 0 1 -2.5 0.3 0 123456 1e20 ");
+    }
+}

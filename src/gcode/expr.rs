@@ -1,0 +1,1 @@
+//! RS274 expressions and parameters (being written).

@@ -1,0 +1,313 @@
+//! G-code in both dialects, read into and written from the toolpath model.
+//!
+//! - [`iso`]: ISO/RS274 (LinuxCNC flavour) interpreter.
+//! - [`pmac`]: Turbo PMAC motion-program text interpreter.
+//! - [`writer`]: toolpath model -> G-code text in either dialect.
+//!
+//! Reading is streaming: [`ProgramReader`] pulls one source line at a time
+//! and yields toolpath records, so memory stays flat on any program size.
+
+pub mod expr;
+pub mod iso;
+pub mod pmac;
+pub mod writer;
+
+use crate::geometry::{P2, P3, Plane};
+use crate::model::toolpath::{ArcData, FeedUnit, Record};
+use std::collections::VecDeque;
+use std::io::BufRead;
+use thiserror::Error;
+
+/// The two G-code dialects we read and write.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Dialect {
+    /// ISO 6983 / RS274-NGC (LinuxCNC, most CNC controls).
+    Iso,
+    /// Delta Tau Turbo PMAC motion-program text.
+    Pmac,
+}
+
+impl Dialect {
+    pub fn name(self) -> &'static str {
+        match self {
+            Dialect::Iso => "iso",
+            Dialect::Pmac => "pmac",
+        }
+    }
+
+    /// The feed unit a program of this dialect carries (PMAC: per second
+    /// with the default Isx90 = 1000; ISO: per minute in G94).
+    pub fn feed_unit(self) -> FeedUnit {
+        match self {
+            Dialect::Iso => FeedUnit::MmPerMin,
+            Dialect::Pmac => FeedUnit::MmPerS,
+        }
+    }
+}
+
+impl std::str::FromStr for Dialect {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s.to_ascii_lowercase().as_str() {
+            "iso" | "rs274" | "ngc" => Ok(Dialect::Iso),
+            "pmac" => Ok(Dialect::Pmac),
+            _ => Err(format!("unknown dialect '{s}' (iso or pmac)")),
+        }
+    }
+}
+
+/// An error in a G-code program, with the 1-based source line.
+#[derive(Debug, Error)]
+pub enum GcodeError {
+    #[error("line {line}: {msg}")]
+    Invalid { line: u64, msg: String },
+    #[error("line {line}: {source}")]
+    Io {
+        line: u64,
+        #[source]
+        source: std::io::Error,
+    },
+}
+
+impl GcodeError {
+    pub fn at(line: u64, msg: impl Into<String>) -> Self {
+        GcodeError::Invalid { line, msg: msg.into() }
+    }
+
+    pub fn line(&self) -> u64 {
+        match self {
+            GcodeError::Invalid { line, .. } | GcodeError::Io { line, .. } => *line,
+        }
+    }
+}
+
+/// Options shared by both readers.
+#[derive(Debug, Clone)]
+pub struct ReadOptions {
+    /// `None`: detect from the text.
+    pub dialect: Option<Dialect>,
+    /// The PMAC variable that drives the shutter (`M33`).
+    pub shutter_var: String,
+    /// The PMAC variable that counts blocks (`P400`); assignments to it are
+    /// bookkeeping, not part of the toolpath.
+    pub line_counter_var: String,
+    /// Where the machine is when the program starts.
+    pub start: P3,
+}
+
+impl Default for ReadOptions {
+    fn default() -> Self {
+        ReadOptions {
+            dialect: None,
+            shutter_var: "M33".into(),
+            line_counter_var: "P400".into(),
+            start: P3::origin(),
+        }
+    }
+}
+
+/// A dialect's interpreter, fed one source line at a time.
+pub trait LineInterpreter {
+    /// Interpret one line (without its newline), pushing any records.
+    fn line(&mut self, text: &str, lineno: u64, out: &mut VecDeque<Record>) -> Result<(), GcodeError>;
+    /// End of input: check the program is complete.
+    fn finish(&mut self, lineno: u64, out: &mut VecDeque<Record>) -> Result<(), GcodeError>;
+    /// True once the program has ended (M2/M30, `%` after a `%`); later
+    /// lines are not read.
+    fn ended(&self) -> bool;
+}
+
+/// Guess the dialect from the first lines of a program: PMAC motion words
+/// or buffer commands mean PMAC, anything else ISO.
+pub fn detect_dialect<'a>(lines: impl IntoIterator<Item = &'a str>) -> Dialect {
+    for l in lines {
+        let code = strip_comments_for_detect(l).to_ascii_uppercase();
+        let code = code.trim();
+        if code.is_empty() {
+            continue;
+        }
+        let compact: String = code.chars().filter(|c| !c.is_whitespace()).collect();
+        const PMAC_WORDS: [&str; 13] = [
+            "OPENPROG", "OPENROT", "LINEAR", "RAPID", "CIRCLE1", "CIRCLE2", "CLOSE", "DWELL", "NORMAL", "ABS(", "INC(",
+            "&1", "DELAY",
+        ];
+        if PMAC_WORDS.iter().any(|w| compact.starts_with(w)) {
+            return Dialect::Pmac;
+        }
+        // A variable assignment such as M33=1 or P400=7 without a leading
+        // '#' is PMAC; ISO parameters are '#'.
+        let b = compact.as_bytes();
+        if b.len() > 2 && matches!(b[0], b'M' | b'P' | b'Q' | b'I') && b[1].is_ascii_digit() {
+            if let Some(eq) = compact.find('=') {
+                if compact[1..eq].chars().all(|c| c.is_ascii_digit()) {
+                    return Dialect::Pmac;
+                }
+            }
+        }
+        if b.first().is_some_and(|c| {
+            matches!(
+                c,
+                b'G' | b'N' | b'%' | b'#' | b'O' | b'T' | b'F' | b'S' | b'X' | b'Y' | b'Z' | b'M'
+            )
+        }) {
+            // ISO-looking line; keep looking only if it could be both
+            // (an X/Y/Z word line appears in PMAC too).
+            if b.first()
+                .is_some_and(|c| matches!(c, b'G' | b'N' | b'%' | b'#' | b'O' | b'T' | b'S'))
+            {
+                return Dialect::Iso;
+            }
+        }
+    }
+    Dialect::Iso
+}
+
+fn strip_comments_for_detect(l: &str) -> &str {
+    let l = l.split(';').next().unwrap_or("");
+    match l.find('(') {
+        Some(0) => "",
+        _ => l,
+    }
+}
+
+/// Build arc data from an in-plane centre, checking that the start and
+/// end lie on the same circle within `tol` (mm) and the radius is not zero.
+pub(crate) fn make_arc(
+    start: &P3,
+    end: &P3,
+    center: P2,
+    ccw: bool,
+    plane: Plane,
+    extra_turns: u32,
+    tol: f64,
+    lineno: u64,
+) -> Result<ArcData, GcodeError> {
+    let s = plane.project(start);
+    let e = plane.project(end);
+    let r0 = (s - center).norm();
+    let r1 = (e - center).norm();
+    if r0 < 1e-12 || r1 < 1e-12 {
+        return Err(GcodeError::at(
+            lineno,
+            "arc of zero radius (the centre is on its start or end point)",
+        ));
+    }
+    if (r0 - r1).abs() > tol {
+        return Err(GcodeError::at(
+            lineno,
+            format!(
+                "arc end is not on the circle: radius to start {r0:.6} mm, to end {r1:.6} mm (difference {:.6} mm)",
+                (r0 - r1).abs()
+            ),
+        ));
+    }
+    Ok(ArcData {
+        center: plane.lift(&center, plane.normal_coord(start)),
+        ccw,
+        plane,
+        extra_turns,
+    })
+}
+
+/// Streaming program reader: yields toolpath records from G-code text.
+pub struct ProgramReader<R> {
+    input: R,
+    interp: Box<dyn LineInterpreter>,
+    dialect: Dialect,
+    /// Lines read ahead for dialect detection, replayed first.
+    replay: VecDeque<String>,
+    pending: VecDeque<Record>,
+    buf: String,
+    lineno: u64,
+    done: bool,
+}
+
+impl<R: BufRead> ProgramReader<R> {
+    pub fn new(mut input: R, opts: &ReadOptions) -> Result<Self, GcodeError> {
+        let mut replay = VecDeque::new();
+        let dialect = match opts.dialect {
+            Some(d) => d,
+            None => {
+                // Look at the first 200 lines, or fewer if the file is short.
+                let mut buf = String::new();
+                for n in 1..=200u64 {
+                    buf.clear();
+                    let k = input
+                        .read_line(&mut buf)
+                        .map_err(|e| GcodeError::Io { line: n, source: e })?;
+                    if k == 0 {
+                        break;
+                    }
+                    replay.push_back(std::mem::take(&mut buf));
+                }
+                detect_dialect(replay.iter().map(|s| s.as_str()))
+            }
+        };
+        let interp: Box<dyn LineInterpreter> = match dialect {
+            Dialect::Iso => Box::new(iso::IsoInterpreter::new(opts)),
+            Dialect::Pmac => Box::new(pmac::PmacInterpreter::new(opts)),
+        };
+        Ok(ProgramReader {
+            input,
+            interp,
+            dialect,
+            replay,
+            pending: VecDeque::new(),
+            buf: String::new(),
+            lineno: 0,
+            done: false,
+        })
+    }
+
+    pub fn dialect(&self) -> Dialect {
+        self.dialect
+    }
+
+    fn fill(&mut self) -> Result<(), GcodeError> {
+        while self.pending.is_empty() && !self.done {
+            if self.interp.ended() {
+                self.done = true;
+                break;
+            }
+            self.lineno += 1;
+            let line = if let Some(l) = self.replay.pop_front() {
+                self.buf = l;
+                true
+            } else {
+                self.buf.clear();
+                let n = self.input.read_line(&mut self.buf).map_err(|e| GcodeError::Io {
+                    line: self.lineno,
+                    source: e,
+                })?;
+                n > 0
+            };
+            if !line {
+                self.done = true;
+                self.interp.finish(self.lineno - 1, &mut self.pending)?;
+                break;
+            }
+            let text = self.buf.trim_end_matches(['\n', '\r']);
+            self.interp.line(text, self.lineno, &mut self.pending)?;
+        }
+        Ok(())
+    }
+}
+
+impl<R: BufRead> Iterator for ProgramReader<R> {
+    type Item = Result<Record, GcodeError>;
+    fn next(&mut self) -> Option<Self::Item> {
+        if let Err(e) = self.fill() {
+            self.done = true;
+            self.pending.clear();
+            return Some(Err(e));
+        }
+        self.pending.pop_front().map(Ok)
+    }
+}
+
+/// Read a whole program from a string (tests, small programs).
+pub fn read_str(text: &str, opts: &ReadOptions) -> Result<(Dialect, Vec<Record>), GcodeError> {
+    let r = ProgramReader::new(text.as_bytes(), opts)?;
+    let d = r.dialect();
+    Ok((d, r.collect::<Result<Vec<_>, _>>()?))
+}

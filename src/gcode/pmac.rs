@@ -1,0 +1,25 @@
+//! Turbo PMAC motion-program text interpreter (being written).
+
+use super::{GcodeError, LineInterpreter, ReadOptions};
+use crate::model::toolpath::Record;
+use std::collections::VecDeque;
+
+pub struct PmacInterpreter {}
+
+impl PmacInterpreter {
+    pub fn new(_opts: &ReadOptions) -> Self {
+        PmacInterpreter {}
+    }
+}
+
+impl LineInterpreter for PmacInterpreter {
+    fn line(&mut self, _text: &str, lineno: u64, _out: &mut VecDeque<Record>) -> Result<(), GcodeError> {
+        Err(GcodeError::at(lineno, "PMAC reading is not available yet"))
+    }
+    fn finish(&mut self, _lineno: u64, _out: &mut VecDeque<Record>) -> Result<(), GcodeError> {
+        Ok(())
+    }
+    fn ended(&self) -> bool {
+        false
+    }
+}

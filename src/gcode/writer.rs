@@ -1,0 +1,1 @@
+//! Toolpath model -> G-code text (being written).

@@ -1,0 +1,83 @@
+//! Geometry kernel: points, planes, tolerances and the exact primitives
+//! (lines, circular and helical arcs) every tool works with.
+//!
+//! Everything is in millimetres and radians. Points are `nalgebra` points so
+//! the usual vector algebra is available; the plane-local helpers here keep
+//! the arc maths in one place so the G-code readers, the writers and the
+//! toolpath generators all agree on what an arc is.
+
+pub mod planar;
+
+use serde::{Deserialize, Serialize};
+
+/// A point in machine space (mm).
+pub type P3 = nalgebra::Point3<f64>;
+/// A vector in machine space (mm).
+pub type V3 = nalgebra::Vector3<f64>;
+/// A point in a plane (mm): the plane's first and second axis.
+pub type P2 = nalgebra::Point2<f64>;
+/// A vector in a plane (mm).
+pub type V2 = nalgebra::Vector2<f64>;
+
+/// Default length tolerance (mm) for "these two points are the same".
+pub const EPS_LEN: f64 = 1e-9;
+
+/// The plane an arc lies in. The arc's sense (`ccw`) is counter-clockwise
+/// seen from the positive end of the plane normal, i.e. a positive rotation
+/// about the normal by the right-hand rule. This is the RS274 convention:
+/// G17 = XY (normal +Z), G18 = ZX (normal +Y), G19 = YZ (normal +X).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum Plane {
+    #[default]
+    Xy,
+    Xz,
+    Yz,
+}
+
+impl Plane {
+    /// Indices (into x, y, z) of the plane's first axis, second axis and normal,
+    /// ordered so that first × second = +normal.
+    pub fn axes(self) -> (usize, usize, usize) {
+        match self {
+            Plane::Xy => (0, 1, 2),
+            Plane::Xz => (2, 0, 1),
+            Plane::Yz => (1, 2, 0),
+        }
+    }
+
+    /// Project a 3-D point onto the plane's (first, second) coordinates.
+    pub fn project(self, p: &P3) -> P2 {
+        let (a, b, _) = self.axes();
+        P2::new(p[a], p[b])
+    }
+
+    /// The coordinate along the plane normal.
+    pub fn normal_coord(self, p: &P3) -> f64 {
+        p[self.axes().2]
+    }
+
+    /// Build a 3-D point from in-plane coordinates and a normal coordinate.
+    pub fn lift(self, q: &P2, normal: f64) -> P3 {
+        let (a, b, n) = self.axes();
+        let mut p = P3::origin();
+        p[a] = q.x;
+        p[b] = q.y;
+        p[n] = normal;
+        p
+    }
+
+    /// The name used in the pipe formats ("xy", "xz", "yz").
+    pub fn name(self) -> &'static str {
+        match self {
+            Plane::Xy => "xy",
+            Plane::Xz => "xz",
+            Plane::Yz => "yz",
+        }
+    }
+}
+
+/// True when two points are within `tol` of each other.
+pub fn same_point(a: &P3, b: &P3, tol: f64) -> bool {
+    (a - b).norm() <= tol
+}

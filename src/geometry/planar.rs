@@ -1,0 +1,95 @@
+//! Plane-local arc helpers shared by the G-code readers and writers.
+
+use super::{P2, V2};
+use std::f64::consts::TAU;
+
+/// Signed sweep angle (radians) of an arc around `center` from `start` to
+/// `end`, positive for counter-clockwise. A start equal to the end (within
+/// `tol` of the radius) is a full turn. `extra_turns` adds whole turns
+/// (RS274 `P` words: P2 is one extra turn).
+pub fn sweep_angle(center: &P2, start: &P2, end: &P2, ccw: bool, extra_turns: u32, tol: f64) -> f64 {
+    let a0 = (start - center).y.atan2((start - center).x);
+    let a1 = (end - center).y.atan2((end - center).x);
+    let r = (start - center).norm();
+    let mut d = a1 - a0;
+    if ccw {
+        while d <= 0.0 {
+            d += TAU;
+        }
+        while d > TAU {
+            d -= TAU;
+        }
+    } else {
+        while d >= 0.0 {
+            d -= TAU;
+        }
+        while d < -TAU {
+            d += TAU;
+        }
+    }
+    // Start and end coincide: a full circle, whatever rounding says.
+    if (end - start).norm() <= tol.max(r * 1e-12) {
+        d = if ccw { TAU } else { -TAU };
+    }
+    let extra = extra_turns as f64 * TAU;
+    if ccw { d + extra } else { d - extra }
+}
+
+/// Centre of the arc of radius `|r|` from `start` to `end`, turning
+/// counter-clockwise when `ccw`. A negative `r` asks for the long way round
+/// (more than half a turn), as in RS274 and PMAC `R` words. `None` when the
+/// chord is longer than the diameter (beyond a relative slack of 1e-9 for
+/// rounding, in which case the centre is the chord midpoint) or zero.
+pub fn center_from_radius(start: &P2, end: &P2, r: f64, ccw: bool) -> Option<P2> {
+    let chord = end - start;
+    let c = chord.norm();
+    let rad = r.abs();
+    if c == 0.0 || rad == 0.0 || !c.is_finite() || !rad.is_finite() {
+        return None;
+    }
+    let half = c / 2.0;
+    let h2 = rad * rad - half * half;
+    let h = if h2 >= 0.0 {
+        h2.sqrt()
+    } else if half - rad <= rad * 1e-9 {
+        0.0
+    } else {
+        return None;
+    };
+    let mid = start + chord / 2.0;
+    // Unit normal to the chord, to the left of start->end.
+    let left = V2::new(-chord.y, chord.x) / c;
+    // A short counter-clockwise arc has its centre on the left of the chord.
+    let short = r > 0.0;
+    let on_left = ccw == short;
+    Some(if on_left { mid + left * h } else { mid - left * h })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::f64::consts::PI;
+
+    #[test]
+    fn quarter_arcs_have_the_right_sweep() {
+        let c = P2::new(0.0, 0.0);
+        let s = P2::new(1.0, 0.0);
+        let e = P2::new(0.0, 1.0);
+        assert!((sweep_angle(&c, &s, &e, true, 0, 1e-9) - PI / 2.0).abs() < 1e-12);
+        assert!((sweep_angle(&c, &s, &e, false, 0, 1e-9) + 1.5 * PI).abs() < 1e-12);
+        assert!((sweep_angle(&c, &s, &s, true, 1, 1e-9) - 2.0 * TAU).abs() < 1e-12);
+    }
+
+    #[test]
+    fn radius_form_picks_short_and_long_arcs() {
+        let s = P2::new(1.0, 0.0);
+        let e = P2::new(0.0, 1.0);
+        let short = center_from_radius(&s, &e, 1.0, true).unwrap();
+        assert!((short - P2::new(0.0, 0.0)).norm() < 1e-12);
+        let long = center_from_radius(&s, &e, -1.0, true).unwrap();
+        assert!((long - P2::new(1.0, 1.0)).norm() < 1e-12);
+        let cw_short = center_from_radius(&s, &e, 1.0, false).unwrap();
+        assert!((cw_short - P2::new(1.0, 1.0)).norm() < 1e-12);
+        assert!(center_from_radius(&s, &e, 0.5, true).is_none());
+    }
+}

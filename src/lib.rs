@@ -1,0 +1,16 @@
+//! microcam: from a DXF drawing to a running program on a precision stage.
+//!
+//! The library holds all the logic; the binaries under `src/bin/` only parse
+//! arguments, call into here and write output.
+//!
+//! - [`geometry`]: points, planes, exact lines and arcs.
+//! - [`model`]: chains and toolpaths in memory.
+//! - [`formats`]: the JSON Lines pipe formats, streaming.
+//! - [`gcode`]: ISO and PMAC G-code, read and written.
+//! - [`cli`]: conventions shared by every binary.
+
+pub mod cli;
+pub mod formats;
+pub mod gcode;
+pub mod geometry;
+pub mod model;

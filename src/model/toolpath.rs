@@ -1,0 +1,193 @@
+//! The toolpath model: an ordered list of records, each a move or a state
+//! change, in absolute millimetre coordinates.
+//!
+//! Every G-code reader produces exactly this model and every G-code writer
+//! serialises exactly this model, so toolpath -> G-code -> toolpath is
+//! lossless within the output precision.
+
+use crate::geometry::{P3, Plane};
+use serde::{Deserialize, Serialize};
+
+/// Why a move is there. Previews colour by it, simulators report by it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Role {
+    Cut,
+    LeadIn,
+    LeadOut,
+    Loop,
+    Link,
+    Plunge,
+    Retract,
+}
+
+impl Role {
+    pub const ALL: [Role; 7] = [
+        Role::Cut,
+        Role::LeadIn,
+        Role::LeadOut,
+        Role::Loop,
+        Role::Link,
+        Role::Plunge,
+        Role::Retract,
+    ];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Role::Cut => "cut",
+            Role::LeadIn => "lead_in",
+            Role::LeadOut => "lead_out",
+            Role::Loop => "loop",
+            Role::Link => "link",
+            Role::Plunge => "plunge",
+            Role::Retract => "retract",
+        }
+    }
+
+    pub fn from_name(s: &str) -> Option<Role> {
+        Role::ALL.into_iter().find(|r| r.name() == s)
+    }
+}
+
+/// The unit of every `feed` in a toolpath, named in its header.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
+pub enum FeedUnit {
+    /// Millimetres per second: PMAC programs (F per Isx90 = 1000 ms).
+    #[default]
+    MmPerS,
+    /// Millimetres per minute: ISO/RS274 programs in G94 mode.
+    MmPerMin,
+}
+
+impl FeedUnit {
+    pub fn name(self) -> &'static str {
+        match self {
+            FeedUnit::MmPerS => "mm/s",
+            FeedUnit::MmPerMin => "mm/min",
+        }
+    }
+
+    pub fn from_name(s: &str) -> Option<FeedUnit> {
+        match s {
+            "mm/s" => Some(FeedUnit::MmPerS),
+            "mm/min" => Some(FeedUnit::MmPerMin),
+            _ => None,
+        }
+    }
+
+    /// Factor that turns a feed in this unit into mm/s.
+    pub fn to_mm_per_s(self) -> f64 {
+        match self {
+            FeedUnit::MmPerS => 1.0,
+            FeedUnit::MmPerMin => 1.0 / 60.0,
+        }
+    }
+
+    /// Convert `feed` given in `self` into `other`.
+    pub fn convert(self, feed: f64, other: FeedUnit) -> f64 {
+        if self == other {
+            feed
+        } else {
+            feed * self.to_mm_per_s() / other.to_mm_per_s()
+        }
+    }
+}
+
+/// The header record of a toolpath stream.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Header {
+    pub feed_unit: FeedUnit,
+    /// Where the toolpath came from (a file name), if known.
+    pub source: Option<String>,
+}
+
+/// Arc data of an arc move: the centre, the sense, the plane and whole
+/// extra turns. The centre lies in the plane of the arc's start point.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ArcData {
+    pub center: P3,
+    /// Counter-clockwise about the plane normal (see [`Plane`]).
+    pub ccw: bool,
+    pub plane: Plane,
+    /// Whole turns added to the sweep (RS274 `P2` = 1 extra turn).
+    pub extra_turns: u32,
+}
+
+/// What kind of motion a [`Motion`] is.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum MotionKind {
+    /// Positioning at the machine's rapid speed (G0, RAPID).
+    Rapid,
+    /// Straight feed move (G1, LINEAR).
+    Line,
+    /// Circular or helical feed move (G2/G3, CIRCLE1/CIRCLE2).
+    Arc(ArcData),
+}
+
+/// One motion to an absolute end point.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Motion {
+    pub kind: MotionKind,
+    pub to: P3,
+    /// Commanded feed in the header's unit; `None` for rapids.
+    pub feed: Option<f64>,
+    /// Commanded beam / shutter / cutting state during the move.
+    pub beam: bool,
+    pub role: Option<Role>,
+    /// Source chain id, when generated from chains.
+    pub chain: Option<u64>,
+    /// Source line number (1-based) when read from G-code.
+    pub block: Option<u64>,
+}
+
+/// One toolpath record after the header.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Record {
+    Move(Motion),
+    /// Wait in place (G4, DWELL). Stops PMAC look-ahead.
+    Dwell {
+        seconds: f64,
+        block: Option<u64>,
+    },
+    /// Spindle speed change (S word), revolutions per minute.
+    Spindle {
+        rpm: f64,
+        block: Option<u64>,
+    },
+    /// Acceleration and S-curve times (PMAC TA, TS), milliseconds.
+    Accel {
+        ta_ms: Option<f64>,
+        ts_ms: Option<f64>,
+        block: Option<u64>,
+    },
+    /// A controller variable assignment that is not the shutter or the line
+    /// counter (those are modelled by `beam` and by block order).
+    /// `sync` is PMAC's `==`: executed with the next move, not ahead of it.
+    Var {
+        name: String,
+        value: f64,
+        sync: bool,
+        block: Option<u64>,
+    },
+}
+
+impl Record {
+    /// The end point of a motion record.
+    pub fn motion(&self) -> Option<&Motion> {
+        match self {
+            Record::Move(m) => Some(m),
+            _ => None,
+        }
+    }
+
+    /// Source line number, if any.
+    pub fn block(&self) -> Option<u64> {
+        match self {
+            Record::Move(m) => m.block,
+            Record::Dwell { block, .. }
+            | Record::Spindle { block, .. }
+            | Record::Accel { block, .. }
+            | Record::Var { block, .. } => *block,
+        }
+    }
+}
