@@ -286,10 +286,11 @@ impl IsoInterpreter {
     ) -> Result<Option<(usize, OKeyword)>, GcodeError> {
         for (k, (ln, text)) in lines.iter().enumerate().skip(from + 1) {
             self.normalise(text, *ln)?;
-            if let Some(ol) = self.oline(*ln)? {
-                if ol.label == label && keywords.contains(&ol.keyword) {
-                    return Ok(Some((k, ol.keyword)));
-                }
+            if let Some(ol) = self.oline(*ln)?
+                && ol.label == label
+                && keywords.contains(&ol.keyword)
+            {
+                return Ok(Some((k, ol.keyword)));
             }
         }
         Ok(None)
@@ -1021,25 +1022,25 @@ impl LineInterpreter for IsoInterpreter {
         if self.norm.is_empty() {
             return Ok(());
         }
-        if self.norm[0] != b'%' {
-            if let Some(ol) = self.oline(lineno)? {
-                self.any_code_seen = true;
-                return match ol.keyword {
-                    OKeyword::Call => self.call(&ol, lineno, out, 0),
-                    kw if closer_of(kw).is_some() => {
-                        self.capture = Some(Capture {
-                            label: ol.label,
-                            opener: kw,
-                            lines: vec![(lineno, text.to_string())],
-                        });
-                        Ok(())
-                    }
-                    kw => Err(GcodeError::at(
-                        lineno,
-                        format!("o{} {kw:?} without its opening line", label_text(&ol.label)).to_lowercase(),
-                    )),
-                };
-            }
+        if self.norm[0] != b'%'
+            && let Some(ol) = self.oline(lineno)?
+        {
+            self.any_code_seen = true;
+            return match ol.keyword {
+                OKeyword::Call => self.call(&ol, lineno, out, 0),
+                kw if closer_of(kw).is_some() => {
+                    self.capture = Some(Capture {
+                        label: ol.label,
+                        opener: kw,
+                        lines: vec![(lineno, text.to_string())],
+                    });
+                    Ok(())
+                }
+                kw => Err(GcodeError::at(
+                    lineno,
+                    format!("o{} {kw:?} without its opening line", label_text(&ol.label)).to_lowercase(),
+                )),
+            };
         }
         if self.norm[0] == b'%' {
             // A '%' before any code opens the program; one after code ends it.
