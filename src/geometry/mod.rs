@@ -6,7 +6,16 @@
 //! the arc maths in one place so the G-code readers, the writers and the
 //! toolpath generators all agree on what an arc is.
 
+pub mod arc;
+pub mod bbox;
+pub mod bulge;
+pub mod line;
 pub mod planar;
+pub mod tol;
+
+pub use arc::Arc3;
+pub use bbox::BBox3;
+pub use line::Line3;
 
 use serde::{Deserialize, Serialize};
 
