@@ -9,6 +9,7 @@
 pub mod arc;
 pub mod bbox;
 pub mod bulge;
+pub mod intersect;
 pub mod line;
 pub mod planar;
 pub mod tol;
