@@ -14,6 +14,10 @@
 //! point lies within `tol` of both primitives. Arcs are treated as circles of
 //! their start radius; an arc of more than one turn is met on its first
 //! pass, and its parameters refer to that pass.
+//!
+//! The tolerance is never taken below the rounding noise of the input
+//! (1e-12 of the largest coordinate or radius), so `tol = 0` means "as exact
+//! as floating point allows": two arcs built on the same circle still overlap.
 
 use super::arc::Arc3;
 use super::line::Line3;
@@ -262,6 +266,27 @@ impl Shape {
     }
 }
 
+/// Relative size of floating-point noise in the closed forms below.
+const NOISE: f64 = 1e-12;
+
+/// `tol` raised to the rounding noise of coordinates of magnitude `scale`.
+fn effective_tol(tol: f64, scale: impl IntoIterator<Item = f64>) -> f64 {
+    let m = scale.into_iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    tol.max(NOISE * m)
+}
+
+impl Seg {
+    fn scale(&self) -> [f64; 4] {
+        [self.p.x, self.p.y, self.q.x, self.q.y]
+    }
+}
+
+impl Circ {
+    fn scale(&self) -> [f64; 3] {
+        [self.c.x.abs() + self.r, self.c.y.abs() + self.r, self.r]
+    }
+}
+
 fn mid(a: &P2, b: &P2) -> P2 {
     nalgebra::center(a, b)
 }
@@ -316,6 +341,7 @@ pub fn line_line(a: &Line3, b: &Line3, tol: f64) -> Option<Vec<Intersection>> {
     if !valid_tol(tol) {
         return None;
     }
+    let tol = effective_tol(tol, sa.scale().into_iter().chain(sb.scale()));
     let mut out = Vec::new();
     let (la, lb) = (sa.len(), sb.len());
     if la > tol && lb > tol {
@@ -373,6 +399,7 @@ pub fn line_arc(a: &Line3, b: &Arc3, tol: f64) -> Option<Vec<Intersection>> {
     if !valid_tol(tol) {
         return None;
     }
+    let tol = effective_tol(tol, sa.scale().into_iter().chain(cb.scale()));
     let mut out = Vec::new();
     let la = sa.len();
     if la > tol && cb.r > tol {
@@ -426,6 +453,7 @@ pub fn arc_arc(a: &Arc3, b: &Arc3, tol: f64) -> Option<Vec<Intersection>> {
     if !valid_tol(tol) {
         return None;
     }
+    let tol = effective_tol(tol, ca.scale().into_iter().chain(cb.scale()));
     let mut out = Vec::new();
     if ca.r > tol && cb.r > tol {
         let d = (cb.c - ca.c).norm();
