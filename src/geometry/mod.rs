@@ -12,6 +12,8 @@ pub mod bulge;
 pub mod intersect;
 pub mod line;
 pub mod planar;
+#[cfg(test)]
+mod proptests;
 pub mod tol;
 
 pub use arc::Arc3;
