@@ -15,7 +15,7 @@
 
 use super::bbox::BBox3;
 use super::planar::sweep_angle;
-use super::tol::{finite_p2, finite_p3, normalize_angle};
+use super::tol::{finite_p3, normalize_angle, positive_finite};
 use super::{EPS_LEN, P2, P3, Plane, V2, V3};
 use std::f64::consts::{FRAC_PI_2, TAU};
 
@@ -144,7 +144,7 @@ impl Arc3 {
     /// zero length.
     pub fn point_at_length(&self, s: f64) -> Option<P3> {
         let len = self.length();
-        if len > 0.0 && len.is_finite() {
+        if positive_finite(len) {
             Some(self.point_at(s / len))
         } else {
             None
@@ -163,14 +163,14 @@ impl Arc3 {
         let d2 = V2::new(cos, sin) * (r1 - r0) + V2::new(-sin, cos) * (r * sw);
         let d = self.plane.lift(&P2::from(d2), self.rise()).coords;
         let n = d.norm();
-        if n > 0.0 && n.is_finite() { Some(d / n) } else { None }
+        if positive_finite(n) { Some(d / n) } else { None }
     }
 
     /// For an in-plane direction angle `phi`, the parameters of the first
     /// and the last time the arc passes that direction, if it does.
     fn passes(&self, phi: f64) -> Option<(f64, f64)> {
         let sw = self.sweep().abs();
-        if !(sw > 0.0) || !sw.is_finite() {
+        if !positive_finite(sw) {
             return None;
         }
         let a0 = self.start_angle();
@@ -179,7 +179,7 @@ impl Arc3 {
         } else {
             normalize_angle(a0 - phi)
         };
-        if !(first <= sw) {
+        if first.is_nan() || first > sw {
             return None;
         }
         let last = first + ((sw - first) / TAU).floor() * TAU;
@@ -213,11 +213,9 @@ impl Arc3 {
         let c = self.c2();
         let mut candidates = vec![0.0, 1.0];
         let v = q - c;
-        if v.norm() > 0.0 {
-            if let Some((t0, t1)) = self.passes(v.y.atan2(v.x)) {
-                candidates.push(t0);
-                candidates.push(t1);
-            }
+        if let Some((t0, t1)) = self.passes(v.y.atan2(v.x)).filter(|_| v.norm() > 0.0) {
+            candidates.push(t0);
+            candidates.push(t1);
         }
         candidates
             .into_iter()
@@ -251,15 +249,16 @@ impl Arc3 {
     /// projected points are collinear (sine of the angle at `a` below 1e-12)
     /// or two coincide, or any coordinate is not finite.
     pub fn from_three_points(a: &P3, b: &P3, c: &P3, plane: Plane) -> Option<Arc3> {
-        let (pa, pb, pc) = (plane.project(a), plane.project(b), plane.project(c));
-        if !(finite_p2(&pa) && finite_p2(&pb) && finite_p2(&pc)) || !plane.normal_coord(c).is_finite() {
+        if ![a, b, c].into_iter().all(finite_p3) {
             return None;
         }
+        let (pa, pb, pc) = (plane.project(a), plane.project(b), plane.project(c));
         let ab = pb - pa;
         let ac = pc - pa;
         let cross = ab.perp(&ac);
         let (lab2, lac2) = (ab.norm_squared(), ac.norm_squared());
-        if !(cross.abs() > 1e-12 * (lab2 * lac2).sqrt()) {
+        let limit = 1e-12 * (lab2 * lac2).sqrt();
+        if !positive_finite(cross.abs()) || limit.is_nan() || cross.abs() <= limit {
             return None;
         }
         let d = 2.0 * cross;
@@ -274,7 +273,7 @@ impl Arc3 {
         let mut arc = Arc3::new(center, start, end, ccw, plane, 0)?;
         let base = arc.sweep().abs();
         let turns = ((abs_sweep - base) / TAU).round();
-        if !(turns >= 0.0 && turns <= u32::MAX as f64) {
+        if !(0.0..=u32::MAX as f64).contains(&turns) {
             return None;
         }
         arc.extra_turns = turns as u32;
@@ -291,7 +290,8 @@ impl Arc3 {
         }
         let sw = self.sweep().abs();
         let r = self.radius().min(self.end_radius());
-        if !(r * sw * t.min(1.0 - t) > 16.0 * EPS_LEN) {
+        let shorter_piece = r * sw * t.min(1.0 - t);
+        if shorter_piece.is_nan() || shorter_piece <= 16.0 * EPS_LEN {
             return None;
         }
         let m = self.point_at(t);

@@ -22,7 +22,7 @@ pub fn arc_from_bulge(start: &P3, end: &P3, bulge: f64) -> Option<Arc3> {
     let e = P2::new(end.x, end.y);
     let chord = e - s;
     let c = chord.norm();
-    if !(c > EPS_LEN) {
+    if c.is_nan() || c <= EPS_LEN {
         return None;
     }
     // Distance from the chord midpoint to the centre, positive to the left of
@@ -49,7 +49,7 @@ pub fn bulge_of(arc: &Arc3) -> Option<f64> {
         return None;
     }
     let sweep = arc.sweep();
-    if !(sweep.abs() < std::f64::consts::TAU) {
+    if sweep.is_nan() || sweep.abs() >= std::f64::consts::TAU {
         return None;
     }
     Some((sweep / 4.0).tan())

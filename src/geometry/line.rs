@@ -5,6 +5,7 @@
 //! in arc length, so `point_at(t)` and `point_at_length(s)` agree.
 
 use super::bbox::BBox3;
+use super::tol::positive_finite;
 use super::{P3, V3};
 
 /// A straight segment from `start` to `end`. A zero-length segment is
@@ -36,7 +37,8 @@ impl Line3 {
     /// True when the segment is shorter than `tol` (a point, for all purposes).
     /// NaN coordinates count as degenerate.
     pub fn is_degenerate(&self, tol: f64) -> bool {
-        !(self.length() > tol)
+        let len = self.length();
+        len.is_nan() || tol.is_nan() || len <= tol
     }
 
     /// The point at parameter `t` (0 = start, 1 = end). `t` outside [0, 1]
@@ -55,7 +57,7 @@ impl Line3 {
     /// zero-length segment (no direction to walk).
     pub fn point_at_length(&self, s: f64) -> Option<P3> {
         let len = self.length();
-        if len > 0.0 && len.is_finite() {
+        if positive_finite(len) {
             Some(self.point_at(s / len))
         } else {
             None
@@ -65,7 +67,7 @@ impl Line3 {
     /// Unit direction of travel; `None` when the segment has no length.
     pub fn tangent(&self) -> Option<V3> {
         let len = self.length();
-        if len > 0.0 && len.is_finite() {
+        if positive_finite(len) {
             Some(self.delta() / len)
         } else {
             None
@@ -82,7 +84,7 @@ impl Line3 {
     pub fn closest_point(&self, p: &P3) -> (P3, f64) {
         let d = self.delta();
         let l2 = d.norm_squared();
-        if !(l2 > 0.0) || !l2.is_finite() {
+        if !positive_finite(l2) {
             return (self.start, 0.0);
         }
         let t = ((p - self.start).dot(&d) / l2).clamp(0.0, 1.0);

@@ -59,6 +59,12 @@ pub fn finite_p2(p: &P2) -> bool {
     p.iter().all(|c| c.is_finite())
 }
 
+/// True when `x` is a finite number above zero: the test every length or
+/// sweep must pass before it is divided by. NaN answers `false`.
+pub fn positive_finite(x: f64) -> bool {
+    x.is_finite() && x > 0.0
+}
+
 /// True when `tol` is usable as a tolerance: finite and not negative.
 pub fn valid_tol(tol: f64) -> bool {
     tol.is_finite() && tol >= 0.0
@@ -101,6 +107,10 @@ mod tests {
         assert!(finite_p3(&P3::new(1.0, 2.0, 3.0)));
         assert!(!finite_p3(&P3::new(1.0, f64::NAN, 3.0)));
         assert!(!finite_p2(&P2::new(f64::INFINITY, 0.0)));
+        assert!(positive_finite(1e-300));
+        assert!(!positive_finite(0.0));
+        assert!(!positive_finite(f64::NAN));
+        assert!(!positive_finite(f64::INFINITY));
         assert!(valid_tol(0.0));
         assert!(!valid_tol(-1e-9));
         assert!(!valid_tol(f64::NAN));
