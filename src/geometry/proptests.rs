@@ -347,3 +347,49 @@ proptest! {
             "sampled {sampled}, reported {reported}: {hits:?}");
     }
 }
+
+/// Any f64 at all, weighted towards the values that break geometry code.
+fn wild() -> impl Strategy<Value = f64> {
+    prop_oneof![
+        Just(0.0),
+        Just(f64::NAN),
+        Just(f64::INFINITY),
+        Just(f64::NEG_INFINITY),
+        Just(f64::MAX),
+        Just(f64::MIN_POSITIVE),
+        -2.0..2.0f64,
+        any::<f64>(),
+    ]
+}
+
+fn wild_p3() -> impl Strategy<Value = P3> {
+    (wild(), wild(), wild()).prop_map(|(x, y, z)| P3::new(x, y, z))
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(512))]
+
+    /// Garbage in (NaN, infinities, zero radius, coincident points) must give
+    /// `None`, NaN or an answer, never a panic or a hang.
+    #[test]
+    fn nothing_panics(
+        c in wild_p3(), s in wild_p3(), e in wild_p3(), q in wild_p3(),
+        ccw in any::<bool>(), pl in plane(), extra in prop_oneof![Just(0u32), Just(u32::MAX), 0..5u32],
+        t in wild(), tol in wild(), bulge in wild(),
+    ) {
+        let arc = Arc3 { center: c, start: s, end: e, ccw, plane: pl, extra_turns: extra };
+        let _ = (arc.radius(), arc.sweep(), arc.length(), arc.point_at(t), arc.tangent_at(t), arc.bbox());
+        let _ = (arc.closest_point(&q), arc.reversed(), arc.split_at(t), arc.point_at_length(t));
+        let _ = Arc3::new(c, s, e, ccw, pl, extra);
+        let _ = Arc3::from_three_points(&c, &s, &e, pl);
+        let _ = (arc_from_bulge(&s, &e, bulge), bulge_of(&arc));
+        let line = Line3::new(s, e);
+        let other = Line3::new(c, q);
+        let _ = (line.closest_point(&q), line.tangent(), line.split_at(t), line.bbox());
+        let xy_arc = Arc3 { plane: Plane::Xy, ..arc };
+        let _ = (line_line(&line, &other, tol), line_arc(&line, &xy_arc, tol), arc_arc(&xy_arc, &xy_arc.reversed(), tol));
+        if let Some(a) = Arc3::new(c, s, e, ccw, Plane::Xy, 0) {
+            let _ = (arc_arc(&a, &a, tol.abs()), line_arc(&other, &a, tol.abs()));
+        }
+    }
+}
