@@ -31,14 +31,23 @@
 //!
 //! # Buffers
 //!
-//! A file with no buffer command is a bare motion program: all of it is
-//! interpreted. Once a buffer command appears (`OPEN`, `CLOSE`, `DELETE`,
-//! `DEFINE`), text outside `OPEN PROG`/`OPEN ROT` ... `CLOSE` is on-line
-//! commands sent at download time (`&1B1R`, `I5=2`, `DELETE GATHER`): it is
-//! ignored, except that an `OPEN` in it is found. Several program buffers are
-//! read in file order, as one toolpath. PLC and kinematic buffers (`OPEN PLC`,
-//! `OPEN FORWARD`, ...) are skipped. `RETURN` ends the program: the rest of
-//! the buffer (subroutines reachable only by `GOSUB`) is skipped.
+//! Until the first `OPEN` the file is read as a bare motion program (a file
+//! with no `OPEN` at all is interpreted whole); the download preamble
+//! `CLOSE`, `DELETE GATHER`, `DEFINE ROT n` does nothing there, and text from
+//! an `&` or `#` on (on-line addressing such as `&1B1R`) is skipped. After a
+//! `CLOSE` that ends a buffer, text up to the next `OPEN` is on-line commands
+//! sent at download time (`&1B1R`, `I5=2`): it is ignored, except that a
+//! move-mode word there (`LINEAR`, `RAPID`, `CIRCLE`) is an error, since it
+//! would not be part of the program. Several program buffers (`OPEN PROG`,
+//! `OPEN ROT`) are read in file order as one toolpath; PLC and kinematic
+//! buffers (`OPEN PLC`, `OPEN FORWARD`, ...) are skipped. `RETURN` ends the
+//! program: the rest of its buffer (subroutines reachable only by `GOSUB`) is
+//! skipped. A buffer left open at the end of the file is an error.
+//!
+//! Words on a move's line: `F`, `TA` and `TS` anywhere on the line apply to
+//! that move (as the generated programs assume: `LINEAR X1 Y2 F2`); any other
+//! command after the axis words ends the move first, so `X1 M33=1` moves with
+//! the shutter as it was and opens it afterwards.
 //!
 //! # Deliberate errors
 //!
@@ -206,83 +215,94 @@ enum Kw {
     Unsupported,
 }
 
-/// Program words, with PMAC's short forms. A letter run is matched by its
-/// longest keyword prefix, so `LINEARX1` reads as `LINEAR X1`.
-const KEYWORDS: &[(&str, Kw)] = &[
-    ("LINEAR", Kw::Linear),
-    ("LIN", Kw::Linear),
-    ("RAPID", Kw::Rapid),
-    ("RPD", Kw::Rapid),
-    ("CIRCLE", Kw::Circle),
-    ("CIR", Kw::Circle),
-    ("ABS", Kw::Abs),
-    ("INC", Kw::Inc),
-    ("NORMAL", Kw::Normal),
-    ("NRM", Kw::Normal),
-    ("DWELL", Kw::Dwell),
-    ("DWE", Kw::Dwell),
-    ("DELAY", Kw::Delay),
-    ("DLY", Kw::Delay),
-    ("TA", Kw::Ta),
-    ("TS", Kw::Ts),
-    ("TM", Kw::Tm),
-    ("OPEN", Kw::Open),
-    ("CLOSE", Kw::Close),
-    ("CLEAR", Kw::Clear),
-    ("DELETE", Kw::Delete),
-    ("DEL", Kw::Delete),
-    ("DEFINE", Kw::Define),
-    ("DEF", Kw::Define),
-    ("RETURN", Kw::Return),
-    ("RET", Kw::Return),
-    ("GOTO", Kw::Flow),
-    ("GOSUB", Kw::Flow),
-    ("CALL", Kw::Flow),
-    ("IF", Kw::Flow),
-    ("WHILE", Kw::Flow),
-    ("ELSE", Kw::Flow),
-    ("ENDIF", Kw::Flow),
-    ("ENDI", Kw::Flow),
-    ("ENDWHILE", Kw::Flow),
-    ("ENDW", Kw::Flow),
-    ("STOP", Kw::Flow),
-    ("WAIT", Kw::Flow),
-    ("PVT", Kw::Unsupported),
-    ("SPLINE", Kw::Unsupported),
-    ("HOME", Kw::Unsupported),
-    ("HOMEZ", Kw::Unsupported),
-    ("PSET", Kw::Unsupported),
-    ("CC", Kw::Unsupported),
-    ("FRAX", Kw::Unsupported),
-    ("BLOCKSTART", Kw::Unsupported),
-    ("BSTART", Kw::Unsupported),
-    ("BLOCKSTOP", Kw::Unsupported),
-    ("BSTOP", Kw::Unsupported),
-    ("ADDRESS", Kw::Unsupported),
-    ("ADR", Kw::Unsupported),
-    ("COMMAND", Kw::Unsupported),
-    ("CMD", Kw::Unsupported),
-    ("SEND", Kw::Unsupported),
-    ("DISPLAY", Kw::Unsupported),
-    ("DISP", Kw::Unsupported),
-    ("ENABLE", Kw::Unsupported),
-    ("ENA", Kw::Unsupported),
-    ("DISABLE", Kw::Unsupported),
-    ("DIS", Kw::Unsupported),
-    ("PRELUDE", Kw::Unsupported),
-    ("LOCK", Kw::Unsupported),
-    ("UNLOCK", Kw::Unsupported),
-    ("READ", Kw::Unsupported),
-    ("TSELECT", Kw::Unsupported),
-    ("TSEL", Kw::Unsupported),
-    ("TINIT", Kw::Unsupported),
-    ("PAUSE", Kw::Unsupported),
-];
+/// Program words with PMAC's short forms, grouped by first letter so a
+/// lookup compares a handful of candidates, not the whole vocabulary.
+fn keywords_for(first: u8) -> &'static [(&'static str, Kw)] {
+    match first.to_ascii_uppercase() {
+        b'A' => &[("ABS", Kw::Abs), ("ADDRESS", Kw::Unsupported), ("ADR", Kw::Unsupported)],
+        b'B' => &[
+            ("BLOCKSTART", Kw::Unsupported),
+            ("BSTART", Kw::Unsupported),
+            ("BLOCKSTOP", Kw::Unsupported),
+            ("BSTOP", Kw::Unsupported),
+        ],
+        b'C' => &[
+            ("CIRCLE", Kw::Circle),
+            ("CIR", Kw::Circle),
+            ("CLOSE", Kw::Close),
+            ("CLEAR", Kw::Clear),
+            ("CALL", Kw::Flow),
+            ("CC", Kw::Unsupported),
+            ("COMMAND", Kw::Unsupported),
+            ("CMD", Kw::Unsupported),
+        ],
+        b'D' => &[
+            ("DWELL", Kw::Dwell),
+            ("DWE", Kw::Dwell),
+            ("DELAY", Kw::Delay),
+            ("DLY", Kw::Delay),
+            ("DELETE", Kw::Delete),
+            ("DEL", Kw::Delete),
+            ("DEFINE", Kw::Define),
+            ("DEF", Kw::Define),
+            ("DISPLAY", Kw::Unsupported),
+            ("DISP", Kw::Unsupported),
+            ("DISABLE", Kw::Unsupported),
+            ("DIS", Kw::Unsupported),
+        ],
+        b'E' => &[
+            ("ELSE", Kw::Flow),
+            ("ENDIF", Kw::Flow),
+            ("ENDI", Kw::Flow),
+            ("ENDWHILE", Kw::Flow),
+            ("ENDW", Kw::Flow),
+            ("ENABLE", Kw::Unsupported),
+            ("ENA", Kw::Unsupported),
+        ],
+        b'F' => &[("FRAX", Kw::Unsupported)],
+        b'G' => &[("GOTO", Kw::Flow), ("GOSUB", Kw::Flow)],
+        b'H' => &[("HOME", Kw::Unsupported), ("HOMEZ", Kw::Unsupported)],
+        b'I' => &[("INC", Kw::Inc), ("IF", Kw::Flow)],
+        b'L' => &[("LINEAR", Kw::Linear), ("LIN", Kw::Linear), ("LOCK", Kw::Unsupported)],
+        b'N' => &[("NORMAL", Kw::Normal), ("NRM", Kw::Normal)],
+        b'O' => &[("OPEN", Kw::Open)],
+        b'P' => &[
+            ("PVT", Kw::Unsupported),
+            ("PSET", Kw::Unsupported),
+            ("PRELUDE", Kw::Unsupported),
+            ("PAUSE", Kw::Unsupported),
+        ],
+        b'R' => &[
+            ("RAPID", Kw::Rapid),
+            ("RPD", Kw::Rapid),
+            ("RETURN", Kw::Return),
+            ("RET", Kw::Return),
+            ("READ", Kw::Unsupported),
+        ],
+        b'S' => &[
+            ("STOP", Kw::Flow),
+            ("SPLINE", Kw::Unsupported),
+            ("SEND", Kw::Unsupported),
+        ],
+        b'T' => &[
+            ("TA", Kw::Ta),
+            ("TS", Kw::Ts),
+            ("TM", Kw::Tm),
+            ("TSELECT", Kw::Unsupported),
+            ("TSEL", Kw::Unsupported),
+            ("TINIT", Kw::Unsupported),
+        ],
+        b'U' => &[("UNLOCK", Kw::Unsupported)],
+        b'W' => &[("WHILE", Kw::Flow), ("WAIT", Kw::Flow)],
+        _ => &[],
+    }
+}
 
-/// The longest keyword that starts the letter run `w`.
+/// The longest keyword that starts the letter run `w`, so that `LINEARX1`
+/// reads as `LINEAR X1` and `DELAY` is not `DEL` + `AY`.
 fn match_keyword(w: &[u8]) -> Option<(&'static str, Kw)> {
     let mut best: Option<(&'static str, Kw)> = None;
-    for &(name, kw) in KEYWORDS {
+    for &(name, kw) in keywords_for(*w.first()?) {
         let n = name.as_bytes();
         if w.get(..n.len()).is_some_and(|p| p.eq_ignore_ascii_case(n)) && best.is_none_or(|(b, _)| b.len() < n.len()) {
             best = Some((name, kw));
@@ -438,9 +458,10 @@ impl<'a> Cursor<'a> {
     }
 }
 
-/// Start of the first letter run at or after `from` that begins with `word`
-/// (upper case), outside `;` comments and `"` strings.
-fn find_word(b: &[u8], from: usize, word: &[u8]) -> Option<usize> {
+/// The first letter run at or after `from` that begins with one of `words`
+/// (upper case), outside `;` comments and `"` strings: its start and which
+/// word it is.
+fn find_word(b: &[u8], from: usize, words: &[&str]) -> Option<(usize, usize)> {
     let mut i = from;
     let mut quoted = false;
     while let Some(&c) = b.get(i) {
@@ -460,10 +481,12 @@ fn find_word(b: &[u8], from: usize, word: &[u8]) -> Option<usize> {
                 while b.get(i).is_some_and(u8::is_ascii_alphabetic) {
                     i += 1;
                 }
-                if b.get(start..start + word.len())
-                    .is_some_and(|w| w.eq_ignore_ascii_case(word))
+                let run = b.get(start..i).unwrap_or(&[]);
+                if let Some(k) = words
+                    .iter()
+                    .position(|w| run.get(..w.len()).is_some_and(|p| p.eq_ignore_ascii_case(w.as_bytes())))
                 {
-                    return Some(start);
+                    return Some((start, k));
                 }
             }
             _ => i += 1,
@@ -471,6 +494,12 @@ fn find_word(b: &[u8], from: usize, word: &[u8]) -> Option<usize> {
     }
     None
 }
+
+/// Words looked for between buffers: OPEN starts the next buffer; a move
+/// mode word there means program text outside its buffer (a CLOSE too
+/// early). Other on-line text (`&1B1R`, `#1->1000X`, `I5=2`) is sent at
+/// download time and ignored.
+const OUTSIDE_WORDS: &[&str] = &["OPEN", "LINEAR", "RAPID", "CIRCLE"];
 
 /// PMAC bit-by-bit operators work on the integer and fractional bits of
 /// their operands; 32 fractional bits in an `i128` reproduce that for any
@@ -569,12 +598,22 @@ impl PmacInterpreter {
     fn run(&mut self, cur: &mut Cursor, lineno: u64, out: &mut VecDeque<Record>) -> Result<(), GcodeError> {
         loop {
             match self.buffer {
-                Buffer::Outside => match find_word(cur.b, cur.i, b"OPEN") {
-                    Some(p) => cur.i = p,
+                Buffer::Outside => match find_word(cur.b, cur.i, OUTSIDE_WORDS) {
+                    Some((p, 0)) => cur.i = p,
+                    Some((p, _)) => {
+                        return Err(GcodeError::at(
+                            lineno,
+                            format!(
+                                "'{}' after CLOSE and before the next OPEN: motion outside a program buffer \
+                                 is not part of the program",
+                                cur.snippet(p)
+                            ),
+                        ));
+                    }
                     None => break,
                 },
-                Buffer::Skip => match find_word(cur.b, cur.i, b"CLOSE") {
-                    Some(p) => {
+                Buffer::Skip => match find_word(cur.b, cur.i, &["CLOSE"]) {
+                    Some((p, _)) => {
                         cur.i = p + 5;
                         self.buffer = Buffer::Outside;
                         continue;
@@ -757,8 +796,13 @@ impl PmacInterpreter {
             b'A' | b'B' | b'C' | b'U' | b'V' | b'W' => Err(GcodeError::at(
                 lineno,
                 format!(
-                    "axis {} is not supported (the toolpath has X, Y and Z only)",
-                    letter as char
+                    "axis {} is not supported (the toolpath has X, Y and Z only){}",
+                    letter as char,
+                    if letter == b'B' && self.buffer == Buffer::Bare {
+                        "; an on-line B{n} (point to a program) belongs after CLOSE"
+                    } else {
+                        ""
+                    }
                 ),
             )),
             _ => Err(GcodeError::at(lineno, format!("unknown word '{}'", cur.snippet(start)))),
@@ -838,7 +882,13 @@ impl PmacInterpreter {
                 );
             }
             Kw::Open => self.open(cur, lineno)?,
-            Kw::Close => self.buffer = Buffer::Outside,
+            Kw::Close => {
+                // CLOSE before any OPEN is the safe download preamble: the
+                // file may still be a bare program, so stay in it.
+                if self.buffer != Buffer::Bare {
+                    self.buffer = Buffer::Outside;
+                }
+            }
             Kw::Clear => {
                 if self.buffer_has_records {
                     return Err(GcodeError::at(
@@ -857,9 +907,6 @@ impl PmacInterpreter {
                     .is_some_and(|c| is_ws(c) || c.is_ascii_digit() || c == b',' || c == b'.')
                 {
                     cur.i += 1;
-                }
-                if self.buffer == Buffer::Bare {
-                    self.buffer = Buffer::Outside;
                 }
             }
             Kw::Return => {
@@ -1422,15 +1469,24 @@ impl PmacInterpreter {
                         "R cannot describe a full circle (end = start); give the centre with I/J/K",
                     ));
                 }
-                center_from_radius(&s, &e, r, ccw).ok_or_else(|| {
-                    GcodeError::at(
-                        lineno,
-                        format!(
-                            "radius R{r} cannot reach the end: the chord is {:.6} mm long",
-                            (e - s).norm()
-                        ),
-                    )
-                })?
+                match center_from_radius(&s, &e, r, ccw) {
+                    Some(c) => c,
+                    // A half circle written with rounded end points can have
+                    // a chord a little longer than the diameter: within the
+                    // arc tolerance its centre is the chord's midpoint.
+                    None if (e - s).norm() / 2.0 - r.abs() <= ARC_TOL_MM.max(r.abs() * ARC_TOL_REL) && r != 0.0 => {
+                        P2::from((s.coords + e.coords) / 2.0)
+                    }
+                    None => {
+                        return Err(GcodeError::at(
+                            lineno,
+                            format!(
+                                "radius R{r} cannot reach the end: the chord is {:.6} mm long",
+                                (e - s).norm()
+                            ),
+                        ));
+                    }
+                }
             }
             (None, true) => {
                 // Components not given are zero; the one along the normal
@@ -1744,6 +1800,10 @@ mod tests {
             assert_eq!(a.ccw, ccw, "{line}");
             assert_pt(&a.center, &p(cx, cy, 0.0));
         }
+        // Rounded half circle: the chord exceeds the diameter by 0.00005.
+        let recs = read("LINEAR F1\nCIRCLE2 X1.00005 Y0 R0.5");
+        let half = arc(moves(&recs)[0]);
+        assert_pt(&half.center, &p(0.500025, 0.0, 0.0));
         let (line, msg) = read_err("LINEAR F1\nCIRCLE1 X1 Y0 R0.4");
         assert_eq!(line, 2);
         assert!(msg.contains("cannot reach"), "{msg}");
@@ -2006,6 +2066,13 @@ mod tests {
         assert!(read_err("OPEN PROG 1\n&1B1R").1.contains("on-line command"));
         assert!(read_err("OPEN PROG\nCLOSE").1.contains("program number"));
         assert!(read_err("OPEN GATHER").1.contains("OPEN PROG"));
+        // The download preamble alone does not hide a bare program ...
+        let recs = read("CLOSE\nDELETE GATHER\nLINEAR X1 F1\n");
+        assert_eq!(moves(&recs)[0].block, Some(3));
+        // ... but motion after a buffer's CLOSE is outside the program.
+        let (line, msg) = read_err("OPEN PROG 1\nLINEAR X1 F1\nCLOSE\n&1B1R\nLINEAR X2\n");
+        assert_eq!(line, 5);
+        assert!(msg.contains("outside a program buffer"), "{msg}");
         // A bare program: &-lines ignored, RETURN ends reading.
         let recs = read("&1\nLINEAR X1 F1\nRETURN\nthis is never read");
         assert_eq!(recs.len(), 1);
@@ -2068,6 +2135,49 @@ mod tests {
         assert!(!recs[0].motion().unwrap().beam);
         assert!(!recs[1].motion().unwrap().beam);
         assert!(recs[2].motion().unwrap().beam);
+    }
+
+    proptest::proptest! {
+        /// Any text gives records or an error, never a panic or a hang.
+        #[test]
+        fn arbitrary_text_never_panics(lines in proptest::collection::vec(
+            proptest::prop_oneof![
+                "[A-Z0-9=().;+*/%&|^$ ,#@\"-]{0,60}",
+                "(LINEAR|RAPID|CIRCLE[12]|X|Y|Z|I|J|K|R|F|TA|TS|M33=|M33==|P400=|P1=|ABS|INC|NORMAL|OPEN PROG 1|CLOSE|DWELL|\\(|\\)|-|[0-9.]{1,8}| ){0,24}",
+                proptest::prelude::any::<String>(),
+            ],
+            0..12,
+        )) {
+            let text = lines.join("\n");
+            let _ = read_str(&text, &pmac_opts());
+            let _ = read_str(&text, &ReadOptions::default());
+        }
+    }
+
+    /// Throughput check: `cargo test --release --lib pmac::tests::throughput
+    /// -- --ignored --nocapture` prints lines per second (the target is
+    /// millions in release builds).
+    #[test]
+    #[ignore]
+    fn throughput() {
+        let mut text = String::from("OPEN PROG 1 CLEAR\nLINEAR F2\n");
+        for i in 0..200_000u32 {
+            let x = f64::from((i / 4) % 1000) * 0.0013;
+            match i % 4 {
+                0 => text.push_str(&format!("LINEAR X{x:.4} Y5.455 Z0 F2\n")),
+                1 => text.push_str(&format!("M33=1 P400={i}\n")),
+                2 => text.push_str(&format!("CIRCLE1 X{:.4} Y5.455 I0.05 J0\n", x + 0.1)),
+                _ => text.push_str(&format!("M33=0 P400={i}\n")),
+            }
+        }
+        text.push_str("CLOSE\n");
+        let lines = text.lines().count();
+        let t = std::time::Instant::now();
+        let reader = ProgramReader::new(text.as_bytes(), &ReadOptions::default()).unwrap();
+        let n = reader.collect::<Result<Vec<_>, _>>().unwrap().len();
+        let s = t.elapsed().as_secs_f64();
+        assert_eq!(n, 100_000);
+        println!("{lines} lines in {s:.3} s: {:.0} lines/s", lines as f64 / s);
     }
 
     #[test]
