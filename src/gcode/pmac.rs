@@ -65,7 +65,7 @@
 use super::{GcodeError, LineInterpreter, ReadOptions, make_arc};
 use crate::geometry::planar::center_from_radius;
 use crate::geometry::{EPS_LEN, P2, P3, Plane};
-use crate::model::toolpath::{Motion, MotionKind, Record};
+use crate::model::toolpath::{ArcData, Motion, MotionKind, Record};
 use std::collections::VecDeque;
 
 /// Highest variable number of each kind (P, Q, M, I) on a Turbo PMAC.
@@ -1447,13 +1447,7 @@ impl PmacInterpreter {
         Ok(())
     }
 
-    fn arc(
-        &self,
-        pm: &PendingMove,
-        to: &P3,
-        ccw: bool,
-        lineno: u64,
-    ) -> Result<crate::model::toolpath::ArcData, GcodeError> {
+    fn arc(&self, pm: &PendingMove, to: &P3, ccw: bool, lineno: u64) -> Result<ArcData, GcodeError> {
         let plane = self.plane;
         let s = plane.project(&self.pos);
         let e = plane.project(to);
@@ -1559,7 +1553,6 @@ impl LineInterpreter for PmacInterpreter {
 mod tests {
     use super::*;
     use crate::gcode::{Dialect, ProgramReader, read_str};
-    use crate::model::toolpath::ArcData;
 
     fn pmac_opts() -> ReadOptions {
         ReadOptions {
