@@ -8,7 +8,6 @@ use std::io::{BufRead, Write};
 
 pub const SCHEMA: &str = "microcam.toolpath/1";
 
-
 #[derive(Deserialize)]
 struct WireHeader<'a> {
     #[serde(borrow)]

@@ -26,7 +26,6 @@ use std::rc::Rc;
 
 const MM_PER_INCH: f64 = 25.4;
 
-
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum MotionMode {
     Rapid,

@@ -65,7 +65,7 @@
 use super::{GcodeError, LineInterpreter, ReadOptions, make_arc};
 use crate::geometry::planar::center_from_radius;
 use crate::geometry::{EPS_LEN, P2, P3, Plane};
-use crate::model::toolpath::{ArcData, Motion, MotionKind, Record};
+use crate::model::toolpath::{ArcData, Motion, MotionKind, Record, arc_end_tolerance};
 use std::collections::VecDeque;
 
 /// Highest variable number of each kind (P, Q, M, I) on a Turbo PMAC.
@@ -74,12 +74,6 @@ const VAR_SLOTS: usize = VAR_MAX as usize + 1;
 /// Deepest nesting of parentheses, functions and unary signs in one
 /// expression; deeper text is refused instead of overflowing the stack.
 const MAX_DEPTH: u32 = 64;
-/// How far an arc's end may be off its circle (mm), at least. Programs are
-/// written with 4 decimals, so honest rounding stays well below this, while a
-/// wrong centre (the usual writer bug) is far above it.
-const ARC_TOL_MM: f64 = 1e-3;
-/// Relative part of the arc tolerance, for large radii.
-const ARC_TOL_REL: f64 = 1e-5;
 
 /// The four PMAC variable families.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -1468,7 +1462,7 @@ impl PmacInterpreter {
                     // A half circle written with rounded end points can have
                     // a chord a little longer than the diameter: within the
                     // arc tolerance its centre is the chord's midpoint.
-                    None if (e - s).norm() / 2.0 - r.abs() <= ARC_TOL_MM.max(r.abs() * ARC_TOL_REL) && r != 0.0 => {
+                    None if (e - s).norm() / 2.0 - r.abs() <= arc_end_tolerance(r) && r != 0.0 => {
                         P2::from((s.coords + e.coords) / 2.0)
                     }
                     None => {
@@ -1499,7 +1493,7 @@ impl PmacInterpreter {
                 ));
             }
         };
-        let tol = ARC_TOL_MM.max((s - center).norm() * ARC_TOL_REL);
+        let tol = arc_end_tolerance((s - center).norm());
         make_arc(&self.pos, to, center, ccw, plane, 0, tol, lineno)
     }
 }

@@ -43,7 +43,7 @@
 //!   `S<rpm>` in ISO; a PMAC motion program does not drive a spindle, so it
 //!   becomes a `;` comment that keeps the information visible. `Accel` is
 //!   `TA`/`TS` in PMAC and a comment in ISO (no standard word). `Var` is
-//!   `P12=3` / `P12==3` in PMAC; in ISO a name starting with `#` is a
+//!   `P12=3` / `M12==3` in PMAC (sync for M-variables only); in ISO a name starting with `#` is a
 //!   parameter assignment (`#100=3`), anything else (a PMAC variable) a
 //!   comment, because mapping `P12` onto `#12` would clobber subroutine
 //!   arguments.
@@ -868,6 +868,12 @@ impl<W: Write> GcodeWriter<W> {
                         "variable {name} is the shutter or line counter; the writer drives it from the moves"
                     ));
                 }
+                // Turbo PMAC has synchronous assignment for M-variables only.
+                if sync && !name.as_bytes()[0].eq_ignore_ascii_case(&b'M') {
+                    return Err(format!(
+                        "{name}==: synchronous assignment exists for M-variables only on a Turbo PMAC"
+                    ));
+                }
                 self.start_block();
                 self.buf.push_str(name);
                 self.buf.push_str(if sync { "==" } else { "=" });
@@ -1149,7 +1155,7 @@ N130 M30
             arc([1.0, 1.0, 1.5], [1.0, 1.0, 0.5], false, Plane::Xz, 0, 60.0, true),
             arc([1.0, 0.0, 0.5], [1.0, 1.0, 0.5], true, Plane::Yz, 0, 120.0, true),
             Record::Var {
-                name: "P12".into(),
+                name: "M12".into(),
                 value: -3.25,
                 sync: true,
                 block: None,
@@ -1177,7 +1183,7 @@ NORMAL J-1
 CIRCLE1 Z1.5 I0 K1 P400=4
 NORMAL I-1
 CIRCLE2 Y0 Z0.5 J0 K-1 F2 P400=5
-P12==-3.25
+M12==-3.25
 M33==0 LINEAR X0 P400=6
 M33=0
 CLOSE
@@ -1198,7 +1204,7 @@ M3 G3 X1 Y1 Z-0.5 I0 J1 P2 F60
 G4 P0.25
 G18 G2 Z1.5 I0 K1
 G19 G3 Y0 Z0.5 J0 K-1 F120
-(P12==-3.25)
+(M12==-3.25)
 M5 G1 X0
 M5
 M30
