@@ -39,10 +39,19 @@ axis_end_point, a, b, c[, u, v, w]): first/second are the plane's axes
 +n for n counter-clockwise turns about the plane normal (G3) and -n for
 clockwise (G2); the centre's normal coordinate is not given (it is the
 start point's).
+
+Frames: parse_canon() reports every point in the MACHINE frame by default
+(program coordinates rotated by SET_XY_ROTATION, plus SET_G5X_OFFSET and
+SET_G92_OFFSET, which is what LinuxCNC's emccanon does before moving), the
+frame our gsim reports in; frame="program" gives rs274's numbers as printed.
+Offsets, like feed rates, are taken in the length units in force when they
+were sent (emccanon converts them to its internal units at once), so a
+later G20/G21 does not rescale them.
 """
 
 from __future__ import annotations
 
+import math
 import os
 import re
 import shutil
@@ -228,7 +237,7 @@ EXOTIC_MOTION = {
 @dataclass
 class Motion:
     kind: str  # "rapid" | "line" | "arc" | exotic call name
-    to: tuple[float, float, float]  # program units at the time (see units)
+    to: tuple[float, float, float]  # length units in force (see units), frame as asked
     units: str  # "mm" | "in"
     canon_line: int  # the call counter rs274 printed
     nword: str  # "N104" or ""
@@ -263,13 +272,33 @@ def _nums(args: str) -> list[float]:
     return [float(x) for x in _NUM.findall(args)]
 
 
-def parse_canon(text: str) -> Canon:
-    """Parse rs274's canonical-call output into motions (program units)."""
+UNIT_MM = {"mm": 1.0, "in": INCH, "cm": 10.0}
+
+
+def parse_canon(text: str, frame: str = "machine") -> Canon:
+    """Parse rs274's canonical-call output into motions, in the length units
+    in force at each motion and in the machine frame (or frame="program")."""
+    if frame not in ("machine", "program"):
+        raise ValueError(f"frame must be 'machine' or 'program', not {frame!r}")
     c = Canon()
     units = "mm"  # rs274 always starts with USE_LENGTH_UNITS(CANON_UNITS_MM)
     plane = "xy"
     feed = 0.0
-    pos = [0.0, 0.0, 0.0]  # in `units`
+    pos = [0.0, 0.0, 0.0]  # program frame, in `units`
+    g5x = [0.0, 0.0, 0.0]  # mm
+    g92 = [0.0, 0.0, 0.0]  # mm
+    rot = 0.0  # degrees
+
+    def place(p):
+        """Program point (in `units`) -> the reported frame (in `units`)."""
+        if frame == "program":
+            return tuple(p)
+        x, y, z = p
+        if rot:
+            ca, sa = math.cos(math.radians(rot)), math.sin(math.radians(rot))
+            x, y = x * ca - y * sa, x * sa + y * ca
+        k = UNIT_MM[units]
+        return (x + (g5x[0] + g92[0]) / k, y + (g5x[1] + g92[1]) / k, z + (g5x[2] + g92[2]) / k)
     for raw in text.splitlines():
         if not raw.strip():
             continue
@@ -282,8 +311,7 @@ def parse_canon(text: str) -> Canon:
         if name == "USE_LENGTH_UNITS":
             new = "in" if "INCH" in args else ("cm" if "CM" in args else "mm")
             if new != units:
-                f = {"mm": 1.0, "in": INCH, "cm": 10.0}
-                k = f[units] / f[new]
+                k = UNIT_MM[units] / UNIT_MM[new]
                 pos = [v * k for v in pos]
                 feed *= k
                 units = new
@@ -295,26 +323,26 @@ def parse_canon(text: str) -> Canon:
             v = _nums(args)
             to = (v[0], v[1], v[2])
             kind = "rapid" if name == "STRAIGHT_TRAVERSE" else "line"
-            c.motions.append(Motion(kind, to, units, counter, nword,
+            c.motions.append(Motion(kind, place(to), units, counter, nword,
                                     feed=None if kind == "rapid" else feed))
             c.units_seen.add(units)
             pos = list(to)
         elif name == "ARC_FEED":
             v = _nums(args)
-            fe, se, fa, sa, rot, ae = v[0], v[1], v[2], v[3], int(v[4]), v[5]
+            fe, se, fa, sa, ae = v[0], v[1], v[2], v[3], v[5]
             i1, i2, n = PLANE_AXES[plane]
             to = [0.0, 0.0, 0.0]
             to[i1], to[i2], to[n] = fe, se, ae
             cen = [0.0, 0.0, 0.0]
             cen[i1], cen[i2], cen[n] = fa, sa, pos[n]
-            c.motions.append(Motion("arc", tuple(to), units, counter, nword, feed=feed,
-                                    center=tuple(cen), plane=plane, rotation=rot))
+            c.motions.append(Motion("arc", place(to), units, counter, nword, feed=feed,
+                                    center=place(cen), plane=plane, rotation=int(v[4])))
             c.units_seen.add(units)
             pos = to
         elif name in EXOTIC_MOTION:
             v = _nums(args)
             to = tuple(v[:3]) if len(v) >= 3 else tuple(pos)
-            c.motions.append(Motion(name, to, units, counter, nword))
+            c.motions.append(Motion(name, place(to), units, counter, nword))
             if len(v) >= 3 and name in ("STRAIGHT_PROBE", "RIGID_TAP"):
                 pos = list(v[:3])
         elif name == "DWELL":
@@ -330,5 +358,12 @@ def parse_canon(text: str) -> Canon:
                 vals = v[1:] if name == "SET_G5X_OFFSET" else v
                 if any(abs(x) > 0 for x in vals):
                     c.offsets_nonzero.append(f"{name}({args})")
+                k = UNIT_MM[units]
+                if name == "SET_G5X_OFFSET":
+                    g5x = [x * k for x in vals[:3]]
+                elif name == "SET_G92_OFFSET":
+                    g92 = [x * k for x in vals[:3]]
+                else:
+                    rot = vals[0] if vals else 0.0
             c.other[name] = c.other.get(name, 0) + 1
     return c
