@@ -7,14 +7,22 @@
 //! offsets, so every move starts where the previous one ended, whatever
 //! offsets the program sets. Inch programs (G20) become millimetres.
 //!
+//! O-word subroutines and control flow (LinuxCNC's `sub`/`call`, `if`,
+//! `while`, `do`, `repeat`, `break`, `continue`, `return`) are executed:
+//! a structure's lines are held in memory from its opening line to its
+//! closing line, then run; straight-line code streams through untouched.
+//!
 //! What it cannot honour (cutter compensation, canned cycles, inverse-time
-//! feed, O-word control flow, rotary axes) is an error naming the line.
+//! feed, rotary axes) is an error naming the line.
 
 use super::expr::{Cursor, ParamRef, Params};
+use super::oword::{self, OKeyword, OLine};
 use super::{GcodeError, LineInterpreter, ReadOptions, make_arc};
 use crate::geometry::{P2, P3, Plane, V3, planar};
 use crate::model::toolpath::{Motion, MotionKind, Record};
+use std::collections::HashMap;
 use std::collections::VecDeque;
+use std::rc::Rc;
 
 const MM_PER_INCH: f64 = 25.4;
 
@@ -105,7 +113,7 @@ fn m_group(code: u16) -> Option<u8> {
 }
 
 fn fmt_code(letter: char, code: u16) -> String {
-    if code % 10 == 0 {
+    if code.is_multiple_of(10) {
         format!("{letter}{}", code / 10)
     } else {
         format!("{letter}{}.{}", code / 10, code % 10)
@@ -137,6 +145,50 @@ pub struct IsoInterpreter {
     ended: bool,
     norm: Vec<u8>,
     assigns: Vec<(ParamRef, f64)>,
+    /// Subroutine bodies by label (the lines between `sub` and `endsub`).
+    subs: HashMap<Vec<u8>, Rc<Vec<(u64, String)>>>,
+    /// A top-level control structure or subroutine being read in.
+    capture: Option<Capture>,
+    /// Loop iterations run so far, to stop runaway loops.
+    iterations: u64,
+}
+
+/// Lines of a control structure read so far, from its opening line.
+struct Capture {
+    label: Vec<u8>,
+    opener: OKeyword,
+    lines: Vec<(u64, String)>,
+}
+
+/// How a block of lines finished.
+#[derive(Debug, PartialEq)]
+enum Flow {
+    Normal,
+    Return,
+    Break(Vec<u8>),
+    Continue(Vec<u8>),
+}
+
+/// Most loop iterations a program may run, so a loop that never ends is an
+/// error rather than a hang.
+const MAX_ITERATIONS: u64 = 1_000_000;
+/// Deepest subroutine nesting (LinuxCNC allows 10 levels of call).
+const MAX_CALL_DEPTH: u32 = 64;
+
+/// The keyword that closes a structure opened by `opener`.
+fn closer_of(opener: OKeyword) -> Option<OKeyword> {
+    Some(match opener {
+        OKeyword::Sub => OKeyword::EndSub,
+        OKeyword::While => OKeyword::EndWhile,
+        OKeyword::Do => OKeyword::While,
+        OKeyword::If => OKeyword::EndIf,
+        OKeyword::Repeat => OKeyword::EndRepeat,
+        _ => return None,
+    })
+}
+
+fn label_text(l: &[u8]) -> String {
+    String::from_utf8_lossy(l).to_lowercase()
 }
 
 impl IsoInterpreter {
@@ -161,6 +213,291 @@ impl IsoInterpreter {
             ended: false,
             norm: Vec::with_capacity(128),
             assigns: Vec::new(),
+            subs: HashMap::new(),
+            capture: None,
+            iterations: 0,
+        }
+    }
+
+    /// The O-word of the normalised line, if it is an O-word line (after an
+    /// optional block delete and N word).
+    fn oline(&self, lineno: u64) -> Result<Option<OLine>, GcodeError> {
+        let mut c = Cursor::new(&self.norm);
+        if c.peek() == Some(b'/') {
+            c.pos += 1;
+        }
+        if c.peek() == Some(b'N') {
+            c.pos += 1;
+            if c.number().is_err() {
+                return Ok(None);
+            }
+        }
+        if c.peek() != Some(b'O') {
+            return Ok(None);
+        }
+        let mut ol = oword::parse(&self.norm[c.pos..]).map_err(|e| GcodeError::at(lineno, e))?;
+        ol.rest += c.pos;
+        Ok(Some(ol))
+    }
+
+    /// Normalise `text` and evaluate the expression after its O keyword.
+    fn o_value(&mut self, text: &str, lineno: u64) -> Result<Option<f64>, GcodeError> {
+        self.normalise(text, lineno)?;
+        let ol = self
+            .oline(lineno)?
+            .ok_or_else(|| GcodeError::at(lineno, "expected an O-word line"))?;
+        if ol.rest >= self.norm.len() {
+            return Ok(None);
+        }
+        let mut c = Cursor::new(&self.norm[ol.rest..]);
+        let v = c.real_value(&self.params).map_err(|e| GcodeError::at(lineno, e))?;
+        if !c.at_end() {
+            return Err(GcodeError::at(lineno, "unexpected text after the O-word expression"));
+        }
+        Ok(Some(v))
+    }
+
+    fn o_condition(&mut self, line: &(u64, String)) -> Result<bool, GcodeError> {
+        let v = self
+            .o_value(&line.1, line.0)?
+            .ok_or_else(|| GcodeError::at(line.0, "this O-word needs a condition in [ ]"))?;
+        Ok(v != 0.0)
+    }
+
+    fn count_iteration(&mut self, lineno: u64) -> Result<(), GcodeError> {
+        self.iterations += 1;
+        if self.iterations > MAX_ITERATIONS {
+            return Err(GcodeError::at(
+                lineno,
+                format!("more than {MAX_ITERATIONS} loop iterations: is this loop endless?"),
+            ));
+        }
+        Ok(())
+    }
+
+    /// Index of the next line after `from` that is an O-word with `label`
+    /// and one of `keywords`.
+    fn find_o(
+        &mut self,
+        lines: &[(u64, String)],
+        from: usize,
+        label: &[u8],
+        keywords: &[OKeyword],
+    ) -> Result<Option<(usize, OKeyword)>, GcodeError> {
+        for (k, (ln, text)) in lines.iter().enumerate().skip(from + 1) {
+            self.normalise(text, *ln)?;
+            if let Some(ol) = self.oline(*ln)?
+                && ol.label == label
+                && keywords.contains(&ol.keyword)
+            {
+                return Ok(Some((k, ol.keyword)));
+            }
+        }
+        Ok(None)
+    }
+
+    fn must_find(
+        &mut self,
+        lines: &[(u64, String)],
+        from: usize,
+        label: &[u8],
+        kw: OKeyword,
+    ) -> Result<usize, GcodeError> {
+        self.find_o(lines, from, label, &[kw])?.map(|(k, _)| k).ok_or_else(|| {
+            GcodeError::at(
+                lines[from].0,
+                format!("o{} has no matching {kw:?}", label_text(label)).to_lowercase(),
+            )
+        })
+    }
+
+    /// Run a block of lines with O-word control flow.
+    fn exec_block(
+        &mut self,
+        lines: &[(u64, String)],
+        out: &mut VecDeque<Record>,
+        depth: u32,
+    ) -> Result<Flow, GcodeError> {
+        let mut pc = 0;
+        while pc < lines.len() {
+            if self.ended {
+                return Ok(Flow::Normal);
+            }
+            let (ln, text) = (lines[pc].0, &lines[pc].1);
+            self.normalise(text, ln)?;
+            if self.norm.is_empty() || self.norm[0] == b'%' {
+                pc += 1;
+                continue;
+            }
+            let Some(ol) = self.oline(ln)? else {
+                let b = self.parse_block(ln)?;
+                self.execute(&b, ln, out)?;
+                pc += 1;
+                continue;
+            };
+            let label = ol.label.clone();
+            match ol.keyword {
+                OKeyword::Sub => {
+                    let end = self.must_find(lines, pc, &label, OKeyword::EndSub)?;
+                    self.subs.insert(label, Rc::new(lines[pc + 1..end].to_vec()));
+                    pc = end + 1;
+                }
+                OKeyword::Call => {
+                    self.call(&ol, ln, out, depth)?;
+                    pc += 1;
+                }
+                OKeyword::If => {
+                    let mut marks = vec![(pc, OKeyword::If)];
+                    loop {
+                        let last = marks.last().map_or(pc, |m| m.0);
+                        match self.find_o(
+                            lines,
+                            last,
+                            &label,
+                            &[OKeyword::ElseIf, OKeyword::Else, OKeyword::EndIf],
+                        )? {
+                            Some((k, OKeyword::EndIf)) => {
+                                marks.push((k, OKeyword::EndIf));
+                                break;
+                            }
+                            Some(m) => marks.push(m),
+                            None => {
+                                return Err(GcodeError::at(ln, format!("o{} if has no endif", label_text(&label))));
+                            }
+                        }
+                    }
+                    let end = marks.last().map_or(pc, |m| m.0);
+                    for w in marks.windows(2) {
+                        let (k, kw) = w[0];
+                        let take = kw == OKeyword::Else || self.o_condition(&lines[k])?;
+                        if take {
+                            let flow = self.exec_block(&lines[k + 1..w[1].0], out, depth)?;
+                            if flow != Flow::Normal {
+                                return Ok(flow);
+                            }
+                            break;
+                        }
+                    }
+                    pc = end + 1;
+                }
+                OKeyword::While => {
+                    let end = self.must_find(lines, pc, &label, OKeyword::EndWhile)?;
+                    while self.o_condition(&lines[pc])? {
+                        self.count_iteration(ln)?;
+                        match self.exec_block(&lines[pc + 1..end], out, depth)? {
+                            Flow::Break(l) if l == label => break,
+                            Flow::Normal => {}
+                            Flow::Continue(l) if l == label => {}
+                            other => return Ok(other),
+                        }
+                        if self.ended {
+                            break;
+                        }
+                    }
+                    pc = end + 1;
+                }
+                OKeyword::Do => {
+                    let end = self.must_find(lines, pc, &label, OKeyword::While)?;
+                    loop {
+                        self.count_iteration(ln)?;
+                        match self.exec_block(&lines[pc + 1..end], out, depth)? {
+                            Flow::Break(l) if l == label => break,
+                            Flow::Normal => {}
+                            Flow::Continue(l) if l == label => {}
+                            other => return Ok(other),
+                        }
+                        if self.ended || !self.o_condition(&lines[end])? {
+                            break;
+                        }
+                    }
+                    pc = end + 1;
+                }
+                OKeyword::Repeat => {
+                    let n = self
+                        .o_value(text, ln)?
+                        .ok_or_else(|| GcodeError::at(ln, "repeat needs a count in [ ]"))?;
+                    let end = self.must_find(lines, pc, &label, OKeyword::EndRepeat)?;
+                    let mut i = 0.0;
+                    while i < n.round() {
+                        self.count_iteration(ln)?;
+                        match self.exec_block(&lines[pc + 1..end], out, depth)? {
+                            Flow::Break(l) if l == label => break,
+                            Flow::Normal => {}
+                            Flow::Continue(l) if l == label => {}
+                            other => return Ok(other),
+                        }
+                        if self.ended {
+                            break;
+                        }
+                        i += 1.0;
+                    }
+                    pc = end + 1;
+                }
+                OKeyword::Break => return Ok(Flow::Break(label)),
+                OKeyword::Continue => return Ok(Flow::Continue(label)),
+                OKeyword::Return | OKeyword::EndSub => {
+                    if depth == 0 {
+                        return Err(GcodeError::at(ln, "return/endsub outside a subroutine"));
+                    }
+                    if let Some(v) = self.o_value(text, ln)? {
+                        self.params.set(&ParamRef::Named(b"_VALUE".to_vec()), v);
+                    }
+                    return Ok(Flow::Return);
+                }
+                kw => {
+                    return Err(GcodeError::at(
+                        ln,
+                        format!("o{} {kw:?} without its opening line", label_text(&label)).to_lowercase(),
+                    ));
+                }
+            }
+        }
+        Ok(Flow::Normal)
+    }
+
+    /// `O<label> call [a] [b] ...`: arguments go to #1, #2 ..., which are
+    /// local to the call (restored after it), as in LinuxCNC.
+    fn call(&mut self, ol: &OLine, lineno: u64, out: &mut VecDeque<Record>, depth: u32) -> Result<(), GcodeError> {
+        if depth >= MAX_CALL_DEPTH {
+            return Err(GcodeError::at(
+                lineno,
+                format!("subroutine calls nested deeper than {MAX_CALL_DEPTH}"),
+            ));
+        }
+        let body = self.subs.get(&ol.label).cloned().ok_or_else(|| {
+            GcodeError::at(
+                lineno,
+                format!(
+                    "o{} is called before its definition (define subroutines before calling them; no external files are read)",
+                    label_text(&ol.label)
+                ),
+            )
+        })?;
+        let mut args = Vec::new();
+        let mut c = Cursor::new(&self.norm[ol.rest..]);
+        while !c.at_end() {
+            if args.len() >= 30 {
+                return Err(GcodeError::at(lineno, "more than 30 subroutine arguments"));
+            }
+            args.push(c.real_value(&self.params).map_err(|e| GcodeError::at(lineno, e))?);
+        }
+        let saved: Vec<f64> = (1..=30)
+            .map(|i| self.params.get(&ParamRef::Num(i)).unwrap_or(0.0))
+            .collect();
+        for i in 1..=30 {
+            self.params
+                .set(&ParamRef::Num(i), args.get(i - 1).copied().unwrap_or(0.0));
+        }
+        let flow = self.exec_block(&body, out, depth + 1);
+        for (i, v) in saved.into_iter().enumerate() {
+            self.params.set(&ParamRef::Num(i + 1), v);
+        }
+        match flow? {
+            Flow::Normal | Flow::Return => Ok(()),
+            Flow::Break(l) | Flow::Continue(l) => Err(GcodeError::at(
+                lineno,
+                format!("break/continue o{} escaped its subroutine", label_text(&l)),
+            )),
         }
     }
 
@@ -224,9 +561,6 @@ impl IsoInterpreter {
             c.pos += 1;
             c.number().map_err(|e| err(format!("line number N: {e}")))?;
         }
-        if c.peek() == Some(b'O') {
-            return Err(err("O-word subroutines and control flow are not supported".into()));
-        }
         let mut groups_g = [false; 16];
         let mut groups_m = [false; 11];
         while let Some(ch) = c.peek() {
@@ -286,7 +620,7 @@ impl IsoInterpreter {
                     }
                 }
                 b'N' => return Err(err("N word must be at the start of the line".into())),
-                b'O' => return Err(err("O-word subroutines and control flow are not supported".into())),
+                b'O' => return Err(err("an O word must start the line".into())),
                 _ => {
                     let slot = &mut b.w[(ch - b'A') as usize];
                     if slot.is_some() {
@@ -424,10 +758,10 @@ impl IsoInterpreter {
         } else if b.has_g(922) {
             self.g92_saved = Some(self.g92);
             self.g92 = V3::zeros();
-        } else if b.has_g(923) {
-            if let Some(s) = self.g92_saved.take() {
-                self.g92 = s;
-            }
+        } else if b.has_g(923)
+            && let Some(s) = self.g92_saved.take()
+        {
+            self.g92 = s;
         }
         for code in &b.g[..b.ng] {
             match code {
@@ -526,10 +860,7 @@ impl IsoInterpreter {
         let u = self.unit();
         let start2 = plane.project(&self.pos);
         let end2 = plane.project(&to);
-        let turns = match b.word(b'P') {
-            None => 1.0,
-            Some(p) => p,
-        };
+        let turns = b.word(b'P').unwrap_or(1.0);
         if turns < 1.0 || turns.fract() != 0.0 || turns > 1e6 {
             return Err(err(format!(
                 "arc P word must be a whole number of turns of at least 1, got {turns}"
@@ -670,8 +1001,46 @@ impl IsoInterpreter {
 impl LineInterpreter for IsoInterpreter {
     fn line(&mut self, text: &str, lineno: u64, out: &mut VecDeque<Record>) -> Result<(), GcodeError> {
         self.normalise(text, lineno)?;
+        if let Some(mut cap) = self.capture.take() {
+            cap.lines.push((lineno, text.to_string()));
+            let closes = match self.oline(lineno)? {
+                Some(ol) => ol.label == cap.label && Some(ol.keyword) == closer_of(cap.opener),
+                None => false,
+            };
+            if !closes {
+                self.capture = Some(cap);
+                return Ok(());
+            }
+            if cap.opener == OKeyword::Sub {
+                let n = cap.lines.len();
+                self.subs.insert(cap.label, Rc::new(cap.lines[1..n - 1].to_vec()));
+            } else {
+                self.exec_block(&cap.lines, out, 0)?;
+            }
+            return Ok(());
+        }
         if self.norm.is_empty() {
             return Ok(());
+        }
+        if self.norm[0] != b'%'
+            && let Some(ol) = self.oline(lineno)?
+        {
+            self.any_code_seen = true;
+            return match ol.keyword {
+                OKeyword::Call => self.call(&ol, lineno, out, 0),
+                kw if closer_of(kw).is_some() => {
+                    self.capture = Some(Capture {
+                        label: ol.label,
+                        opener: kw,
+                        lines: vec![(lineno, text.to_string())],
+                    });
+                    Ok(())
+                }
+                kw => Err(GcodeError::at(
+                    lineno,
+                    format!("o{} {kw:?} without its opening line", label_text(&ol.label)).to_lowercase(),
+                )),
+            };
         }
         if self.norm[0] == b'%' {
             // A '%' before any code opens the program; one after code ends it.
@@ -686,8 +1055,20 @@ impl LineInterpreter for IsoInterpreter {
         self.execute(&b, lineno, out)
     }
 
-    fn finish(&mut self, _lineno: u64, _out: &mut VecDeque<Record>) -> Result<(), GcodeError> {
-        Ok(())
+    fn finish(&mut self, lineno: u64, _out: &mut VecDeque<Record>) -> Result<(), GcodeError> {
+        match &self.capture {
+            Some(cap) if !self.ended => Err(GcodeError::at(
+                lineno,
+                format!(
+                    "program ends inside o{} {:?} opened on line {}",
+                    label_text(&cap.label),
+                    cap.opener,
+                    cap.lines.first().map_or(0, |l| l.0)
+                )
+                .to_lowercase(),
+            )),
+            _ => Ok(()),
+        }
     }
 
     fn ended(&self) -> bool {
@@ -803,7 +1184,10 @@ mod tests {
         let cases = [
             ("G1 X1 F10\nG41 D1\n", 2, "cutter radius compensation"),
             ("G81 X1 Y1 Z-1 R1\n", 1, "canned cycles"),
-            ("O100 sub\n", 1, "O-word"),
+            ("O100 call\n", 1, "before its definition"),
+            ("o1 while [1]\no1 endwhile\n", 1, "endless"),
+            ("o1 if [1]\nG0 X1\n", 2, "ends inside o1 if"),
+            ("o1 endif\n", 1, "without its opening line"),
             ("G0 A10\n", 1, "A is not supported"),
             ("G1 X1\n", 1, "no feed rate"),
             ("G0 X0 Y0\nG2 X2 Y0 I0.5 F10\n", 2, "not on the circle"),
@@ -821,6 +1205,34 @@ mod tests {
             assert_eq!(e.line(), line, "{text:?}: {e}");
             assert!(e.to_string().contains(needle), "{text:?}: {e}");
         }
+    }
+
+    #[test]
+    fn subroutines_loops_and_conditions() {
+        let text = "o<side> sub\n  G1 X[#1] Y[#2] F100\no<side> endsub\n\
+                    #1=99\n#<i>=0\n\
+                    o10 while [#<i> LT 3]\n  o<side> call [#<i>] [#<i>*2]\n\
+                    o11 if [#<i> EQ 1]\n G0 Z1\n o11 elseif [#<i> EQ 2]\n G0 Z2\n o11 else\n G0 Z9\n o11 endif\n\
+                    #<i>=[#<i>+1]\no10 endwhile\n\
+                    o20 repeat [2]\n G0 X-1\no20 endrepeat\n\
+                    o30 do\n #<i>=[#<i>-1]\n o31 if [#<i> EQ 1]\n  o30 break\n o31 endif\no30 while [#<i> GT 0]\n\
+                    G0 X#1 Y#<i>\n";
+        let m = moves(text);
+        let to: Vec<[f64; 3]> = m.iter().map(|m| [m.to.x, m.to.y, m.to.z]).collect();
+        assert_eq!(
+            to,
+            vec![
+                [0.0, 0.0, 0.0],
+                [0.0, 0.0, 9.0],
+                [1.0, 2.0, 9.0],
+                [1.0, 2.0, 1.0],
+                [2.0, 4.0, 1.0],
+                [2.0, 4.0, 2.0],
+                [-1.0, 4.0, 2.0],
+                [-1.0, 4.0, 2.0],
+                [99.0, 1.0, 2.0],
+            ]
+        );
     }
 
     #[test]
