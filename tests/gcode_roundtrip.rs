@@ -350,9 +350,8 @@ fn unit() -> impl Strategy<Value = FeedUnit> {
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(200))]
 
-    // Needs the ISO reader (src/gcode/iso.rs); un-ignore after merging it.
     #[test]
-    #[ignore = "needs the ISO G-code reader"]
+    
     fn iso_round_trip(ops in prop::collection::vec(op(false), 0..40), unit in unit()) {
         round_trip(&ops, unit, Dialect::Iso)?;
     }
