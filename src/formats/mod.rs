@@ -228,7 +228,10 @@ mod tests {
             push_num(&mut s, x);
             s.push(' ');
         }
-        assert_eq!(s, "0 0 1 -2.5 0.3 0 123456 1e20 -0.000000001 0 0.000000125 -8999999999.5 ");
+        assert_eq!(
+            s,
+            "0 0 1 -2.5 0.3 0 123456 1e20 -0.000000001 0 0.000000125 -8999999999.5 "
+        );
     }
 
     #[test]
@@ -242,7 +245,10 @@ mod tests {
             let mut s = String::new();
             push_num(&mut s, x);
             let back: f64 = s.parse().unwrap();
-            assert!((back - x).abs() <= 0.5e-9 * (1.0 + 1e-6) + x.abs() * 1e-15, "{x} -> {s}");
+            assert!(
+                (back - x).abs() <= 0.5e-9 * (1.0 + 1e-6) + x.abs() * 1e-15,
+                "{x} -> {s}"
+            );
         }
     }
 }

@@ -12,17 +12,25 @@ use std::collections::HashMap;
 pub const NUM_PARAMS: usize = 5603;
 
 /// The parameter store of an interpreter.
+///
+/// Named parameters follow LinuxCNC's scoping: a name starting with `_` is
+/// global; any other name is local to the subroutine call (or the main
+/// program) that set it, invisible to callers and callees.
 #[derive(Debug, Clone)]
 pub struct Params {
     numbered: Vec<f64>,
-    named: HashMap<Vec<u8>, f64>,
+    global: HashMap<Vec<u8>, f64>,
+    /// Local named parameters, one map per active call; `[0]` is the main
+    /// program's.
+    frames: Vec<HashMap<Vec<u8>, f64>>,
 }
 
 impl Default for Params {
     fn default() -> Self {
         Params {
             numbered: vec![0.0; NUM_PARAMS],
-            named: HashMap::new(),
+            global: HashMap::new(),
+            frames: vec![HashMap::new()],
         }
     }
 }
@@ -35,10 +43,17 @@ pub enum ParamRef {
 }
 
 impl Params {
+    fn scope(&self, name: &[u8]) -> &HashMap<Vec<u8>, f64> {
+        match (name.first(), self.frames.last()) {
+            (Some(b'_'), _) | (_, None) => &self.global,
+            (_, Some(frame)) => frame,
+        }
+    }
+
     pub fn get(&self, r: &ParamRef) -> Result<f64, String> {
         match r {
             ParamRef::Num(n) => Ok(self.numbered[*n]),
-            ParamRef::Named(name) => self.named.get(name).copied().ok_or_else(|| {
+            ParamRef::Named(name) => self.scope(name).get(name).copied().ok_or_else(|| {
                 format!(
                     "named parameter #<{}> is used before it is set",
                     String::from_utf8_lossy(name).to_lowercase()
@@ -51,13 +66,29 @@ impl Params {
         match r {
             ParamRef::Num(n) => self.numbered[*n] = v,
             ParamRef::Named(name) => {
-                self.named.insert(name.clone(), v);
+                let scope = match (name.first(), self.frames.last_mut()) {
+                    (Some(b'_'), _) | (_, None) => &mut self.global,
+                    (_, Some(frame)) => frame,
+                };
+                scope.insert(name.clone(), v);
             }
         }
     }
 
     pub fn exists(&self, name: &[u8]) -> bool {
-        self.named.contains_key(name)
+        self.scope(name).contains_key(name)
+    }
+
+    /// Enter a subroutine call: a fresh scope for local named parameters.
+    pub fn push_frame(&mut self) {
+        self.frames.push(HashMap::new());
+    }
+
+    /// Leave a subroutine call, dropping its local named parameters.
+    pub fn pop_frame(&mut self) {
+        if self.frames.len() > 1 {
+            self.frames.pop();
+        }
     }
 }
 
@@ -140,11 +171,11 @@ impl<'a> Cursor<'a> {
                 let r = self.param_ref_depth(p, depth + 1)?;
                 p.get(&r)
             }
-            Some(b'-') if matches!(self.s.get(self.pos + 1), Some(b'[' | b'#' | b'A'..=b'Z')) => {
+            Some(b'-') if matches!(self.s.get(self.pos + 1), Some(b'[' | b'#' | b'A'..=b'Z' | b'-' | b'+')) => {
                 self.pos += 1;
                 Ok(-self.real_value_depth(p, depth + 1)?)
             }
-            Some(b'+') if matches!(self.s.get(self.pos + 1), Some(b'[' | b'#' | b'A'..=b'Z')) => {
+            Some(b'+') if matches!(self.s.get(self.pos + 1), Some(b'[' | b'#' | b'A'..=b'Z' | b'-' | b'+')) => {
                 self.pos += 1;
                 self.real_value_depth(p, depth + 1)
             }
@@ -398,11 +429,30 @@ mod tests {
             ("EXISTS[#<Z_SAFE>]", 1.0),
             ("EXISTS[#<NOPE>]", 0.0),
             ("[SQRT[16]/2]", 2.0),
+            ("--#1", 3.0),
+            ("[-+-2]", 2.0),
         ];
         for (s, want) in cases {
             let got = eval(s, &p).unwrap_or_else(|e| panic!("{s}: {e}"));
             assert!((got - want).abs() < 1e-12, "{s}: {got} != {want}");
         }
+    }
+
+    #[test]
+    fn named_parameters_are_local_unless_they_start_with_underscore() {
+        let mut p = Params::default();
+        let local = ParamRef::Named(b"DEPTH".to_vec());
+        let global = ParamRef::Named(b"_DEPTH".to_vec());
+        p.set(&local, 99.0);
+        p.set(&global, 1.0);
+        p.push_frame();
+        assert!(p.get(&local).is_err(), "a callee does not see its caller's locals");
+        p.set(&local, 5.0);
+        p.set(&global, 2.0);
+        assert_eq!(p.get(&local), Ok(5.0));
+        p.pop_frame();
+        assert_eq!(p.get(&local), Ok(99.0));
+        assert_eq!(p.get(&global), Ok(2.0));
     }
 
     #[test]

@@ -121,9 +121,10 @@ pub struct IsoInterpreter {
     arc_absolute: bool,
     plane: Plane,
     motion: Option<MotionMode>,
-    /// F as written, in program units per minute (converted when used, as
-    /// RS274 keeps F in the current length unit).
-    feed_raw: f64,
+    /// Feed in mm/min. LinuxCNC converts F to its internal unit when F is
+    /// set (before a G20/G21 on the same line takes effect) and keeps that
+    /// speed across later unit changes; so do we.
+    feed_mm_per_min: f64,
     beam: bool,
     spindle_rpm: Option<f64>,
     params: Params,
@@ -192,7 +193,7 @@ impl IsoInterpreter {
             arc_absolute: false,
             plane: Plane::Xy,
             motion: None,
-            feed_raw: 0.0,
+            feed_mm_per_min: 0.0,
             beam: false,
             spindle_rpm: None,
             params: Params::default(),
@@ -480,7 +481,9 @@ impl IsoInterpreter {
             self.params
                 .set(&ParamRef::Num(i), args.get(i - 1).copied().unwrap_or(0.0));
         }
+        self.params.push_frame();
         let flow = self.exec_block(&body, out, depth + 1);
+        self.params.pop_frame();
         for (i, v) in saved.into_iter().enumerate() {
             self.params.set(&ParamRef::Num(i + 1), v);
         }
@@ -671,7 +674,7 @@ impl IsoInterpreter {
             if f < 0.0 {
                 return Err(err(format!("negative feed rate F{f}")));
             }
-            self.feed_raw = f;
+            self.feed_mm_per_min = f * self.unit();
         }
         if let Some(s) = b.word(b'S') {
             if s < 0.0 {
@@ -815,7 +818,7 @@ impl IsoInterpreter {
     }
 
     fn feed_mm_per_min(&self, lineno: u64) -> Result<f64, GcodeError> {
-        let f = self.feed_raw * self.unit();
+        let f = self.feed_mm_per_min;
         if f <= 0.0 {
             return Err(GcodeError::at(
                 lineno,
@@ -1122,6 +1125,25 @@ mod tests {
         let m = moves("G20 G0 X1 Y0.5\nG1 X2 F10\n");
         assert!(close(&m[0].to, [25.4, 12.7, 0.0]));
         assert_eq!(m[1].feed, Some(254.0));
+    }
+
+    #[test]
+    fn feed_keeps_its_speed_across_unit_changes_as_in_linuxcnc() {
+        // F is converted when set, before G20/G21 on the same line.
+        let m = moves("G21 G1 X1 F600\nG20 X1\nG21 F300 G1 X2\n");
+        let feeds: Vec<_> = m.iter().map(|m| m.feed.unwrap()).collect();
+        assert!((feeds[0] - 600.0).abs() < 1e-9 && (feeds[1] - 600.0).abs() < 1e-9);
+        assert!(
+            (feeds[2] - 7620.0).abs() < 1e-9,
+            "F300 is read in inches, before G21 applies: {feeds:?}"
+        );
+    }
+
+    #[test]
+    fn named_locals_do_not_leak_through_calls() {
+        let m =
+            moves("o<f> sub\n#<depth>=[#1*10]\nG0 X#<depth>\no<f> endsub\n#<depth>=5\no<f> call [1]\nG0 X#<depth>\n");
+        assert!(close(&m[0].to, [10.0, 0.0, 0.0]) && close(&m[1].to, [5.0, 0.0, 0.0]));
     }
 
     #[test]
