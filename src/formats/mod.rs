@@ -86,7 +86,7 @@ pub fn push_num(out: &mut String, x: f64) {
     const SCALE: f64 = 1e9;
     // Beyond 4e6 mm, x * 1e9 passes 2^53 and the fixed form would print
     // digits the double does not have; such values print in shortest form.
-    if !(x.abs() < 4e6) {
+    if x.is_nan() || x.abs() >= 4e6 {
         let mut b = ryu::Buffer::new();
         out.push_str(if x.is_finite() { b.format_finite(x) } else { "0" });
         return;
@@ -105,7 +105,7 @@ pub fn push_num(out: &mut String, x: f64) {
     push_u64(out, int);
     if frac != 0 {
         let mut digits = 9;
-        while frac % 10 == 0 {
+        while frac.is_multiple_of(10) {
             frac /= 10;
             digits -= 1;
         }
