@@ -3,7 +3,7 @@
 
 use clap::Parser;
 use microcam::cli::{self, CliError, Output};
-use microcam::formats::toolpath::ToolpathWriter;
+use microcam::formats::toolpath::{StreamError, write_stream};
 use microcam::gcode::{Dialect, ReadOptions};
 use microcam::geometry::P3;
 use microcam::sim::summary::Summary;
@@ -74,12 +74,12 @@ fn run(args: Args) -> Result<(), CliError> {
     let mut out = Output::new(args.output.as_deref());
     if args.moves {
         let header = source.header.clone();
-        let mut w = ToolpathWriter::new(&mut out);
-        w.header(&header)?;
-        for rec in source {
-            w.record(&rec?)?;
+        // Interpret on this thread, format and write on another.
+        match write_stream(&header, source, &mut out) {
+            Ok(_) => {}
+            Err(StreamError::Source(e)) => return Err(e),
+            Err(StreamError::Io(e)) => return Err(e.into()),
         }
-        w.finish()?;
     } else {
         let name = source.header.source.clone();
         let mut s = Summary::new(source.header.feed_unit, start);

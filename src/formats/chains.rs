@@ -1,6 +1,6 @@
 //! `microcam.chains/1`: reader and writer.
 
-use super::{FormatError, LineSource, check_schema, parse_json, point_from, push_num, push_point_2or3, push_str_lit};
+use super::{FormatError, LineSource, check_schema, parse_json, point_from, push_point_2or3, push_str_lit};
 use crate::geometry::P3;
 use crate::model::chain::{Chain, ChainsHeader, Segment};
 use serde::Deserialize;
@@ -239,7 +239,7 @@ impl<W: Write> ChainsWriter<W> {
 /// Append one chain as a JSON object (no newline).
 pub fn format_chain(b: &mut String, c: &Chain) {
     b.push_str("{\"id\":");
-    push_num(b, c.id as f64);
+    super::push_uint(b, c.id);
     if let Some(l) = &c.layer {
         b.push_str(",\"layer\":");
         push_str_lit(b, l);

@@ -43,6 +43,9 @@ struct Block {
     nm: usize,
     /// Value of each letter word A..Z (G, M, N, O not stored here).
     w: [Option<f64>; 26],
+    /// Any G code other than G0-G3: most blocks of a large program have
+    /// none, and then the modal settings need no looking at.
+    other_g: bool,
 }
 
 impl Block {
@@ -53,6 +56,7 @@ impl Block {
             m: [0; 8],
             nm: 0,
             w: [None; 26],
+            other_g: false,
         }
     }
 
@@ -68,6 +72,26 @@ impl Block {
         self.w[(letter - b'A') as usize]
     }
 }
+
+/// What each input byte becomes in a normalised line: 0 = dropped (blank),
+/// 0xff = not allowed, `(` and `;` = comment starts, anything else = the
+/// byte itself, upper-cased. A table keeps the per-byte work to one load.
+const NORMALISE: [u8; 256] = {
+    let mut t = [0xffu8; 256];
+    let mut c = 0x21;
+    while c <= 0x7e {
+        t[c] = if c >= b'a' as usize && c <= b'z' as usize {
+            c as u8 - 32
+        } else {
+            c as u8
+        };
+        c += 1;
+    }
+    t[b' ' as usize] = 0;
+    t[b'\t' as usize] = 0;
+    t[b'\r' as usize] = 0;
+    t
+};
 
 /// Modal group of a G code (times ten), or `None` when unknown.
 fn g_group(code: u16) -> Option<u8> {
@@ -508,30 +532,26 @@ impl IsoInterpreter {
     /// Fill `self.norm` with the line minus comments and blanks, upper-cased.
     fn normalise(&mut self, text: &str, lineno: u64) -> Result<(), GcodeError> {
         self.norm.clear();
-        let mut in_comment = false;
-        for &c in text.as_bytes() {
-            if in_comment {
-                if c == b')' {
-                    in_comment = false;
-                }
-                continue;
-            }
-            match c {
-                b'(' => in_comment = true,
+        let bytes = text.as_bytes();
+        let mut i = 0;
+        while i < bytes.len() {
+            let c = bytes[i];
+            i += 1;
+            match NORMALISE[c as usize] {
+                0 => {}
+                b'(' => match bytes[i..].iter().position(|&c| c == b')') {
+                    Some(k) => i += k + 1,
+                    None => return Err(GcodeError::at(lineno, "comment '(' is not closed on this line")),
+                },
                 b';' => break,
-                b' ' | b'\t' | b'\r' => {}
-                b'a'..=b'z' => self.norm.push(c - 32),
-                0x21..=0x7e => self.norm.push(c),
-                _ => {
+                0xff => {
                     return Err(GcodeError::at(
                         lineno,
                         format!("character 0x{c:02x} is not allowed in G-code outside comments"),
                     ));
                 }
+                out => self.norm.push(out),
             }
-        }
-        if in_comment {
-            return Err(GcodeError::at(lineno, "comment '(' is not closed on this line"));
         }
         Ok(())
     }
@@ -601,6 +621,7 @@ impl IsoInterpreter {
                         }
                         b.g[b.ng] = code;
                         b.ng += 1;
+                        b.other_g |= !matches!(code, 0 | 10 | 20 | 30);
                     } else {
                         let g = m_group(code).ok_or_else(|| err(format!("unknown M code {}", fmt_code('M', code))))?;
                         if g != 10 && groups_m[g as usize] {
@@ -647,7 +668,7 @@ impl IsoInterpreter {
         if b.word(b'E').is_some() {
             return Err(err("E word is not supported".into()));
         }
-        for code in &b.g[..b.ng] {
+        for code in b.g[..b.ng].iter().filter(|_| b.other_g) {
             let unsupported = match code {
                 330 | 331 => Some("spindle-synchronised motion (G33)"),
                 382..=385 => Some("probing (G38.x)"),
@@ -694,6 +715,25 @@ impl IsoInterpreter {
         if b.has_m(50) {
             self.beam = false;
         }
+        let axes_used = b.other_g && self.modal_settings(b, lineno, out)?;
+        for code in &b.g[..b.ng] {
+            match code {
+                0 => self.motion = Some(MotionMode::Rapid),
+                10 => self.motion = Some(MotionMode::Feed),
+                20 => self.motion = Some(MotionMode::Cw),
+                30 => self.motion = Some(MotionMode::Ccw),
+                800 => self.motion = None,
+                _ => {}
+            }
+        }
+        self.motion_step(b, axes_used, lineno, out)
+    }
+
+    /// Steps 12-21 of the order of execution: dwell, plane, units,
+    /// coordinate system, distance modes, and the non-modal G10/G28/G30/G92
+    /// family. True when the block's axis words were used up by one of those.
+    fn modal_settings(&mut self, b: &Block, lineno: u64, out: &mut VecDeque<Record>) -> Result<bool, GcodeError> {
+        let err = |msg: String| GcodeError::at(lineno, msg);
         if b.has_g(40) {
             let p = b.word(b'P').ok_or_else(|| err("G4 needs a P word (seconds)".into()))?;
             if p < 0.0 {
@@ -758,16 +798,18 @@ impl IsoInterpreter {
         {
             self.g92 = s;
         }
-        for code in &b.g[..b.ng] {
-            match code {
-                0 => self.motion = Some(MotionMode::Rapid),
-                10 => self.motion = Some(MotionMode::Feed),
-                20 => self.motion = Some(MotionMode::Cw),
-                30 => self.motion = Some(MotionMode::Ccw),
-                800 => self.motion = None,
-                _ => {}
-            }
-        }
+        Ok(axes_used)
+    }
+
+    /// Step 22 and 23: the motion itself, then program stops.
+    fn motion_step(
+        &mut self,
+        b: &Block,
+        axes_used: bool,
+        lineno: u64,
+        out: &mut VecDeque<Record>,
+    ) -> Result<(), GcodeError> {
+        let err = |msg: String| GcodeError::at(lineno, msg);
         let has_axes = b.word(b'X').is_some() || b.word(b'Y').is_some() || b.word(b'Z').is_some();
         let g53 = b.has_g(530);
         let arc_words =
