@@ -161,6 +161,25 @@ impl Output {
                 let tmp = tmp
                     .into_inner()
                     .map_err(|e| CliError::failure(format!("{}: {}", path.display(), e.error())))?;
+                // A temp file is private (0600); the result should look like
+                // any file the user writes: the old file's mode, else 0644.
+                let perms = std::fs::metadata(&path).map(|m| m.permissions()).unwrap_or_else(|_| {
+                    #[cfg(unix)]
+                    {
+                        use std::os::unix::fs::PermissionsExt;
+                        std::fs::Permissions::from_mode(0o644)
+                    }
+                    #[cfg(not(unix))]
+                    {
+                        tmp.as_file()
+                            .metadata()
+                            .map(|m| m.permissions())
+                            .expect("temp file metadata")
+                    }
+                });
+                tmp.as_file()
+                    .set_permissions(perms)
+                    .map_err(|e| CliError::failure(format!("{}: {e}", path.display())))?;
                 tmp.persist(&path)
                     .map_err(|e| CliError::failure(format!("{}: {e}", path.display())))?;
                 Ok(())
