@@ -990,10 +990,12 @@ impl IsoInterpreter {
         if l != 2.0 && l != 20.0 {
             return Err(err("only G10 L2 and G10 L20 (coordinate system origins) are supported"));
         }
-        let idx = if p == 0.0 { self.cs } else { p as usize - 1 };
+        // Range first: P is user data, and P0.5 or P-1 must not reach the
+        // index arithmetic (found by fuzzing).
         if p.fract() != 0.0 || !(0.0..=9.0).contains(&p) {
-            return Err(err("G10 P must be 0 to 9"));
+            return Err(err("G10 P must be a whole number 0 to 9"));
         }
+        let idx = if p == 0.0 { self.cs } else { p as usize - 1 };
         let u = self.unit();
         for (k, letter) in [b'X', b'Y', b'Z'].into_iter().enumerate() {
             if let Some(v) = b.word(letter) {
@@ -1254,6 +1256,8 @@ mod tests {
             ("G0 X1 (unclosed\n", 1, "not closed"),
             ("G80\nX1\n", 2, "no motion mode"),
             ("G12\n", 1, "unknown G code G12"),
+            ("G10 L2 P0.5 X1\n", 1, "G10 P must be"),
+            ("G10 L2 P-1 X1\n", 1, "G10 P must be"),
             ("G2 X1 F1\n", 1, "needs R or"),
         ];
         for (text, line, needle) in cases {
