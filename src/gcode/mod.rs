@@ -157,12 +157,14 @@ pub fn detect_dialect<'a>(lines: impl IntoIterator<Item = &'a str>) -> Dialect {
         // A variable assignment such as M33=1 or P400=7 without a leading
         // '#' is PMAC; ISO parameters are '#'.
         let b = body.as_bytes();
-        if b.len() > 2 && matches!(b[0], b'M' | b'P' | b'Q' | b'I') && b[1].is_ascii_digit() {
-            if let Some(eq) = body.find('=') {
-                if body[1..eq].chars().all(|c| c.is_ascii_digit()) {
-                    return Dialect::Pmac;
-                }
-            }
+        if b.len() > 2
+            && matches!(b[0], b'M' | b'P' | b'Q' | b'I')
+            && b[1].is_ascii_digit()
+            && body
+                .find('=')
+                .is_some_and(|eq| body[1..eq].chars().all(|c| c.is_ascii_digit()))
+        {
+            return Dialect::Pmac;
         }
     }
     Dialect::Iso
@@ -192,29 +194,6 @@ fn strip_comments_for_detect(l: &str) -> String {
         }
     }
     out
-}
-
-#[cfg(test)]
-mod detect_tests {
-    use super::*;
-
-    #[test]
-    fn dialects_are_told_apart_by_evidence_not_by_the_first_line() {
-        let cases: [(&str, Dialect); 9] = [
-            ("G90\nLINEAR X1 F2\n", Dialect::Pmac),
-            ("N10 G90\nN20 M33=1\n", Dialect::Pmac),
-            ("OPEN PROG 1 CLEAR\nX1\nCLOSE\n", Dialect::Pmac),
-            ("ABS(X,Y)\nX1\n", Dialect::Pmac),
-            ("G21 G90\nG1 X1 F100 (LINEAR move)\n", Dialect::Iso),
-            ("(RAPID to start)\nG0 X1\n", Dialect::Iso),
-            ("#1=2\nG0 X#1\n", Dialect::Iso),
-            ("G0 X[ABS[-1]]\n", Dialect::Iso),
-            ("", Dialect::Iso),
-        ];
-        for (text, want) in cases {
-            assert_eq!(detect_dialect(text.lines()), want, "{text:?}");
-        }
-    }
 }
 
 /// Build arc data from an in-plane centre, checking that the start and
@@ -358,4 +337,27 @@ pub fn read_str(text: &str, opts: &ReadOptions) -> Result<(Dialect, Vec<Record>)
     let r = ProgramReader::new(text.as_bytes(), opts)?;
     let d = r.dialect();
     Ok((d, r.collect::<Result<Vec<_>, _>>()?))
+}
+
+#[cfg(test)]
+mod detect_tests {
+    use super::*;
+
+    #[test]
+    fn dialects_are_told_apart_by_evidence_not_by_the_first_line() {
+        let cases: [(&str, Dialect); 9] = [
+            ("G90\nLINEAR X1 F2\n", Dialect::Pmac),
+            ("N10 G90\nN20 M33=1\n", Dialect::Pmac),
+            ("OPEN PROG 1 CLEAR\nX1\nCLOSE\n", Dialect::Pmac),
+            ("ABS(X,Y)\nX1\n", Dialect::Pmac),
+            ("G21 G90\nG1 X1 F100 (LINEAR move)\n", Dialect::Iso),
+            ("(RAPID to start)\nG0 X1\n", Dialect::Iso),
+            ("#1=2\nG0 X#1\n", Dialect::Iso),
+            ("G0 X[ABS[-1]]\n", Dialect::Iso),
+            ("", Dialect::Iso),
+        ];
+        for (text, want) in cases {
+            assert_eq!(detect_dialect(text.lines()), want, "{text:?}");
+        }
+    }
 }
