@@ -198,41 +198,26 @@ fn decode_chain(w: WireChain, line: u64) -> Result<Chain, FormatError> {
 
 /// Streaming writer of chains.
 pub struct ChainsWriter<W: Write> {
-    out: W,
-    buf: String,
+    lines: super::LineWriter<W>,
 }
 
 impl<W: Write> ChainsWriter<W> {
     pub fn new(out: W) -> Self {
         ChainsWriter {
-            out,
-            buf: String::with_capacity(1024),
+            lines: super::LineWriter::new(out),
         }
     }
 
     pub fn header(&mut self, h: &ChainsHeader) -> std::io::Result<()> {
-        self.buf.clear();
-        self.buf.push_str("{\"schema\":\"");
-        self.buf.push_str(SCHEMA);
-        self.buf.push_str("\",\"units\":\"mm\"");
-        if let Some(s) = &h.source {
-            self.buf.push_str(",\"source\":");
-            push_str_lit(&mut self.buf, s);
-        }
-        self.buf.push_str("}\n");
-        self.out.write_all(self.buf.as_bytes())
+        self.lines.header(SCHEMA, &[], h.source.as_deref())
     }
 
     pub fn chain(&mut self, c: &Chain) -> std::io::Result<()> {
-        self.buf.clear();
-        format_chain(&mut self.buf, c);
-        self.buf.push('\n');
-        self.out.write_all(self.buf.as_bytes())
+        self.lines.line(|b| format_chain(b, c))
     }
 
-    pub fn finish(mut self) -> std::io::Result<W> {
-        self.out.flush()?;
-        Ok(self.out)
+    pub fn finish(self) -> std::io::Result<W> {
+        self.lines.finish()
     }
 }
 

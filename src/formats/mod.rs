@@ -75,6 +75,55 @@ impl<R: BufRead> LineSource<R> {
     }
 }
 
+/// Writes one JSON Lines record at a time through a reused buffer, one
+/// `write_all` per record: the plumbing both pipe-format writers share.
+pub(crate) struct LineWriter<W: std::io::Write> {
+    out: W,
+    buf: String,
+}
+
+impl<W: std::io::Write> LineWriter<W> {
+    pub(crate) fn new(out: W) -> Self {
+        LineWriter {
+            out,
+            buf: String::with_capacity(256),
+        }
+    }
+
+    /// Format one record with `f` and write it as a line.
+    pub(crate) fn line(&mut self, f: impl FnOnce(&mut String)) -> std::io::Result<()> {
+        self.buf.clear();
+        f(&mut self.buf);
+        self.buf.push('\n');
+        self.out.write_all(self.buf.as_bytes())
+    }
+
+    /// The header record: schema, units, then `extra` fields, then source.
+    pub(crate) fn header(&mut self, schema: &str, extra: &[(&str, &str)], source: Option<&str>) -> std::io::Result<()> {
+        self.line(|b| {
+            b.push_str("{\"schema\":\"");
+            b.push_str(schema);
+            b.push_str("\",\"units\":\"mm\"");
+            for (k, v) in extra {
+                b.push_str(",\"");
+                b.push_str(k);
+                b.push_str("\":");
+                push_str_lit(b, v);
+            }
+            if let Some(s) = source {
+                b.push_str(",\"source\":");
+                push_str_lit(b, s);
+            }
+            b.push('}');
+        })
+    }
+
+    pub(crate) fn finish(mut self) -> std::io::Result<W> {
+        self.out.flush()?;
+        Ok(self.out)
+    }
+}
+
 /// Append a number in the pipe formats' canonical form: rounded to 1e-9,
 /// shortest exact decimal digits, no trailing zeros, no `-0`.
 ///

@@ -245,43 +245,27 @@ fn check_arc(start: &P3, to: &P3, center: &P3, plane: Plane, line: u64) -> Resul
 /// [`ToolpathWriter::record`] for each record; [`ToolpathWriter::finish`]
 /// flushes.
 pub struct ToolpathWriter<W: Write> {
-    out: W,
-    buf: String,
+    lines: super::LineWriter<W>,
 }
 
 impl<W: Write> ToolpathWriter<W> {
     pub fn new(out: W) -> Self {
         ToolpathWriter {
-            out,
-            buf: String::with_capacity(256),
+            lines: super::LineWriter::new(out),
         }
     }
 
     pub fn header(&mut self, h: &Header) -> std::io::Result<()> {
-        self.buf.clear();
-        self.buf.push_str("{\"schema\":\"");
-        self.buf.push_str(SCHEMA);
-        self.buf.push_str("\",\"units\":\"mm\",\"feed_units\":\"");
-        self.buf.push_str(h.feed_unit.name());
-        self.buf.push('"');
-        if let Some(s) = &h.source {
-            self.buf.push_str(",\"source\":");
-            push_str_lit(&mut self.buf, s);
-        }
-        self.buf.push_str("}\n");
-        self.out.write_all(self.buf.as_bytes())
+        self.lines
+            .header(SCHEMA, &[("feed_units", h.feed_unit.name())], h.source.as_deref())
     }
 
     pub fn record(&mut self, r: &Record) -> std::io::Result<()> {
-        self.buf.clear();
-        format_record(&mut self.buf, r);
-        self.buf.push('\n');
-        self.out.write_all(self.buf.as_bytes())
+        self.lines.line(|b| format_record(b, r))
     }
 
-    pub fn finish(mut self) -> std::io::Result<W> {
-        self.out.flush()?;
-        Ok(self.out)
+    pub fn finish(self) -> std::io::Result<W> {
+        self.lines.finish()
     }
 }
 

@@ -876,15 +876,7 @@ impl IsoInterpreter {
         } else {
             (MotionKind::Line, Some(self.feed_mm_per_min(lineno)?))
         };
-        out.push_back(Record::Move(Motion {
-            kind,
-            to,
-            feed,
-            beam: self.beam,
-            role: None,
-            chain: None,
-            block: Some(lineno),
-        }));
+        out.push_back(Record::Move(Motion::from_block(kind, to, feed, self.beam, lineno)));
         self.pos = to;
         Ok(())
     }
@@ -952,15 +944,13 @@ impl IsoInterpreter {
         let r = (start2 - center).norm();
         let tol = arc_end_tolerance(r);
         let arc = make_arc(&self.pos, &to, center, ccw, plane, extra_turns, tol, lineno)?;
-        out.push_back(Record::Move(Motion {
-            kind: MotionKind::Arc(arc),
+        out.push_back(Record::Move(Motion::from_block(
+            MotionKind::Arc(arc),
             to,
-            feed: Some(feed),
-            beam: self.beam,
-            role: None,
-            chain: None,
-            block: Some(lineno),
-        }));
+            Some(feed),
+            self.beam,
+            lineno,
+        )));
         self.pos = to;
         Ok(())
     }
