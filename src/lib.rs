@@ -17,3 +17,4 @@ pub mod model;
 pub mod preview;
 pub mod sim;
 pub mod source;
+pub mod stock;
