@@ -64,7 +64,7 @@ impl HeightField {
     /// square as lets them tile the box exactly.
     pub fn new(min: P3, max: P3, res: f64) -> Result<HeightField, StockError> {
         let size = max - min;
-        if !(size.x > 0.0 && size.y > 0.0 && size.z > 0.0) || !size.iter().all(|v| v.is_finite()) {
+        if !(size.x > 0.0 && size.y > 0.0 && size.z > 0.0 && size.iter().all(|v| v.is_finite())) {
             return Err(StockError::Box(min.coords.into(), max.coords.into()));
         }
         if !(res > 0.0 && res.is_finite()) {
