@@ -14,3 +14,5 @@ pub mod formats;
 pub mod gcode;
 pub mod geometry;
 pub mod model;
+pub mod sim;
+pub mod source;

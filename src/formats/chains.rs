@@ -54,13 +54,13 @@ impl<R: BufRead> ChainsReader<R> {
             .ok_or_else(|| FormatError::invalid(1, format!("empty input: expected a '{SCHEMA}' header")))?;
         let h: WireHeader = parse_json(text, line)?;
         check_schema(h.schema.as_deref(), SCHEMA, line)?;
-        if let Some(u) = h.units.as_deref() {
-            if u != "mm" {
-                return Err(FormatError::invalid(
-                    line,
-                    format!("units '{u}' not supported (only \"mm\")"),
-                ));
-            }
+        if let Some(u) = h.units.as_deref()
+            && u != "mm"
+        {
+            return Err(FormatError::invalid(
+                line,
+                format!("units '{u}' not supported (only \"mm\")"),
+            ));
         }
         Ok(ChainsReader {
             lines,
@@ -171,15 +171,14 @@ fn decode_chain(w: WireChain, line: u64) -> Result<Chain, FormatError> {
         }
         segments.push(seg);
     }
-    if closed {
-        if let (Some(first), Some(last)) = (segments.first(), segments.last()) {
-            if (first.start() - last.end()).norm() > JOIN_TOL {
-                return Err(FormatError::invalid(
-                    line,
-                    "chain is marked closed but does not end where it starts",
-                ));
-            }
-        }
+    if closed
+        && let (Some(first), Some(last)) = (segments.first(), segments.last())
+        && (first.start() - last.end()).norm() > JOIN_TOL
+    {
+        return Err(FormatError::invalid(
+            line,
+            "chain is marked closed but does not end where it starts",
+        ));
     }
     let points = w
         .points

@@ -64,13 +64,13 @@ impl<R: BufRead> ToolpathReader<R> {
         let h: WireHeader = parse_json(text, line)?;
         let source = h.source.clone();
         check_schema(h.schema.as_deref(), SCHEMA, line)?;
-        if let Some(u) = h.units.as_deref() {
-            if u != "mm" {
-                return Err(FormatError::invalid(
-                    line,
-                    format!("units '{u}' not supported (only \"mm\")"),
-                ));
-            }
+        if let Some(u) = h.units.as_deref()
+            && u != "mm"
+        {
+            return Err(FormatError::invalid(
+                line,
+                format!("units '{u}' not supported (only \"mm\")"),
+            ));
         }
         let feed_unit = match h.feed_units.as_deref() {
             None => FeedUnit::MmPerS,

@@ -1,1 +1,421 @@
-//! RS274 expressions and parameters (being written).
+//! RS274/NGC values: numbers, `#n` and `#<name>` parameters, `[ ]`
+//! expressions and unary functions, evaluated over a normalised line
+//! (comments and blanks removed, letters upper-cased).
+//!
+//! Angles are degrees, as in RS274. Binary operators follow RS274's three
+//! precedence levels, highest first: `**`; `* / MOD`; `+ -`; then the
+//! comparisons `EQ NE GT GE LT LE` and the logical `AND OR XOR` (LinuxCNC).
+
+use std::collections::HashMap;
+
+/// How many numbered parameters exist (`#1` .. `#5602`, LinuxCNC's range).
+pub const NUM_PARAMS: usize = 5603;
+
+/// The parameter store of an interpreter.
+#[derive(Debug, Clone)]
+pub struct Params {
+    numbered: Vec<f64>,
+    named: HashMap<Vec<u8>, f64>,
+}
+
+impl Default for Params {
+    fn default() -> Self {
+        Params {
+            numbered: vec![0.0; NUM_PARAMS],
+            named: HashMap::new(),
+        }
+    }
+}
+
+/// A pending parameter assignment (applied after the whole line is read).
+#[derive(Debug, Clone, PartialEq)]
+pub enum ParamRef {
+    Num(usize),
+    Named(Vec<u8>),
+}
+
+impl Params {
+    pub fn get(&self, r: &ParamRef) -> Result<f64, String> {
+        match r {
+            ParamRef::Num(n) => Ok(self.numbered[*n]),
+            ParamRef::Named(name) => self.named.get(name).copied().ok_or_else(|| {
+                format!(
+                    "named parameter #<{}> is used before it is set",
+                    String::from_utf8_lossy(name).to_lowercase()
+                )
+            }),
+        }
+    }
+
+    pub fn set(&mut self, r: &ParamRef, v: f64) {
+        match r {
+            ParamRef::Num(n) => self.numbered[*n] = v,
+            ParamRef::Named(name) => {
+                self.named.insert(name.clone(), v);
+            }
+        }
+    }
+
+    pub fn exists(&self, name: &[u8]) -> bool {
+        self.named.contains_key(name)
+    }
+}
+
+/// A cursor over a normalised line.
+pub struct Cursor<'a> {
+    pub s: &'a [u8],
+    pub pos: usize,
+}
+
+/// Nesting limit for expressions, so hostile input cannot overflow the stack.
+const MAX_DEPTH: u32 = 64;
+
+impl<'a> Cursor<'a> {
+    pub fn new(s: &'a [u8]) -> Self {
+        Cursor { s, pos: 0 }
+    }
+
+    pub fn peek(&self) -> Option<u8> {
+        self.s.get(self.pos).copied()
+    }
+
+    pub fn at_end(&self) -> bool {
+        self.pos >= self.s.len()
+    }
+
+    fn eat(&mut self, c: u8) -> bool {
+        if self.peek() == Some(c) {
+            self.pos += 1;
+            true
+        } else {
+            false
+        }
+    }
+
+    fn eat_word(&mut self, w: &[u8]) -> bool {
+        if self.s[self.pos.min(self.s.len())..].starts_with(w) {
+            self.pos += w.len();
+            true
+        } else {
+            false
+        }
+    }
+
+    /// An unsigned or signed decimal number such as `-1.5`, `.5`, `+2.`.
+    pub fn number(&mut self) -> Result<f64, String> {
+        let start = self.pos;
+        if matches!(self.peek(), Some(b'+' | b'-')) {
+            self.pos += 1;
+        }
+        let digits_start = self.pos;
+        while matches!(self.peek(), Some(b'0'..=b'9' | b'.')) {
+            self.pos += 1;
+        }
+        if self.pos == digits_start {
+            return Err(format!("expected a number at '{}'", self.rest_for_msg(start)));
+        }
+        let text = std::str::from_utf8(&self.s[start..self.pos]).unwrap_or("");
+        // `1.` and `.5` are valid RS274 numbers; Rust's parser takes both.
+        let t = text.strip_prefix('+').unwrap_or(text);
+        t.parse::<f64>().map_err(|_| format!("bad number '{text}'"))
+    }
+
+    fn rest_for_msg(&self, from: usize) -> String {
+        let end = (from + 12).min(self.s.len());
+        String::from_utf8_lossy(&self.s[from.min(end)..end]).into_owned()
+    }
+
+    /// A real value: number, `#` parameter, `[expr]` or unary function.
+    pub fn real_value(&mut self, p: &Params) -> Result<f64, String> {
+        self.real_value_depth(p, 0)
+    }
+
+    fn real_value_depth(&mut self, p: &Params, depth: u32) -> Result<f64, String> {
+        if depth > MAX_DEPTH {
+            return Err("expression nested too deeply".into());
+        }
+        match self.peek() {
+            Some(b'[') => self.bracketed(p, depth + 1),
+            Some(b'#') => {
+                let r = self.param_ref_depth(p, depth + 1)?;
+                p.get(&r)
+            }
+            Some(b'-') if matches!(self.s.get(self.pos + 1), Some(b'[' | b'#' | b'A'..=b'Z')) => {
+                self.pos += 1;
+                Ok(-self.real_value_depth(p, depth + 1)?)
+            }
+            Some(b'+') if matches!(self.s.get(self.pos + 1), Some(b'[' | b'#' | b'A'..=b'Z')) => {
+                self.pos += 1;
+                self.real_value_depth(p, depth + 1)
+            }
+            Some(b'A'..=b'Z') => self.unary(p, depth + 1),
+            _ => self.number(),
+        }
+    }
+
+    /// A parameter reference after `#`: `#12`, `#<name>`, `##3`, `#[1+2]`.
+    pub fn param_ref(&mut self, p: &Params) -> Result<ParamRef, String> {
+        self.param_ref_depth(p, 0)
+    }
+
+    fn param_ref_depth(&mut self, p: &Params, depth: u32) -> Result<ParamRef, String> {
+        if depth > MAX_DEPTH {
+            return Err("parameter reference nested too deeply".into());
+        }
+        if !self.eat(b'#') {
+            return Err("expected '#'".into());
+        }
+        if self.eat(b'<') {
+            let start = self.pos;
+            while self.peek().is_some_and(|c| c != b'>') {
+                self.pos += 1;
+            }
+            if self.at_end() {
+                return Err("named parameter without closing '>'".into());
+            }
+            let name = self.s[start..self.pos].to_vec();
+            self.pos += 1;
+            if name.is_empty() {
+                return Err("empty parameter name '#<>'".into());
+            }
+            return Ok(ParamRef::Named(name));
+        }
+        let v = self.real_value_depth(p, depth + 1)?;
+        let n = v.round();
+        if (v - n).abs() > 1e-6 || n < 1.0 || n >= NUM_PARAMS as f64 {
+            return Err(format!("parameter number {v} out of range 1..{}", NUM_PARAMS - 1));
+        }
+        Ok(ParamRef::Num(n as usize))
+    }
+
+    fn bracketed(&mut self, p: &Params, depth: u32) -> Result<f64, String> {
+        if !self.eat(b'[') {
+            return Err("expected '['".into());
+        }
+        let v = self.expression(p, depth)?;
+        if !self.eat(b']') {
+            return Err("missing ']' in expression".into());
+        }
+        Ok(v)
+    }
+
+    fn unary(&mut self, p: &Params, depth: u32) -> Result<f64, String> {
+        const FUNCS: [&[u8]; 14] = [
+            b"ABS", b"ACOS", b"ASIN", b"ATAN", b"COS", b"EXP", b"EXISTS", b"FIX", b"FUP", b"ROUND", b"LN", b"SIN",
+            b"SQRT", b"TAN",
+        ];
+        let start = self.pos;
+        let Some(f) = FUNCS.iter().find(|f| self.s[self.pos..].starts_with(f)) else {
+            return Err(format!("unknown function or word at '{}'", self.rest_for_msg(start)));
+        };
+        self.pos += f.len();
+        if *f == b"EXISTS" {
+            if !self.eat(b'[') {
+                return Err("EXISTS needs [#<name>]".into());
+            }
+            let r = self.param_ref_depth(p, depth + 1)?;
+            if !self.eat(b']') {
+                return Err("missing ']' after EXISTS".into());
+            }
+            return Ok(match r {
+                ParamRef::Named(n) => p.exists(&n) as u8 as f64,
+                ParamRef::Num(_) => 1.0,
+            });
+        }
+        let a = self.bracketed(p, depth + 1)?;
+        if *f == b"ATAN" {
+            if !self.eat(b'/') {
+                return Err("ATAN needs the form ATAN[y]/[x]".into());
+            }
+            let b = self.bracketed(p, depth + 1)?;
+            return Ok(a.atan2(b).to_degrees());
+        }
+        let v = match *f {
+            b"ABS" => a.abs(),
+            b"ACOS" => domain(a, -1.0, 1.0, "ACOS")?.acos().to_degrees(),
+            b"ASIN" => domain(a, -1.0, 1.0, "ASIN")?.asin().to_degrees(),
+            b"COS" => a.to_radians().cos(),
+            b"EXP" => a.exp(),
+            b"FIX" => a.floor(),
+            b"FUP" => a.ceil(),
+            b"ROUND" => a.round(),
+            b"LN" => {
+                if a <= 0.0 {
+                    return Err(format!("LN of {a}: not positive"));
+                }
+                a.ln()
+            }
+            b"SIN" => a.to_radians().sin(),
+            b"SQRT" => domain(a, 0.0, f64::INFINITY, "SQRT")?.sqrt(),
+            b"TAN" => a.to_radians().tan(),
+            _ => return Err("unknown function".into()),
+        };
+        Ok(v)
+    }
+
+    /// Binary expression inside brackets, with RS274 precedence.
+    fn expression(&mut self, p: &Params, depth: u32) -> Result<f64, String> {
+        self.logical(p, depth)
+    }
+
+    fn logical(&mut self, p: &Params, depth: u32) -> Result<f64, String> {
+        let mut v = self.comparison(p, depth)?;
+        loop {
+            if self.eat_word(b"AND") {
+                let r = self.comparison(p, depth)?;
+                v = ((v != 0.0) && (r != 0.0)) as u8 as f64;
+            } else if self.eat_word(b"OR") {
+                let r = self.comparison(p, depth)?;
+                v = ((v != 0.0) || (r != 0.0)) as u8 as f64;
+            } else if self.eat_word(b"XOR") {
+                let r = self.comparison(p, depth)?;
+                v = ((v != 0.0) ^ (r != 0.0)) as u8 as f64;
+            } else {
+                return Ok(v);
+            }
+        }
+    }
+
+    fn comparison(&mut self, p: &Params, depth: u32) -> Result<f64, String> {
+        let mut v = self.additive(p, depth)?;
+        loop {
+            let op: Option<fn(f64, f64) -> bool> = if self.eat_word(b"EQ") {
+                Some(|a, b| a == b)
+            } else if self.eat_word(b"NE") {
+                Some(|a, b| a != b)
+            } else if self.eat_word(b"GT") {
+                Some(|a, b| a > b)
+            } else if self.eat_word(b"GE") {
+                Some(|a, b| a >= b)
+            } else if self.eat_word(b"LT") {
+                Some(|a, b| a < b)
+            } else if self.eat_word(b"LE") {
+                Some(|a, b| a <= b)
+            } else {
+                None
+            };
+            match op {
+                Some(f) => {
+                    let r = self.additive(p, depth)?;
+                    v = f(v, r) as u8 as f64;
+                }
+                None => return Ok(v),
+            }
+        }
+    }
+
+    fn additive(&mut self, p: &Params, depth: u32) -> Result<f64, String> {
+        let mut v = self.multiplicative(p, depth)?;
+        loop {
+            if self.eat(b'+') {
+                v += self.multiplicative(p, depth)?;
+            } else if self.eat(b'-') {
+                v -= self.multiplicative(p, depth)?;
+            } else {
+                return Ok(v);
+            }
+        }
+    }
+
+    fn multiplicative(&mut self, p: &Params, depth: u32) -> Result<f64, String> {
+        let mut v = self.power(p, depth)?;
+        loop {
+            if self.s[self.pos.min(self.s.len())..].starts_with(b"**") {
+                return Ok(v);
+            } else if self.eat(b'*') {
+                v *= self.power(p, depth)?;
+            } else if self.eat(b'/') {
+                let d = self.power(p, depth)?;
+                if d == 0.0 {
+                    return Err("division by zero".into());
+                }
+                v /= d;
+            } else if self.eat_word(b"MOD") {
+                let d = self.power(p, depth)?;
+                if d == 0.0 {
+                    return Err("MOD by zero".into());
+                }
+                // RS274 MOD is the non-negative remainder.
+                v = v.rem_euclid(d.abs());
+            } else {
+                return Ok(v);
+            }
+        }
+    }
+
+    fn power(&mut self, p: &Params, depth: u32) -> Result<f64, String> {
+        let mut v = self.real_value_depth(p, depth + 1)?;
+        while self.eat_word(b"**") {
+            let e = self.real_value_depth(p, depth + 1)?;
+            v = v.powf(e);
+        }
+        if !v.is_finite() {
+            return Err("expression result is not finite".into());
+        }
+        Ok(v)
+    }
+}
+
+fn domain(a: f64, lo: f64, hi: f64, f: &str) -> Result<f64, String> {
+    if a < lo || a > hi {
+        Err(format!("{f} of {a}: out of its domain"))
+    } else {
+        Ok(a)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn eval(s: &str, p: &Params) -> Result<f64, String> {
+        let mut c = Cursor::new(s.as_bytes());
+        let v = c.real_value(p)?;
+        assert!(c.at_end(), "left over: {}", &s[c.pos..]);
+        Ok(v)
+    }
+
+    #[test]
+    fn evaluates_rs274_expressions() {
+        let mut p = Params::default();
+        p.set(&ParamRef::Num(1), 3.0);
+        p.set(&ParamRef::Named(b"Z_SAFE".to_vec()), 5.0);
+        let cases = [
+            ("[1+2*3]", 7.0),
+            ("[2**3*2]", 16.0),
+            ("[[1+2]*3]", 9.0),
+            ("#1", 3.0),
+            ("[#1*#<Z_SAFE>]", 15.0),
+            ("-#1", -3.0),
+            ("SIN[30]", 0.5),
+            ("ATAN[1]/[1]", 45.0),
+            ("[7MOD3]", 1.0),
+            ("[-7MOD3]", 2.0),
+            ("[1LT2]", 1.0),
+            ("[1GT2OR1]", 1.0),
+            ("[FIX[2.7]+FUP[2.1]+ROUND[2.5]]", 8.0),
+            ("##1", 0.0),
+            ("EXISTS[#<Z_SAFE>]", 1.0),
+            ("EXISTS[#<NOPE>]", 0.0),
+            ("[SQRT[16]/2]", 2.0),
+        ];
+        for (s, want) in cases {
+            let got = eval(s, &p).unwrap_or_else(|e| panic!("{s}: {e}"));
+            assert!((got - want).abs() < 1e-12, "{s}: {got} != {want}");
+        }
+    }
+
+    #[test]
+    fn rejects_bad_expressions_without_panicking() {
+        let p = Params::default();
+        for s in [
+            "[1+", "[1/0]", "#<nope>", "#0", "#99999", "SQRT[-1]", "FOO[1]", "[1]]", "#<", "ATAN[1]",
+        ] {
+            let mut c = Cursor::new(s.as_bytes());
+            let r = c.real_value(&p);
+            assert!(r.is_err() || !c.at_end(), "{s} should fail");
+        }
+        let deep = "[".repeat(10_000);
+        assert!(Cursor::new(deep.as_bytes()).real_value(&p).is_err());
+    }
+}

@@ -1,25 +1,1256 @@
-//! ISO/RS274 interpreter (being written).
+//! ISO/RS274-NGC interpreter (the LinuxCNC flavour), one line at a time.
+//!
+//! Each line is normalised (comments and blanks dropped, letters upper-cased),
+//! split into words, checked (one code per modal group, no repeated words)
+//! and executed in RS274's order of execution. Positions are kept in the
+//! machine frame in millimetres: program coordinates plus the G5x and G92
+//! offsets, so every move starts where the previous one ended, whatever
+//! offsets the program sets. Inch programs (G20) become millimetres.
+//!
+//! O-word subroutines and control flow (LinuxCNC's `sub`/`call`, `if`,
+//! `while`, `do`, `repeat`, `break`, `continue`, `return`) are executed:
+//! a structure's lines are held in memory from its opening line to its
+//! closing line, then run; straight-line code streams through untouched.
+//!
+//! What it cannot honour (cutter compensation, canned cycles, inverse-time
+//! feed, rotary axes) is an error naming the line.
 
-use super::{GcodeError, LineInterpreter, ReadOptions};
-use crate::model::toolpath::Record;
+use super::expr::{Cursor, ParamRef, Params};
+use super::oword::{self, OKeyword, OLine};
+use super::{GcodeError, LineInterpreter, ReadOptions, make_arc};
+use crate::geometry::{P2, P3, Plane, V3, planar};
+use crate::model::toolpath::{Motion, MotionKind, Record};
+use std::collections::HashMap;
 use std::collections::VecDeque;
+use std::rc::Rc;
 
-pub struct IsoInterpreter {}
+const MM_PER_INCH: f64 = 25.4;
+
+/// How far (mm) the end of a centre-format arc may be off the circle
+/// through its start, on top of [`ARC_RADIUS_REL_TOL`] of the radius.
+/// LinuxCNC accepts about 0.002 inch; micro parts need tighter, so we take
+/// the smaller absolute figure and report the miss in the error.
+pub const ARC_RADIUS_TOL_MM: f64 = 0.005;
+/// Relative part of the arc end tolerance.
+pub const ARC_RADIUS_REL_TOL: f64 = 1e-4;
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum MotionMode {
+    Rapid,
+    Feed,
+    Cw,
+    Ccw,
+}
+
+/// Codes of one block, G and M codes kept as ten times their value
+/// (G91.1 -> 911) so decimal codes compare exactly.
+struct Block {
+    g: [u16; 16],
+    ng: usize,
+    m: [u16; 8],
+    nm: usize,
+    /// Value of each letter word A..Z (G, M, N, O not stored here).
+    w: [Option<f64>; 26],
+}
+
+impl Block {
+    fn new() -> Self {
+        Block {
+            g: [0; 16],
+            ng: 0,
+            m: [0; 8],
+            nm: 0,
+            w: [None; 26],
+        }
+    }
+
+    fn has_g(&self, code: u16) -> bool {
+        self.g[..self.ng].contains(&code)
+    }
+
+    fn has_m(&self, code: u16) -> bool {
+        self.m[..self.nm].contains(&code)
+    }
+
+    fn word(&self, letter: u8) -> Option<f64> {
+        self.w[(letter - b'A') as usize]
+    }
+}
+
+/// Modal group of a G code (times ten), or `None` when unknown.
+fn g_group(code: u16) -> Option<u8> {
+    Some(match code {
+        0 | 10 | 20 | 30 | 330 | 331 | 382..=385 | 730 | 760 | 800..=890 => 1,
+        40 | 100 | 280 | 281 | 300 | 301 | 530 | 920..=923 => 0,
+        170 | 171 | 180 | 181 | 190 | 191 => 2,
+        900 | 910 => 3,
+        901 | 911 => 4,
+        930 | 940 | 950 => 5,
+        200 | 210 => 6,
+        400 | 410 | 411 | 420 | 421 => 7,
+        430 | 431 | 432 | 490 => 8,
+        980 | 990 => 10,
+        540 | 550 | 560 | 570 | 580 | 590 | 591 | 592 | 593 => 12,
+        610 | 611 | 640 => 13,
+        960 | 970 => 14,
+        70 | 80 => 15,
+        _ => return None,
+    })
+}
+
+/// Modal group of an M code, or `None` when unknown.
+fn m_group(code: u16) -> Option<u8> {
+    Some(match code {
+        0 | 10 | 20 | 300 | 600 => 4,
+        30 | 40 | 50 => 7,
+        60 => 6,
+        70 | 80 | 90 => 8,
+        480 | 490 | 500 | 510 | 520 | 530 => 9,
+        620..=680 | 700..=730 => 5,
+        1000..=1990 => 10,
+        _ => return None,
+    })
+}
+
+fn fmt_code(letter: char, code: u16) -> String {
+    if code.is_multiple_of(10) {
+        format!("{letter}{}", code / 10)
+    } else {
+        format!("{letter}{}.{}", code / 10, code % 10)
+    }
+}
+
+/// The ISO interpreter's modal state.
+pub struct IsoInterpreter {
+    /// Current position, machine frame, mm.
+    pos: P3,
+    inch: bool,
+    incremental: bool,
+    arc_absolute: bool,
+    plane: Plane,
+    motion: Option<MotionMode>,
+    /// F as written, in program units per minute (converted when used, as
+    /// RS274 keeps F in the current length unit).
+    feed_raw: f64,
+    beam: bool,
+    spindle_rpm: Option<f64>,
+    params: Params,
+    /// G54..G59.3 origins (mm); `cs` selects one.
+    g5x: [V3; 9],
+    cs: usize,
+    g92: V3,
+    g92_saved: Option<V3>,
+    percent_seen: bool,
+    any_code_seen: bool,
+    ended: bool,
+    norm: Vec<u8>,
+    assigns: Vec<(ParamRef, f64)>,
+    /// Subroutine bodies by label (the lines between `sub` and `endsub`).
+    subs: HashMap<Vec<u8>, Rc<Vec<(u64, String)>>>,
+    /// A top-level control structure or subroutine being read in.
+    capture: Option<Capture>,
+    /// Loop iterations run so far, to stop runaway loops.
+    iterations: u64,
+}
+
+/// Lines of a control structure read so far, from its opening line.
+struct Capture {
+    label: Vec<u8>,
+    opener: OKeyword,
+    lines: Vec<(u64, String)>,
+}
+
+/// How a block of lines finished.
+#[derive(Debug, PartialEq)]
+enum Flow {
+    Normal,
+    Return,
+    Break(Vec<u8>),
+    Continue(Vec<u8>),
+}
+
+/// Most loop iterations a program may run, so a loop that never ends is an
+/// error rather than a hang.
+const MAX_ITERATIONS: u64 = 1_000_000;
+/// Deepest subroutine nesting (LinuxCNC allows 10 levels of call).
+const MAX_CALL_DEPTH: u32 = 64;
+
+/// The keyword that closes a structure opened by `opener`.
+fn closer_of(opener: OKeyword) -> Option<OKeyword> {
+    Some(match opener {
+        OKeyword::Sub => OKeyword::EndSub,
+        OKeyword::While => OKeyword::EndWhile,
+        OKeyword::Do => OKeyword::While,
+        OKeyword::If => OKeyword::EndIf,
+        OKeyword::Repeat => OKeyword::EndRepeat,
+        _ => return None,
+    })
+}
+
+fn label_text(l: &[u8]) -> String {
+    String::from_utf8_lossy(l).to_lowercase()
+}
 
 impl IsoInterpreter {
-    pub fn new(_opts: &ReadOptions) -> Self {
-        IsoInterpreter {}
+    pub fn new(opts: &ReadOptions) -> Self {
+        IsoInterpreter {
+            pos: opts.start,
+            inch: false,
+            incremental: false,
+            arc_absolute: false,
+            plane: Plane::Xy,
+            motion: None,
+            feed_raw: 0.0,
+            beam: false,
+            spindle_rpm: None,
+            params: Params::default(),
+            g5x: [V3::zeros(); 9],
+            cs: 0,
+            g92: V3::zeros(),
+            g92_saved: None,
+            percent_seen: false,
+            any_code_seen: false,
+            ended: false,
+            norm: Vec::with_capacity(128),
+            assigns: Vec::new(),
+            subs: HashMap::new(),
+            capture: None,
+            iterations: 0,
+        }
+    }
+
+    /// The O-word of the normalised line, if it is an O-word line (after an
+    /// optional block delete and N word).
+    fn oline(&self, lineno: u64) -> Result<Option<OLine>, GcodeError> {
+        let mut c = Cursor::new(&self.norm);
+        if c.peek() == Some(b'/') {
+            c.pos += 1;
+        }
+        if c.peek() == Some(b'N') {
+            c.pos += 1;
+            if c.number().is_err() {
+                return Ok(None);
+            }
+        }
+        if c.peek() != Some(b'O') {
+            return Ok(None);
+        }
+        let mut ol = oword::parse(&self.norm[c.pos..]).map_err(|e| GcodeError::at(lineno, e))?;
+        ol.rest += c.pos;
+        Ok(Some(ol))
+    }
+
+    /// Normalise `text` and evaluate the expression after its O keyword.
+    fn o_value(&mut self, text: &str, lineno: u64) -> Result<Option<f64>, GcodeError> {
+        self.normalise(text, lineno)?;
+        let ol = self
+            .oline(lineno)?
+            .ok_or_else(|| GcodeError::at(lineno, "expected an O-word line"))?;
+        if ol.rest >= self.norm.len() {
+            return Ok(None);
+        }
+        let mut c = Cursor::new(&self.norm[ol.rest..]);
+        let v = c.real_value(&self.params).map_err(|e| GcodeError::at(lineno, e))?;
+        if !c.at_end() {
+            return Err(GcodeError::at(lineno, "unexpected text after the O-word expression"));
+        }
+        Ok(Some(v))
+    }
+
+    fn o_condition(&mut self, line: &(u64, String)) -> Result<bool, GcodeError> {
+        let v = self
+            .o_value(&line.1, line.0)?
+            .ok_or_else(|| GcodeError::at(line.0, "this O-word needs a condition in [ ]"))?;
+        Ok(v != 0.0)
+    }
+
+    fn count_iteration(&mut self, lineno: u64) -> Result<(), GcodeError> {
+        self.iterations += 1;
+        if self.iterations > MAX_ITERATIONS {
+            return Err(GcodeError::at(
+                lineno,
+                format!("more than {MAX_ITERATIONS} loop iterations: is this loop endless?"),
+            ));
+        }
+        Ok(())
+    }
+
+    /// Index of the next line after `from` that is an O-word with `label`
+    /// and one of `keywords`.
+    fn find_o(
+        &mut self,
+        lines: &[(u64, String)],
+        from: usize,
+        label: &[u8],
+        keywords: &[OKeyword],
+    ) -> Result<Option<(usize, OKeyword)>, GcodeError> {
+        for (k, (ln, text)) in lines.iter().enumerate().skip(from + 1) {
+            self.normalise(text, *ln)?;
+            if let Some(ol) = self.oline(*ln)?
+                && ol.label == label
+                && keywords.contains(&ol.keyword)
+            {
+                return Ok(Some((k, ol.keyword)));
+            }
+        }
+        Ok(None)
+    }
+
+    fn must_find(
+        &mut self,
+        lines: &[(u64, String)],
+        from: usize,
+        label: &[u8],
+        kw: OKeyword,
+    ) -> Result<usize, GcodeError> {
+        self.find_o(lines, from, label, &[kw])?.map(|(k, _)| k).ok_or_else(|| {
+            GcodeError::at(
+                lines[from].0,
+                format!("o{} has no matching {kw:?}", label_text(label)).to_lowercase(),
+            )
+        })
+    }
+
+    /// Run a block of lines with O-word control flow.
+    fn exec_block(
+        &mut self,
+        lines: &[(u64, String)],
+        out: &mut VecDeque<Record>,
+        depth: u32,
+    ) -> Result<Flow, GcodeError> {
+        let mut pc = 0;
+        while pc < lines.len() {
+            if self.ended {
+                return Ok(Flow::Normal);
+            }
+            let (ln, text) = (lines[pc].0, &lines[pc].1);
+            self.normalise(text, ln)?;
+            if self.norm.is_empty() || self.norm[0] == b'%' {
+                pc += 1;
+                continue;
+            }
+            let Some(ol) = self.oline(ln)? else {
+                let b = self.parse_block(ln)?;
+                self.execute(&b, ln, out)?;
+                pc += 1;
+                continue;
+            };
+            let label = ol.label.clone();
+            match ol.keyword {
+                OKeyword::Sub => {
+                    let end = self.must_find(lines, pc, &label, OKeyword::EndSub)?;
+                    self.subs.insert(label, Rc::new(lines[pc + 1..end].to_vec()));
+                    pc = end + 1;
+                }
+                OKeyword::Call => {
+                    self.call(&ol, ln, out, depth)?;
+                    pc += 1;
+                }
+                OKeyword::If => {
+                    let mut marks = vec![(pc, OKeyword::If)];
+                    loop {
+                        let last = marks.last().map_or(pc, |m| m.0);
+                        match self.find_o(
+                            lines,
+                            last,
+                            &label,
+                            &[OKeyword::ElseIf, OKeyword::Else, OKeyword::EndIf],
+                        )? {
+                            Some((k, OKeyword::EndIf)) => {
+                                marks.push((k, OKeyword::EndIf));
+                                break;
+                            }
+                            Some(m) => marks.push(m),
+                            None => {
+                                return Err(GcodeError::at(ln, format!("o{} if has no endif", label_text(&label))));
+                            }
+                        }
+                    }
+                    let end = marks.last().map_or(pc, |m| m.0);
+                    for w in marks.windows(2) {
+                        let (k, kw) = w[0];
+                        let take = kw == OKeyword::Else || self.o_condition(&lines[k])?;
+                        if take {
+                            let flow = self.exec_block(&lines[k + 1..w[1].0], out, depth)?;
+                            if flow != Flow::Normal {
+                                return Ok(flow);
+                            }
+                            break;
+                        }
+                    }
+                    pc = end + 1;
+                }
+                OKeyword::While => {
+                    let end = self.must_find(lines, pc, &label, OKeyword::EndWhile)?;
+                    while self.o_condition(&lines[pc])? {
+                        self.count_iteration(ln)?;
+                        match self.exec_block(&lines[pc + 1..end], out, depth)? {
+                            Flow::Break(l) if l == label => break,
+                            Flow::Normal => {}
+                            Flow::Continue(l) if l == label => {}
+                            other => return Ok(other),
+                        }
+                        if self.ended {
+                            break;
+                        }
+                    }
+                    pc = end + 1;
+                }
+                OKeyword::Do => {
+                    let end = self.must_find(lines, pc, &label, OKeyword::While)?;
+                    loop {
+                        self.count_iteration(ln)?;
+                        match self.exec_block(&lines[pc + 1..end], out, depth)? {
+                            Flow::Break(l) if l == label => break,
+                            Flow::Normal => {}
+                            Flow::Continue(l) if l == label => {}
+                            other => return Ok(other),
+                        }
+                        if self.ended || !self.o_condition(&lines[end])? {
+                            break;
+                        }
+                    }
+                    pc = end + 1;
+                }
+                OKeyword::Repeat => {
+                    let n = self
+                        .o_value(text, ln)?
+                        .ok_or_else(|| GcodeError::at(ln, "repeat needs a count in [ ]"))?;
+                    let end = self.must_find(lines, pc, &label, OKeyword::EndRepeat)?;
+                    let mut i = 0.0;
+                    while i < n.round() {
+                        self.count_iteration(ln)?;
+                        match self.exec_block(&lines[pc + 1..end], out, depth)? {
+                            Flow::Break(l) if l == label => break,
+                            Flow::Normal => {}
+                            Flow::Continue(l) if l == label => {}
+                            other => return Ok(other),
+                        }
+                        if self.ended {
+                            break;
+                        }
+                        i += 1.0;
+                    }
+                    pc = end + 1;
+                }
+                OKeyword::Break => return Ok(Flow::Break(label)),
+                OKeyword::Continue => return Ok(Flow::Continue(label)),
+                OKeyword::Return | OKeyword::EndSub => {
+                    if depth == 0 {
+                        return Err(GcodeError::at(ln, "return/endsub outside a subroutine"));
+                    }
+                    if let Some(v) = self.o_value(text, ln)? {
+                        self.params.set(&ParamRef::Named(b"_VALUE".to_vec()), v);
+                    }
+                    return Ok(Flow::Return);
+                }
+                kw => {
+                    return Err(GcodeError::at(
+                        ln,
+                        format!("o{} {kw:?} without its opening line", label_text(&label)).to_lowercase(),
+                    ));
+                }
+            }
+        }
+        Ok(Flow::Normal)
+    }
+
+    /// `O<label> call [a] [b] ...`: arguments go to #1, #2 ..., which are
+    /// local to the call (restored after it), as in LinuxCNC.
+    fn call(&mut self, ol: &OLine, lineno: u64, out: &mut VecDeque<Record>, depth: u32) -> Result<(), GcodeError> {
+        if depth >= MAX_CALL_DEPTH {
+            return Err(GcodeError::at(
+                lineno,
+                format!("subroutine calls nested deeper than {MAX_CALL_DEPTH}"),
+            ));
+        }
+        let body = self.subs.get(&ol.label).cloned().ok_or_else(|| {
+            GcodeError::at(
+                lineno,
+                format!(
+                    "o{} is called before its definition (define subroutines before calling them; no external files are read)",
+                    label_text(&ol.label)
+                ),
+            )
+        })?;
+        let mut args = Vec::new();
+        let mut c = Cursor::new(&self.norm[ol.rest..]);
+        while !c.at_end() {
+            if args.len() >= 30 {
+                return Err(GcodeError::at(lineno, "more than 30 subroutine arguments"));
+            }
+            args.push(c.real_value(&self.params).map_err(|e| GcodeError::at(lineno, e))?);
+        }
+        let saved: Vec<f64> = (1..=30)
+            .map(|i| self.params.get(&ParamRef::Num(i)).unwrap_or(0.0))
+            .collect();
+        for i in 1..=30 {
+            self.params
+                .set(&ParamRef::Num(i), args.get(i - 1).copied().unwrap_or(0.0));
+        }
+        let flow = self.exec_block(&body, out, depth + 1);
+        for (i, v) in saved.into_iter().enumerate() {
+            self.params.set(&ParamRef::Num(i + 1), v);
+        }
+        match flow? {
+            Flow::Normal | Flow::Return => Ok(()),
+            Flow::Break(l) | Flow::Continue(l) => Err(GcodeError::at(
+                lineno,
+                format!("break/continue o{} escaped its subroutine", label_text(&l)),
+            )),
+        }
+    }
+
+    fn unit(&self) -> f64 {
+        if self.inch { MM_PER_INCH } else { 1.0 }
+    }
+
+    /// Total origin offset (machine = program + offset), mm.
+    fn offset(&self) -> V3 {
+        self.g5x[self.cs] + self.g92
+    }
+
+    /// Fill `self.norm` with the line minus comments and blanks, upper-cased.
+    fn normalise(&mut self, text: &str, lineno: u64) -> Result<(), GcodeError> {
+        self.norm.clear();
+        let mut in_comment = false;
+        for &c in text.as_bytes() {
+            if in_comment {
+                if c == b')' {
+                    in_comment = false;
+                }
+                continue;
+            }
+            match c {
+                b'(' => in_comment = true,
+                b';' => break,
+                b' ' | b'\t' | b'\r' => {}
+                b'a'..=b'z' => self.norm.push(c - 32),
+                0x21..=0x7e => self.norm.push(c),
+                _ => {
+                    return Err(GcodeError::at(
+                        lineno,
+                        format!("character 0x{c:02x} is not allowed in G-code outside comments"),
+                    ));
+                }
+            }
+        }
+        if in_comment {
+            return Err(GcodeError::at(lineno, "comment '(' is not closed on this line"));
+        }
+        Ok(())
+    }
+
+    fn parse_block(&mut self, lineno: u64) -> Result<Block, GcodeError> {
+        let mut b = Block::new();
+        self.assigns.clear();
+        let norm = std::mem::take(&mut self.norm);
+        let res = self.parse_words(&norm, &mut b, lineno);
+        self.norm = norm;
+        res.map(|_| b)
+    }
+
+    fn parse_words(&mut self, s: &[u8], b: &mut Block, lineno: u64) -> Result<(), GcodeError> {
+        let err = |msg: String| GcodeError::at(lineno, msg);
+        let mut c = Cursor::new(s);
+        if c.peek() == Some(b'/') {
+            // Block delete switch is off (LinuxCNC's default): run the line.
+            c.pos += 1;
+        }
+        if c.peek() == Some(b'N') {
+            c.pos += 1;
+            c.number().map_err(|e| err(format!("line number N: {e}")))?;
+        }
+        let mut groups_g = [false; 16];
+        let mut groups_m = [false; 11];
+        while let Some(ch) = c.peek() {
+            if ch == b'#' {
+                let r = c.param_ref(&self.params).map_err(err)?;
+                if c.peek() != Some(b'=') {
+                    return Err(err(
+                        "a parameter outside an expression must be assigned: '#n=value'".into()
+                    ));
+                }
+                c.pos += 1;
+                let v = c.real_value(&self.params).map_err(err)?;
+                self.assigns.push((r, v));
+                continue;
+            }
+            if !ch.is_ascii_uppercase() {
+                return Err(err(format!(
+                    "expected a word letter, found '{}'",
+                    String::from_utf8_lossy(&s[c.pos..(c.pos + 8).min(s.len())])
+                )));
+            }
+            c.pos += 1;
+            let v = c
+                .real_value(&self.params)
+                .map_err(|e| err(format!("{} word: {e}", ch as char)))?;
+            match ch {
+                b'G' | b'M' => {
+                    let t = (v * 10.0).round();
+                    if (v * 10.0 - t).abs() > 1e-6 || !(0.0..=65535.0).contains(&t) {
+                        return Err(err(format!("{}{v} is not a valid code", ch as char)));
+                    }
+                    let code = t as u16;
+                    if ch == b'G' {
+                        let g = g_group(code).ok_or_else(|| err(format!("unknown G code {}", fmt_code('G', code))))?;
+                        // Non-modal group 0 codes may share a line with each
+                        // other only when they are different (G4 with G92...).
+                        if g != 0 && groups_g[g as usize] {
+                            return Err(err(format!("two G codes from modal group {g} on one line")));
+                        }
+                        groups_g[g as usize] = true;
+                        if b.ng == b.g.len() {
+                            return Err(err("too many G codes on one line".into()));
+                        }
+                        b.g[b.ng] = code;
+                        b.ng += 1;
+                    } else {
+                        let g = m_group(code).ok_or_else(|| err(format!("unknown M code {}", fmt_code('M', code))))?;
+                        if g != 10 && groups_m[g as usize] {
+                            return Err(err(format!("two M codes from modal group {g} on one line")));
+                        }
+                        groups_m[g.min(10) as usize] = true;
+                        if b.nm == b.m.len() {
+                            return Err(err("too many M codes on one line".into()));
+                        }
+                        b.m[b.nm] = code;
+                        b.nm += 1;
+                    }
+                }
+                b'N' => return Err(err("N word must be at the start of the line".into())),
+                b'O' => return Err(err("an O word must start the line".into())),
+                _ => {
+                    let slot = &mut b.w[(ch - b'A') as usize];
+                    if slot.is_some() {
+                        return Err(err(format!("{} word repeated on one line", ch as char)));
+                    }
+                    *slot = Some(v);
+                }
+            }
+        }
+        Ok(())
+    }
+
+    fn execute(&mut self, b: &Block, lineno: u64, out: &mut VecDeque<Record>) -> Result<(), GcodeError> {
+        let err = |msg: String| GcodeError::at(lineno, msg);
+        for (letter, name) in [
+            (b'A', "A"),
+            (b'B', "B"),
+            (b'C', "C"),
+            (b'U', "U"),
+            (b'V', "V"),
+            (b'W', "W"),
+        ] {
+            if b.word(letter).is_some() {
+                return Err(err(format!(
+                    "rotary/extra axis word {name} is not supported (X, Y, Z only)"
+                )));
+            }
+        }
+        if b.word(b'E').is_some() {
+            return Err(err("E word is not supported".into()));
+        }
+        for code in &b.g[..b.ng] {
+            let unsupported = match code {
+                330 | 331 => Some("spindle-synchronised motion (G33)"),
+                382..=385 => Some("probing (G38.x)"),
+                730 | 760 | 810..=890 => Some("canned cycles (G73, G76, G81-G89)"),
+                410 | 411 | 420 | 421 => Some("cutter radius compensation (G41/G42)"),
+                930 => Some("inverse time feed (G93)"),
+                950 => Some("feed per revolution (G95)"),
+                171 | 181 | 191 => Some("the planes G17.1-G19.1"),
+                70 | 80 => Some("lathe diameter/radius modes (G7/G8)"),
+                960 => Some("constant surface speed (G96)"),
+                431 | 432 => Some("dynamic tool length offsets (G43.1/G43.2)"),
+                _ => None,
+            };
+            if let Some(what) = unsupported {
+                return Err(err(format!("{} is not supported: {what}", fmt_code('G', *code))));
+            }
+        }
+        // Parameters take their new values once the whole line is read.
+        for (r, v) in self.assigns.drain(..) {
+            self.params.set(&r, v);
+        }
+        // RS274 order of execution.
+        if let Some(f) = b.word(b'F') {
+            if f < 0.0 {
+                return Err(err(format!("negative feed rate F{f}")));
+            }
+            self.feed_raw = f;
+        }
+        if let Some(s) = b.word(b'S') {
+            if s < 0.0 {
+                return Err(err(format!("negative spindle speed S{s}")));
+            }
+            if self.spindle_rpm != Some(s) {
+                self.spindle_rpm = Some(s);
+                out.push_back(Record::Spindle {
+                    rpm: s,
+                    block: Some(lineno),
+                });
+            }
+        }
+        if b.has_m(30) || b.has_m(40) {
+            self.beam = true;
+        }
+        if b.has_m(50) {
+            self.beam = false;
+        }
+        if b.has_g(40) {
+            let p = b.word(b'P').ok_or_else(|| err("G4 needs a P word (seconds)".into()))?;
+            if p < 0.0 {
+                return Err(err(format!("negative dwell time P{p}")));
+            }
+            out.push_back(Record::Dwell {
+                seconds: p,
+                block: Some(lineno),
+            });
+        }
+        if b.has_g(170) {
+            self.plane = Plane::Xy;
+        } else if b.has_g(180) {
+            self.plane = Plane::Xz;
+        } else if b.has_g(190) {
+            self.plane = Plane::Yz;
+        }
+        if b.has_g(200) {
+            self.inch = true;
+        } else if b.has_g(210) {
+            self.inch = false;
+        }
+        for (i, code) in [540u16, 550, 560, 570, 580, 590, 591, 592, 593].iter().enumerate() {
+            if b.has_g(*code) {
+                self.cs = i;
+            }
+        }
+        if b.has_g(900) {
+            self.incremental = false;
+        } else if b.has_g(910) {
+            self.incremental = true;
+        }
+        if b.has_g(901) {
+            self.arc_absolute = true;
+        } else if b.has_g(911) {
+            self.arc_absolute = false;
+        }
+        let mut axes_used = false;
+        if b.has_g(100) {
+            self.set_coordinate_data(b, lineno)?;
+            axes_used = true;
+        } else if b.has_g(280) || b.has_g(300) {
+            let home = self.home_position(if b.has_g(280) { 5161 } else { 5181 });
+            self.go_home(b, home, lineno, out)?;
+            axes_used = true;
+        } else if b.has_g(281) || b.has_g(301) {
+            let base = if b.has_g(281) { 5161 } else { 5181 };
+            for k in 0..3 {
+                self.params.set(&ParamRef::Num(base + k), self.pos[k] / self.unit());
+            }
+        } else if b.has_g(920) {
+            self.set_g92(b, lineno)?;
+            axes_used = true;
+        } else if b.has_g(921) {
+            self.g92 = V3::zeros();
+            self.g92_saved = None;
+        } else if b.has_g(922) {
+            self.g92_saved = Some(self.g92);
+            self.g92 = V3::zeros();
+        } else if b.has_g(923)
+            && let Some(s) = self.g92_saved.take()
+        {
+            self.g92 = s;
+        }
+        for code in &b.g[..b.ng] {
+            match code {
+                0 => self.motion = Some(MotionMode::Rapid),
+                10 => self.motion = Some(MotionMode::Feed),
+                20 => self.motion = Some(MotionMode::Cw),
+                30 => self.motion = Some(MotionMode::Ccw),
+                800 => self.motion = None,
+                _ => {}
+            }
+        }
+        let has_axes = b.word(b'X').is_some() || b.word(b'Y').is_some() || b.word(b'Z').is_some();
+        let g53 = b.has_g(530);
+        let arc_words =
+            b.word(b'I').is_some() || b.word(b'J').is_some() || b.word(b'K').is_some() || b.word(b'R').is_some();
+        if !axes_used {
+            let explicit_motion = b.g[..b.ng].iter().any(|c| matches!(c, 0 | 10 | 20 | 30));
+            match self.motion {
+                Some(m @ (MotionMode::Cw | MotionMode::Ccw)) if has_axes || (explicit_motion && arc_words) => {
+                    self.arc(b, m == MotionMode::Ccw, lineno, out)?;
+                }
+                Some(m) if has_axes => {
+                    let to = self.target(b, g53, lineno)?;
+                    self.straight(m == MotionMode::Rapid, to, lineno, out)?;
+                }
+                None if has_axes => {
+                    return Err(err("axis words with no motion mode in effect (G80 or none set)".into()));
+                }
+                _ => {}
+            }
+        }
+        if b.has_m(20) || b.has_m(300) {
+            self.beam = false;
+            self.ended = true;
+        }
+        Ok(())
+    }
+
+    /// End point of a move in the machine frame (mm).
+    fn target(&self, b: &Block, g53: bool, lineno: u64) -> Result<P3, GcodeError> {
+        let u = self.unit();
+        let off = self.offset();
+        let mut to = self.pos;
+        for (k, letter) in [b'X', b'Y', b'Z'].into_iter().enumerate() {
+            if let Some(v) = b.word(letter) {
+                to[k] = if g53 {
+                    if self.incremental {
+                        return Err(GcodeError::at(lineno, "G53 cannot be used in incremental mode (G91)"));
+                    }
+                    v * u
+                } else if self.incremental {
+                    self.pos[k] + v * u
+                } else {
+                    v * u + off[k]
+                };
+            }
+        }
+        Ok(to)
+    }
+
+    fn feed_mm_per_min(&self, lineno: u64) -> Result<f64, GcodeError> {
+        let f = self.feed_raw * self.unit();
+        if f <= 0.0 {
+            return Err(GcodeError::at(
+                lineno,
+                "feed move with no feed rate set (F is zero or missing)",
+            ));
+        }
+        Ok(f)
+    }
+
+    fn straight(&mut self, rapid: bool, to: P3, lineno: u64, out: &mut VecDeque<Record>) -> Result<(), GcodeError> {
+        let (kind, feed) = if rapid {
+            (MotionKind::Rapid, None)
+        } else {
+            (MotionKind::Line, Some(self.feed_mm_per_min(lineno)?))
+        };
+        out.push_back(Record::Move(Motion {
+            kind,
+            to,
+            feed,
+            beam: self.beam,
+            role: None,
+            chain: None,
+            block: Some(lineno),
+        }));
+        self.pos = to;
+        Ok(())
+    }
+
+    fn arc(&mut self, b: &Block, ccw: bool, lineno: u64, out: &mut VecDeque<Record>) -> Result<(), GcodeError> {
+        let err = |msg: String| GcodeError::at(lineno, msg);
+        let feed = self.feed_mm_per_min(lineno)?;
+        let to = self.target(b, b.has_g(530), lineno)?;
+        let plane = self.plane;
+        let u = self.unit();
+        let start2 = plane.project(&self.pos);
+        let end2 = plane.project(&to);
+        let turns = b.word(b'P').unwrap_or(1.0);
+        if turns < 1.0 || turns.fract() != 0.0 || turns > 1e6 {
+            return Err(err(format!(
+                "arc P word must be a whole number of turns of at least 1, got {turns}"
+            )));
+        }
+        let extra_turns = turns as u32 - 1;
+        // Offset words of the plane, in (first, second) order, and the one
+        // that belongs to the normal axis (an error if given).
+        let (first, second, normal_word) = match plane {
+            Plane::Xy => (b'I', b'J', b'K'),
+            Plane::Xz => (b'K', b'I', b'J'),
+            Plane::Yz => (b'J', b'K', b'I'),
+        };
+        let center = if let Some(r) = b.word(b'R') {
+            if b.word(b'I').is_some() || b.word(b'J').is_some() || b.word(b'K').is_some() {
+                return Err(err("arc has both R and I/J/K words".into()));
+            }
+            if (end2 - start2).norm() < 1e-9 {
+                return Err(err("radius-format arc (R) cannot make a full circle: use I/J/K".into()));
+            }
+            planar::center_from_radius(&start2, &end2, r * u, ccw).ok_or_else(|| {
+                err(format!(
+                    "arc radius R{r} is too small to reach the end point ({:.6} mm away)",
+                    (end2 - start2).norm()
+                ))
+            })?
+        } else {
+            if b.word(first).is_none() && b.word(second).is_none() {
+                return Err(err(format!(
+                    "arc needs R or at least one of {} {} in plane {}",
+                    first as char,
+                    second as char,
+                    plane.name().to_uppercase()
+                )));
+            }
+            if b.word(normal_word).is_some() {
+                return Err(err(format!(
+                    "{} word given for an arc in plane {}",
+                    normal_word as char,
+                    plane.name().to_uppercase()
+                )));
+            }
+            let i = b.word(first).unwrap_or(0.0) * u;
+            let j = b.word(second).unwrap_or(0.0) * u;
+            if self.arc_absolute {
+                let off = plane.project(&P3::from(self.offset()));
+                P2::new(i + off.x, j + off.y)
+            } else {
+                P2::new(start2.x + i, start2.y + j)
+            }
+        };
+        let r = (start2 - center).norm();
+        let tol = ARC_RADIUS_TOL_MM + ARC_RADIUS_REL_TOL * r;
+        let arc = make_arc(&self.pos, &to, center, ccw, plane, extra_turns, tol, lineno)?;
+        out.push_back(Record::Move(Motion {
+            kind: MotionKind::Arc(arc),
+            to,
+            feed: Some(feed),
+            beam: self.beam,
+            role: None,
+            chain: None,
+            block: Some(lineno),
+        }));
+        self.pos = to;
+        Ok(())
+    }
+
+    /// G92: make the current point have the given program coordinates.
+    fn set_g92(&mut self, b: &Block, lineno: u64) -> Result<(), GcodeError> {
+        let u = self.unit();
+        let mut any = false;
+        for (k, letter) in [b'X', b'Y', b'Z'].into_iter().enumerate() {
+            if let Some(v) = b.word(letter) {
+                any = true;
+                // machine = program + g5x + g92  =>  g92 = machine - g5x - v
+                self.g92[k] = self.pos[k] - self.g5x[self.cs][k] - v * u;
+            }
+        }
+        if !any {
+            return Err(GcodeError::at(lineno, "G92 needs at least one axis word"));
+        }
+        Ok(())
+    }
+
+    /// G10 L2 / L20: set a G5x origin.
+    fn set_coordinate_data(&mut self, b: &Block, lineno: u64) -> Result<(), GcodeError> {
+        let err = |m: &str| GcodeError::at(lineno, m.to_string());
+        let l = b.word(b'L').ok_or_else(|| err("G10 needs an L word"))?;
+        let p = b.word(b'P').ok_or_else(|| err("G10 needs a P word"))?;
+        if l != 2.0 && l != 20.0 {
+            return Err(err("only G10 L2 and G10 L20 (coordinate system origins) are supported"));
+        }
+        let idx = if p == 0.0 { self.cs } else { p as usize - 1 };
+        if p.fract() != 0.0 || !(0.0..=9.0).contains(&p) {
+            return Err(err("G10 P must be 0 to 9"));
+        }
+        let u = self.unit();
+        for (k, letter) in [b'X', b'Y', b'Z'].into_iter().enumerate() {
+            if let Some(v) = b.word(letter) {
+                self.g5x[idx][k] = if l == 2.0 {
+                    v * u
+                } else {
+                    // L20: the current point gets coordinate v in that system.
+                    self.pos[k] - self.g92[k] - v * u
+                };
+            }
+        }
+        Ok(())
+    }
+
+    fn home_position(&self, base: usize) -> P3 {
+        let u = self.unit();
+        let g = |k: usize| self.params.get(&ParamRef::Num(base + k)).unwrap_or(0.0) * u;
+        P3::new(g(0), g(1), g(2))
+    }
+
+    /// G28/G30: rapid to the optional intermediate point, then to home on
+    /// the axes named (all axes when none are).
+    fn go_home(&mut self, b: &Block, home: P3, lineno: u64, out: &mut VecDeque<Record>) -> Result<(), GcodeError> {
+        let named = [b'X', b'Y', b'Z'].map(|l| b.word(l).is_some());
+        let end = if named.iter().any(|&n| n) {
+            let mid = self.target(b, false, lineno)?;
+            self.straight(true, mid, lineno, out)?;
+            let mut end = mid;
+            for k in 0..3 {
+                if named[k] {
+                    end[k] = home[k];
+                }
+            }
+            end
+        } else {
+            home
+        };
+        self.straight(true, end, lineno, out)
     }
 }
 
 impl LineInterpreter for IsoInterpreter {
-    fn line(&mut self, _text: &str, lineno: u64, _out: &mut VecDeque<Record>) -> Result<(), GcodeError> {
-        Err(GcodeError::at(lineno, "ISO reading is not available yet"))
+    fn line(&mut self, text: &str, lineno: u64, out: &mut VecDeque<Record>) -> Result<(), GcodeError> {
+        self.normalise(text, lineno)?;
+        if let Some(mut cap) = self.capture.take() {
+            cap.lines.push((lineno, text.to_string()));
+            let closes = match self.oline(lineno)? {
+                Some(ol) => ol.label == cap.label && Some(ol.keyword) == closer_of(cap.opener),
+                None => false,
+            };
+            if !closes {
+                self.capture = Some(cap);
+                return Ok(());
+            }
+            if cap.opener == OKeyword::Sub {
+                let n = cap.lines.len();
+                self.subs.insert(cap.label, Rc::new(cap.lines[1..n - 1].to_vec()));
+            } else {
+                self.exec_block(&cap.lines, out, 0)?;
+            }
+            return Ok(());
+        }
+        if self.norm.is_empty() {
+            return Ok(());
+        }
+        if self.norm[0] != b'%'
+            && let Some(ol) = self.oline(lineno)?
+        {
+            self.any_code_seen = true;
+            return match ol.keyword {
+                OKeyword::Call => self.call(&ol, lineno, out, 0),
+                kw if closer_of(kw).is_some() => {
+                    self.capture = Some(Capture {
+                        label: ol.label,
+                        opener: kw,
+                        lines: vec![(lineno, text.to_string())],
+                    });
+                    Ok(())
+                }
+                kw => Err(GcodeError::at(
+                    lineno,
+                    format!("o{} {kw:?} without its opening line", label_text(&ol.label)).to_lowercase(),
+                )),
+            };
+        }
+        if self.norm[0] == b'%' {
+            // A '%' before any code opens the program; one after code ends it.
+            if self.any_code_seen || self.percent_seen {
+                self.ended = true;
+            }
+            self.percent_seen = true;
+            return Ok(());
+        }
+        self.any_code_seen = true;
+        let b = self.parse_block(lineno)?;
+        self.execute(&b, lineno, out)
     }
-    fn finish(&mut self, _lineno: u64, _out: &mut VecDeque<Record>) -> Result<(), GcodeError> {
-        Ok(())
+
+    fn finish(&mut self, lineno: u64, _out: &mut VecDeque<Record>) -> Result<(), GcodeError> {
+        match &self.capture {
+            Some(cap) if !self.ended => Err(GcodeError::at(
+                lineno,
+                format!(
+                    "program ends inside o{} {:?} opened on line {}",
+                    label_text(&cap.label),
+                    cap.opener,
+                    cap.lines.first().map_or(0, |l| l.0)
+                )
+                .to_lowercase(),
+            )),
+            _ => Ok(()),
+        }
     }
+
     fn ended(&self) -> bool {
-        false
+        self.ended
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::gcode::{Dialect, read_str};
+
+    fn read(text: &str) -> Result<Vec<Record>, GcodeError> {
+        let opts = ReadOptions {
+            dialect: Some(Dialect::Iso),
+            ..Default::default()
+        };
+        read_str(text, &opts).map(|(_, r)| r)
+    }
+
+    fn moves(text: &str) -> Vec<Motion> {
+        read(text)
+            .unwrap()
+            .into_iter()
+            .filter_map(|r| match r {
+                Record::Move(m) => Some(m),
+                _ => None,
+            })
+            .collect()
+    }
+
+    fn close(a: &P3, b: [f64; 3]) -> bool {
+        (a - P3::new(b[0], b[1], b[2])).norm() < 1e-9
+    }
+
+    #[test]
+    fn lines_arcs_and_modes() {
+        let m = moves("G21 G90 G17\nG0 X1 Y2\nG1 Z-1 F100\nX3\nG91 Y1\nG90 G2 X5 Y3 I1 J0\nG3 X3 Y3 R2\n");
+        assert_eq!(m.len(), 6);
+        assert!(close(&m[0].to, [1.0, 2.0, 0.0]) && m[0].kind == MotionKind::Rapid && m[0].feed.is_none());
+        assert!(close(&m[1].to, [1.0, 2.0, -1.0]) && m[1].feed == Some(100.0));
+        assert!(close(&m[2].to, [3.0, 2.0, -1.0]));
+        assert!(close(&m[3].to, [3.0, 3.0, -1.0]));
+        let MotionKind::Arc(a) = m[4].kind else {
+            panic!("not an arc")
+        };
+        assert!(close(&a.center, [4.0, 3.0, -1.0]) && !a.ccw && a.plane == Plane::Xy);
+        assert!(close(&m[4].to, [5.0, 3.0, -1.0]));
+        let MotionKind::Arc(a) = m[5].kind else {
+            panic!("not an arc")
+        };
+        assert!(a.ccw);
+        assert!(((P2::new(5.0, 3.0) - Plane::Xy.project(&a.center)).norm() - 2.0).abs() < 1e-9);
+        assert_eq!(m[5].block, Some(7));
+    }
+
+    #[test]
+    fn inch_programs_become_millimetres() {
+        let m = moves("G20 G0 X1 Y0.5\nG1 X2 F10\n");
+        assert!(close(&m[0].to, [25.4, 12.7, 0.0]));
+        assert_eq!(m[1].feed, Some(254.0));
+    }
+
+    #[test]
+    fn planes_full_circles_helices_and_turns() {
+        let m = moves("G0 X1 Y0 Z0\nG18 G2 X1 Z0 I-1 F60\nG19 G3 Y0 Z2 J0 K1\nG17 G2 X1 Y0 Z-1 I-1 P3\n");
+        let MotionKind::Arc(a) = m[1].kind else { panic!() };
+        assert_eq!(a.plane, Plane::Xz);
+        assert!(close(&a.center, [0.0, 0.0, 0.0]) && !a.ccw);
+        let MotionKind::Arc(a) = m[2].kind else { panic!() };
+        assert_eq!(a.plane, Plane::Yz);
+        assert!(close(&a.center, [1.0, 0.0, 1.0]));
+        let MotionKind::Arc(a) = m[3].kind else { panic!() };
+        assert_eq!(a.extra_turns, 2);
+        assert!(close(&m[3].to, [1.0, 0.0, -1.0]));
+    }
+
+    #[test]
+    fn parameters_expressions_and_named_parameters() {
+        let m = moves("#1=2\n#<z_safe>=5\nG0 X#1 Y[#1*3] Z#<z_safe>\n#1=[#1+1] G0 X#1\nG0 X#1\n");
+        assert!(close(&m[0].to, [2.0, 6.0, 5.0]));
+        // The assignment takes effect after the line is read.
+        assert!(close(&m[1].to, [2.0, 6.0, 5.0]));
+        assert!(close(&m[2].to, [3.0, 6.0, 5.0]));
+    }
+
+    #[test]
+    fn beam_follows_spindle_and_program_ends() {
+        let recs = read("%\nS1000 M3\nG1 X1 F10\nM5\nG1 X2\nM30\nG1 X9\n%\n").unwrap();
+        assert!(matches!(recs[0], Record::Spindle { rpm, .. } if rpm == 1000.0));
+        let m: Vec<_> = recs.iter().filter_map(Record::motion).collect();
+        assert_eq!(m.len(), 2, "nothing after M30 runs");
+        assert!(m[0].beam && !m[1].beam);
+    }
+
+    #[test]
+    fn offsets_keep_moves_continuous() {
+        let m = moves("G0 X10\nG92 X0\nG0 X5\nG92.1\nG0 X1\nG10 L2 P2 X100\nG55 G0 X1\n");
+        assert!(close(&m[1].to, [15.0, 0.0, 0.0]));
+        assert!(close(&m[2].to, [1.0, 0.0, 0.0]));
+        assert!(close(&m[3].to, [101.0, 0.0, 0.0]));
+    }
+
+    #[test]
+    fn absolute_arc_centres() {
+        let m = moves("G90.1 G0 X1 Y0\nG3 X-1 Y0 I0 J0 F10\n");
+        let MotionKind::Arc(a) = m[1].kind else { panic!() };
+        assert!(close(&a.center, [0.0, 0.0, 0.0]));
+    }
+
+    #[test]
+    fn what_we_cannot_honour_is_an_error_naming_the_line() {
+        let cases = [
+            ("G1 X1 F10\nG41 D1\n", 2, "cutter radius compensation"),
+            ("G81 X1 Y1 Z-1 R1\n", 1, "canned cycles"),
+            ("O100 call\n", 1, "before its definition"),
+            ("o1 while [1]\no1 endwhile\n", 1, "endless"),
+            ("o1 if [1]\nG0 X1\n", 2, "ends inside o1 if"),
+            ("o1 endif\n", 1, "without its opening line"),
+            ("G0 A10\n", 1, "A is not supported"),
+            ("G1 X1\n", 1, "no feed rate"),
+            ("G0 X0 Y0\nG2 X2 Y0 I0.5 F10\n", 2, "not on the circle"),
+            ("G2 X0 Y1 R0.1 F1\n", 1, "too small"),
+            ("G0 G1 X1\n", 1, "modal group 1"),
+            ("G0 X1 X2\n", 1, "repeated"),
+            ("G0 X[1+\n", 1, "X word"),
+            ("G0 X1 (unclosed\n", 1, "not closed"),
+            ("G80\nX1\n", 2, "no motion mode"),
+            ("G12\n", 1, "unknown G code G12"),
+            ("G2 X1 F1\n", 1, "needs R or"),
+        ];
+        for (text, line, needle) in cases {
+            let e = read(text).unwrap_err();
+            assert_eq!(e.line(), line, "{text:?}: {e}");
+            assert!(e.to_string().contains(needle), "{text:?}: {e}");
+        }
+    }
+
+    #[test]
+    fn subroutines_loops_and_conditions() {
+        let text = "o<side> sub\n  G1 X[#1] Y[#2] F100\no<side> endsub\n\
+                    #1=99\n#<i>=0\n\
+                    o10 while [#<i> LT 3]\n  o<side> call [#<i>] [#<i>*2]\n\
+                    o11 if [#<i> EQ 1]\n G0 Z1\n o11 elseif [#<i> EQ 2]\n G0 Z2\n o11 else\n G0 Z9\n o11 endif\n\
+                    #<i>=[#<i>+1]\no10 endwhile\n\
+                    o20 repeat [2]\n G0 X-1\no20 endrepeat\n\
+                    o30 do\n #<i>=[#<i>-1]\n o31 if [#<i> EQ 1]\n  o30 break\n o31 endif\no30 while [#<i> GT 0]\n\
+                    G0 X#1 Y#<i>\n";
+        let m = moves(text);
+        let to: Vec<[f64; 3]> = m.iter().map(|m| [m.to.x, m.to.y, m.to.z]).collect();
+        assert_eq!(
+            to,
+            vec![
+                [0.0, 0.0, 0.0],
+                [0.0, 0.0, 9.0],
+                [1.0, 2.0, 9.0],
+                [1.0, 2.0, 1.0],
+                [2.0, 4.0, 1.0],
+                [2.0, 4.0, 2.0],
+                [-1.0, 4.0, 2.0],
+                [-1.0, 4.0, 2.0],
+                [99.0, 1.0, 2.0],
+            ]
+        );
+    }
+
+    #[test]
+    fn the_heart_program_from_camotics_reads() {
+        let text = include_str!("../../testdata/gcode/heart.ngc");
+        let recs = read(text).unwrap();
+        let arcs = recs
+            .iter()
+            .filter(|r| {
+                matches!(
+                    r,
+                    Record::Move(Motion {
+                        kind: MotionKind::Arc(_),
+                        ..
+                    })
+                )
+            })
+            .count();
+        assert!(arcs > 30, "{arcs} arcs");
     }
 }

@@ -9,6 +9,7 @@
 
 pub mod expr;
 pub mod iso;
+pub mod oword;
 pub mod pmac;
 pub mod writer;
 
@@ -137,12 +138,13 @@ pub fn detect_dialect<'a>(lines: impl IntoIterator<Item = &'a str>) -> Dialect {
         // A variable assignment such as M33=1 or P400=7 without a leading
         // '#' is PMAC; ISO parameters are '#'.
         let b = compact.as_bytes();
-        if b.len() > 2 && matches!(b[0], b'M' | b'P' | b'Q' | b'I') && b[1].is_ascii_digit() {
-            if let Some(eq) = compact.find('=') {
-                if compact[1..eq].chars().all(|c| c.is_ascii_digit()) {
-                    return Dialect::Pmac;
-                }
-            }
+        if b.len() > 2
+            && matches!(b[0], b'M' | b'P' | b'Q' | b'I')
+            && b[1].is_ascii_digit()
+            && let Some(eq) = compact.find('=')
+            && compact[1..eq].chars().all(|c| c.is_ascii_digit())
+        {
+            return Dialect::Pmac;
         }
         if b.first().is_some_and(|c| {
             matches!(
@@ -172,6 +174,7 @@ fn strip_comments_for_detect(l: &str) -> &str {
 
 /// Build arc data from an in-plane centre, checking that the start and
 /// end lie on the same circle within `tol` (mm) and the radius is not zero.
+#[allow(clippy::too_many_arguments)] // each is one fact about the arc; a struct would only rename them
 pub(crate) fn make_arc(
     start: &P3,
     end: &P3,

@@ -1,0 +1,47 @@
+# microcam: `make demo` runs the whole flow that exists so far, `make test`
+# builds everything and runs every test (unit, property, golden, end-to-end,
+# and the differential test against LinuxCNC's rs274).
+
+CARGO ?= cargo
+BIN   := target/release
+
+.PHONY: all build test unit golden update-golden conformance lint demo bench fuzz-smoke clean
+
+all: build
+
+build:
+	$(CARGO) build --release --bins
+
+# Release profile for tests too: one build serves the tests, the golden
+# files, the conformance script and the benchmarks.
+test: build unit conformance
+
+unit:
+	$(CARGO) test --release
+
+golden:
+	$(CARGO) test --release --test golden
+
+update-golden:
+	UPDATE_GOLDEN=1 $(CARGO) test --release --test golden
+
+# Differential test against LinuxCNC's rs274 (installs linuxcnc-uspace when missing).
+conformance: build
+	python3 scripts/rs274-diff --gsim $(BIN)/gsim
+
+lint:
+	$(CARGO) fmt --all -- --check
+	$(CARGO) clippy --all-targets -- -D warnings
+
+demo: build
+	scripts/demo
+
+bench: build
+	scripts/bench/interp
+
+fuzz-smoke:
+	scripts/fuzz-smoke
+
+clean:
+	$(CARGO) clean
+	rm -rf out

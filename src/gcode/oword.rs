@@ -1,0 +1,118 @@
+//! RS274/NGC O-word lines (LinuxCNC control flow): parsing only. The ISO
+//! interpreter executes them.
+
+/// The keyword of an O-word line.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum OKeyword {
+    Sub,
+    EndSub,
+    Call,
+    Do,
+    While,
+    EndWhile,
+    If,
+    ElseIf,
+    Else,
+    EndIf,
+    Break,
+    Continue,
+    Repeat,
+    EndRepeat,
+    Return,
+}
+
+/// A parsed O-word line over a normalised line: label, keyword and the
+/// byte offset where the keyword's argument (an expression, call arguments
+/// or nothing) starts.
+#[derive(Debug, Clone, PartialEq)]
+pub struct OLine {
+    /// `100` for `O100`, `NAME` for `O<name>` (upper-cased like the line).
+    pub label: Vec<u8>,
+    pub keyword: OKeyword,
+    pub rest: usize,
+}
+
+// Longest first where one keyword is a prefix of another.
+const KEYWORDS: [(&[u8], OKeyword); 15] = [
+    (b"ENDSUB", OKeyword::EndSub),
+    (b"ENDWHILE", OKeyword::EndWhile),
+    (b"ENDIF", OKeyword::EndIf),
+    (b"ENDREPEAT", OKeyword::EndRepeat),
+    (b"ELSEIF", OKeyword::ElseIf),
+    (b"ELSE", OKeyword::Else),
+    (b"SUB", OKeyword::Sub),
+    (b"CALL", OKeyword::Call),
+    (b"DO", OKeyword::Do),
+    (b"WHILE", OKeyword::While),
+    (b"IF", OKeyword::If),
+    (b"BREAK", OKeyword::Break),
+    (b"CONTINUE", OKeyword::Continue),
+    (b"REPEAT", OKeyword::Repeat),
+    (b"RETURN", OKeyword::Return),
+];
+
+/// Parse a normalised line that starts with `O` (after any `N` word).
+pub fn parse(s: &[u8]) -> Result<OLine, String> {
+    let mut pos = 0;
+    if s.first() != Some(&b'O') {
+        return Err("not an O-word line".into());
+    }
+    pos += 1;
+    let label = if s.get(pos) == Some(&b'<') {
+        let end = s[pos..]
+            .iter()
+            .position(|&c| c == b'>')
+            .ok_or("O-word name without closing '>'")?;
+        let name = s[pos + 1..pos + end].to_vec();
+        pos += end + 1;
+        if name.is_empty() {
+            return Err("empty O-word name 'O<>'".into());
+        }
+        name
+    } else {
+        let start = pos;
+        while s.get(pos).is_some_and(u8::is_ascii_digit) {
+            pos += 1;
+        }
+        if pos == start {
+            return Err("O word needs a number or <name>".into());
+        }
+        // O0100 and O100 are the same label.
+        let digits = &s[start..pos];
+        let trimmed = match digits.iter().position(|&c| c != b'0') {
+            Some(i) => &digits[i..],
+            None => b"0",
+        };
+        trimmed.to_vec()
+    };
+    let (kw, keyword) = KEYWORDS
+        .iter()
+        .find(|(w, _)| s[pos..].starts_with(w))
+        .ok_or_else(|| format!("unknown O-word keyword at '{}'", String::from_utf8_lossy(&s[pos..])))?;
+    Ok(OLine {
+        label,
+        keyword: *keyword,
+        rest: pos + kw.len(),
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn parses_labels_and_keywords() {
+        let l = parse(b"O0100WHILE[#1LT3]").unwrap();
+        assert_eq!(
+            (l.label.as_slice(), l.keyword, l.rest),
+            (&b"100"[..], OKeyword::While, 10)
+        );
+        let l = parse(b"O<MYSUB>ENDSUB").unwrap();
+        assert_eq!((l.label.as_slice(), l.keyword), (&b"MYSUB"[..], OKeyword::EndSub));
+        assert_eq!(parse(b"O1ELSEIF[1]").unwrap().keyword, OKeyword::ElseIf);
+        assert_eq!(parse(b"O1ELSE").unwrap().keyword, OKeyword::Else);
+        assert!(parse(b"O<X").is_err());
+        assert!(parse(b"OSUB").is_err());
+        assert!(parse(b"O1GOTO").is_err());
+    }
+}

@@ -1,0 +1,79 @@
+//! Any toolpath input a tool accepts: toolpath JSON Lines or G-code of
+//! either dialect, told apart by the first non-blank byte (`{` is JSON).
+
+use crate::cli::{CliError, Input};
+use crate::formats::toolpath::ToolpathReader;
+use crate::gcode::{Dialect, ProgramReader, ReadOptions};
+use crate::model::toolpath::{Header, Record};
+use std::io::BufRead;
+
+/// What the input turned out to be.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SourceKind {
+    Toolpath,
+    Gcode(Dialect),
+}
+
+/// A stream of toolpath records with its header, from either kind of input.
+pub struct ToolpathSource {
+    pub header: Header,
+    pub kind: SourceKind,
+    name: String,
+    inner: Inner,
+}
+
+enum Inner {
+    Json(ToolpathReader<Box<dyn BufRead>>),
+    Gcode(ProgramReader<Box<dyn BufRead>>),
+}
+
+impl ToolpathSource {
+    /// Open `input`; `opts` applies when it is G-code.
+    pub fn open(mut input: Input, opts: &ReadOptions) -> Result<Self, CliError> {
+        let name = input.name.clone();
+        let is_json = {
+            let buf = input
+                .reader
+                .fill_buf()
+                .map_err(|e| CliError::input(format!("{name}: {e}")))?;
+            buf.iter().find(|c| !c.is_ascii_whitespace()) == Some(&b'{')
+        };
+        if is_json {
+            let r = ToolpathReader::new(input.reader).map_err(|e| CliError::in_file(&name, e))?;
+            Ok(ToolpathSource {
+                header: r.header().clone(),
+                kind: SourceKind::Toolpath,
+                name,
+                inner: Inner::Json(r),
+            })
+        } else {
+            let r = ProgramReader::new(input.reader, opts).map_err(|e| CliError::in_file(&name, e))?;
+            let d = r.dialect();
+            Ok(ToolpathSource {
+                header: Header {
+                    feed_unit: d.feed_unit(),
+                    source: if name == "<stdin>" { None } else { Some(name.clone()) },
+                },
+                kind: SourceKind::Gcode(d),
+                name,
+                inner: Inner::Gcode(r),
+            })
+        }
+    }
+
+    /// The input's name for messages.
+    pub fn name(&self) -> &str {
+        &self.name
+    }
+}
+
+impl Iterator for ToolpathSource {
+    type Item = Result<Record, CliError>;
+    fn next(&mut self) -> Option<Self::Item> {
+        let name = &self.name;
+        match &mut self.inner {
+            Inner::Json(r) => r.next().map(|x| x.map_err(|e| CliError::in_file(name, e))),
+            Inner::Gcode(r) => r.next().map(|x| x.map_err(|e| CliError::in_file(name, e))),
+        }
+    }
+}
