@@ -200,3 +200,34 @@ fn record_table_messages_are_real() {
         assert_eq!(got, format!("line 2: {want}"), "{rec}");
     }
 }
+
+/// A ```ngc program in the document is followed by the toolpath our ISO
+/// reader makes of it.
+#[test]
+fn gcode_examples_read_as_documented() {
+    use microcam::gcode::{ReadOptions, read_str};
+    use microcam::model::toolpath::Header;
+    let bs = blocks();
+    let mut n = 0;
+    for (i, (info, program)) in bs.iter().enumerate() {
+        if info != "ngc" {
+            continue;
+        }
+        n += 1;
+        let (next_info, want) = bs.get(i + 1).expect("a G-code example needs a ```jsonl block after it");
+        assert_eq!(next_info, "jsonl", "after G-code example:\n{program}");
+        let (dialect, records) = read_str(program, &ReadOptions::default()).unwrap_or_else(|e| panic!("{e}\n{program}"));
+        let source = ToolpathReader::new(want.as_bytes()).unwrap().header().source.clone();
+        let mut w = ToolpathWriter::new(Vec::new());
+        w.header(&Header {
+            feed_unit: dialect.feed_unit(),
+            source,
+        })
+        .unwrap();
+        for r in &records {
+            w.record(r).unwrap();
+        }
+        assert_eq!(String::from_utf8(w.finish().unwrap()).unwrap(), *want, "program:\n{program}");
+    }
+    assert!(n >= 1, "no G-code example found");
+}
