@@ -2,16 +2,11 @@
 
 use super::{FormatError, LineSource, check_schema, parse_json, point_from, push_num, push_point3, push_str_lit};
 use crate::geometry::{P3, Plane};
-use crate::model::toolpath::{ArcData, FeedUnit, Header, Motion, MotionKind, Record, Role};
+use crate::model::toolpath::{ArcData, FeedUnit, Header, Motion, MotionKind, Record, Role, arc_end_tolerance};
 use serde::Deserialize;
 use std::io::{BufRead, Write};
 
 pub const SCHEMA: &str = "microcam.toolpath/1";
-
-/// Radius mismatch allowed between an arc's start and end (mm), on top of
-/// a relative 1e-6: our writers print 1e-9 mm, G-code readers check their
-/// own tolerance before a record gets here.
-pub const ARC_RADIUS_TOL: f64 = 1e-4;
 
 #[derive(Deserialize)]
 struct WireHeader<'a> {
@@ -232,7 +227,7 @@ fn check_arc(start: &P3, to: &P3, center: &P3, plane: Plane, line: u64) -> Resul
     let c = plane.project(center);
     let r0 = (plane.project(start) - c).norm();
     let r1 = (plane.project(to) - c).norm();
-    if (r0 - r1).abs() > ARC_RADIUS_TOL + 1e-6 * r0.max(r1) {
+    if (r0 - r1).abs() > arc_end_tolerance(r0.max(r1)) {
         return Err(FormatError::invalid(
             line,
             format!("arc radius at start {r0} differs from radius at end {r1}"),
@@ -434,7 +429,7 @@ mod tests {
                 "[x, y]",
             ),
             (
-                "{\"schema\":\"microcam.toolpath/1\"}\n{\"type\":\"rapid\",\"to\":[0,0]}\n{\"type\":\"arc\",\"to\":[2,0],\"center\":[0.5,0],\"ccw\":true,\"feed\":1}\n",
+                "{\"schema\":\"microcam.toolpath/1\"}\n{\"type\":\"rapid\",\"to\":[0,0]}\n{\"type\":\"arc\",\"to\":[2,0],\"center\":[0.7,0],\"ccw\":true,\"feed\":1}\n",
                 3,
                 "radius",
             ),

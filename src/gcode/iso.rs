@@ -19,20 +19,12 @@ use super::expr::{Cursor, ParamRef, Params};
 use super::oword::{self, OKeyword, OLine};
 use super::{GcodeError, LineInterpreter, ReadOptions, make_arc};
 use crate::geometry::{P2, P3, Plane, V3, planar};
-use crate::model::toolpath::{Motion, MotionKind, Record};
+use crate::model::toolpath::{Motion, MotionKind, Record, arc_end_tolerance};
 use std::collections::HashMap;
 use std::collections::VecDeque;
 use std::rc::Rc;
 
 const MM_PER_INCH: f64 = 25.4;
-
-/// How far (mm) the end of a centre-format arc may be off the circle
-/// through its start, on top of [`ARC_RADIUS_REL_TOL`] of the radius.
-/// LinuxCNC accepts about 0.002 inch; micro parts need tighter, so we take
-/// the smaller absolute figure and report the miss in the error.
-pub const ARC_RADIUS_TOL_MM: f64 = 0.005;
-/// Relative part of the arc end tolerance.
-pub const ARC_RADIUS_REL_TOL: f64 = 1e-4;
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum MotionMode {
@@ -913,7 +905,7 @@ impl IsoInterpreter {
             }
         };
         let r = (start2 - center).norm();
-        let tol = ARC_RADIUS_TOL_MM + ARC_RADIUS_REL_TOL * r;
+        let tol = arc_end_tolerance(r);
         let arc = make_arc(&self.pos, &to, center, ccw, plane, extra_turns, tol, lineno)?;
         out.push_back(Record::Move(Motion {
             kind: MotionKind::Arc(arc),

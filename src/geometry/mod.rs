@@ -5,8 +5,28 @@
 //! the usual vector algebra is available; the plane-local helpers here keep
 //! the arc maths in one place so the G-code readers, the writers and the
 //! toolpath generators all agree on what an arc is.
+//!
+//! - [`line`](mod@line): [`Line3`], straight segments.
+//! - [`arc`]: [`Arc3`], circular and helical arcs in a principal [`Plane`].
+//! - [`bulge`]: DXF polyline bulges to and from arcs.
+//! - [`bbox`]: [`BBox3`], axis-aligned boxes.
+//! - [`intersect`]: where lines and arcs meet in XY, at a tolerance.
+//! - [`tol`]: tolerant comparisons and angle normalisation.
+//! - [`planar`]: sweep and radius-form centre helpers for the G-code readers.
 
+pub mod arc;
+pub mod bbox;
+pub mod bulge;
+pub mod intersect;
+pub mod line;
 pub mod planar;
+#[cfg(test)]
+mod proptests;
+pub mod tol;
+
+pub use arc::Arc3;
+pub use bbox::BBox3;
+pub use line::Line3;
 
 use serde::{Deserialize, Serialize};
 
@@ -29,9 +49,12 @@ pub const EPS_LEN: f64 = 1e-9;
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize, Default)]
 #[serde(rename_all = "lowercase")]
 pub enum Plane {
+    /// G17: the XY plane, normal +Z.
     #[default]
     Xy,
+    /// G18: the ZX plane, normal +Y (first axis Z, second X).
     Xz,
+    /// G19: the YZ plane, normal +X.
     Yz,
 }
 
@@ -80,4 +103,26 @@ impl Plane {
 /// True when two points are within `tol` of each other.
 pub fn same_point(a: &P3, b: &P3, tol: f64) -> bool {
     (a - b).norm() <= tol
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn plane_axes_are_right_handed_and_lift_inverts_project() {
+        for plane in [Plane::Xy, Plane::Xz, Plane::Yz] {
+            let (a, b, n) = plane.axes();
+            let (mut ea, mut eb, mut en) = (V3::zeros(), V3::zeros(), V3::zeros());
+            ea[a] = 1.0;
+            eb[b] = 1.0;
+            en[n] = 1.0;
+            assert_eq!(ea.cross(&eb), en, "{plane:?}");
+            let p = P3::new(1.0, 2.0, 3.0);
+            assert_eq!(plane.lift(&plane.project(&p), plane.normal_coord(&p)), p);
+        }
+        assert_eq!(Plane::Xz.project(&P3::new(1.0, 2.0, 3.0)), P2::new(3.0, 1.0));
+        assert_eq!(Plane::Yz.normal_coord(&P3::new(1.0, 2.0, 3.0)), 1.0);
+        assert!(same_point(&P3::origin(), &P3::new(0.0, 0.0, 1e-10), EPS_LEN));
+    }
 }

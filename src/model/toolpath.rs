@@ -8,6 +8,23 @@
 use crate::geometry::{P3, Plane};
 use serde::{Deserialize, Serialize};
 
+/// How far (mm) an arc's end may be off the circle through its start, on
+/// top of [`ARC_END_REL_TOL`] of the radius. Every reader of arcs (G-code
+/// of both dialects, toolpath JSON Lines) uses this one figure, so a program
+/// one tool accepts is accepted by the next. LinuxCNC accepts about 0.002
+/// inch (0.05 mm); micro parts need far tighter. Programs printed with 4
+/// decimals round by at most about 1.4e-4 mm, well inside this, while a
+/// wrong centre (the usual writer bug) is far outside; the miss is named in
+/// the error.
+pub const ARC_END_TOL_MM: f64 = 1e-3;
+/// Relative part of the arc end tolerance, for large radii.
+pub const ARC_END_REL_TOL: f64 = 1e-5;
+
+/// The arc end tolerance (mm) for an arc of radius `r` mm.
+pub fn arc_end_tolerance(r: f64) -> f64 {
+    ARC_END_TOL_MM.max(ARC_END_REL_TOL * r.abs())
+}
+
 /// Why a move is there. Previews colour by it, simulators report by it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]

@@ -1,0 +1,474 @@
+//! Circular and helical arcs in one of the three principal planes.
+//!
+//! An `Arc3` is stored the way G-code and the pipe formats carry it: centre,
+//! start, end, sense and plane (plus RS274 `P` extra turns), not as angles.
+//! That keeps end points exact (they are shared with the neighbouring
+//! segments) and makes the arc's meaning independent of how it was built.
+//!
+//! The end may differ from the start along the plane normal: the arc is then
+//! a helix rising linearly with the swept angle. Start equal to end in the
+//! plane means a full turn.
+//!
+//! Rounded input (a G-code arc whose end is a few nanometres off the circle)
+//! is tolerated: the radius is blended linearly from the start's radius to
+//! the end's radius over the sweep, so `point_at(1)` is the end.
+
+use super::bbox::BBox3;
+use super::planar::sweep_angle;
+use super::tol::{finite_p3, normalize_angle, positive_finite};
+use super::{EPS_LEN, P2, P3, Plane, V2, V3};
+use std::f64::consts::{FRAC_PI_2, TAU};
+
+/// A circular arc in `plane`, optionally helical along the plane normal.
+///
+/// `center` lies in the start's plane (its normal coordinate equals the
+/// start's). The signed sweep is measured from start to end around the
+/// centre, positive when `ccw`, and grows by a full turn for each of
+/// `extra_turns`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Arc3 {
+    /// Centre of the circle, at the start's normal coordinate.
+    pub center: P3,
+    /// Where travel begins (t = 0).
+    pub start: P3,
+    /// Where travel ends (t = 1); a different normal coordinate makes a helix.
+    pub end: P3,
+    /// Counter-clockwise seen from the positive plane normal (G3 / CIRCLE2).
+    pub ccw: bool,
+    /// The plane the circle lies in (G17/G18/G19).
+    pub plane: Plane,
+    /// Whole turns added to the sweep (RS274 `P2` = one extra turn).
+    pub extra_turns: u32,
+}
+
+impl Arc3 {
+    /// A checked arc: `None` when any coordinate is not finite or the radius
+    /// is below `EPS_LEN`. The centre's normal coordinate is set to the
+    /// start's, so callers may pass the centre at any height.
+    pub fn new(center: P3, start: P3, end: P3, ccw: bool, plane: Plane, extra_turns: u32) -> Option<Self> {
+        if !(finite_p3(&center) && finite_p3(&start) && finite_p3(&end)) {
+            return None;
+        }
+        let center = plane.lift(&plane.project(&center), plane.normal_coord(&start));
+        let arc = Self {
+            center,
+            start,
+            end,
+            ccw,
+            plane,
+            extra_turns,
+        };
+        if arc.radius() >= EPS_LEN { Some(arc) } else { None }
+    }
+
+    /// One full turn around `center` in `plane`, starting and ending at
+    /// `start`. `None` for non-finite input or a radius below `EPS_LEN`.
+    pub fn full_circle(center: P3, start: P3, ccw: bool, plane: Plane) -> Option<Self> {
+        Self::new(center, start, start, ccw, plane, 0)
+    }
+
+    fn c2(&self) -> P2 {
+        self.plane.project(&self.center)
+    }
+
+    fn s2(&self) -> P2 {
+        self.plane.project(&self.start)
+    }
+
+    fn e2(&self) -> P2 {
+        self.plane.project(&self.end)
+    }
+
+    /// Radius in mm: the in-plane distance from centre to start.
+    pub fn radius(&self) -> f64 {
+        (self.s2() - self.c2()).norm()
+    }
+
+    /// The in-plane distance from centre to end. Equal to `radius()` for a
+    /// well-formed arc; the difference measures how badly rounded the input is.
+    pub fn end_radius(&self) -> f64 {
+        (self.e2() - self.c2()).norm()
+    }
+
+    /// Rise along the plane normal from start to end (0 for a planar arc).
+    pub fn rise(&self) -> f64 {
+        self.plane.normal_coord(&self.end) - self.plane.normal_coord(&self.start)
+    }
+
+    /// True when the arc rises more than `tol` along its normal.
+    pub fn is_helical(&self, tol: f64) -> bool {
+        self.rise().abs() > tol
+    }
+
+    /// Angle of the start around the centre, in the plane's (first, second)
+    /// axes, in `(-π, π]`.
+    pub fn start_angle(&self) -> f64 {
+        let v = self.s2() - self.c2();
+        v.y.atan2(v.x)
+    }
+
+    /// Signed swept angle in radians, positive counter-clockwise. Start equal
+    /// to end in the plane (within `EPS_LEN`) is a full turn; each extra turn
+    /// adds `2π` in the direction of travel.
+    pub fn sweep(&self) -> f64 {
+        sweep_angle(&self.c2(), &self.s2(), &self.e2(), self.ccw, self.extra_turns, EPS_LEN)
+    }
+
+    /// Path length in mm: `sqrt((r·sweep)² + rise²)`, with `r` the mean of the
+    /// start and end radii.
+    pub fn length(&self) -> f64 {
+        let r = 0.5 * (self.radius() + self.end_radius());
+        (r * self.sweep()).hypot(self.rise())
+    }
+
+    /// The point at parameter `t` (0 = start, 1 = end), uniform in angle and
+    /// hence in length. `t = 0` and `t = 1` return the stored end points
+    /// exactly; other values outside [0, 1] extrapolate.
+    pub fn point_at(&self, t: f64) -> P3 {
+        if t == 0.0 {
+            return self.start;
+        }
+        if t == 1.0 {
+            return self.end;
+        }
+        let c = self.c2();
+        let (r0, r1) = (self.radius(), self.end_radius());
+        let r = r0 + (r1 - r0) * t;
+        let a = self.start_angle() + self.sweep() * t;
+        let q = c + V2::new(a.cos(), a.sin()) * r;
+        self.plane
+            .lift(&q, self.plane.normal_coord(&self.start) + self.rise() * t)
+    }
+
+    /// The point `s` mm along the arc from its start; `None` for an arc of
+    /// zero length.
+    pub fn point_at_length(&self, s: f64) -> Option<P3> {
+        let len = self.length();
+        if positive_finite(len) {
+            Some(self.point_at(s / len))
+        } else {
+            None
+        }
+    }
+
+    /// Unit tangent in the direction of travel at parameter `t`; `None` when
+    /// the arc has no length (zero radius and no rise) or is not finite.
+    pub fn tangent_at(&self, t: f64) -> Option<V3> {
+        let (r0, r1) = (self.radius(), self.end_radius());
+        let r = r0 + (r1 - r0) * t;
+        let sw = self.sweep();
+        let a = self.start_angle() + sw * t;
+        let (sin, cos) = a.sin_cos();
+        // d/dt of c + r(t)·(cos a, sin a) with a = a0 + sweep·t.
+        let d2 = V2::new(cos, sin) * (r1 - r0) + V2::new(-sin, cos) * (r * sw);
+        let d = self.plane.lift(&P2::from(d2), self.rise()).coords;
+        let n = d.norm();
+        if positive_finite(n) { Some(d / n) } else { None }
+    }
+
+    /// For an in-plane direction angle `phi`, the parameters of the first
+    /// and the last time the arc passes that direction, if it does.
+    fn passes(&self, phi: f64) -> Option<(f64, f64)> {
+        let sw = self.sweep().abs();
+        if !positive_finite(sw) {
+            return None;
+        }
+        let a0 = self.start_angle();
+        let first = if self.ccw {
+            normalize_angle(phi - a0)
+        } else {
+            normalize_angle(a0 - phi)
+        };
+        if first.is_nan() || first > sw {
+            return None;
+        }
+        let last = first + ((sw - first) / TAU).floor() * TAU;
+        Some((first / sw, (last / sw).min(1.0)))
+    }
+
+    /// The exact axis-aligned box: both ends plus every axis extreme
+    /// (0°, 90°, 180°, 270° in the plane) the sweep passes.
+    pub fn bbox(&self) -> BBox3 {
+        let mut b = BBox3::from_points(&[self.start, self.end]);
+        for k in 0..4 {
+            if let Some((t0, t1)) = self.passes(k as f64 * FRAC_PI_2) {
+                b.extend(&self.point_at(t0));
+                b.extend(&self.point_at(t1));
+            }
+        }
+        b
+    }
+
+    /// The point of a planar arc nearest `p`, with its parameter in [0, 1].
+    /// `None` for a helical arc (rise beyond `EPS_LEN`), whose nearest point
+    /// has no closed form, or when `p` or the arc is not finite. When `p`
+    /// projects onto the centre every point is equally near and the start is
+    /// answered.
+    pub fn closest_point(&self, p: &P3) -> Option<(P3, f64)> {
+        let finite = [p, &self.center, &self.start, &self.end].into_iter().all(finite_p3);
+        if self.is_helical(EPS_LEN) || !finite {
+            return None;
+        }
+        let q = self.plane.project(p);
+        let c = self.c2();
+        let mut candidates = vec![0.0, 1.0];
+        let v = q - c;
+        if let Some((t0, t1)) = self.passes(v.y.atan2(v.x)).filter(|_| v.norm() > 0.0) {
+            candidates.push(t0);
+            candidates.push(t1);
+        }
+        candidates
+            .into_iter()
+            .map(|t| (self.point_at(t), t))
+            .min_by(|a, b| (a.0 - p).norm().total_cmp(&(b.0 - p).norm()))
+    }
+
+    /// Distance from `p` to a planar arc; `None` where `closest_point` is.
+    pub fn distance(&self, p: &P3) -> Option<f64> {
+        self.closest_point(p).map(|(q, _)| (q - p).norm())
+    }
+
+    /// The same arc travelled the other way: ends swapped, sense flipped,
+    /// centre moved to the new start's normal coordinate. Reversing twice
+    /// gives back the original exactly.
+    pub fn reversed(&self) -> Arc3 {
+        Arc3 {
+            center: self.plane.lift(&self.c2(), self.plane.normal_coord(&self.end)),
+            start: self.end,
+            end: self.start,
+            ccw: !self.ccw,
+            plane: self.plane,
+            extra_turns: self.extra_turns,
+        }
+    }
+
+    /// The arc from `a` through `b` to `c`, in `plane` (points are projected
+    /// onto it). The sense is whichever visits `b` between `a` and `c`. The
+    /// end keeps `c`'s normal coordinate, so a rise from `a` to `c` makes a
+    /// helix; `b`'s normal coordinate is not used. `None` when the three
+    /// projected points are collinear (sine of the angle at `a` below 1e-12)
+    /// or two coincide, or any coordinate is not finite.
+    pub fn from_three_points(a: &P3, b: &P3, c: &P3, plane: Plane) -> Option<Arc3> {
+        if ![a, b, c].into_iter().all(finite_p3) {
+            return None;
+        }
+        let (pa, pb, pc) = (plane.project(a), plane.project(b), plane.project(c));
+        let ab = pb - pa;
+        let ac = pc - pa;
+        let cross = ab.perp(&ac);
+        let (lab2, lac2) = (ab.norm_squared(), ac.norm_squared());
+        let limit = 1e-12 * (lab2 * lac2).sqrt();
+        if !positive_finite(cross.abs()) || limit.is_nan() || cross.abs() <= limit {
+            return None;
+        }
+        let d = 2.0 * cross;
+        let u = V2::new(ac.y * lab2 - ab.y * lac2, ab.x * lac2 - ac.x * lab2) / d;
+        let center = plane.lift(&(pa + u), plane.normal_coord(a));
+        Arc3::new(center, *a, *c, cross > 0.0, plane, 0)
+    }
+
+    /// Build an arc whose total absolute sweep should be `abs_sweep`,
+    /// choosing `extra_turns` so that `sweep()` reproduces it.
+    fn with_abs_sweep(center: P3, start: P3, end: P3, ccw: bool, plane: Plane, abs_sweep: f64) -> Option<Arc3> {
+        let mut arc = Arc3::new(center, start, end, ccw, plane, 0)?;
+        let base = arc.sweep().abs();
+        let turns = ((abs_sweep - base) / TAU).round();
+        if !(0.0..=u32::MAX as f64).contains(&turns) {
+            return None;
+        }
+        arc.extra_turns = turns as u32;
+        Some(arc)
+    }
+
+    /// The two pieces either side of parameter `t`, each keeping its share of
+    /// the sweep, rise and whole turns. `None` unless `0 < t < 1` and both
+    /// pieces are longer than a few `EPS_LEN` (a shorter piece would read
+    /// as a full turn).
+    pub fn split_at(&self, t: f64) -> Option<(Arc3, Arc3)> {
+        if !(t > 0.0 && t < 1.0) {
+            return None;
+        }
+        let sw = self.sweep().abs();
+        let r = self.radius().min(self.end_radius());
+        let shorter_piece = r * sw * t.min(1.0 - t);
+        if shorter_piece.is_nan() || shorter_piece <= 16.0 * EPS_LEN {
+            return None;
+        }
+        let m = self.point_at(t);
+        let c = self.c2();
+        let first = Self::with_abs_sweep(self.center, self.start, m, self.ccw, self.plane, sw * t)?;
+        let mid_center = self.plane.lift(&c, self.plane.normal_coord(&m));
+        let second = Self::with_abs_sweep(mid_center, m, self.end, self.ccw, self.plane, sw * (1.0 - t))?;
+        Some((first, second))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::f64::consts::PI;
+
+    fn p(x: f64, y: f64, z: f64) -> P3 {
+        P3::new(x, y, z)
+    }
+
+    fn close(a: &P3, b: &P3) -> bool {
+        (a - b).norm() < 1e-9
+    }
+
+    #[test]
+    fn quarter_circle_length_sweep_and_points() {
+        let a = Arc3::new(p(0.0, 0.0, 0.0), p(2.0, 0.0, 0.0), p(0.0, 2.0, 0.0), true, Plane::Xy, 0).unwrap();
+        assert!((a.radius() - 2.0).abs() < 1e-15);
+        assert!((a.sweep() - PI / 2.0).abs() < 1e-15);
+        assert!((a.length() - PI).abs() < 1e-14, "quarter circle r=2 is pi long");
+        assert!(close(&a.point_at(0.5), &p(2f64.sqrt(), 2f64.sqrt(), 0.0)));
+        assert_eq!(a.point_at(1.0), a.end);
+        let t = a.tangent_at(0.0).unwrap();
+        assert!((t - V3::new(0.0, 1.0, 0.0)).norm() < 1e-12);
+        let cw = Arc3 { ccw: false, ..a };
+        assert!((cw.sweep() + 1.5 * PI).abs() < 1e-14);
+        assert!((cw.length() - 3.0 * PI).abs() < 1e-13);
+        assert!((cw.tangent_at(0.0).unwrap() - V3::new(0.0, -1.0, 0.0)).norm() < 1e-12);
+    }
+
+    #[test]
+    fn tangent_follows_the_plane_sense() {
+        // G18 (ZX plane, normal +Y): ccw from +Z towards +X.
+        let a = Arc3::new(p(0.0, 0.0, 0.0), p(0.0, 0.0, 1.0), p(1.0, 0.0, 0.0), true, Plane::Xz, 0).unwrap();
+        assert!((a.sweep() - PI / 2.0).abs() < 1e-15);
+        assert!((a.tangent_at(0.0).unwrap() - V3::new(1.0, 0.0, 0.0)).norm() < 1e-12);
+        // G19 (YZ plane, normal +X): ccw from +Y towards +Z.
+        let b = Arc3::new(p(0.0, 0.0, 0.0), p(0.0, 1.0, 0.0), p(0.0, 0.0, 1.0), true, Plane::Yz, 0).unwrap();
+        assert!((b.sweep() - PI / 2.0).abs() < 1e-15);
+        assert!(close(&b.point_at(0.5), &p(0.0, 0.5f64.sqrt(), 0.5f64.sqrt())));
+    }
+
+    #[test]
+    fn full_circle_and_helix() {
+        let c = Arc3::full_circle(p(1.0, 1.0, 0.0), p(2.0, 1.0, 0.0), false, Plane::Xy).unwrap();
+        assert!((c.sweep() + TAU).abs() < 1e-15);
+        assert!((c.length() - TAU).abs() < 1e-14);
+        assert!(close(&c.point_at(0.25), &p(1.0, 0.0, 0.0)));
+        // One extra turn, rising 3 mm: two turns of radius 1.
+        let h = Arc3::new(p(0.0, 0.0, 0.0), p(1.0, 0.0, 0.0), p(1.0, 0.0, 3.0), true, Plane::Xy, 1).unwrap();
+        assert!((h.sweep() - 2.0 * TAU).abs() < 1e-14);
+        assert!((h.length() - (2.0 * TAU).hypot(3.0)).abs() < 1e-13);
+        assert!(close(&h.point_at(0.5), &p(1.0, 0.0, 1.5)));
+        assert!(close(&h.point_at(0.125), &p(0.0, 1.0, 0.375)));
+        let t = h.tangent_at(0.0).unwrap();
+        let expect = V3::new(0.0, 2.0 * TAU, 3.0).normalize();
+        assert!((t - expect).norm() < 1e-12);
+        assert!(h.closest_point(&p(0.0, 0.0, 0.0)).is_none(), "helix has no closed form");
+    }
+
+    #[test]
+    fn bbox_includes_crossed_axis_extremes() {
+        // From 45° to 135° ccw crosses 90°: the top of the circle.
+        let s = 0.5f64.sqrt();
+        let a = Arc3::new(p(0.0, 0.0, 0.0), p(s, s, 0.0), p(-s, s, 0.0), true, Plane::Xy, 0).unwrap();
+        let b = a.bbox();
+        assert!(close(&b.min, &p(-s, s, 0.0)));
+        assert!(close(&b.max, &p(s, 1.0, 0.0)));
+        // The same ends clockwise go the long way: through 0°, 270° and 180°.
+        let b = Arc3 { ccw: false, ..a }.bbox();
+        let (r, f) = (a.reversed().bbox(), a.bbox());
+        assert!(close(&r.min, &f.min) && close(&r.max, &f.max));
+        assert!(close(&b.min, &p(-1.0, -1.0, 0.0)));
+        assert!(close(&b.max, &p(1.0, s, 0.0)));
+        // A helix in XZ: the normal (Y) range comes from the rise.
+        let h = Arc3::new(p(0.0, 0.0, 0.0), p(0.0, 0.0, 1.0), p(0.0, 2.0, 1.0), true, Plane::Xz, 0).unwrap();
+        let b = h.bbox();
+        assert!(close(&b.min, &p(-1.0, 0.0, -1.0)));
+        assert!(close(&b.max, &p(1.0, 2.0, 1.0)));
+    }
+
+    #[test]
+    fn closest_point_on_planar_arc() {
+        let a = Arc3::new(p(0.0, 0.0, 1.0), p(1.0, 0.0, 1.0), p(0.0, 1.0, 1.0), true, Plane::Xy, 0).unwrap();
+        let (q, t) = a.closest_point(&p(3.0, 3.0, 1.0)).unwrap();
+        assert!(close(&q, &p(0.5f64.sqrt(), 0.5f64.sqrt(), 1.0)));
+        assert!((t - 0.5).abs() < 1e-12);
+        let (q, t) = a.closest_point(&p(-1.0, -2.0, 4.0)).unwrap();
+        assert!(q == a.start || q == a.end);
+        assert!(t == 0.0 || t == 1.0);
+        assert!((a.distance(&p(0.0, 5.0, 1.0)).unwrap() - 4.0).abs() < 1e-12);
+        assert_eq!(a.closest_point(&p(0.0, 0.0, 1.0)).unwrap().1, 0.0);
+    }
+
+    #[test]
+    fn three_points_give_the_circumcircle() {
+        let a = Arc3::from_three_points(&p(1.0, 0.0, 0.0), &p(0.0, 1.0, 0.0), &p(-1.0, 0.0, 2.0), Plane::Xy).unwrap();
+        assert!(close(&a.center, &p(0.0, 0.0, 0.0)));
+        assert!(a.ccw);
+        assert!((a.sweep() - PI).abs() < 1e-14);
+        assert!((a.rise() - 2.0).abs() < 1e-15);
+        let b = Arc3::from_three_points(&p(1.0, 0.0, 0.0), &p(0.0, -1.0, 0.0), &p(-1.0, 0.0, 0.0), Plane::Xy).unwrap();
+        assert!(!b.ccw);
+        assert!(Arc3::from_three_points(&p(0.0, 0.0, 0.0), &p(1.0, 1.0, 0.0), &p(2.0, 2.0, 0.0), Plane::Xy).is_none());
+        assert!(Arc3::from_three_points(&p(0.0, 0.0, 0.0), &p(1.0, 1.0, 0.0), &p(0.0, 0.0, 0.0), Plane::Xy).is_none());
+        // Collinear in XY but not in XZ.
+        let c = Arc3::from_three_points(&p(0.0, 0.0, 0.0), &p(1.0, 0.0, 1.0), &p(2.0, 0.0, 0.0), Plane::Xz).unwrap();
+        assert!(close(&c.center, &p(1.0, 0.0, 0.0)));
+    }
+
+    #[test]
+    fn split_keeps_turns_and_rise() {
+        let h = Arc3::new(p(0.0, 0.0, 0.0), p(1.0, 0.0, 0.0), p(0.0, 1.0, 5.0), true, Plane::Xy, 2).unwrap();
+        let total = h.sweep();
+        assert!((total - (2.0 * TAU + PI / 2.0)).abs() < 1e-13);
+        let (a, b) = h.split_at(0.6).unwrap();
+        assert!((a.sweep() - 0.6 * total).abs() < 1e-9);
+        assert!((b.sweep() - 0.4 * total).abs() < 1e-9);
+        assert!((a.rise() - 3.0).abs() < 1e-12);
+        assert_eq!(a.end, b.start);
+        assert_eq!(b.end, h.end);
+        assert!((b.center.z - 3.0).abs() < 1e-12);
+        assert!(h.split_at(0.0).is_none());
+        assert!(h.split_at(f64::NAN).is_none());
+        assert!(h.split_at(1e-18).is_none());
+    }
+
+    #[test]
+    fn degenerate_input_gives_none_not_panics() {
+        let o = p(0.0, 0.0, 0.0);
+        assert!(Arc3::new(o, o, o, true, Plane::Xy, 0).is_none());
+        assert!(Arc3::new(o, p(f64::NAN, 0.0, 0.0), o, true, Plane::Xy, 0).is_none());
+        assert!(Arc3::from_three_points(&o, &p(f64::INFINITY, 0.0, 0.0), &p(1.0, 1.0, 0.0), Plane::Xy).is_none());
+        // Unchecked construction with garbage still must not panic.
+        let bad = Arc3 {
+            center: o,
+            start: p(f64::NAN, 1.0, 0.0),
+            end: o,
+            ccw: true,
+            plane: Plane::Xy,
+            extra_turns: u32::MAX,
+        };
+        let _ = (
+            bad.length(),
+            bad.point_at(0.5),
+            bad.bbox(),
+            bad.reversed(),
+            bad.split_at(0.5),
+        );
+        assert!(bad.tangent_at(0.5).is_none());
+        assert!(bad.closest_point(&o).is_none());
+        let zero = Arc3 {
+            center: o,
+            start: o,
+            end: o,
+            ccw: true,
+            plane: Plane::Xy,
+            extra_turns: 0,
+        };
+        assert!(zero.tangent_at(0.3).is_none());
+        assert_eq!(zero.length(), 0.0);
+        assert!(zero.split_at(0.5).is_none());
+        assert_eq!(zero.point_at_length(1.0), None);
+        let huge = Arc3 {
+            extra_turns: u32::MAX,
+            ..zero
+        };
+        let _ = huge.bbox();
+    }
+}

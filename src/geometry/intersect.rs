@@ -1,0 +1,793 @@
+//! Intersections of lines and arcs in the XY plane.
+//!
+//! Chaining, offsetting and trimming need to know where two primitives meet,
+//! restricted to their extents and at a tolerance: drawings are never exact,
+//! and a tangency that misses by a nanometre must still count as one. The
+//! primitives are projected onto XY (Z is ignored, so a helical XY arc meets
+//! things where its shadow does); an arc in another plane has no circular
+//! shadow and is refused.
+//!
+//! Results come as a list of [`Intersection`]s sorted along the first
+//! primitive. A shared stretch (collinear lines, arcs on the same circle) is
+//! reported as one `Overlap` rather than as its two end points, because
+//! callers treat it differently (merge duplicates, not split). Every reported
+//! point lies within `tol` of both primitives. Arcs are treated as circles of
+//! their start radius; an arc of more than one turn is met on its first
+//! pass, and its parameters refer to that pass.
+//!
+//! The tolerance is never taken below the rounding noise of the input
+//! (1e-12 of the largest coordinate or radius), so `tol = 0` means "as exact
+//! as floating point allows": two arcs built on the same circle still overlap.
+
+use super::arc::Arc3;
+use super::line::Line3;
+use super::tol::{finite_p3, normalize_angle, valid_tol};
+use super::{P2, Plane, V2};
+use std::f64::consts::TAU;
+
+/// Where two primitives meet: the point and its parameter (0 = start,
+/// 1 = end, as in `point_at`) on the first and on the second primitive.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Hit {
+    /// The meeting point in XY.
+    pub point: P2,
+    /// Parameter on the first primitive, in [0, 1].
+    pub t1: f64,
+    /// Parameter on the second primitive, in [0, 1].
+    pub t2: f64,
+}
+
+/// One intersection between two primitives.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Intersection {
+    /// The primitives meet at a point. `tangent` is true when they touch
+    /// without crossing (within the tolerance), e.g. a line tangent to an arc.
+    Point {
+        /// Where they meet.
+        hit: Hit,
+        /// Touching, not crossing.
+        tangent: bool,
+    },
+    /// The primitives share a stretch longer than the tolerance, from
+    /// `start` to `end` in the first primitive's direction of travel.
+    Overlap {
+        /// Where the shared stretch begins along the first primitive.
+        start: Hit,
+        /// Where the shared stretch ends along the first primitive.
+        end: Hit,
+    },
+}
+
+impl Intersection {
+    /// The one or two hits this intersection consists of.
+    pub fn hits(&self) -> Vec<Hit> {
+        match *self {
+            Intersection::Point { hit, .. } => vec![hit],
+            Intersection::Overlap { start, end } => vec![start, end],
+        }
+    }
+
+    /// The same intersection seen from the other primitive: `t1` and `t2`
+    /// swapped (an overlap keeps the first primitive's order of its ends).
+    pub fn swapped(&self) -> Intersection {
+        let sw = |h: Hit| Hit {
+            point: h.point,
+            t1: h.t2,
+            t2: h.t1,
+        };
+        match *self {
+            Intersection::Point { hit, tangent } => Intersection::Point { hit: sw(hit), tangent },
+            Intersection::Overlap { start, end } => Intersection::Overlap {
+                start: sw(start),
+                end: sw(end),
+            },
+        }
+    }
+
+    fn sort_key(&self) -> f64 {
+        match self {
+            Intersection::Point { hit, .. } => hit.t1,
+            Intersection::Overlap { start, end } => start.t1.min(end.t1),
+        }
+    }
+}
+
+/// A segment projected onto XY.
+#[derive(Clone, Copy)]
+struct Seg {
+    p: P2,
+    q: P2,
+}
+
+impl Seg {
+    fn new(l: &Line3) -> Option<Seg> {
+        (finite_p3(&l.start) && finite_p3(&l.end)).then(|| Seg {
+            p: P2::new(l.start.x, l.start.y),
+            q: P2::new(l.end.x, l.end.y),
+        })
+    }
+
+    fn d(&self) -> V2 {
+        self.q - self.p
+    }
+
+    fn len(&self) -> f64 {
+        self.d().norm()
+    }
+
+    fn at(&self, t: f64) -> P2 {
+        self.p + self.d() * t
+    }
+
+    /// Parameter of the foot of `x` on the infinite line (unclamped).
+    fn project(&self, x: &P2) -> f64 {
+        let l2 = self.d().norm_squared();
+        if l2 > 0.0 {
+            (x - self.p).dot(&self.d()) / l2
+        } else {
+            0.0
+        }
+    }
+
+    /// Distance from `x` to the infinite line.
+    fn line_dist(&self, x: &P2) -> f64 {
+        (x - self.at(self.project(x))).norm()
+    }
+
+    /// Accept a line parameter within `tol` (in length) of [0, 1], clamped.
+    fn accept(&self, t: f64, tol: f64) -> Option<f64> {
+        let slack = tol / self.len();
+        (t >= -slack && t <= 1.0 + slack).then(|| t.clamp(0.0, 1.0))
+    }
+
+    fn closest(&self, x: &P2) -> (P2, f64) {
+        let t = self.project(x).clamp(0.0, 1.0);
+        (self.at(t), t)
+    }
+}
+
+/// An XY arc with its circle data precomputed.
+#[derive(Clone, Copy)]
+struct Circ {
+    arc: Arc3,
+    c: P2,
+    r: f64,
+    a0: f64,
+    /// Absolute sweep.
+    sw: f64,
+}
+
+impl Circ {
+    fn new(a: &Arc3) -> Option<Circ> {
+        if a.plane != Plane::Xy || ![a.center, a.start, a.end].iter().all(finite_p3) {
+            return None;
+        }
+        let sw = a.sweep().abs();
+        sw.is_finite().then(|| Circ {
+            arc: *a,
+            c: P2::new(a.center.x, a.center.y),
+            r: a.radius(),
+            a0: a.start_angle(),
+            sw,
+        })
+    }
+
+    fn point(&self, t: f64) -> P2 {
+        let p = self.arc.point_at(t);
+        P2::new(p.x, p.y)
+    }
+
+    /// How far (radians, in the direction of travel, in [0, 2π)) the
+    /// direction of `x` lies from the start.
+    fn delta(&self, x: &P2) -> f64 {
+        let v = x - self.c;
+        let phi = v.y.atan2(v.x);
+        if self.arc.ccw {
+            normalize_angle(phi - self.a0)
+        } else {
+            normalize_angle(self.a0 - phi)
+        }
+    }
+
+    /// First-pass parameter of the direction of `x`, accepting up to `tol`
+    /// (in length) beyond either end, clamped to [0, 1].
+    fn accept(&self, x: &P2, tol: f64) -> Option<f64> {
+        let delta = self.delta(x);
+        if delta <= self.sw {
+            return Some(delta / self.sw);
+        }
+        let slack = tol / self.r;
+        let past_end = delta - self.sw;
+        let before_start = TAU - delta;
+        if past_end.min(before_start) > slack {
+            None
+        } else if past_end <= before_start {
+            Some(1.0)
+        } else {
+            Some(0.0)
+        }
+    }
+
+    fn closest(&self, x: &P2) -> (P2, f64) {
+        let mut best = (self.point(0.0), 0.0);
+        let mut consider = |t: f64| {
+            let q = self.point(t);
+            if (q - x).norm() < (best.0 - x).norm() {
+                best = (q, t);
+            }
+        };
+        consider(1.0);
+        if (x - self.c).norm() > 0.0 {
+            let delta = self.delta(x);
+            if delta <= self.sw {
+                consider(delta / self.sw);
+            }
+        }
+        best
+    }
+
+    /// Start of the arc's first-pass angular interval in ccw order, and its
+    /// width (at most a full turn).
+    fn ccw_interval(&self) -> (f64, f64) {
+        let span = self.sw.min(TAU);
+        let lo = if self.arc.ccw { self.a0 } else { self.a0 - span };
+        (lo, span)
+    }
+
+    /// Parameter of the point at ccw offset `x` from `ccw_interval().0`.
+    fn t_of_offset(&self, x: f64) -> f64 {
+        let (_, span) = self.ccw_interval();
+        let x = if x > span { x - TAU } else { x };
+        let travel = if self.arc.ccw { x } else { span - x };
+        (travel / self.sw).clamp(0.0, 1.0)
+    }
+}
+
+/// Either primitive, for the shared end-point checks.
+#[derive(Clone, Copy)]
+enum Shape {
+    Seg(Seg),
+    Circ(Circ),
+}
+
+impl Shape {
+    fn closest(&self, x: &P2) -> (P2, f64) {
+        match self {
+            Shape::Seg(s) => s.closest(x),
+            Shape::Circ(c) => c.closest(x),
+        }
+    }
+
+    fn ends(&self) -> [(P2, f64); 2] {
+        match self {
+            Shape::Seg(s) => [(s.p, 0.0), (s.q, 1.0)],
+            Shape::Circ(c) => [(c.point(0.0), 0.0), (c.point(1.0), 1.0)],
+        }
+    }
+}
+
+/// Relative size of floating-point noise in the closed forms below.
+const NOISE: f64 = 1e-12;
+
+/// `tol` raised to the rounding noise of coordinates of magnitude `scale`.
+fn effective_tol(tol: f64, scale: impl IntoIterator<Item = f64>) -> f64 {
+    let m = scale.into_iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    tol.max(NOISE * m)
+}
+
+impl Seg {
+    fn scale(&self) -> [f64; 4] {
+        [self.p.x, self.p.y, self.q.x, self.q.y]
+    }
+}
+
+impl Circ {
+    fn scale(&self) -> [f64; 3] {
+        [self.c.x.abs() + self.r, self.c.y.abs() + self.r, self.r]
+    }
+}
+
+fn mid(a: &P2, b: &P2) -> P2 {
+    nalgebra::center(a, b)
+}
+
+fn point(point: P2, t1: f64, t2: f64, tangent: bool) -> Intersection {
+    Intersection::Point {
+        hit: Hit { point, t1, t2 },
+        tangent,
+    }
+}
+
+/// Add the end points of either primitive that lie within `tol` of the
+/// other and are not already reported. This catches what the closed forms
+/// miss at a tolerance: an end resting on the other primitive at a shallow
+/// angle, and degenerate (point-like) primitives.
+fn end_touches(a: &Shape, b: &Shape, tol: f64, out: &mut Vec<Intersection>) {
+    if out.iter().any(|i| matches!(i, Intersection::Overlap { .. })) {
+        return;
+    }
+    let dedup = (2.0 * tol).max(super::EPS_LEN);
+    let add = |out: &mut Vec<Intersection>, x: P2, t1: f64, t2: f64| {
+        let known = out.iter().flat_map(|i| i.hits()).any(|h| (h.point - x).norm() <= dedup);
+        if !known {
+            out.push(point(x, t1, t2, false));
+        }
+    };
+    for (x, ta) in a.ends() {
+        let (q, tb) = b.closest(&x);
+        if (q - x).norm() <= tol {
+            add(out, x, ta, tb);
+        }
+    }
+    for (x, tb) in b.ends() {
+        let (q, ta) = a.closest(&x);
+        if (q - x).norm() <= tol {
+            add(out, x, ta, tb);
+        }
+    }
+}
+
+fn finish(mut out: Vec<Intersection>) -> Vec<Intersection> {
+    out.sort_by(|a, b| a.sort_key().total_cmp(&b.sort_key()));
+    out
+}
+
+/// Intersections of two segments in XY. Collinear segments (each end of one
+/// within `tol` of the other's line) that share more than `tol` of length
+/// give one `Overlap`; if they only touch, a `Point`. `None` when a
+/// coordinate is not finite or `tol` is negative or NaN.
+pub fn line_line(a: &Line3, b: &Line3, tol: f64) -> Option<Vec<Intersection>> {
+    let (sa, sb) = (Seg::new(a)?, Seg::new(b)?);
+    if !valid_tol(tol) {
+        return None;
+    }
+    let tol = effective_tol(tol, sa.scale().into_iter().chain(sb.scale()));
+    let mut out = Vec::new();
+    let (la, lb) = (sa.len(), sb.len());
+    if la > tol && lb > tol {
+        let collinear = (sa.line_dist(&sb.p) <= tol && sa.line_dist(&sb.q) <= tol)
+            || (sb.line_dist(&sa.p) <= tol && sb.line_dist(&sa.q) <= tol);
+        if collinear {
+            collinear_overlap(&sa, &sb, tol, &mut out);
+        } else {
+            let (r, s) = (sa.d(), sb.d());
+            let denom = r.perp(&s);
+            if denom != 0.0 {
+                let w = sb.p - sa.p;
+                let t = w.perp(&s) / denom;
+                let u = w.perp(&r) / denom;
+                if let (Some(t), Some(u)) = (sa.accept(t, tol), sb.accept(u, tol)) {
+                    out.push(point(mid(&sa.at(t), &sb.at(u)), t, u, false));
+                }
+            }
+        }
+    }
+    end_touches(&Shape::Seg(sa), &Shape::Seg(sb), tol, &mut out);
+    Some(finish(out))
+}
+
+fn collinear_overlap(sa: &Seg, sb: &Seg, tol: f64, out: &mut Vec<Intersection>) {
+    let (u0, u1) = (sa.project(&sb.p), sa.project(&sb.q));
+    let lo = u0.min(u1).max(0.0);
+    let hi = u0.max(u1).min(1.0);
+    let la = sa.len();
+    let hit = |t: f64| {
+        let pa = sa.at(t);
+        let (pb, u) = sb.closest(&pa);
+        Hit {
+            point: mid(&pa, &pb),
+            t1: t,
+            t2: u,
+        }
+    };
+    if (hi - lo) * la > tol {
+        out.push(Intersection::Overlap {
+            start: hit(lo),
+            end: hit(hi),
+        });
+    } else if (lo - hi) * la <= tol {
+        let h = hit((0.5 * (lo + hi)).clamp(0.0, 1.0));
+        out.push(Intersection::Point { hit: h, tangent: false });
+    }
+}
+
+/// Intersections of a segment (first) and an XY arc (second). A line within
+/// `tol` of tangent gives one `Point` marked tangent. `None` when the arc is
+/// not in the XY plane, a coordinate is not finite, or `tol` is invalid.
+pub fn line_arc(a: &Line3, b: &Arc3, tol: f64) -> Option<Vec<Intersection>> {
+    let (sa, cb) = (Seg::new(a)?, Circ::new(b)?);
+    if !valid_tol(tol) {
+        return None;
+    }
+    let tol = effective_tol(tol, sa.scale().into_iter().chain(cb.scale()));
+    let mut out = Vec::new();
+    let la = sa.len();
+    if la > tol && cb.r > tol {
+        let f = sa.at(sa.project(&cb.c));
+        let dist = (f - cb.c).norm();
+        let mut cands: Vec<(P2, bool)> = Vec::new();
+        if (dist - cb.r).abs() <= tol {
+            let on_circle = if dist > 0.0 {
+                cb.c + (f - cb.c) * (cb.r / dist)
+            } else {
+                f
+            };
+            cands.push((mid(&on_circle, &f), true));
+        } else if dist < cb.r {
+            let h = (cb.r * cb.r - dist * dist).sqrt();
+            let u = sa.d() / la;
+            cands.push((f - u * h, false));
+            cands.push((f + u * h, false));
+        }
+        for (x, tangent) in cands {
+            if let (Some(t), Some(s)) = (sa.accept(sa.project(&x), tol), cb.accept(&x, tol)) {
+                out.push(point(x, t, s, tangent));
+            }
+        }
+    }
+    end_touches(&Shape::Seg(sa), &Shape::Circ(cb), tol, &mut out);
+    Some(finish(out))
+}
+
+/// Intersections of an XY arc (first) and a segment (second): `line_arc`
+/// with the parameters swapped and the result sorted along the arc.
+pub fn arc_line(a: &Arc3, b: &Line3, tol: f64) -> Option<Vec<Intersection>> {
+    let hits = line_arc(b, a, tol)?;
+    Some(finish(
+        hits.iter()
+            .map(|i| match i.swapped() {
+                Intersection::Overlap { start, end } => Intersection::Overlap { start: end, end: start },
+                p => p,
+            })
+            .collect(),
+    ))
+}
+
+/// Intersections of two XY arcs. Arcs on the same circle (centres and radii
+/// within `tol`) give an `Overlap` per shared stretch longer than `tol`
+/// (two at most) and a `Point` where they only touch; circles touching
+/// within `tol` give one tangent `Point`. `None` when an arc is not in the XY
+/// plane, a coordinate is not finite, or `tol` is invalid.
+pub fn arc_arc(a: &Arc3, b: &Arc3, tol: f64) -> Option<Vec<Intersection>> {
+    let (ca, cb) = (Circ::new(a)?, Circ::new(b)?);
+    if !valid_tol(tol) {
+        return None;
+    }
+    let tol = effective_tol(tol, ca.scale().into_iter().chain(cb.scale()));
+    let mut out = Vec::new();
+    if ca.r > tol && cb.r > tol {
+        let d = (cb.c - ca.c).norm();
+        if d <= tol && (ca.r - cb.r).abs() <= tol {
+            coincident_overlap(&ca, &cb, tol, &mut out);
+        } else if d > 0.0 {
+            let u = (cb.c - ca.c) / d;
+            let mut cands: Vec<(P2, bool)> = Vec::new();
+            if (d - (ca.r + cb.r)).abs() <= tol {
+                cands.push((mid(&(ca.c + u * ca.r), &(cb.c - u * cb.r)), true));
+            } else if (d - (ca.r - cb.r).abs()).abs() <= tol {
+                let s = if ca.r >= cb.r { 1.0 } else { -1.0 };
+                cands.push((mid(&(ca.c + u * (s * ca.r)), &(cb.c + u * (s * cb.r))), true));
+            } else if d < ca.r + cb.r && d > (ca.r - cb.r).abs() {
+                let x = (d * d + ca.r * ca.r - cb.r * cb.r) / (2.0 * d);
+                let h = (ca.r * ca.r - x * x).max(0.0).sqrt();
+                let m = ca.c + u * x;
+                let n = V2::new(-u.y, u.x);
+                cands.push((m - n * h, false));
+                cands.push((m + n * h, false));
+            }
+            for (x, tangent) in cands {
+                if let (Some(t), Some(s)) = (ca.accept(&x, tol), cb.accept(&x, tol)) {
+                    out.push(point(x, t, s, tangent));
+                }
+            }
+        }
+    }
+    end_touches(&Shape::Circ(ca), &Shape::Circ(cb), tol, &mut out);
+    Some(finish(out))
+}
+
+/// Shared stretches of two arcs on (nearly) the same circle, worked out as
+/// angular intervals in `a`'s counter-clockwise frame.
+fn coincident_overlap(ca: &Circ, cb: &Circ, tol: f64, out: &mut Vec<Intersection>) {
+    let ang_tol = tol / ca.r;
+    let (lo_a, span_a) = ca.ccw_interval();
+    let (lo_b, span_b) = cb.ccw_interval();
+    let off = normalize_angle(lo_b - lo_a);
+    let mut pieces: Vec<(f64, f64)> = Vec::new();
+    for s in [off - TAU, off] {
+        let x0 = s.max(0.0);
+        let x1 = (s + span_b).min(span_a);
+        if x1 >= x0 - ang_tol {
+            pieces.push((x0, x1));
+        }
+    }
+    pieces.sort_by(|p, q| p.0.total_cmp(&q.0));
+    let mut merged: Vec<(f64, f64)> = Vec::new();
+    for p in pieces {
+        match merged.last_mut() {
+            Some(last) if p.0 <= last.1 + ang_tol => last.1 = last.1.max(p.1),
+            _ => merged.push(p),
+        }
+    }
+    // On a full circle, a stretch running over the seam at the start is one.
+    if span_a >= TAU && merged.len() >= 2 {
+        let (first, last) = (merged[0], merged[merged.len() - 1]);
+        if first.0 <= ang_tol && last.1 >= TAU - ang_tol {
+            merged.pop();
+            merged[0] = (last.0, first.1 + TAU);
+        }
+    }
+    let hit = |x: f64| {
+        let ang = lo_a + x;
+        let pa = ca.c + V2::new(ang.cos(), ang.sin()) * ca.r;
+        let v = pa - cb.c;
+        let pb = if v.norm() > 0.0 {
+            cb.c + v * (cb.r / v.norm())
+        } else {
+            pa
+        };
+        let p = mid(&pa, &pb);
+        Hit {
+            point: p,
+            t1: ca.t_of_offset(x),
+            t2: cb.closest(&p).1,
+        }
+    };
+    for (x0, x1) in merged {
+        if (x1 - x0) * ca.r > tol {
+            let (s, e) = if ca.arc.ccw { (x0, x1) } else { (x1, x0) };
+            out.push(Intersection::Overlap {
+                start: hit(s),
+                end: hit(e),
+            });
+        } else {
+            out.push(Intersection::Point {
+                hit: hit(0.5 * (x0 + x1)),
+                tangent: false,
+            });
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::P3;
+    use std::f64::consts::{FRAC_PI_2, PI};
+
+    const TOL: f64 = 1e-9;
+
+    fn ln(a: [f64; 2], b: [f64; 2]) -> Line3 {
+        Line3::new(P3::new(a[0], a[1], 0.0), P3::new(b[0], b[1], 0.0))
+    }
+
+    /// Arc on a circle around `c` of radius `r` from angle `a0` sweeping `sw` (signed; 0 = full ccw circle).
+    fn arc(c: [f64; 2], r: f64, a0: f64, sw: f64) -> Arc3 {
+        let at = |a: f64| P3::new(c[0] + r * a.cos(), c[1] + r * a.sin(), 0.0);
+        Arc3::new(P3::new(c[0], c[1], 0.0), at(a0), at(a0 + sw), sw >= 0.0, Plane::Xy, 0).unwrap()
+    }
+
+    fn circle(c: [f64; 2], r: f64) -> Arc3 {
+        arc(c, r, 0.0, 0.0)
+    }
+
+    fn pt(i: &Intersection) -> (Hit, bool) {
+        match *i {
+            Intersection::Point { hit, tangent } => (hit, tangent),
+            Intersection::Overlap { .. } => panic!("expected a point, got {i:?}"),
+        }
+    }
+
+    fn ov(i: &Intersection) -> (Hit, Hit) {
+        match *i {
+            Intersection::Overlap { start, end } => (start, end),
+            Intersection::Point { .. } => panic!("expected an overlap, got {i:?}"),
+        }
+    }
+
+    fn near(a: P2, x: f64, y: f64) -> bool {
+        (a - P2::new(x, y)).norm() < 1e-9
+    }
+
+    #[test]
+    fn crossing_and_missing_segments() {
+        let r = line_line(&ln([0.0, 0.0], [2.0, 2.0]), &ln([0.0, 2.0], [2.0, 0.0]), TOL).unwrap();
+        assert_eq!(r.len(), 1);
+        let (h, tangent) = pt(&r[0]);
+        assert!(near(h.point, 1.0, 1.0) && !tangent);
+        assert!((h.t1 - 0.5).abs() < 1e-12 && (h.t2 - 0.5).abs() < 1e-12);
+        assert!(
+            line_line(&ln([0.0, 0.0], [1.0, 0.0]), &ln([2.0, -1.0], [2.0, 1.0]), TOL)
+                .unwrap()
+                .is_empty()
+        );
+        assert!(
+            line_line(&ln([0.0, 0.0], [1.0, 0.0]), &ln([0.0, 1.0], [1.0, 1.0]), TOL)
+                .unwrap()
+                .is_empty()
+        );
+    }
+
+    #[test]
+    fn collinear_segments_overlap_or_touch() {
+        let r = line_line(&ln([0.0, 0.0], [4.0, 0.0]), &ln([6.0, 0.0], [2.0, 0.0]), TOL).unwrap();
+        assert_eq!(r.len(), 1);
+        let (s, e) = ov(&r[0]);
+        assert!(near(s.point, 2.0, 0.0) && (s.t1 - 0.5).abs() < 1e-12 && (s.t2 - 1.0).abs() < 1e-12);
+        assert!(near(e.point, 4.0, 0.0) && (e.t1 - 1.0).abs() < 1e-12 && (e.t2 - 0.5).abs() < 1e-12);
+        let r = line_line(&ln([0.0, 0.0], [1.0, 0.0]), &ln([1.0, 0.0], [2.0, 0.0]), TOL).unwrap();
+        assert_eq!(r.len(), 1);
+        let (h, _) = pt(&r[0]);
+        assert!(near(h.point, 1.0, 0.0) && h.t1 == 1.0 && h.t2 == 0.0);
+        assert!(
+            line_line(&ln([0.0, 0.0], [1.0, 0.0]), &ln([1.1, 0.0], [2.0, 0.0]), TOL)
+                .unwrap()
+                .is_empty()
+        );
+        // Nearly collinear within tolerance still overlaps.
+        let r = line_line(&ln([0.0, 0.0], [10.0, 0.0]), &ln([1.0, 1e-7], [3.0, -1e-7]), 1e-6).unwrap();
+        assert!(matches!(r[..], [Intersection::Overlap { .. }]));
+    }
+
+    #[test]
+    fn ends_resting_on_segments_within_tolerance() {
+        // T junction missing by 0.1 um.
+        let r = line_line(&ln([0.0, 0.0], [2.0, 0.0]), &ln([1.0, 1e-7], [1.0, 1.0]), 1e-6).unwrap();
+        assert_eq!(r.len(), 1);
+        let (h, _) = pt(&r[0]);
+        assert!((h.point - P2::new(1.0, 0.0)).norm() < 1e-6 && (h.t1 - 0.5).abs() < 1e-6 && h.t2 == 0.0);
+        // Shallow angle: the lines cross far away, but b's start rests on a.
+        let r = line_line(&ln([0.0, 0.0], [10.0, 0.0]), &ln([5.0, 5e-7], [15.0, 1.0]), 1e-6).unwrap();
+        assert_eq!(r.len(), 1);
+        let (h, _) = pt(&r[0]);
+        assert!(near(h.point, 5.0, 5e-7) && (h.t1 - 0.5).abs() < 1e-12);
+        // A zero-length segment on another one.
+        let r = line_line(&ln([3.0, 0.0], [3.0, 0.0]), &ln([0.0, 0.0], [4.0, 0.0]), TOL).unwrap();
+        assert_eq!(r.len(), 1);
+        assert!((pt(&r[0]).0.t2 - 0.75).abs() < 1e-12);
+    }
+
+    #[test]
+    fn line_through_circle_and_arcs() {
+        let r = line_arc(&ln([-2.0, 0.0], [2.0, 0.0]), &circle([0.0, 0.0], 1.0), TOL).unwrap();
+        assert_eq!(r.len(), 2);
+        let (h0, h1) = (pt(&r[0]).0, pt(&r[1]).0);
+        assert!(near(h0.point, -1.0, 0.0) && (h0.t1 - 0.25).abs() < 1e-12 && (h0.t2 - 0.5).abs() < 1e-12);
+        assert!(near(h1.point, 1.0, 0.0) && (h1.t1 - 0.75).abs() < 1e-12);
+        assert!(
+            h1.t2 == 0.0 || h1.t2 == 1.0,
+            "the full circle starts and ends at (1, 0)"
+        );
+        let q = arc([0.0, 0.0], 1.0, 0.0, FRAC_PI_2);
+        let r = line_arc(&ln([0.0, 0.0], [2.0, 2.0]), &q, TOL).unwrap();
+        assert_eq!(r.len(), 1);
+        let h = pt(&r[0]).0;
+        assert!(near(h.point, 0.5f64.sqrt(), 0.5f64.sqrt()) && (h.t2 - 0.5).abs() < 1e-12);
+        // The circle is crossed, but not within the arc.
+        assert!(line_arc(&ln([-2.0, -2.0], [0.0, 0.0]), &q, TOL).unwrap().is_empty());
+        let swapped = arc_line(&q, &ln([0.0, 0.0], [2.0, 2.0]), TOL).unwrap();
+        assert!((pt(&swapped[0]).0.t1 - 0.5).abs() < 1e-12);
+    }
+
+    #[test]
+    fn tangent_line_touches_once() {
+        let r = line_arc(
+            &ln([-2.0, 1.0 + 1e-10], [2.0, 1.0 + 1e-10]),
+            &circle([0.0, 0.0], 1.0),
+            TOL,
+        )
+        .unwrap();
+        assert_eq!(r.len(), 1);
+        let (h, tangent) = pt(&r[0]);
+        assert!(tangent && (h.point - P2::new(0.0, 1.0)).norm() < 1e-9 && (h.t2 - 0.25).abs() < 1e-9);
+        assert!(
+            line_arc(&ln([-2.0, 1.1], [2.0, 1.1]), &circle([0.0, 0.0], 1.0), TOL)
+                .unwrap()
+                .is_empty()
+        );
+    }
+
+    #[test]
+    fn circles_cross_and_touch() {
+        let r = arc_arc(&circle([0.0, 0.0], 1.0), &circle([1.0, 0.0], 1.0), TOL).unwrap();
+        assert_eq!(r.len(), 2);
+        let (h0, h1) = (pt(&r[0]).0, pt(&r[1]).0);
+        let y = 0.75f64.sqrt();
+        assert!(near(h0.point, 0.5, y) && (h0.t1 - 1.0 / 6.0).abs() < 1e-12 && (h0.t2 - 1.0 / 3.0).abs() < 1e-12);
+        assert!(near(h1.point, 0.5, -y) && (h1.t1 - 5.0 / 6.0).abs() < 1e-12);
+        let r = arc_arc(&circle([0.0, 0.0], 1.0), &circle([2.0, 0.0], 1.0), TOL).unwrap();
+        assert_eq!(r.len(), 1);
+        assert!(pt(&r[0]).1 && near(pt(&r[0]).0.point, 1.0, 0.0));
+        let r = arc_arc(&circle([0.0, 0.0], 2.0), &circle([1.0, 0.0], 1.0), TOL).unwrap();
+        assert_eq!(r.len(), 1);
+        assert!(pt(&r[0]).1 && near(pt(&r[0]).0.point, 2.0, 0.0));
+        assert!(
+            arc_arc(&circle([0.0, 0.0], 1.0), &circle([3.0, 0.0], 1.0), TOL)
+                .unwrap()
+                .is_empty()
+        );
+        assert!(
+            arc_arc(&circle([0.0, 0.0], 3.0), &circle([0.5, 0.0], 1.0), TOL)
+                .unwrap()
+                .is_empty()
+        );
+        // Crossing circles, but the arcs stop short.
+        let a = arc([0.0, 0.0], 1.0, PI, FRAC_PI_2);
+        assert!(arc_arc(&a, &circle([1.0, 0.0], 1.0), TOL).unwrap().is_empty());
+    }
+
+    #[test]
+    fn arcs_on_one_circle_overlap() {
+        let a = arc([0.0, 0.0], 1.0, 0.0, PI);
+        let b = arc([0.0, 0.0], 1.0, FRAC_PI_2, PI);
+        let r = arc_arc(&a, &b, TOL).unwrap();
+        assert_eq!(r.len(), 1);
+        let (s, e) = ov(&r[0]);
+        assert!(near(s.point, 0.0, 1.0) && (s.t1 - 0.5).abs() < 1e-12 && s.t2.abs() < 1e-12);
+        assert!(near(e.point, -1.0, 0.0) && (e.t1 - 1.0).abs() < 1e-12 && (e.t2 - 0.5).abs() < 1e-12);
+        // Travelling a clockwise: the stretch runs from (-1,0) to (0,1).
+        let r = arc_arc(&a.reversed(), &b, TOL).unwrap();
+        let (s, e) = ov(&r[0]);
+        assert!(near(s.point, -1.0, 0.0) && s.t1.abs() < 1e-12);
+        assert!(near(e.point, 0.0, 1.0) && (e.t1 - 0.5).abs() < 1e-12);
+        // Two arcs of 3/4 turn share two separate stretches.
+        let a = arc([0.0, 0.0], 1.0, 0.0, 1.5 * PI);
+        let b = arc([0.0, 0.0], 1.0, PI, 1.5 * PI);
+        let r = arc_arc(&a, &b, TOL).unwrap();
+        assert_eq!(r.len(), 2);
+        let (s0, e0) = ov(&r[0]);
+        let (s1, e1) = ov(&r[1]);
+        assert!(near(s0.point, 1.0, 0.0) && near(e0.point, 0.0, 1.0));
+        assert!(near(s1.point, -1.0, 0.0) && near(e1.point, 0.0, -1.0));
+        // End to end on the same circle: a touch, not an overlap.
+        let r = arc_arc(
+            &arc([0.0, 0.0], 1.0, 0.0, FRAC_PI_2),
+            &arc([0.0, 0.0], 1.0, FRAC_PI_2, FRAC_PI_2),
+            TOL,
+        )
+        .unwrap();
+        assert_eq!(r.len(), 1);
+        let h = pt(&r[0]).0;
+        assert!(near(h.point, 0.0, 1.0) && (h.t1 - 1.0).abs() < 1e-12 && h.t2.abs() < 1e-12);
+        // A full circle and an arc over its seam: one stretch.
+        let r = arc_arc(&circle([0.0, 0.0], 1.0), &arc([0.0, 0.0], 1.0, 1.5 * PI, PI), TOL).unwrap();
+        assert_eq!(r.len(), 1);
+        let (s, e) = ov(&r[0]);
+        assert!(near(s.point, 0.0, -1.0) && (s.t1 - 0.75).abs() < 1e-12 && s.t2.abs() < 1e-12);
+        assert!(near(e.point, 0.0, 1.0) && (e.t1 - 0.25).abs() < 1e-12 && (e.t2 - 1.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn refuses_what_it_cannot_answer() {
+        let xz = Arc3::new(
+            P3::origin(),
+            P3::new(1.0, 0.0, 0.0),
+            P3::new(0.0, 0.0, 1.0),
+            true,
+            Plane::Xz,
+            0,
+        )
+        .unwrap();
+        assert!(arc_arc(&xz, &circle([0.0, 0.0], 1.0), TOL).is_none());
+        assert!(line_arc(&ln([0.0, 0.0], [1.0, 0.0]), &xz, TOL).is_none());
+        assert!(line_line(&ln([0.0, f64::NAN], [1.0, 0.0]), &ln([0.0, 0.0], [1.0, 0.0]), TOL).is_none());
+        assert!(line_line(&ln([0.0, 0.0], [1.0, 0.0]), &ln([0.0, 0.0], [1.0, 0.0]), -1.0).is_none());
+        assert!(arc_arc(&circle([0.0, 0.0], 1.0), &circle([0.0, 0.0], 1.0), f64::NAN).is_none());
+        // A point-like line resting on an arc is still found.
+        let r = line_arc(&ln([0.0, 1.0], [0.0, 1.0]), &circle([0.0, 0.0], 1.0), TOL).unwrap();
+        assert_eq!(r.len(), 1);
+        // A helical XY arc meets things where its shadow does.
+        let helix = Arc3::new(
+            P3::origin(),
+            P3::new(1.0, 0.0, 0.0),
+            P3::new(-1.0, 0.0, 5.0),
+            true,
+            Plane::Xy,
+            0,
+        )
+        .unwrap();
+        let r = line_arc(&ln([0.0, -2.0], [0.0, 2.0]), &helix, TOL).unwrap();
+        assert_eq!(r.len(), 1);
+        assert!(near(pt(&r[0]).0.point, 0.0, 1.0));
+    }
+}

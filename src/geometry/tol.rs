@@ -1,0 +1,118 @@
+//! Tolerance-aware comparisons and angle normalisation.
+//!
+//! Exact equality is meaningless for coordinates that went through DXF text,
+//! unit conversion and trigonometry, so every "is this the same?" question in
+//! the kernel goes through these helpers with an explicit tolerance. They are
+//! written so that a NaN anywhere answers `false` (never "equal by accident")
+//! and never panic.
+
+use super::{P2, P3};
+use std::f64::consts::{PI, TAU};
+
+/// True when `|a - b| <= tol`. NaN in any argument gives `false`.
+pub fn approx_eq(a: f64, b: f64, tol: f64) -> bool {
+    (a - b).abs() <= tol
+}
+
+/// True when two plane points are within `tol` (Euclidean distance).
+pub fn approx_eq_p2(a: &P2, b: &P2, tol: f64) -> bool {
+    (a - b).norm() <= tol
+}
+
+/// True when two space points are within `tol` (Euclidean distance).
+pub fn approx_eq_p3(a: &P3, b: &P3, tol: f64) -> bool {
+    (a - b).norm() <= tol
+}
+
+/// An angle brought into `[0, 2π)`. Needed because `atan2` answers in
+/// `(-π, π]` while sweeps are measured from a start angle. Non-finite input
+/// comes back as NaN.
+pub fn normalize_angle(a: f64) -> f64 {
+    if !a.is_finite() {
+        return f64::NAN;
+    }
+    let r = a.rem_euclid(TAU);
+    // rem_euclid of a tiny negative number rounds up to exactly TAU.
+    if r >= TAU { 0.0 } else { r }
+}
+
+/// An angle brought into `(-π, π]`, the range of `atan2`: the signed
+/// difference between two directions. Non-finite input comes back as NaN.
+pub fn normalize_angle_signed(a: f64) -> f64 {
+    let r = normalize_angle(a);
+    if r > PI { r - TAU } else { r }
+}
+
+/// True when two angles name the same direction within `tol` radians,
+/// whatever whole turns separate them (so `-π` equals `π`).
+pub fn angles_approx_eq(a: f64, b: f64, tol: f64) -> bool {
+    normalize_angle_signed(a - b).abs() <= tol
+}
+
+/// True when every coordinate of the point is finite (no NaN, no infinity).
+pub fn finite_p3(p: &P3) -> bool {
+    p.iter().all(|c| c.is_finite())
+}
+
+/// True when every coordinate of the point is finite (no NaN, no infinity).
+pub fn finite_p2(p: &P2) -> bool {
+    p.iter().all(|c| c.is_finite())
+}
+
+/// True when `x` is a finite number above zero: the test every length or
+/// sweep must pass before it is divided by. NaN answers `false`.
+pub fn positive_finite(x: f64) -> bool {
+    x.is_finite() && x > 0.0
+}
+
+/// True when `tol` is usable as a tolerance: finite and not negative.
+pub fn valid_tol(tol: f64) -> bool {
+    tol.is_finite() && tol >= 0.0
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn approx_eq_respects_tolerance_and_nan() {
+        assert!(approx_eq(1.0, 1.0 + 1e-10, 1e-9));
+        assert!(!approx_eq(1.0, 1.0 + 1e-8, 1e-9));
+        assert!(!approx_eq(f64::NAN, f64::NAN, 1.0));
+        assert!(!approx_eq(1.0, 1.0, f64::NAN));
+        assert!(approx_eq_p3(
+            &P3::new(1.0, 2.0, 3.0),
+            &P3::new(1.0, 2.0, 3.0 + 5e-10),
+            1e-9
+        ));
+        assert!(!approx_eq_p2(&P2::new(0.0, 0.0), &P2::new(3.0, 4.0), 4.9));
+        assert!(approx_eq_p2(&P2::new(0.0, 0.0), &P2::new(3.0, 4.0), 5.0));
+    }
+
+    #[test]
+    fn angles_normalise_into_their_ranges() {
+        assert_eq!(normalize_angle(-1e-300), 0.0);
+        assert!((normalize_angle(-PI / 2.0) - 1.5 * PI).abs() < 1e-15);
+        assert!((normalize_angle(5.0 * TAU + 1.0) - 1.0).abs() < 1e-12);
+        assert!((normalize_angle_signed(1.5 * PI) + PI / 2.0).abs() < 1e-15);
+        assert!((normalize_angle_signed(-PI) - PI).abs() < 1e-15);
+        assert!(normalize_angle(f64::INFINITY).is_nan());
+        assert!(angles_approx_eq(-PI, PI, 1e-12));
+        assert!(angles_approx_eq(0.0, TAU - 1e-13, 1e-12));
+        assert!(!angles_approx_eq(0.0, 0.1, 0.05));
+    }
+
+    #[test]
+    fn finiteness_checks() {
+        assert!(finite_p3(&P3::new(1.0, 2.0, 3.0)));
+        assert!(!finite_p3(&P3::new(1.0, f64::NAN, 3.0)));
+        assert!(!finite_p2(&P2::new(f64::INFINITY, 0.0)));
+        assert!(positive_finite(1e-300));
+        assert!(!positive_finite(0.0));
+        assert!(!positive_finite(f64::NAN));
+        assert!(!positive_finite(f64::INFINITY));
+        assert!(valid_tol(0.0));
+        assert!(!valid_tol(-1e-9));
+        assert!(!valid_tol(f64::NAN));
+    }
+}
