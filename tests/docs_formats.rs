@@ -97,6 +97,22 @@ fn error_table_messages_are_real() {
             "line 2: a second header in the middle of the stream",
         ),
         (
+            "{\"schema\":\"microcam.toolpath/1\",\"feed_units\":\"in/min\"}\n",
+            "line 1: feed_units 'in/min' not supported (\"mm/s\" or \"mm/min\")",
+        ),
+        (
+            "{\"schema\":\"microcam.toolpath/1\"}\n{\"type\":\"rapid\",\"type\":\"line\",\"to\":[0,0]}\n",
+            "line 2: bad JSON record: duplicate field `type`",
+        ),
+        (
+            "{\"schema\":\"microcam.toolpath/1\"}\n{\"type\":\"rapid\",\"to\":[1e999,0]}\n",
+            "line 2: bad JSON record: number out of range",
+        ),
+        (
+            "{\"schema\":\"microcam.toolpath/1\"}\n{\"type\":\"line\",\"to\":[1,0],\"feed\":null}\n",
+            "line 2: 'line' record needs 'feed'",
+        ),
+        (
             "{\"schema\":\"microcam.toolpath/1\"}\n\u{0}\u{ff}\n",
             "stream did not contain valid UTF-8",
         ),
@@ -201,8 +217,8 @@ fn record_table_messages_are_real() {
     }
 }
 
-/// A ```ngc program in the document is followed by the toolpath our ISO
-/// reader makes of it.
+/// A ```ngc (ISO) or ```pmac program in the document is followed by the
+/// toolpath our G-code reader makes of it.
 #[test]
 fn gcode_examples_read_as_documented() {
     use microcam::gcode::{ReadOptions, read_str};
@@ -210,13 +226,17 @@ fn gcode_examples_read_as_documented() {
     let bs = blocks();
     let mut n = 0;
     for (i, (info, program)) in bs.iter().enumerate() {
-        if info != "ngc" {
-            continue;
-        }
+        let want_dialect = match info.as_str() {
+            "ngc" => microcam::gcode::Dialect::Iso,
+            "pmac" => microcam::gcode::Dialect::Pmac,
+            _ => continue,
+        };
         n += 1;
         let (next_info, want) = bs.get(i + 1).expect("a G-code example needs a ```jsonl block after it");
         assert_eq!(next_info, "jsonl", "after G-code example:\n{program}");
-        let (dialect, records) = read_str(program, &ReadOptions::default()).unwrap_or_else(|e| panic!("{e}\n{program}"));
+        let (dialect, records) =
+            read_str(program, &ReadOptions::default()).unwrap_or_else(|e| panic!("{e}\n{program}"));
+        assert_eq!(dialect, want_dialect, "detected dialect of:\n{program}");
         let source = ToolpathReader::new(want.as_bytes()).unwrap().header().source.clone();
         let mut w = ToolpathWriter::new(Vec::new());
         w.header(&Header {
@@ -227,7 +247,31 @@ fn gcode_examples_read_as_documented() {
         for r in &records {
             w.record(r).unwrap();
         }
-        assert_eq!(String::from_utf8(w.finish().unwrap()).unwrap(), *want, "program:\n{program}");
+        assert_eq!(
+            String::from_utf8(w.finish().unwrap()).unwrap(),
+            *want,
+            "program:\n{program}"
+        );
     }
-    assert!(n >= 1, "no G-code example found");
+    assert!(n >= 2, "only {n} G-code examples found");
+}
+
+/// A ```ngc-invalid program fails with the message in the ```text block after it.
+#[test]
+fn invalid_gcode_examples_fail_with_the_documented_message() {
+    use microcam::gcode::{ReadOptions, read_str};
+    let bs = blocks();
+    let mut n = 0;
+    for (i, (info, program)) in bs.iter().enumerate() {
+        if info == "ngc-invalid" || info == "pmac-invalid" {
+            n += 1;
+            let (next_info, want) = bs
+                .get(i + 1)
+                .expect("an invalid example needs a ```text block after it");
+            assert_eq!(next_info, "text");
+            let err = read_str(program, &ReadOptions::default()).expect_err(program);
+            assert_eq!(err.to_string(), want.trim_end(), "program:\n{program}");
+        }
+    }
+    assert!(n >= 1, "no invalid G-code example found");
 }
