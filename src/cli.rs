@@ -89,79 +89,140 @@ fn stdin_input() -> Input {
 
 /// Where output goes: a file or stdout. Nothing reaches the destination
 /// unless [`Output::commit`] is called, so a tool that fails half-way
-/// leaves no half-written output. Up to `SPILL_BYTES` are held in memory;
-/// beyond that the output spills to a temporary file, so memory stays flat.
+/// leaves no half-written output.
+///
+/// A file destination is written into a temporary file beside it and
+/// renamed over it on commit (one copy, atomic). Stdout cannot be taken
+/// back, so up to `SPILL_BYTES` are held in memory and the rest spills to
+/// an anonymous temporary file that is copied out on commit: memory stays
+/// flat however large the output.
 pub struct Output {
-    dest: Option<PathBuf>,
-    mem: Vec<u8>,
-    spill: Option<File>,
+    sink: Sink,
 }
 
-const SPILL_BYTES: usize = 32 << 20;
+enum Sink {
+    File {
+        path: PathBuf,
+        tmp: io::BufWriter<tempfile::NamedTempFile>,
+    },
+    Stdout {
+        mem: Vec<u8>,
+        spill: Option<File>,
+    },
+    /// A device or FIFO (`-o /dev/null`): nothing to rename over, written
+    /// directly.
+    Special(io::BufWriter<File>),
+    /// Opening the destination failed; reported on first write or commit.
+    Broken(String),
+}
+
+const SPILL_BYTES: usize = 8 << 20;
 
 impl Output {
     /// `None` or `-` is stdout.
     pub fn new(path: Option<&Path>) -> Output {
-        let dest = path.filter(|p| p.as_os_str() != "-").map(Path::to_path_buf);
-        Output {
-            dest,
-            mem: Vec::with_capacity(1 << 16),
-            spill: None,
-        }
-    }
-
-    /// Make the output appear at its destination.
-    pub fn commit(mut self) -> Result<(), CliError> {
-        match self.dest.take() {
-            None => {
-                let stdout = io::stdout();
-                let mut lock = stdout.lock();
-                if let Some(mut f) = self.spill.take() {
-                    f.write_all(&self.mem)?;
-                    f.seek(SeekFrom::Start(0))?;
-                    let mut r = BufReader::with_capacity(1 << 20, f);
-                    io::copy(&mut r, &mut lock)?;
-                } else {
-                    lock.write_all(&self.mem)?;
+        let sink = match path.filter(|p| p.as_os_str() != "-") {
+            None => Sink::Stdout {
+                mem: Vec::with_capacity(1 << 16),
+                spill: None,
+            },
+            Some(path) if std::fs::metadata(path).is_ok_and(|m| !m.is_file() && !m.is_dir()) => {
+                match std::fs::OpenOptions::new().write(true).open(path) {
+                    Ok(f) => Sink::Special(io::BufWriter::with_capacity(1 << 20, f)),
+                    Err(e) => Sink::Broken(format!("{}: {e}", path.display())),
                 }
-                lock.flush()?;
             }
             Some(path) => {
                 let dir = path
                     .parent()
                     .filter(|d| !d.as_os_str().is_empty())
                     .unwrap_or(Path::new("."));
-                let mut tmp = tempfile::NamedTempFile::new_in(dir)
-                    .map_err(|e| CliError::failure(format!("{}: {e}", path.display())))?;
-                if let Some(mut f) = self.spill.take() {
-                    f.write_all(&self.mem)?;
-                    f.seek(SeekFrom::Start(0))?;
-                    let mut r = BufReader::with_capacity(1 << 20, f);
-                    io::copy(&mut r, &mut tmp)?;
-                } else {
-                    tmp.write_all(&self.mem)?;
+                match tempfile::NamedTempFile::new_in(dir) {
+                    Ok(t) => Sink::File {
+                        path: path.to_path_buf(),
+                        tmp: io::BufWriter::with_capacity(1 << 20, t),
+                    },
+                    Err(e) => Sink::Broken(format!("{}: {e}", path.display())),
                 }
+            }
+        };
+        Output { sink }
+    }
+
+    /// Make the output appear at its destination.
+    pub fn commit(self) -> Result<(), CliError> {
+        match self.sink {
+            Sink::Broken(msg) => Err(CliError::failure(msg)),
+            Sink::Special(mut w) => {
+                w.flush()?;
+                Ok(())
+            }
+            Sink::File { path, tmp } => {
+                let tmp = tmp
+                    .into_inner()
+                    .map_err(|e| CliError::failure(format!("{}: {}", path.display(), e.error())))?;
+                // A temp file is private (0600); the result should look like
+                // any file the user writes: the old file's mode, else 0644.
+                let perms = std::fs::metadata(&path).map(|m| m.permissions()).unwrap_or_else(|_| {
+                    #[cfg(unix)]
+                    {
+                        use std::os::unix::fs::PermissionsExt;
+                        std::fs::Permissions::from_mode(0o644)
+                    }
+                    #[cfg(not(unix))]
+                    {
+                        tmp.as_file()
+                            .metadata()
+                            .map(|m| m.permissions())
+                            .expect("temp file metadata")
+                    }
+                });
+                tmp.as_file()
+                    .set_permissions(perms)
+                    .map_err(|e| CliError::failure(format!("{}: {e}", path.display())))?;
                 tmp.persist(&path)
                     .map_err(|e| CliError::failure(format!("{}: {e}", path.display())))?;
+                Ok(())
+            }
+            Sink::Stdout { mem, spill } => {
+                let stdout = io::stdout();
+                let mut lock = stdout.lock();
+                if let Some(mut f) = spill {
+                    f.write_all(&mem)?;
+                    f.seek(SeekFrom::Start(0))?;
+                    // A plain File lets io::copy use the kernel's
+                    // copy_file_range/splice/sendfile where it can.
+                    io::copy(&mut f, &mut lock)?;
+                } else {
+                    lock.write_all(&mem)?;
+                }
+                lock.flush()?;
+                Ok(())
             }
         }
-        Ok(())
     }
 }
 
 impl Write for Output {
     fn write(&mut self, buf: &[u8]) -> io::Result<usize> {
-        self.mem.extend_from_slice(buf);
-        if self.mem.len() >= SPILL_BYTES {
-            if self.spill.is_none() {
-                self.spill = Some(tempfile::tempfile()?);
+        match &mut self.sink {
+            Sink::Broken(msg) => Err(io::Error::other(msg.clone())),
+            Sink::File { tmp, .. } => tmp.write(buf),
+            Sink::Special(w) => w.write(buf),
+            Sink::Stdout { mem, spill } => {
+                mem.extend_from_slice(buf);
+                if mem.len() >= SPILL_BYTES {
+                    if spill.is_none() {
+                        *spill = Some(tempfile::tempfile()?);
+                    }
+                    if let Some(f) = spill.as_mut() {
+                        f.write_all(mem)?;
+                    }
+                    mem.clear();
+                }
+                Ok(buf.len())
             }
-            if let Some(f) = self.spill.as_mut() {
-                f.write_all(&self.mem)?;
-            }
-            self.mem.clear();
         }
-        Ok(buf.len())
     }
 
     fn flush(&mut self) -> io::Result<()> {

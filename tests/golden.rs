@@ -1,5 +1,5 @@
-//! Golden-file tests of the binaries: each line of testdata/golden/cases.tsv
-//! is `name<TAB>shell command`, run from the repository root with the built
+//! Golden-file tests of the binaries: each line of every
+//! testdata/golden/*.tsv file (one file per tool) is `name<TAB>shell command`, run from the repository root with the built
 //! binaries first on PATH. Its stdout (and, when the command fails or writes
 //! to stderr, its stderr and exit status) must equal testdata/golden/<name>.out
 //! byte for byte. `UPDATE_GOLDEN=1 cargo test --test golden` rewrites them.
@@ -28,7 +28,16 @@ fn render(out: &std::process::Output) -> String {
 fn golden_outputs_match() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let dir = root.join("testdata/golden");
-    let cases = std::fs::read_to_string(dir.join("cases.tsv")).expect("testdata/golden/cases.tsv");
+    let mut tsvs: Vec<_> = std::fs::read_dir(&dir)
+        .expect("testdata/golden")
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.extension().is_some_and(|x| x == "tsv"))
+        .collect();
+    tsvs.sort();
+    let cases: String = tsvs
+        .iter()
+        .map(|p| std::fs::read_to_string(p).expect("read .tsv"))
+        .collect();
     let update = std::env::var_os("UPDATE_GOLDEN").is_some_and(|v| v != "0");
     let path = format!("{}:{}", bin_dir().display(), std::env::var("PATH").unwrap_or_default());
     let mut failures = Vec::new();
@@ -40,7 +49,7 @@ fn golden_outputs_match() {
         }
         let (name, cmd) = line
             .split_once('\t')
-            .unwrap_or_else(|| panic!("cases.tsv: no TAB in {line:?}"));
+            .unwrap_or_else(|| panic!("golden .tsv: no TAB in {line:?}"));
         count += 1;
         let out = Command::new("sh")
             .arg("-c")

@@ -3,9 +3,11 @@
 
 use clap::Parser;
 use microcam::cli::{self, CliError, Output};
-use microcam::formats::toolpath::ToolpathWriter;
+use microcam::formats::toolpath::{StreamError, write_stream};
 use microcam::gcode::{Dialect, ReadOptions};
 use microcam::geometry::P3;
+use microcam::model::toolpath::Record;
+use microcam::preview::Preview;
 use microcam::sim::summary::Summary;
 use microcam::source::ToolpathSource;
 use std::io::Write;
@@ -18,6 +20,7 @@ Examples:
   gsim --moves --dialect pmac prog.pmc      a PMAC motion program
   pathgen emit --dialect pmac part.jsonl | gsim    summary of a generated program
   gsim part.ngc | jq .feed_length_mm
+  gsim --svg part.svg part.ngc              summary, and a top-view preview
 
 Input is G-code (ISO/RS274 or Turbo PMAC text, detected unless --dialect is
 given) or microcam.toolpath/1 JSON Lines; '-' or no FILE reads stdin.
@@ -46,6 +49,9 @@ struct Args {
     /// Machine position when the program starts, mm: X,Y,Z.
     #[arg(long, value_delimiter = ',', num_args = 3, default_values_t = [0.0, 0.0, 0.0])]
     start: Vec<f64>,
+    /// Also write a top-view SVG preview of the path to this file.
+    #[arg(long, value_name = "FILE")]
+    svg: Option<PathBuf>,
     /// Write output here instead of stdout.
     #[arg(short, long)]
     output: Option<PathBuf>,
@@ -71,22 +77,41 @@ fn run(args: Args) -> Result<(), CliError> {
     };
     let input = cli::open_input(args.file.as_deref())?;
     let source = ToolpathSource::open(input, &opts)?;
+    let title = source.name().to_string();
     let mut out = Output::new(args.output.as_deref());
+    let mut preview = args.svg.as_ref().map(|_| Preview::new(start));
+    let mut observe = |r: &Record| {
+        if let Some(p) = preview.as_mut() {
+            p.add(r);
+        }
+    };
     if args.moves {
         let header = source.header.clone();
-        let mut w = ToolpathWriter::new(&mut out);
-        w.header(&header)?;
-        for rec in source {
-            w.record(&rec?)?;
+        let records = source.inspect(|r| {
+            if let Ok(r) = r {
+                observe(r);
+            }
+        });
+        // Interpret on this thread, format and write on another.
+        match write_stream(&header, records, &mut out) {
+            Ok(_) => {}
+            Err(StreamError::Source(e)) => return Err(e),
+            Err(StreamError::Io(e)) => return Err(e.into()),
         }
-        w.finish()?;
     } else {
         let name = source.header.source.clone();
         let mut s = Summary::new(source.header.feed_unit, start);
         for rec in source {
-            s.add(&rec?);
+            let rec = rec?;
+            observe(&rec);
+            s.add(&rec);
         }
         writeln!(out, "{}", s.to_json(name.as_deref()))?;
+    }
+    if let (Some(path), Some(p)) = (args.svg.as_deref(), preview) {
+        let mut f = Output::new(Some(path));
+        f.write_all(p.finish(&title).as_bytes())?;
+        f.commit()?;
     }
     out.commit()
 }

@@ -1,6 +1,6 @@
 //! `microcam.chains/1`: reader and writer.
 
-use super::{FormatError, LineSource, check_schema, parse_json, point_from, push_num, push_point_2or3, push_str_lit};
+use super::{FormatError, LineSource, check_schema, parse_json, point_from, push_point_2or3, push_str_lit};
 use crate::geometry::P3;
 use crate::model::chain::{Chain, ChainsHeader, Segment};
 use serde::Deserialize;
@@ -198,48 +198,33 @@ fn decode_chain(w: WireChain, line: u64) -> Result<Chain, FormatError> {
 
 /// Streaming writer of chains.
 pub struct ChainsWriter<W: Write> {
-    out: W,
-    buf: String,
+    lines: super::LineWriter<W>,
 }
 
 impl<W: Write> ChainsWriter<W> {
     pub fn new(out: W) -> Self {
         ChainsWriter {
-            out,
-            buf: String::with_capacity(1024),
+            lines: super::LineWriter::new(out),
         }
     }
 
     pub fn header(&mut self, h: &ChainsHeader) -> std::io::Result<()> {
-        self.buf.clear();
-        self.buf.push_str("{\"schema\":\"");
-        self.buf.push_str(SCHEMA);
-        self.buf.push_str("\",\"units\":\"mm\"");
-        if let Some(s) = &h.source {
-            self.buf.push_str(",\"source\":");
-            push_str_lit(&mut self.buf, s);
-        }
-        self.buf.push_str("}\n");
-        self.out.write_all(self.buf.as_bytes())
+        self.lines.header(SCHEMA, &[], h.source.as_deref())
     }
 
     pub fn chain(&mut self, c: &Chain) -> std::io::Result<()> {
-        self.buf.clear();
-        format_chain(&mut self.buf, c);
-        self.buf.push('\n');
-        self.out.write_all(self.buf.as_bytes())
+        self.lines.line(|b| format_chain(b, c))
     }
 
-    pub fn finish(mut self) -> std::io::Result<W> {
-        self.out.flush()?;
-        Ok(self.out)
+    pub fn finish(self) -> std::io::Result<W> {
+        self.lines.finish()
     }
 }
 
 /// Append one chain as a JSON object (no newline).
 pub fn format_chain(b: &mut String, c: &Chain) {
     b.push_str("{\"id\":");
-    push_num(b, c.id as f64);
+    super::push_uint(b, c.id);
     if let Some(l) = &c.layer {
         b.push_str(",\"layer\":");
         push_str_lit(b, l);

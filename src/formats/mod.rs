@@ -75,6 +75,55 @@ impl<R: BufRead> LineSource<R> {
     }
 }
 
+/// Writes one JSON Lines record at a time through a reused buffer, one
+/// `write_all` per record: the plumbing both pipe-format writers share.
+pub(crate) struct LineWriter<W: std::io::Write> {
+    out: W,
+    buf: String,
+}
+
+impl<W: std::io::Write> LineWriter<W> {
+    pub(crate) fn new(out: W) -> Self {
+        LineWriter {
+            out,
+            buf: String::with_capacity(256),
+        }
+    }
+
+    /// Format one record with `f` and write it as a line.
+    pub(crate) fn line(&mut self, f: impl FnOnce(&mut String)) -> std::io::Result<()> {
+        self.buf.clear();
+        f(&mut self.buf);
+        self.buf.push('\n');
+        self.out.write_all(self.buf.as_bytes())
+    }
+
+    /// The header record: schema, units, then `extra` fields, then source.
+    pub(crate) fn header(&mut self, schema: &str, extra: &[(&str, &str)], source: Option<&str>) -> std::io::Result<()> {
+        self.line(|b| {
+            b.push_str("{\"schema\":\"");
+            b.push_str(schema);
+            b.push_str("\",\"units\":\"mm\"");
+            for (k, v) in extra {
+                b.push_str(",\"");
+                b.push_str(k);
+                b.push_str("\":");
+                push_str_lit(b, v);
+            }
+            if let Some(s) = source {
+                b.push_str(",\"source\":");
+                push_str_lit(b, s);
+            }
+            b.push('}');
+        })
+    }
+
+    pub(crate) fn finish(mut self) -> std::io::Result<W> {
+        self.out.flush()?;
+        Ok(self.out)
+    }
+}
+
 /// Append a number in the pipe formats' canonical form: rounded to 1e-9,
 /// shortest exact decimal digits, no trailing zeros, no `-0`.
 ///
@@ -84,57 +133,98 @@ impl<R: BufRead> LineSource<R> {
 /// millions of numbers a large toolpath carries.
 pub fn push_num(out: &mut String, x: f64) {
     const SCALE: f64 = 1e9;
-    // Beyond 4e6 mm, x * 1e9 passes 2^53 and the fixed form would print
+    // Beyond 4e6 mm, x * 1e9 passes 2^52 and the fixed form would print
     // digits the double does not have; such values print in shortest form.
-    if !(x.abs() < 4e6) {
+    if x.is_nan() || x.abs() >= 4e6 {
         let mut b = ryu::Buffer::new();
         out.push_str(if x.is_finite() { b.format_finite(x) } else { "0" });
         return;
     }
-    let v = (x * SCALE).round() as i64;
+    // Round half away from zero without a libm call (|y| < 2^52, so the
+    // addition is exact enough and the cast truncates).
+    let y = x * SCALE;
+    let v = if y >= 0.0 { (y + 0.5) as i64 } else { (y - 0.5) as i64 };
     if v == 0 {
         out.push('0');
         return;
     }
-    if v < 0 {
-        out.push('-');
-    }
+    // Digits are written right to left into a stack buffer: 9 fraction
+    // digits, then the integer part, then the sign.
+    let mut buf = [b'0'; 32];
+    let mut end = buf.len();
+    let neg = v < 0;
     let v = v.unsigned_abs();
-    let int = v / 1_000_000_000;
-    let mut frac = v % 1_000_000_000;
-    push_u64(out, int);
+    let mut int = v / 1_000_000_000;
+    let frac = (v % 1_000_000_000) as u32;
     if frac != 0 {
-        let mut digits = 9;
-        while frac % 10 == 0 {
-            frac /= 10;
-            digits -= 1;
+        let mut f = frac;
+        let mut i = end;
+        for _ in 0..4 {
+            let d = (f % 100) as usize;
+            f /= 100;
+            i -= 2;
+            buf[i..i + 2].copy_from_slice(&DIGIT_PAIRS[2 * d..2 * d + 2]);
         }
-        out.push('.');
-        let mut buf = [b'0'; 9];
-        let mut i = digits;
-        while frac > 0 {
-            i -= 1;
-            buf[i] = b'0' + (frac % 10) as u8;
-            frac /= 10;
-        }
-        // The buffer holds only ASCII digits.
-        out.push_str(std::str::from_utf8(&buf[..digits]).unwrap_or("0"));
-    }
-}
-
-fn push_u64(out: &mut String, mut v: u64) {
-    let mut buf = [0u8; 20];
-    let mut i = buf.len();
-    loop {
         i -= 1;
-        buf[i] = b'0' + (v % 10) as u8;
-        v /= 10;
-        if v == 0 {
+        buf[i] = b'0' + f as u8;
+        while buf[end - 1] == b'0' {
+            end -= 1;
+        }
+        buf[i - 1] = b'.';
+    }
+    let mut start = buf.len() - if frac != 0 { 10 } else { 0 };
+    loop {
+        if int >= 10 {
+            let d = (int % 100) as usize;
+            int /= 100;
+            start -= 2;
+            buf[start..start + 2].copy_from_slice(&DIGIT_PAIRS[2 * d..2 * d + 2]);
+            if int == 0 && d < 10 {
+                start += 1; // no leading zero
+                break;
+            }
+            if int == 0 {
+                break;
+            }
+        } else {
+            start -= 1;
+            buf[start] = b'0' + int as u8;
             break;
         }
     }
+    if neg {
+        start -= 1;
+        buf[start] = b'-';
+    }
+    // The buffer holds only ASCII digits, '.' and '-'.
+    out.push_str(std::str::from_utf8(&buf[start..end]).unwrap_or("0"));
+}
+
+/// Append an unsigned integer (ids, line numbers) without `core::fmt`.
+pub fn push_uint(out: &mut String, mut v: u64) {
+    let mut buf = [b'0'; 20];
+    let mut i = buf.len();
+    while v >= 100 {
+        let d = (v % 100) as usize;
+        v /= 100;
+        i -= 2;
+        buf[i..i + 2].copy_from_slice(&DIGIT_PAIRS[2 * d..2 * d + 2]);
+    }
+    if v >= 10 {
+        i -= 2;
+        buf[i..i + 2].copy_from_slice(&DIGIT_PAIRS[2 * v as usize..2 * v as usize + 2]);
+    } else {
+        i -= 1;
+        buf[i] = b'0' + v as u8;
+    }
     out.push_str(std::str::from_utf8(&buf[i..]).unwrap_or("0"));
 }
+
+const DIGIT_PAIRS: &[u8; 200] = b"0001020304050607080910111213141516171819\
+2021222324252627282930313233343536373839\
+4041424344454647484950515253545556575859\
+6061626364656667686970717273747576777879\
+8081828384858687888990919293949596979899";
 
 /// Append `[x,y,z]`.
 pub fn push_point3(out: &mut String, p: &P3) {
@@ -224,11 +314,53 @@ mod tests {
             0.0000000004,
             1.25e-7,
             -8999999999.5,
+            10.0,
+            -100.5,
+            1234567.000001,
+            0.05,
+            99.99,
         ] {
             push_num(&mut s, x);
             s.push(' ');
         }
-        assert_eq!(s, "0 0 1 -2.5 0.3 0 123456 1e20 -0.000000001 0 0.000000125 -8999999999.5 ");
+        assert_eq!(
+            s,
+            "0 0 1 -2.5 0.3 0 123456 1e20 -0.000000001 0 0.000000125 -8999999999.5 10 -100.5 1234567.000001 0.05 99.99 "
+        );
+    }
+
+    #[test]
+    fn integers_format_like_display() {
+        for v in [0u64, 7, 10, 99, 100, 101, 12345, 1_000_000, u64::MAX] {
+            let mut s = String::new();
+            push_uint(&mut s, v);
+            assert_eq!(s, v.to_string());
+        }
+    }
+
+    #[test]
+    fn fast_formatting_equals_a_plain_reference() {
+        let reference = |x: f64| -> String {
+            let y = x * 1e9;
+            let v = if y >= 0.0 { (y + 0.5) as i64 } else { (y - 0.5) as i64 };
+            if v == 0 {
+                return "0".into();
+            }
+            let (sign, a) = (if v < 0 { "-" } else { "" }, v.unsigned_abs());
+            let s = format!("{sign}{}.{:09}", a / 1_000_000_000, a % 1_000_000_000);
+            s.trim_end_matches('0').trim_end_matches('.').to_string()
+        };
+        let mut state = 0x9e37_79b9_7f4a_7c15u64;
+        for _ in 0..200_000 {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            let scale = 10f64.powi((state % 16) as i32 - 9);
+            let x = ((state >> 12) as f64 / (1u64 << 52) as f64 - 0.5) * scale * 8.0;
+            let mut s = String::new();
+            push_num(&mut s, x);
+            assert_eq!(s, reference(x), "{x:e}");
+        }
     }
 
     #[test]
@@ -242,7 +374,10 @@ mod tests {
             let mut s = String::new();
             push_num(&mut s, x);
             let back: f64 = s.parse().unwrap();
-            assert!((back - x).abs() <= 0.5e-9 * (1.0 + 1e-6) + x.abs() * 1e-15, "{x} -> {s}");
+            assert!(
+                (back - x).abs() <= 0.5e-9 * (1.0 + 1e-6) + x.abs() * 1e-15,
+                "{x} -> {s}"
+            );
         }
     }
 }

@@ -1,6 +1,8 @@
 //! `microcam.toolpath/1`: reader and writer.
 
-use super::{FormatError, LineSource, check_schema, parse_json, point_from, push_num, push_point3, push_str_lit};
+use super::{
+    FormatError, LineSource, check_schema, parse_json, point_from, push_num, push_point3, push_str_lit, push_uint,
+};
 use crate::geometry::{P3, Plane};
 use crate::model::toolpath::{ArcData, FeedUnit, Header, Motion, MotionKind, Record, Role, arc_end_tolerance};
 use serde::Deserialize;
@@ -243,43 +245,27 @@ fn check_arc(start: &P3, to: &P3, center: &P3, plane: Plane, line: u64) -> Resul
 /// [`ToolpathWriter::record`] for each record; [`ToolpathWriter::finish`]
 /// flushes.
 pub struct ToolpathWriter<W: Write> {
-    out: W,
-    buf: String,
+    lines: super::LineWriter<W>,
 }
 
 impl<W: Write> ToolpathWriter<W> {
     pub fn new(out: W) -> Self {
         ToolpathWriter {
-            out,
-            buf: String::with_capacity(256),
+            lines: super::LineWriter::new(out),
         }
     }
 
     pub fn header(&mut self, h: &Header) -> std::io::Result<()> {
-        self.buf.clear();
-        self.buf.push_str("{\"schema\":\"");
-        self.buf.push_str(SCHEMA);
-        self.buf.push_str("\",\"units\":\"mm\",\"feed_units\":\"");
-        self.buf.push_str(h.feed_unit.name());
-        self.buf.push('"');
-        if let Some(s) = &h.source {
-            self.buf.push_str(",\"source\":");
-            push_str_lit(&mut self.buf, s);
-        }
-        self.buf.push_str("}\n");
-        self.out.write_all(self.buf.as_bytes())
+        self.lines
+            .header(SCHEMA, &[("feed_units", h.feed_unit.name())], h.source.as_deref())
     }
 
     pub fn record(&mut self, r: &Record) -> std::io::Result<()> {
-        self.buf.clear();
-        format_record(&mut self.buf, r);
-        self.buf.push('\n');
-        self.out.write_all(self.buf.as_bytes())
+        self.lines.line(|b| format_record(b, r))
     }
 
-    pub fn finish(mut self) -> std::io::Result<W> {
-        self.out.flush()?;
-        Ok(self.out)
+    pub fn finish(self) -> std::io::Result<W> {
+        self.lines.finish()
     }
 }
 
@@ -322,7 +308,7 @@ pub fn format_record(b: &mut String, r: &Record) {
             }
             if let Some(c) = m.chain {
                 b.push_str(",\"chain\":");
-                push_num(b, c as f64);
+                push_uint(b, c);
             }
             push_block(b, m.block);
         }
@@ -369,8 +355,8 @@ pub fn format_record(b: &mut String, r: &Record) {
 
 fn push_block(b: &mut String, block: Option<u64>) {
     if let Some(n) = block {
-        use std::fmt::Write;
-        let _ = write!(b, ",\"block\":{n}");
+        b.push_str(",\"block\":");
+        push_uint(b, n);
     }
 }
 
@@ -439,6 +425,123 @@ mod tests {
             let e = read(text).unwrap_err();
             assert_eq!(e.line(), line, "{text}: {e}");
             assert!(e.to_string().contains(needle), "{text}: {e}");
+        }
+    }
+}
+
+/// Why [`write_stream`] stopped: the source failed (nothing should be
+/// committed) or writing failed.
+#[derive(Debug)]
+pub enum StreamError<E> {
+    Source(E),
+    Io(std::io::Error),
+}
+
+/// Records per batch handed from the reading thread to the writing thread:
+/// large enough that the hand-over costs nothing, small enough that memory
+/// stays flat.
+const BATCH: usize = 4096;
+
+/// Write a header and every record of `records` to `out`, formatting on a
+/// second thread while the caller's thread produces records (interpreting
+/// G-code, say), so the two stages overlap on two cores. The channel holds
+/// at most a few batches, so memory stays flat. Output is byte-identical to
+/// writing with [`ToolpathWriter`] in one thread.
+pub fn write_stream<W, E, I>(header: &Header, records: I, out: W) -> Result<W, StreamError<E>>
+where
+    W: Write + Send,
+    I: Iterator<Item = Result<Record, E>>,
+{
+    let (tx, rx) = std::sync::mpsc::sync_channel::<Vec<Record>>(4);
+    let (back_tx, back_rx) = std::sync::mpsc::channel::<Vec<Record>>();
+    std::thread::scope(|s| {
+        let writer = s.spawn(move || -> std::io::Result<W> {
+            let mut w = ToolpathWriter::new(out);
+            w.header(header)?;
+            for mut batch in rx {
+                for r in &batch {
+                    w.record(r)?;
+                }
+                batch.clear();
+                // Hand the allocation back; if the producer is gone, drop it.
+                let _ = back_tx.send(batch);
+            }
+            w.finish()
+        });
+        let mut batch = Vec::with_capacity(BATCH);
+        let mut failed = None;
+        for r in records {
+            match r {
+                Ok(r) => batch.push(r),
+                Err(e) => {
+                    failed = Some(e);
+                    break;
+                }
+            }
+            if batch.len() == BATCH {
+                let next = back_rx.try_recv().unwrap_or_else(|_| Vec::with_capacity(BATCH));
+                if tx.send(std::mem::replace(&mut batch, next)).is_err() {
+                    break; // the writer failed; its error is reported below
+                }
+            }
+        }
+        if failed.is_none() && !batch.is_empty() {
+            let _ = tx.send(batch);
+        }
+        drop(tx);
+        let written = writer
+            .join()
+            .unwrap_or_else(|_| Err(std::io::Error::other("toolpath writer thread panicked")));
+        match (failed, written) {
+            (Some(e), _) => Err(StreamError::Source(e)),
+            (None, Err(e)) => Err(StreamError::Io(e)),
+            (None, Ok(w)) => Ok(w),
+        }
+    })
+}
+
+#[cfg(test)]
+mod stream_tests {
+    use super::*;
+
+    fn sample(n: usize) -> Vec<Record> {
+        (0..n)
+            .map(|i| {
+                Record::Move(Motion {
+                    kind: MotionKind::Line,
+                    to: P3::new(i as f64 * 0.1, (i % 7) as f64, 0.0),
+                    feed: Some(2.0),
+                    beam: i % 3 == 0,
+                    role: None,
+                    chain: None,
+                    block: Some(i as u64 + 1),
+                })
+            })
+            .collect()
+    }
+
+    #[test]
+    fn threaded_output_equals_single_threaded_output() {
+        let recs = sample(3 * BATCH + 17);
+        let h = Header::default();
+        let mut w = ToolpathWriter::new(Vec::new());
+        w.header(&h).unwrap();
+        recs.iter().for_each(|r| w.record(r).unwrap());
+        let want = w.finish().unwrap();
+        let got = write_stream::<_, (), _>(&h, recs.into_iter().map(Ok), Vec::new()).unwrap();
+        assert_eq!(got, want);
+    }
+
+    #[test]
+    fn a_source_error_is_returned_not_swallowed() {
+        let recs = sample(2 * BATCH);
+        let it = recs
+            .into_iter()
+            .enumerate()
+            .map(|(i, r)| if i == BATCH + 5 { Err("bad line") } else { Ok(r) });
+        match write_stream(&Header::default(), it, Vec::new()) {
+            Err(StreamError::Source(e)) => assert_eq!(e, "bad line"),
+            other => panic!("expected the source error, got {:?}", other.map(|v| v.len())),
         }
     }
 }

@@ -12,17 +12,25 @@ use std::collections::HashMap;
 pub const NUM_PARAMS: usize = 5603;
 
 /// The parameter store of an interpreter.
+///
+/// Named parameters follow LinuxCNC's scoping: a name starting with `_` is
+/// global; any other name is local to the subroutine call (or the main
+/// program) that set it, invisible to callers and callees.
 #[derive(Debug, Clone)]
 pub struct Params {
     numbered: Vec<f64>,
-    named: HashMap<Vec<u8>, f64>,
+    global: HashMap<Vec<u8>, f64>,
+    /// Local named parameters, one map per active call; `[0]` is the main
+    /// program's.
+    frames: Vec<HashMap<Vec<u8>, f64>>,
 }
 
 impl Default for Params {
     fn default() -> Self {
         Params {
             numbered: vec![0.0; NUM_PARAMS],
-            named: HashMap::new(),
+            global: HashMap::new(),
+            frames: vec![HashMap::new()],
         }
     }
 }
@@ -35,10 +43,17 @@ pub enum ParamRef {
 }
 
 impl Params {
+    fn scope(&self, name: &[u8]) -> &HashMap<Vec<u8>, f64> {
+        match (name.first(), self.frames.last()) {
+            (Some(b'_'), _) | (_, None) => &self.global,
+            (_, Some(frame)) => frame,
+        }
+    }
+
     pub fn get(&self, r: &ParamRef) -> Result<f64, String> {
         match r {
             ParamRef::Num(n) => Ok(self.numbered[*n]),
-            ParamRef::Named(name) => self.named.get(name).copied().ok_or_else(|| {
+            ParamRef::Named(name) => self.scope(name).get(name).copied().ok_or_else(|| {
                 format!(
                     "named parameter #<{}> is used before it is set",
                     String::from_utf8_lossy(name).to_lowercase()
@@ -51,13 +66,29 @@ impl Params {
         match r {
             ParamRef::Num(n) => self.numbered[*n] = v,
             ParamRef::Named(name) => {
-                self.named.insert(name.clone(), v);
+                let scope = match (name.first(), self.frames.last_mut()) {
+                    (Some(b'_'), _) | (_, None) => &mut self.global,
+                    (_, Some(frame)) => frame,
+                };
+                scope.insert(name.clone(), v);
             }
         }
     }
 
     pub fn exists(&self, name: &[u8]) -> bool {
-        self.named.contains_key(name)
+        self.scope(name).contains_key(name)
+    }
+
+    /// Enter a subroutine call: a fresh scope for local named parameters.
+    pub fn push_frame(&mut self) {
+        self.frames.push(HashMap::new());
+    }
+
+    /// Leave a subroutine call, dropping its local named parameters.
+    pub fn pop_frame(&mut self) {
+        if self.frames.len() > 1 {
+            self.frames.pop();
+        }
     }
 }
 
@@ -102,20 +133,65 @@ impl<'a> Cursor<'a> {
     }
 
     /// An unsigned or signed decimal number such as `-1.5`, `.5`, `+2.`.
+    ///
+    /// Fast path (Clinger): up to 19 significant digits go into an integer
+    /// and, when that integer and the power of ten are exact doubles, one
+    /// correctly rounded division gives the exact nearest double. G-code
+    /// numbers almost always take it; anything longer falls back to the
+    /// standard library's parser.
     pub fn number(&mut self) -> Result<f64, String> {
+        const POW10: [f64; 23] = [
+            1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10, 1e11, 1e12, 1e13, 1e14, 1e15, 1e16, 1e17, 1e18,
+            1e19, 1e20, 1e21, 1e22,
+        ];
         let start = self.pos;
-        if matches!(self.peek(), Some(b'+' | b'-')) {
+        let neg = match self.peek() {
+            Some(b'-') => {
+                self.pos += 1;
+                true
+            }
+            Some(b'+') => {
+                self.pos += 1;
+                false
+            }
+            _ => false,
+        };
+        let mut mantissa: u64 = 0;
+        let mut digits = 0u32;
+        let mut frac_digits = 0u32;
+        let mut seen_point = false;
+        let mut any = false;
+        while let Some(c) = self.peek() {
+            match c {
+                b'0'..=b'9' => {
+                    any = true;
+                    if digits < 19 {
+                        mantissa = mantissa * 10 + (c - b'0') as u64;
+                        if mantissa > 0 {
+                            digits += 1;
+                        }
+                        if seen_point {
+                            frac_digits += 1;
+                        }
+                    } else {
+                        // Too many digits for the fast path.
+                        digits = u32::MAX;
+                    }
+                }
+                b'.' if !seen_point => seen_point = true,
+                _ => break,
+            }
             self.pos += 1;
         }
-        let digits_start = self.pos;
-        while matches!(self.peek(), Some(b'0'..=b'9' | b'.')) {
-            self.pos += 1;
-        }
-        if self.pos == digits_start {
+        if !any {
+            self.pos = start;
             return Err(format!("expected a number at '{}'", self.rest_for_msg(start)));
         }
+        if digits != u32::MAX && mantissa < (1u64 << 53) && (frac_digits as usize) < POW10.len() {
+            let v = mantissa as f64 / POW10[frac_digits as usize];
+            return Ok(if neg { -v } else { v });
+        }
         let text = std::str::from_utf8(&self.s[start..self.pos]).unwrap_or("");
-        // `1.` and `.5` are valid RS274 numbers; Rust's parser takes both.
         let t = text.strip_prefix('+').unwrap_or(text);
         t.parse::<f64>().map_err(|_| format!("bad number '{text}'"))
     }
@@ -140,11 +216,11 @@ impl<'a> Cursor<'a> {
                 let r = self.param_ref_depth(p, depth + 1)?;
                 p.get(&r)
             }
-            Some(b'-') if matches!(self.s.get(self.pos + 1), Some(b'[' | b'#' | b'A'..=b'Z')) => {
+            Some(b'-') if matches!(self.s.get(self.pos + 1), Some(b'[' | b'#' | b'A'..=b'Z' | b'-' | b'+')) => {
                 self.pos += 1;
                 Ok(-self.real_value_depth(p, depth + 1)?)
             }
-            Some(b'+') if matches!(self.s.get(self.pos + 1), Some(b'[' | b'#' | b'A'..=b'Z')) => {
+            Some(b'+') if matches!(self.s.get(self.pos + 1), Some(b'[' | b'#' | b'A'..=b'Z' | b'-' | b'+')) => {
                 self.pos += 1;
                 self.real_value_depth(p, depth + 1)
             }
@@ -398,11 +474,67 @@ mod tests {
             ("EXISTS[#<Z_SAFE>]", 1.0),
             ("EXISTS[#<NOPE>]", 0.0),
             ("[SQRT[16]/2]", 2.0),
+            ("--#1", 3.0),
+            ("[-+-2]", 2.0),
         ];
         for (s, want) in cases {
             let got = eval(s, &p).unwrap_or_else(|e| panic!("{s}: {e}"));
             assert!((got - want).abs() < 1e-12, "{s}: {got} != {want}");
         }
+    }
+
+    #[test]
+    fn numbers_parse_exactly_like_the_standard_library() {
+        let p = Params::default();
+        let texts = [
+            "0",
+            "-0",
+            "1.",
+            ".5",
+            "+2.25",
+            "-1.5319380",
+            "0.000001",
+            "123456789.123456789",
+            "99999999999999999999.5",
+            "0.1",
+            "3.14159265358979323846",
+            "1e",
+            "007",
+            "-.0001",
+        ];
+        for t in texts {
+            let mut c = Cursor::new(t.as_bytes());
+            let got = c.real_value(&p).unwrap();
+            let digits: String = t.chars().take_while(|c| !c.is_ascii_alphabetic()).collect();
+            let want: f64 = digits.trim_start_matches('+').parse().unwrap();
+            assert_eq!(got.to_bits(), want.to_bits(), "{t}");
+        }
+        let mut state = 88172645463325252u64;
+        for _ in 0..20_000 {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            let t = format!("{:.*}", (state % 9) as usize, (state >> 11) as f64 / 1e6 - 4e6);
+            let got = Cursor::new(t.as_bytes()).real_value(&p).unwrap();
+            assert_eq!(got.to_bits(), t.parse::<f64>().unwrap().to_bits(), "{t}");
+        }
+    }
+
+    #[test]
+    fn named_parameters_are_local_unless_they_start_with_underscore() {
+        let mut p = Params::default();
+        let local = ParamRef::Named(b"DEPTH".to_vec());
+        let global = ParamRef::Named(b"_DEPTH".to_vec());
+        p.set(&local, 99.0);
+        p.set(&global, 1.0);
+        p.push_frame();
+        assert!(p.get(&local).is_err(), "a callee does not see its caller's locals");
+        p.set(&local, 5.0);
+        p.set(&global, 2.0);
+        assert_eq!(p.get(&local), Ok(5.0));
+        p.pop_frame();
+        assert_eq!(p.get(&local), Ok(99.0));
+        assert_eq!(p.get(&global), Ok(2.0));
     }
 
     #[test]

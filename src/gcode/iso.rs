@@ -43,6 +43,9 @@ struct Block {
     nm: usize,
     /// Value of each letter word A..Z (G, M, N, O not stored here).
     w: [Option<f64>; 26],
+    /// Any G code other than G0-G3: most blocks of a large program have
+    /// none, and then the modal settings need no looking at.
+    other_g: bool,
 }
 
 impl Block {
@@ -53,6 +56,7 @@ impl Block {
             m: [0; 8],
             nm: 0,
             w: [None; 26],
+            other_g: false,
         }
     }
 
@@ -68,6 +72,26 @@ impl Block {
         self.w[(letter - b'A') as usize]
     }
 }
+
+/// What each input byte becomes in a normalised line: 0 = dropped (blank),
+/// 0xff = not allowed, `(` and `;` = comment starts, anything else = the
+/// byte itself, upper-cased. A table keeps the per-byte work to one load.
+const NORMALISE: [u8; 256] = {
+    let mut t = [0xffu8; 256];
+    let mut c = 0x21;
+    while c <= 0x7e {
+        t[c] = if c >= b'a' as usize && c <= b'z' as usize {
+            c as u8 - 32
+        } else {
+            c as u8
+        };
+        c += 1;
+    }
+    t[b' ' as usize] = 0;
+    t[b'\t' as usize] = 0;
+    t[b'\r' as usize] = 0;
+    t
+};
 
 /// Modal group of a G code (times ten), or `None` when unknown.
 fn g_group(code: u16) -> Option<u8> {
@@ -121,9 +145,10 @@ pub struct IsoInterpreter {
     arc_absolute: bool,
     plane: Plane,
     motion: Option<MotionMode>,
-    /// F as written, in program units per minute (converted when used, as
-    /// RS274 keeps F in the current length unit).
-    feed_raw: f64,
+    /// Feed in mm/min. LinuxCNC converts F to its internal unit when F is
+    /// set (before a G20/G21 on the same line takes effect) and keeps that
+    /// speed across later unit changes; so do we.
+    feed_mm_per_min: f64,
     beam: bool,
     spindle_rpm: Option<f64>,
     params: Params,
@@ -192,7 +217,7 @@ impl IsoInterpreter {
             arc_absolute: false,
             plane: Plane::Xy,
             motion: None,
-            feed_raw: 0.0,
+            feed_mm_per_min: 0.0,
             beam: false,
             spindle_rpm: None,
             params: Params::default(),
@@ -480,7 +505,9 @@ impl IsoInterpreter {
             self.params
                 .set(&ParamRef::Num(i), args.get(i - 1).copied().unwrap_or(0.0));
         }
+        self.params.push_frame();
         let flow = self.exec_block(&body, out, depth + 1);
+        self.params.pop_frame();
         for (i, v) in saved.into_iter().enumerate() {
             self.params.set(&ParamRef::Num(i + 1), v);
         }
@@ -505,30 +532,26 @@ impl IsoInterpreter {
     /// Fill `self.norm` with the line minus comments and blanks, upper-cased.
     fn normalise(&mut self, text: &str, lineno: u64) -> Result<(), GcodeError> {
         self.norm.clear();
-        let mut in_comment = false;
-        for &c in text.as_bytes() {
-            if in_comment {
-                if c == b')' {
-                    in_comment = false;
-                }
-                continue;
-            }
-            match c {
-                b'(' => in_comment = true,
+        let bytes = text.as_bytes();
+        let mut i = 0;
+        while i < bytes.len() {
+            let c = bytes[i];
+            i += 1;
+            match NORMALISE[c as usize] {
+                0 => {}
+                b'(' => match bytes[i..].iter().position(|&c| c == b')') {
+                    Some(k) => i += k + 1,
+                    None => return Err(GcodeError::at(lineno, "comment '(' is not closed on this line")),
+                },
                 b';' => break,
-                b' ' | b'\t' | b'\r' => {}
-                b'a'..=b'z' => self.norm.push(c - 32),
-                0x21..=0x7e => self.norm.push(c),
-                _ => {
+                0xff => {
                     return Err(GcodeError::at(
                         lineno,
                         format!("character 0x{c:02x} is not allowed in G-code outside comments"),
                     ));
                 }
+                out => self.norm.push(out),
             }
-        }
-        if in_comment {
-            return Err(GcodeError::at(lineno, "comment '(' is not closed on this line"));
         }
         Ok(())
     }
@@ -598,6 +621,7 @@ impl IsoInterpreter {
                         }
                         b.g[b.ng] = code;
                         b.ng += 1;
+                        b.other_g |= !matches!(code, 0 | 10 | 20 | 30);
                     } else {
                         let g = m_group(code).ok_or_else(|| err(format!("unknown M code {}", fmt_code('M', code))))?;
                         if g != 10 && groups_m[g as usize] {
@@ -644,7 +668,7 @@ impl IsoInterpreter {
         if b.word(b'E').is_some() {
             return Err(err("E word is not supported".into()));
         }
-        for code in &b.g[..b.ng] {
+        for code in b.g[..b.ng].iter().filter(|_| b.other_g) {
             let unsupported = match code {
                 330 | 331 => Some("spindle-synchronised motion (G33)"),
                 382..=385 => Some("probing (G38.x)"),
@@ -671,7 +695,7 @@ impl IsoInterpreter {
             if f < 0.0 {
                 return Err(err(format!("negative feed rate F{f}")));
             }
-            self.feed_raw = f;
+            self.feed_mm_per_min = f * self.unit();
         }
         if let Some(s) = b.word(b'S') {
             if s < 0.0 {
@@ -691,6 +715,25 @@ impl IsoInterpreter {
         if b.has_m(50) {
             self.beam = false;
         }
+        let axes_used = b.other_g && self.modal_settings(b, lineno, out)?;
+        for code in &b.g[..b.ng] {
+            match code {
+                0 => self.motion = Some(MotionMode::Rapid),
+                10 => self.motion = Some(MotionMode::Feed),
+                20 => self.motion = Some(MotionMode::Cw),
+                30 => self.motion = Some(MotionMode::Ccw),
+                800 => self.motion = None,
+                _ => {}
+            }
+        }
+        self.motion_step(b, axes_used, lineno, out)
+    }
+
+    /// Steps 12-21 of the order of execution: dwell, plane, units,
+    /// coordinate system, distance modes, and the non-modal G10/G28/G30/G92
+    /// family. True when the block's axis words were used up by one of those.
+    fn modal_settings(&mut self, b: &Block, lineno: u64, out: &mut VecDeque<Record>) -> Result<bool, GcodeError> {
+        let err = |msg: String| GcodeError::at(lineno, msg);
         if b.has_g(40) {
             let p = b.word(b'P').ok_or_else(|| err("G4 needs a P word (seconds)".into()))?;
             if p < 0.0 {
@@ -755,16 +798,18 @@ impl IsoInterpreter {
         {
             self.g92 = s;
         }
-        for code in &b.g[..b.ng] {
-            match code {
-                0 => self.motion = Some(MotionMode::Rapid),
-                10 => self.motion = Some(MotionMode::Feed),
-                20 => self.motion = Some(MotionMode::Cw),
-                30 => self.motion = Some(MotionMode::Ccw),
-                800 => self.motion = None,
-                _ => {}
-            }
-        }
+        Ok(axes_used)
+    }
+
+    /// Step 22 and 23: the motion itself, then program stops.
+    fn motion_step(
+        &mut self,
+        b: &Block,
+        axes_used: bool,
+        lineno: u64,
+        out: &mut VecDeque<Record>,
+    ) -> Result<(), GcodeError> {
+        let err = |msg: String| GcodeError::at(lineno, msg);
         let has_axes = b.word(b'X').is_some() || b.word(b'Y').is_some() || b.word(b'Z').is_some();
         let g53 = b.has_g(530);
         let arc_words =
@@ -815,7 +860,7 @@ impl IsoInterpreter {
     }
 
     fn feed_mm_per_min(&self, lineno: u64) -> Result<f64, GcodeError> {
-        let f = self.feed_raw * self.unit();
+        let f = self.feed_mm_per_min;
         if f <= 0.0 {
             return Err(GcodeError::at(
                 lineno,
@@ -831,15 +876,7 @@ impl IsoInterpreter {
         } else {
             (MotionKind::Line, Some(self.feed_mm_per_min(lineno)?))
         };
-        out.push_back(Record::Move(Motion {
-            kind,
-            to,
-            feed,
-            beam: self.beam,
-            role: None,
-            chain: None,
-            block: Some(lineno),
-        }));
+        out.push_back(Record::Move(Motion::from_block(kind, to, feed, self.beam, lineno)));
         self.pos = to;
         Ok(())
     }
@@ -907,15 +944,13 @@ impl IsoInterpreter {
         let r = (start2 - center).norm();
         let tol = arc_end_tolerance(r);
         let arc = make_arc(&self.pos, &to, center, ccw, plane, extra_turns, tol, lineno)?;
-        out.push_back(Record::Move(Motion {
-            kind: MotionKind::Arc(arc),
+        out.push_back(Record::Move(Motion::from_block(
+            MotionKind::Arc(arc),
             to,
-            feed: Some(feed),
-            beam: self.beam,
-            role: None,
-            chain: None,
-            block: Some(lineno),
-        }));
+            Some(feed),
+            self.beam,
+            lineno,
+        )));
         self.pos = to;
         Ok(())
     }
@@ -945,10 +980,12 @@ impl IsoInterpreter {
         if l != 2.0 && l != 20.0 {
             return Err(err("only G10 L2 and G10 L20 (coordinate system origins) are supported"));
         }
-        let idx = if p == 0.0 { self.cs } else { p as usize - 1 };
+        // Range first: P is user data, and P0.5 or P-1 must not reach the
+        // index arithmetic (found by fuzzing).
         if p.fract() != 0.0 || !(0.0..=9.0).contains(&p) {
-            return Err(err("G10 P must be 0 to 9"));
+            return Err(err("G10 P must be a whole number 0 to 9"));
         }
+        let idx = if p == 0.0 { self.cs } else { p as usize - 1 };
         let u = self.unit();
         for (k, letter) in [b'X', b'Y', b'Z'].into_iter().enumerate() {
             if let Some(v) = b.word(letter) {
@@ -1125,6 +1162,25 @@ mod tests {
     }
 
     #[test]
+    fn feed_keeps_its_speed_across_unit_changes_as_in_linuxcnc() {
+        // F is converted when set, before G20/G21 on the same line.
+        let m = moves("G21 G1 X1 F600\nG20 X1\nG21 F300 G1 X2\n");
+        let feeds: Vec<_> = m.iter().map(|m| m.feed.unwrap()).collect();
+        assert!((feeds[0] - 600.0).abs() < 1e-9 && (feeds[1] - 600.0).abs() < 1e-9);
+        assert!(
+            (feeds[2] - 7620.0).abs() < 1e-9,
+            "F300 is read in inches, before G21 applies: {feeds:?}"
+        );
+    }
+
+    #[test]
+    fn named_locals_do_not_leak_through_calls() {
+        let m =
+            moves("o<f> sub\n#<depth>=[#1*10]\nG0 X#<depth>\no<f> endsub\n#<depth>=5\no<f> call [1]\nG0 X#<depth>\n");
+        assert!(close(&m[0].to, [10.0, 0.0, 0.0]) && close(&m[1].to, [5.0, 0.0, 0.0]));
+    }
+
+    #[test]
     fn planes_full_circles_helices_and_turns() {
         let m = moves("G0 X1 Y0 Z0\nG18 G2 X1 Z0 I-1 F60\nG19 G3 Y0 Z2 J0 K1\nG17 G2 X1 Y0 Z-1 I-1 P3\n");
         let MotionKind::Arc(a) = m[1].kind else { panic!() };
@@ -1190,6 +1246,8 @@ mod tests {
             ("G0 X1 (unclosed\n", 1, "not closed"),
             ("G80\nX1\n", 2, "no motion mode"),
             ("G12\n", 1, "unknown G code G12"),
+            ("G10 L2 P0.5 X1\n", 1, "G10 P must be"),
+            ("G10 L2 P-1 X1\n", 1, "G10 P must be"),
             ("G2 X1 F1\n", 1, "needs R or"),
         ];
         for (text, line, needle) in cases {

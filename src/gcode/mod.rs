@@ -118,58 +118,82 @@ pub trait LineInterpreter {
     fn ended(&self) -> bool;
 }
 
-/// Guess the dialect from the first lines of a program: PMAC motion words
-/// or buffer commands mean PMAC, anything else ISO.
+/// Guess the dialect from the first lines of a program: any PMAC-only
+/// evidence (motion-mode words, buffer commands, a bare variable assignment
+/// such as `M33=1`) means PMAC, otherwise ISO. Lines that both dialects
+/// share (`G90`, `N10`, `X1 Y2`) decide nothing, so a PMAC program that
+/// starts with `G90` (a PROG 1000 call) is still recognised.
 pub fn detect_dialect<'a>(lines: impl IntoIterator<Item = &'a str>) -> Dialect {
+    const PMAC_WORDS: [&str; 14] = [
+        "OPENPROG",
+        "OPENROT",
+        "LINEAR",
+        "RAPID",
+        "CIRCLE1",
+        "CIRCLE2",
+        "CLOSE",
+        "DWELL",
+        "NORMAL",
+        "ABS(",
+        "INC(",
+        "&1",
+        "DELAY",
+        "DELETEGATHER",
+    ];
     for l in lines {
         let code = strip_comments_for_detect(l).to_ascii_uppercase();
-        let code = code.trim();
-        if code.is_empty() {
+        let compact: String = code.chars().filter(|c| !c.is_whitespace()).collect();
+        if compact.is_empty() {
             continue;
         }
-        let compact: String = code.chars().filter(|c| !c.is_whitespace()).collect();
-        const PMAC_WORDS: [&str; 13] = [
-            "OPENPROG", "OPENROT", "LINEAR", "RAPID", "CIRCLE1", "CIRCLE2", "CLOSE", "DWELL", "NORMAL", "ABS(", "INC(",
-            "&1", "DELAY",
-        ];
-        if PMAC_WORDS.iter().any(|w| compact.starts_with(w)) {
+        // Skip a leading N label, which both dialects allow.
+        let body = match compact.strip_prefix('N') {
+            Some(rest) => rest.trim_start_matches(|c: char| c.is_ascii_digit()),
+            None => compact.as_str(),
+        };
+        if PMAC_WORDS.iter().any(|w| body.contains(w)) {
             return Dialect::Pmac;
         }
         // A variable assignment such as M33=1 or P400=7 without a leading
         // '#' is PMAC; ISO parameters are '#'.
-        let b = compact.as_bytes();
+        let b = body.as_bytes();
         if b.len() > 2
             && matches!(b[0], b'M' | b'P' | b'Q' | b'I')
             && b[1].is_ascii_digit()
-            && let Some(eq) = compact.find('=')
-            && compact[1..eq].chars().all(|c| c.is_ascii_digit())
+            && body
+                .find('=')
+                .is_some_and(|eq| body[1..eq].chars().all(|c| c.is_ascii_digit()))
         {
             return Dialect::Pmac;
-        }
-        if b.first().is_some_and(|c| {
-            matches!(
-                c,
-                b'G' | b'N' | b'%' | b'#' | b'O' | b'T' | b'F' | b'S' | b'X' | b'Y' | b'Z' | b'M'
-            )
-        }) {
-            // ISO-looking line; keep looking only if it could be both
-            // (an X/Y/Z word line appears in PMAC too).
-            if b.first()
-                .is_some_and(|c| matches!(c, b'G' | b'N' | b'%' | b'#' | b'O' | b'T' | b'S'))
-            {
-                return Dialect::Iso;
-            }
         }
     }
     Dialect::Iso
 }
 
-fn strip_comments_for_detect(l: &str) -> &str {
+/// The line without `;` comments and without ISO `( )` comments, so a
+/// comment that mentions a PMAC word decides nothing. (PMAC uses `(` for
+/// expressions, but never at the start of a motion word.)
+fn strip_comments_for_detect(l: &str) -> String {
     let l = l.split(';').next().unwrap_or("");
-    match l.find('(') {
-        Some(0) => "",
-        _ => l,
+    let mut out = String::with_capacity(l.len());
+    let mut depth = 0u32;
+    for c in l.chars() {
+        match c {
+            '(' if depth > 0 || out.trim_end().ends_with(|c: char| c.is_ascii_alphabetic()) => {
+                // ABS( / INC( / X( : PMAC expressions, keep
+                if depth == 0 {
+                    out.push(c);
+                } else {
+                    depth += 1;
+                }
+            }
+            '(' => depth += 1,
+            ')' if depth > 0 => depth -= 1,
+            _ if depth > 0 => {}
+            _ => out.push(c),
+        }
     }
+    out
 }
 
 /// Build arc data from an in-plane centre, checking that the start and
@@ -313,4 +337,27 @@ pub fn read_str(text: &str, opts: &ReadOptions) -> Result<(Dialect, Vec<Record>)
     let r = ProgramReader::new(text.as_bytes(), opts)?;
     let d = r.dialect();
     Ok((d, r.collect::<Result<Vec<_>, _>>()?))
+}
+
+#[cfg(test)]
+mod detect_tests {
+    use super::*;
+
+    #[test]
+    fn dialects_are_told_apart_by_evidence_not_by_the_first_line() {
+        let cases: [(&str, Dialect); 9] = [
+            ("G90\nLINEAR X1 F2\n", Dialect::Pmac),
+            ("N10 G90\nN20 M33=1\n", Dialect::Pmac),
+            ("OPEN PROG 1 CLEAR\nX1\nCLOSE\n", Dialect::Pmac),
+            ("ABS(X,Y)\nX1\n", Dialect::Pmac),
+            ("G21 G90\nG1 X1 F100 (LINEAR move)\n", Dialect::Iso),
+            ("(RAPID to start)\nG0 X1\n", Dialect::Iso),
+            ("#1=2\nG0 X#1\n", Dialect::Iso),
+            ("G0 X[ABS[-1]]\n", Dialect::Iso),
+            ("", Dialect::Iso),
+        ];
+        for (text, want) in cases {
+            assert_eq!(detect_dialect(text.lines()), want, "{text:?}");
+        }
+    }
 }

@@ -1427,15 +1427,7 @@ impl PmacInterpreter {
                 MotionKind::Arc(self.arc(&pm, &to, ccw, lineno)?)
             }
         };
-        let rec = Record::Move(Motion {
-            kind,
-            to,
-            feed,
-            beam: self.beam,
-            role: None,
-            chain: None,
-            block: Some(lineno),
-        });
+        let rec = Record::Move(Motion::from_block(kind, to, feed, self.beam, lineno));
         self.push(out, rec);
         self.pos = to;
         Ok(())

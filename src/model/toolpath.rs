@@ -157,6 +157,22 @@ pub struct Motion {
     pub block: Option<u64>,
 }
 
+impl Motion {
+    /// A motion read from G-code line `block`: no role or chain, which only
+    /// generated toolpaths carry.
+    pub fn from_block(kind: MotionKind, to: P3, feed: Option<f64>, beam: bool, block: u64) -> Motion {
+        Motion {
+            kind,
+            to,
+            feed,
+            beam,
+            role: None,
+            chain: None,
+            block: Some(block),
+        }
+    }
+}
+
 /// One toolpath record after the header.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Record {
