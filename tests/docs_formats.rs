@@ -275,3 +275,12 @@ fn invalid_gcode_examples_fail_with_the_documented_message() {
     }
     assert!(n >= 1, "no invalid G-code example found");
 }
+
+/// "Chain ids are written as exact integers, whatever their size."
+#[test]
+fn large_ids_round_trip() {
+    let text = "{\"schema\":\"microcam.chains/1\",\"units\":\"mm\"}\n{\"id\":18446744073709551615,\"closed\":false,\"segments\":[]}\n";
+    assert_eq!(round_trip(text).as_deref(), Ok(text));
+    let text = "{\"schema\":\"microcam.toolpath/1\",\"units\":\"mm\",\"feed_units\":\"mm/s\"}\n{\"type\":\"rapid\",\"to\":[0,0,0],\"chain\":4000000,\"block\":9007199254740993}\n";
+    assert_eq!(round_trip(text).as_deref(), Ok(text));
+}
