@@ -196,7 +196,7 @@ fn record_table_messages_are_real() {
         ),
         (
             format!("{{\"id\":1,\"closed\":false,\"segments\":[{}]}}", line("[0,0]", "[1]")),
-            "'segment 1 'end'' must be [x, y] or [x, y, z], got 1 numbers",
+            "segment 1 'end' must be [x, y] or [x, y, z], got 1 numbers",
         ),
         (
             "{\"id\":1,\"closed\":false,\"segments\":[{\"type\":\"arc\",\"start\":[0,0],\"end\":[3,0],\"center\":[1,0],\"ccw\":true}]}".into(),

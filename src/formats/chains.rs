@@ -184,7 +184,7 @@ fn decode_chain(w: WireChain, line: u64) -> Result<Chain, FormatError> {
         .points
         .unwrap_or_default()
         .iter()
-        .map(|p| point_from(p, line, "points"))
+        .map(|p| point_from(p, line, "'points'"))
         .collect::<Result<Vec<P3>, _>>()?;
     Ok(Chain {
         id,

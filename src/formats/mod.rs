@@ -135,9 +135,16 @@ pub fn push_num(out: &mut String, x: f64) {
     const SCALE: f64 = 1e9;
     // Beyond 4e6 mm, x * 1e9 passes 2^52 and the fixed form would print
     // digits the double does not have; such values print in shortest form.
-    if x.is_nan() || x.abs() >= 4e6 {
+    if !x.is_finite() {
+        // JSON has no NaN or infinity. `null` makes every reader refuse the
+        // record with a message naming it, so a bug that computed a NaN is
+        // caught at the next tool instead of turning into a silent 0.
+        out.push_str("null");
+        return;
+    }
+    if x.abs() >= 4e6 {
         let mut b = ryu::Buffer::new();
-        out.push_str(if x.is_finite() { b.format_finite(x) } else { "0" });
+        out.push_str(b.format_finite(x));
         return;
     }
     // Round half away from zero without a libm call (|y| < 2^52, so the
@@ -264,12 +271,12 @@ pub(crate) fn point_from(v: &[f64], line: u64, what: &str) -> Result<P3, FormatE
         _ => {
             return Err(FormatError::invalid(
                 line,
-                format!("'{what}' must be [x, y] or [x, y, z], got {} numbers", v.len()),
+                format!("{what} must be [x, y] or [x, y, z], got {} numbers", v.len()),
             ));
         }
     };
     if !(p.x.is_finite() && p.y.is_finite() && p.z.is_finite()) {
-        return Err(FormatError::invalid(line, format!("'{what}' is not finite")));
+        return Err(FormatError::invalid(line, format!("{what} is not finite")));
     }
     Ok(p)
 }

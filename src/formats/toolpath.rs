@@ -156,16 +156,16 @@ fn decode(w: WireRecord, line: u64, pos: Option<P3>) -> Result<Record, FormatErr
     };
     Ok(match kind.as_str() {
         "rapid" => {
-            let to = point_from(&need(w.to.clone(), line, &kind, "to")?, line, "to")?;
+            let to = point_from(&need(w.to.clone(), line, &kind, "to")?, line, "'to'")?;
             Record::Move(motion(MotionKind::Rapid, to, None))
         }
         "line" => {
-            let to = point_from(&need(w.to.clone(), line, &kind, "to")?, line, "to")?;
+            let to = point_from(&need(w.to.clone(), line, &kind, "to")?, line, "'to'")?;
             Record::Move(motion(MotionKind::Line, to, Some(feed_of(&w)?)))
         }
         "arc" => {
-            let to = point_from(&need(w.to.clone(), line, &kind, "to")?, line, "to")?;
-            let center = point_from(&need(w.center.clone(), line, &kind, "center")?, line, "center")?;
+            let to = point_from(&need(w.to.clone(), line, &kind, "to")?, line, "'to'")?;
+            let center = point_from(&need(w.center.clone(), line, &kind, "center")?, line, "'center'")?;
             let ccw = need(w.ccw, line, &kind, "ccw")?;
             let plane = match w.plane.as_deref() {
                 None | Some("xy") => Plane::Xy,
