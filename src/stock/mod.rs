@@ -13,6 +13,7 @@
 pub mod cutter;
 pub mod heightfield;
 pub mod mesh;
+pub mod path;
 
 pub use cutter::Cutter;
 pub use heightfield::{HeightField, StockError};
