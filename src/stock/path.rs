@@ -84,7 +84,7 @@ pub fn cut_motion(
 }
 
 fn steps(len: f64, step_mm: f64) -> usize {
-    if !(step_mm > 0.0) || !len.is_finite() {
+    if step_mm.is_nan() || step_mm <= 0.0 || !len.is_finite() {
         return 1;
     }
     ((len / step_mm).ceil() as usize).clamp(1, MAX_STEPS_PER_MOVE)
