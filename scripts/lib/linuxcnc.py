@@ -87,7 +87,10 @@ def ensure_rs274(quiet: bool = False) -> str:
             f"'apt-get update && apt-get install -y {PACKAGE}'"
         )
     env = dict(os.environ, DEBIAN_FRONTEND="noninteractive")
-    for cmd in (["apt-get", "update"], ["apt-get", "install", "-y", PACKAGE]):
+    # No recommends: rs274 needs only the hard dependencies, and the
+    # recommended Qt, OpenCV and documentation packages would triple the
+    # download on a fresh CI machine.
+    for cmd in (["apt-get", "update"], ["apt-get", "install", "-y", "--no-install-recommends", PACKAGE]):
         log("rs274 not found: running " + " ".join(cmd))
         r = subprocess.run(
             cmd,
