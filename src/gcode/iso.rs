@@ -259,7 +259,7 @@ impl IsoInterpreter {
 
     /// Normalise `text` and evaluate the expression after its O keyword.
     fn o_value(&mut self, text: &str, lineno: u64) -> Result<Option<f64>, GcodeError> {
-        self.normalise(text, lineno)?;
+        self.normalise(text.as_bytes(), lineno)?;
         let ol = self
             .oline(lineno)?
             .ok_or_else(|| GcodeError::at(lineno, "expected an O-word line"))?;
@@ -302,7 +302,7 @@ impl IsoInterpreter {
         keywords: &[OKeyword],
     ) -> Result<Option<(usize, OKeyword)>, GcodeError> {
         for (k, (ln, text)) in lines.iter().enumerate().skip(from + 1) {
-            self.normalise(text, *ln)?;
+            self.normalise(text.as_bytes(), *ln)?;
             if let Some(ol) = self.oline(*ln)?
                 && ol.label == label
                 && keywords.contains(&ol.keyword)
@@ -341,7 +341,7 @@ impl IsoInterpreter {
                 return Ok(Flow::Normal);
             }
             let (ln, text) = (lines[pc].0, &lines[pc].1);
-            self.normalise(text, ln)?;
+            self.normalise(text.as_bytes(), ln)?;
             if self.norm.is_empty() || self.norm[0] == b'%' {
                 pc += 1;
                 continue;
@@ -530,9 +530,8 @@ impl IsoInterpreter {
     }
 
     /// Fill `self.norm` with the line minus comments and blanks, upper-cased.
-    fn normalise(&mut self, text: &str, lineno: u64) -> Result<(), GcodeError> {
+    fn normalise(&mut self, bytes: &[u8], lineno: u64) -> Result<(), GcodeError> {
         self.norm.clear();
-        let bytes = text.as_bytes();
         let mut i = 0;
         while i < bytes.len() {
             let c = bytes[i];
@@ -1028,10 +1027,13 @@ impl IsoInterpreter {
 }
 
 impl LineInterpreter for IsoInterpreter {
-    fn line(&mut self, text: &str, lineno: u64, out: &mut VecDeque<Record>) -> Result<(), GcodeError> {
-        self.normalise(text, lineno)?;
+    fn line(&mut self, bytes: &[u8], lineno: u64, out: &mut VecDeque<Record>) -> Result<(), GcodeError> {
+        self.normalise(bytes, lineno)?;
+        // Lines held for O-word structures are kept as text (comments may
+        // hold any bytes; they are dropped when the line is run again).
+        let text = || String::from_utf8_lossy(bytes).into_owned();
         if let Some(mut cap) = self.capture.take() {
-            cap.lines.push((lineno, text.to_string()));
+            cap.lines.push((lineno, text()));
             let closes = match self.oline(lineno)? {
                 Some(ol) => ol.label == cap.label && Some(ol.keyword) == closer_of(cap.opener),
                 None => false,
@@ -1061,7 +1063,7 @@ impl LineInterpreter for IsoInterpreter {
                     self.capture = Some(Capture {
                         label: ol.label,
                         opener: kw,
-                        lines: vec![(lineno, text.to_string())],
+                        lines: vec![(lineno, text())],
                     });
                     Ok(())
                 }
@@ -1255,6 +1257,25 @@ mod tests {
             assert_eq!(e.line(), line, "{text:?}: {e}");
             assert!(e.to_string().contains(needle), "{text:?}: {e}");
         }
+    }
+
+    #[test]
+    fn stray_bytes_in_comments_are_harmless_and_elsewhere_named() {
+        let opts = ReadOptions {
+            dialect: Some(Dialect::Iso),
+            ..Default::default()
+        };
+        let ok: &[u8] = b"G0 X1 (caf\xe9 \xff)\nG0 X2 ; \xfe\n";
+        let recs: Vec<_> = crate::gcode::ProgramReader::new(ok, &opts).unwrap().collect();
+        assert_eq!(recs.len(), 2);
+        assert!(recs.iter().all(|r| r.is_ok()));
+        let bad: &[u8] = b"G0 X1\nG0 X\xe92\n";
+        let e = crate::gcode::ProgramReader::new(bad, &opts)
+            .unwrap()
+            .find_map(|r| r.err())
+            .unwrap();
+        assert_eq!(e.line(), 2);
+        assert!(e.to_string().contains("0xe9"), "{e}");
     }
 
     #[test]

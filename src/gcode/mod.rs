@@ -109,8 +109,10 @@ impl Default for ReadOptions {
 
 /// A dialect's interpreter, fed one source line at a time.
 pub trait LineInterpreter {
-    /// Interpret one line (without its newline), pushing any records.
-    fn line(&mut self, text: &str, lineno: u64, out: &mut VecDeque<Record>) -> Result<(), GcodeError>;
+    /// Interpret one line (without its newline), pushing any records. The
+    /// line is raw bytes: a reader checks the characters it cares about
+    /// itself, so the common all-ASCII line is not validated twice.
+    fn line(&mut self, text: &[u8], lineno: u64, out: &mut VecDeque<Record>) -> Result<(), GcodeError>;
     /// End of input: check the program is complete.
     fn finish(&mut self, lineno: u64, out: &mut VecDeque<Record>) -> Result<(), GcodeError>;
     /// True once the program has ended (M2/M30, `%` after a `%`); later
@@ -242,9 +244,9 @@ pub struct ProgramReader<R> {
     interp: Box<dyn LineInterpreter>,
     dialect: Dialect,
     /// Lines read ahead for dialect detection, replayed first.
-    replay: VecDeque<String>,
+    replay: VecDeque<Vec<u8>>,
     pending: VecDeque<Record>,
-    buf: String,
+    buf: Vec<u8>,
     lineno: u64,
     done: bool,
 }
@@ -256,18 +258,19 @@ impl<R: BufRead> ProgramReader<R> {
             Some(d) => d,
             None => {
                 // Look at the first 200 lines, or fewer if the file is short.
-                let mut buf = String::new();
+                let mut buf = Vec::new();
                 for n in 1..=200u64 {
                     buf.clear();
                     let k = input
-                        .read_line(&mut buf)
+                        .read_until(b'\n', &mut buf)
                         .map_err(|e| GcodeError::Io { line: n, source: e })?;
                     if k == 0 {
                         break;
                     }
                     replay.push_back(std::mem::take(&mut buf));
                 }
-                detect_dialect(replay.iter().map(|s| s.as_str()))
+                let text: Vec<std::borrow::Cow<str>> = replay.iter().map(|l| String::from_utf8_lossy(l)).collect();
+                detect_dialect(text.iter().map(|s| s.as_ref()))
             }
         };
         let interp: Box<dyn LineInterpreter> = match dialect {
@@ -280,7 +283,7 @@ impl<R: BufRead> ProgramReader<R> {
             dialect,
             replay,
             pending: VecDeque::new(),
-            buf: String::new(),
+            buf: Vec::new(),
             lineno: 0,
             done: false,
         })
@@ -302,10 +305,13 @@ impl<R: BufRead> ProgramReader<R> {
                 true
             } else {
                 self.buf.clear();
-                let n = self.input.read_line(&mut self.buf).map_err(|e| GcodeError::Io {
-                    line: self.lineno,
-                    source: e,
-                })?;
+                let n = self
+                    .input
+                    .read_until(b'\n', &mut self.buf)
+                    .map_err(|e| GcodeError::Io {
+                        line: self.lineno,
+                        source: e,
+                    })?;
                 n > 0
             };
             if !line {
@@ -313,7 +319,10 @@ impl<R: BufRead> ProgramReader<R> {
                 self.interp.finish(self.lineno - 1, &mut self.pending)?;
                 break;
             }
-            let text = self.buf.trim_end_matches(['\n', '\r']);
+            let mut text = self.buf.as_slice();
+            while let [rest @ .., b'\n' | b'\r'] = text {
+                text = rest;
+            }
             self.interp.line(text, self.lineno, &mut self.pending)?;
         }
         Ok(())

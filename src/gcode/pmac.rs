@@ -1503,10 +1503,16 @@ fn letter_name(letter: u8) -> &'static str {
 }
 
 impl LineInterpreter for PmacInterpreter {
-    fn line(&mut self, text: &str, lineno: u64, out: &mut VecDeque<Record>) -> Result<(), GcodeError> {
+    fn line(&mut self, text: &[u8], lineno: u64, out: &mut VecDeque<Record>) -> Result<(), GcodeError> {
         if let Some(msg) = self.config_error.take() {
             return Err(GcodeError::at(lineno, msg));
         }
+        let text = std::str::from_utf8(text).map_err(|e| {
+            GcodeError::at(
+                lineno,
+                format!("not UTF-8 text (byte {} of the line)", e.valid_up_to() + 1),
+            )
+        })?;
         let mut cur = Cursor::new(text);
         let r = self.run(&mut cur, lineno, out);
         if r.is_err() {
