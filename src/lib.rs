@@ -7,6 +7,7 @@
 //! - [`model`]: chains and toolpaths in memory.
 //! - [`formats`]: the JSON Lines pipe formats, streaming.
 //! - [`gcode`]: ISO and PMAC G-code, read and written.
+//! - [`pmac`]: Turbo PMAC protocol, client and emulator.
 //! - [`cli`]: conventions shared by every binary.
 
 pub mod cli;
@@ -14,5 +15,6 @@ pub mod formats;
 pub mod gcode;
 pub mod geometry;
 pub mod model;
+pub mod pmac;
 pub mod sim;
 pub mod source;
