@@ -157,6 +157,8 @@ pub struct Controller {
     ta_ms: f64,
     vars: [Vec<f64>; 4],
     lines_stored: u64,
+    /// Synchronous assignments (`==`) waiting for the next move.
+    sync_vars: Vec<(u8, usize, f64)>,
 }
 
 fn var_index(letter: u8) -> Option<usize> {
@@ -303,6 +305,7 @@ impl Controller {
             ta_ms: DEFAULT_TA_MS,
             vars: [vec![0.0; VARS], vec![0.0; VARS], vec![0.0; VARS], vec![0.0; VARS]],
             lines_stored: 0,
+            sync_vars: Vec::new(),
         }
     }
 
@@ -381,6 +384,7 @@ impl Controller {
         self.pointer = None;
         self.t_free = self.t_free.min(now);
         self.ta_ms = DEFAULT_TA_MS;
+        self.sync_vars.clear();
         for v in &mut self.vars {
             v.iter_mut().for_each(|x| *x = 0.0);
         }
@@ -454,9 +458,11 @@ impl Controller {
         let t = self.t_free;
         match rec {
             Record::Move(m) => {
-                if let Some((letter, n)) = self.shutter() {
-                    self.set_var(letter, n, if m.beam { 1.0 } else { 0.0 }, t);
+                // `M33==1` takes effect as this move's motion starts.
+                for (l, n, v) in std::mem::take(&mut self.sync_vars) {
+                    self.set_var(l, n, v, t);
                 }
+                let beam = self.shutter().is_some_and(|(l, n)| self.var(l, n) != 0.0);
                 let (len, kind) = match m.kind {
                     MotionKind::Rapid => ((m.to - self.pos).norm(), "rapid"),
                     MotionKind::Line => ((m.to - self.pos).norm(), "line"),
@@ -472,7 +478,7 @@ impl Controller {
                 let d = (len / speed).max(self.ta_ms / 1000.0);
                 self.event(serde_json::json!({
                     "ev": "move", "t": t, "run": id, "kind": kind,
-                    "x": m.to.x, "y": m.to.y, "z": m.to.z, "beam": m.beam, "feed": m.feed, "dur": d,
+                    "x": m.to.x, "y": m.to.y, "z": m.to.z, "beam": beam, "feed": m.feed, "dur": d,
                 }));
                 self.pos = m.to;
                 self.t_free = t + d;
@@ -490,10 +496,14 @@ impl Controller {
                     self.ta_ms = ta;
                 }
             }
-            Record::Var { name, value, .. } => {
+            Record::Var { name, value, sync, .. } => {
                 let b = name.as_bytes();
                 if let (Some(&l), Ok(n)) = (b.first(), name.get(1..).unwrap_or("").parse::<usize>()) {
-                    self.set_var(l, n, value, t);
+                    if sync {
+                        self.sync_vars.push((l, n, value));
+                    } else {
+                        self.set_var(l, n, value, t);
+                    }
                 }
             }
             Record::Spindle { .. } => {}
@@ -524,10 +534,11 @@ impl Controller {
         };
         let opts = ReadOptions {
             dialect: Some(crate::gcode::Dialect::Pmac),
-            shutter_var: self.cfg.shutter_var.clone(),
-            // The interpreter treats its counter's assignments as
-            // bookkeeping; here every assignment must reach the variables
-            // (P400 must advance), so give it one no program uses.
+            // The interpreter folds its shutter and counter variables into
+            // the moves; here every assignment must reach the variables
+            // (P400 advances, M33 toggles, `==` waits for the next move),
+            // so give it variables no program uses.
+            shutter_var: "Q8190".into(),
             line_counter_var: "Q8191".into(),
             start: self.pos,
         };
@@ -560,6 +571,7 @@ impl Controller {
         }
         // Motion stops where it is (decelerating within TA; ignored).
         self.t_free = self.t_free.min(now);
+        self.sync_vars.clear();
     }
 
     /// Store one program line into the open buffer.
@@ -946,7 +958,7 @@ mod tests {
         assert_eq!(parse_status(&st[0]), Some((true, false)));
         assert_eq!(c.command_line(&mut s, "OPEN PROG 1 CLEAR"), Err(err::RUNNING));
         c.set_time(1.5);
-        assert_eq!(ok(&mut c, &mut s, "P400"), vec!["2"]);
+        assert_eq!(ok(&mut c, &mut s, "P400"), vec!["1"]);
         assert_eq!(ok(&mut c, &mut s, "M33"), vec!["1"]);
         c.set_time(2.5);
         assert_eq!(ok(&mut c, &mut s, "M33"), vec!["0"]);
