@@ -641,13 +641,16 @@ impl Controller {
         if compact.is_empty() {
             return Ok(vec![]);
         }
-        const ONLINE: &[&str] = &["SIZE", "VER", "CID", "PR", "??", "$$$"];
-        let online = ONLINE.contains(&compact.as_str())
+        // On-line commands act at once even with a buffer open; the rest
+        // of the line follows them on-line too (`PR &1?? P400`).
+        const ONLINE: &[&str] = &["SIZE", "VER", "CID", "PR", "??", "$$$", "&", "OPEN", "CLOSE"];
+        let b = compact.as_bytes();
+        let var_query = b.len() > 1
+            && matches!(b[0], b'P' | b'M' | b'I' | b'Q')
+            && b[1..].iter().all(u8::is_ascii_digit);
+        let online = ONLINE.iter().any(|w| compact.starts_with(w))
             || ["A", "Q", "R"].contains(&compact.as_str())
-            // Coordinate-system addressing and OPEN are on-line only.
-            || compact.starts_with('&')
-            || compact.starts_with("OPEN")
-            || compact.starts_with("CLOSE");
+            || var_query;
         if online {
             let mut out = Vec::new();
             let mut c = Cur { b: up.as_bytes(), i: 0 };
