@@ -5,7 +5,7 @@ use clap::{Parser, ValueEnum};
 use microcam::cli::{self, CliError};
 use microcam::pmac::client::{Client, Transport};
 use microcam::pmac::plan::{Job, Names};
-use microcam::pmac::send::{Mode, SendOptions, Sender, State, input_hash};
+use microcam::pmac::send::{Mode, SendError, SendOptions, Sender, State, input_hash};
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -156,7 +156,11 @@ fn run(args: Args) -> Result<(), CliError> {
             )));
         }
         if s.mode != mode {
-            return Err(CliError::input(format!("{} was written in {} mode", args.state.display(), s.mode.name())));
+            return Err(CliError::input(format!(
+                "{} was written in {} mode",
+                args.state.display(),
+                s.mode.name()
+            )));
         }
         s
     } else {
@@ -179,6 +183,9 @@ fn run(args: Args) -> Result<(), CliError> {
         ctrlc::set_handler(move || stop.store(true, Ordering::SeqCst))
             .map_err(|e| CliError::failure(format!("cannot install the signal handler: {e}")))?;
     }
+    // Written before the controller is touched, so a stop at any point
+    // leaves a state to resume from.
+    state.save(&args.state).map_err(|e| CliError::failure(e.to_string()))?;
     let client = Client::connect(&host, transport, timeout).map_err(|e| CliError::failure(e.to_string()))?;
     let opts = SendOptions {
         mode,
@@ -198,7 +205,7 @@ fn run(args: Args) -> Result<(), CliError> {
         (Mode::Program, _) => None,
         (_, Some(b)) => Some(b),
         (Mode::Split, None) => {
-            let free = sender.free_words().map_err(|e| CliError::failure(e.to_string()))?;
+            let free = sender.free_words().map_err(|e| stopped(&mut sender, e, &args))?;
             let from_size = (free.max(0) as f64 * 0.9) as usize;
             Some(args.buffer_words.map_or(from_size, |b| b.min(from_size)))
         }
@@ -206,7 +213,7 @@ fn run(args: Args) -> Result<(), CliError> {
     };
     let chunks = job.chunks(budget).map_err(|e| CliError::in_file(&input.name, e))?;
     if mode == Mode::Program {
-        let free = sender.free_words().map_err(|e| CliError::failure(e.to_string()))?;
+        let free = sender.free_words().map_err(|e| stopped(&mut sender, e, &args))?;
         if chunks[0].words as i64 > free {
             return Err(CliError::failure(format!(
                 "the program needs {} words, the controller has {free} free: use --mode split or rotary",
@@ -218,6 +225,16 @@ fn run(args: Args) -> Result<(), CliError> {
     state.chunks = chunks.len();
     if state.chunks_done >= chunks.len() && args.resume {
         eprintln!("pmac-send: nothing to resume: all {} chunks are complete", chunks.len());
+        let summary = microcam::pmac::send::Summary {
+            mode: mode.name().into(),
+            chunks: chunks.len(),
+            first_chunk: chunks.len(),
+            final_counter: state.last_counter,
+            ..Default::default()
+        };
+        let mut v = serde_json::to_value(&summary).map_err(|e| CliError::failure(e.to_string()))?;
+        v["ok"] = serde_json::json!(true);
+        println!("{v}");
         return Ok(());
     }
     eprintln!(
@@ -241,7 +258,10 @@ fn run(args: Args) -> Result<(), CliError> {
             v["error"] = serde_json::json!(f.error.to_string());
             println!("{v}");
             let safety = match &f.safe_stop {
-                Ok(()) => format!("shutter closed ({}=0) and &1 aborted", args.shutter_var.to_ascii_uppercase()),
+                Ok(()) => format!(
+                    "shutter closed ({}=0) and &1 aborted",
+                    args.shutter_var.to_ascii_uppercase()
+                ),
                 Err(e) => format!("SAFETY: {e}"),
             };
             Err(CliError::failure(format!(
@@ -253,6 +273,21 @@ fn run(args: Args) -> Result<(), CliError> {
             )))
         }
     }
+}
+
+/// A failure before the first chunk: stop safely all the same.
+fn stopped(sender: &mut Sender, e: SendError, args: &Args) -> CliError {
+    let safety = match sender.stop_safely(e.is_link()) {
+        Ok(()) => format!(
+            "shutter closed ({}=0) and &1 aborted",
+            args.shutter_var.to_ascii_uppercase()
+        ),
+        Err(s) => format!("SAFETY: {s}"),
+    };
+    CliError::failure(format!(
+        "stopped: {e}; {safety}; no chunk run; continue with --resume (state in {})",
+        args.state.display()
+    ))
 }
 
 fn dry_run(job: &Job, mode: Mode, budget: Option<usize>, prog: u32, dir: &Path) -> Result<(), CliError> {
@@ -294,6 +329,9 @@ fn dry_run(job: &Job, mode: Mode, budget: Option<usize>, prog: u32, dir: &Path) 
     let mut out = cli::Output::new(Some(&dir.join("plan.json")));
     writeln!(out, "{}", serde_json::to_string_pretty(&summary).unwrap_or_default())?;
     out.commit()?;
-    println!("{}", serde_json::json!({"dry_run": dir.display().to_string(), "chunks": chunks.len()}));
+    println!(
+        "{}",
+        serde_json::json!({"dry_run": dir.display().to_string(), "chunks": chunks.len()})
+    );
     Ok(())
 }

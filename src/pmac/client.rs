@@ -38,7 +38,10 @@ impl ClientError {
     /// The link itself failed (as opposed to a controller error): a
     /// reconnect may help.
     pub fn is_link(&self) -> bool {
-        matches!(self, ClientError::Io(_) | ClientError::Timeout(_) | ClientError::Protocol(_))
+        matches!(
+            self,
+            ClientError::Io(_) | ClientError::Timeout(_) | ClientError::Protocol(_)
+        )
     }
 }
 
@@ -134,7 +137,8 @@ impl Client {
                 return Ok(r);
             }
             if ethernet && chunk >= p::REPLY_CHUNK {
-                self.stream.write_all(&p::upload_request(p::GETBUFFER, p::REPLY_CHUNK as u16))?;
+                self.stream
+                    .write_all(&p::upload_request(p::GETBUFFER, p::REPLY_CHUNK as u16))?;
                 chunk = 0;
             }
             if Instant::now() > deadline || all.len() > 1 << 20 {

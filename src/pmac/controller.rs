@@ -147,7 +147,6 @@ pub struct Controller {
     programs: BTreeMap<u32, Program>,
     rotary: Option<Rotary>,
     gather: i64,
-    open: Option<Open>,
     pointer: Option<Pointer>,
     run: Option<Run>,
     runs: u64,
@@ -159,6 +158,8 @@ pub struct Controller {
     lines_stored: u64,
     /// Synchronous assignments (`==`) waiting for the next move.
     sync_vars: Vec<(u8, usize, f64)>,
+    /// Resets so far (see [`Session`]).
+    epoch: u64,
 }
 
 fn var_index(letter: u8) -> Option<usize> {
@@ -204,11 +205,22 @@ pub fn parse_status(s: &str) -> Option<(bool, bool)> {
 #[derive(Debug, Clone)]
 pub struct Session {
     pub cs: u32,
+    /// The buffer this port has open: each port of a Turbo PMAC has its
+    /// own, so a second connection (a safety stop) is not caught in a
+    /// buffer another one left open.
+    open: Option<Open>,
+    /// The controller's reset count when this session last spoke: a reset
+    /// closes every port's buffer.
+    epoch: u64,
 }
 
 impl Default for Session {
     fn default() -> Self {
-        Session { cs: 1 }
+        Session {
+            cs: 1,
+            open: None,
+            epoch: 0,
+        }
     }
 }
 
@@ -296,7 +308,6 @@ impl Controller {
             programs: BTreeMap::new(),
             rotary: None,
             gather,
-            open: None,
             pointer: None,
             run: None,
             runs: 0,
@@ -306,6 +317,7 @@ impl Controller {
             vars: [vec![0.0; VARS], vec![0.0; VARS], vec![0.0; VARS], vec![0.0; VARS]],
             lines_stored: 0,
             sync_vars: Vec::new(),
+            epoch: 0,
         }
     }
 
@@ -380,11 +392,11 @@ impl Controller {
         self.programs.clear();
         self.rotary = None;
         self.gather = self.cfg.gather_words.max(0);
-        self.open = None;
         self.pointer = None;
         self.t_free = self.t_free.min(now);
         self.ta_ms = DEFAULT_TA_MS;
         self.sync_vars.clear();
+        self.epoch += 1;
         for v in &mut self.vars {
             v.iter_mut().for_each(|x| *x = 0.0);
         }
@@ -575,7 +587,7 @@ impl Controller {
     }
 
     /// Store one program line into the open buffer.
-    fn store(&mut self, text: &str) -> Result<(), u16> {
+    fn store(&mut self, open: Option<Open>, text: &str) -> Result<(), u16> {
         let words = line_words(text) as i64;
         self.lines_stored += 1;
         if self.cfg.err006_at_line == Some(self.lines_stored) {
@@ -583,7 +595,7 @@ impl Controller {
             return Err(err::NO_ROOM);
         }
         let now = self.now();
-        match self.open {
+        match open {
             Some(Open::Prog(n)) => {
                 if self.free_words() < words {
                     return Err(err::NO_ROOM);
@@ -617,13 +629,18 @@ impl Controller {
     /// command (commands before it have taken effect, as on a controller).
     pub fn command_line(&mut self, sess: &mut Session, line: &str) -> Result<Vec<String>, u16> {
         self.advance();
+        if sess.epoch != self.epoch {
+            sess.epoch = self.epoch;
+            sess.open = None;
+            sess.cs = 1;
+        }
         if !line.is_ascii() {
             return Err(4);
         }
         let up = line.to_ascii_uppercase();
         // Strip a comment; the controller never stores it.
         let up = up.split(';').next().unwrap_or("").trim().to_string();
-        if self.open.is_some() {
+        if sess.open.is_some() {
             return self.buffered_line(sess, &up);
         }
         let mut out = Vec::new();
@@ -645,12 +662,10 @@ impl Controller {
         // of the line follows them on-line too (`PR &1?? P400`).
         const ONLINE: &[&str] = &["SIZE", "VER", "CID", "PR", "??", "$$$", "&", "OPEN", "CLOSE"];
         let b = compact.as_bytes();
-        let var_query = b.len() > 1
-            && matches!(b[0], b'P' | b'M' | b'I' | b'Q')
-            && b[1..].iter().all(u8::is_ascii_digit);
-        let online = ONLINE.iter().any(|w| compact.starts_with(w))
-            || ["A", "Q", "R"].contains(&compact.as_str())
-            || var_query;
+        let var_query =
+            b.len() > 1 && matches!(b[0], b'P' | b'M' | b'I' | b'Q') && b[1..].iter().all(u8::is_ascii_digit);
+        let online =
+            ONLINE.iter().any(|w| compact.starts_with(w)) || ["A", "Q", "R"].contains(&compact.as_str()) || var_query;
         if online {
             let mut out = Vec::new();
             let mut c = Cur { b: up.as_bytes(), i: 0 };
@@ -664,12 +679,12 @@ impl Controller {
             && !body.is_empty()
         {
             let body = up.trim_end().strip_suffix("CLOSE").unwrap_or(up).trim_end();
-            self.store(body)?;
-            self.open = None;
+            self.store(sess.open, body)?;
+            sess.open = None;
             return Ok(vec![]);
         }
         if compact == "CLEAR" {
-            match self.open {
+            match sess.open {
                 Some(Open::Prog(n)) => {
                     self.programs.insert(n, Program::default());
                 }
@@ -683,7 +698,7 @@ impl Controller {
             }
             return Ok(vec![]);
         }
-        self.store(up)?;
+        self.store(sess.open, up)?;
         Ok(vec![])
     }
 
@@ -692,7 +707,7 @@ impl Controller {
         if c.kw("OPEN PROG") {
             let n = c.int().ok_or(err::DATA)?;
             let clear = c.kw("CLEAR");
-            if self.open.is_some() {
+            if sess.open.is_some() {
                 return Err(err::IN_USE);
             }
             if let Some(Run {
@@ -706,7 +721,7 @@ impl Controller {
             if running {
                 return Err(err::RUNNING);
             }
-            self.open = Some(Open::Prog(n));
+            sess.open = Some(Open::Prog(n));
             // Any OPEN PROG invalidates the coordinate system's pointer.
             self.pointer = None;
             let p = self.programs.entry(n).or_default();
@@ -716,20 +731,20 @@ impl Controller {
             return Ok(());
         }
         if c.kw("OPEN ROT") {
-            if self.open.is_some() {
+            if sess.open.is_some() {
                 return Err(err::IN_USE);
             }
             if self.rotary.is_none() {
                 return Err(err::DATA);
             }
-            self.open = Some(Open::Rot);
+            sess.open = Some(Open::Rot);
             return Ok(());
         }
         if c.kw("OPEN") {
             return Err(err::DATA);
         }
         if c.kw("CLOSE") {
-            self.open = None;
+            sess.open = None;
             return Ok(());
         }
         if c.kw("CLEAR") {
@@ -743,7 +758,7 @@ impl Controller {
             if matches!(self.run.as_ref().map(|r| &r.source), Some(Source::Rot)) {
                 return Err(err::RUNNING);
             }
-            if self.open == Some(Open::Rot) {
+            if sess.open == Some(Open::Rot) {
                 return Err(err::IN_USE);
             }
             self.rotary = None;
@@ -781,7 +796,7 @@ impl Controller {
         }
         if c.kw("SIZE") {
             let free = self.free_words();
-            out.push(format!("{}", if self.open.is_some() { -free } else { free }));
+            out.push(format!("{}", if sess.open.is_some() { -free } else { free }));
             return Ok(());
         }
         if c.kw("VER") {
@@ -847,7 +862,7 @@ impl Controller {
                 if running {
                     return Err(err::RUNNING);
                 }
-                if self.open.is_some() && self.pointer != Some(Pointer::Rot) {
+                if sess.open.is_some() && self.pointer != Some(Pointer::Rot) {
                     return Err(err::IN_USE);
                 }
                 let p = self.pointer.ok_or(err::BAD_POINTER)?;
@@ -1012,7 +1027,20 @@ mod tests {
     #[test]
     fn no_panic_on_garbage() {
         let (mut c, mut s) = ctl();
-        for l in ["", "&", "&99", "B", "P99999", "P1=", "P1=$", "OPEN PROG", "DEFINE ROT 99999999999", "\u{e9}", "M33=1e999", "?"] {
+        for l in [
+            "",
+            "&",
+            "&99",
+            "B",
+            "P99999",
+            "P1=",
+            "P1=$",
+            "OPEN PROG",
+            "DEFINE ROT 99999999999",
+            "\u{e9}",
+            "M33=1e999",
+            "?",
+        ] {
             let _ = c.command_line(&mut s, l);
         }
         ok(&mut c, &mut s, "OPEN PROG 3");

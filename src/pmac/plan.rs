@@ -113,7 +113,14 @@ impl Job {
 
     /// Write records `s..e` as a chunk starting at `start`, with TA
     /// restated and counters offset by `counter0`.
-    fn write(&self, s: usize, e: usize, start: P3, ta: Option<(Option<f64>, Option<f64>)>, counter0: u64) -> Result<Chunk, PlanError> {
+    fn write(
+        &self,
+        s: usize,
+        e: usize,
+        start: P3,
+        ta: Option<(Option<f64>, Option<f64>)>,
+        counter0: u64,
+    ) -> Result<Chunk, PlanError> {
         let mut opts = WriteOptions::for_dialect(Dialect::Pmac);
         opts.shutter_var = self.names.shutter.clone();
         opts.line_counter = Some(self.names.counter.clone());
@@ -121,7 +128,11 @@ impl Job {
         opts.trailer = Some(vec![format!("{}=0", self.names.shutter)]);
         let mut w = GcodeWriter::new(Vec::new(), opts, self.feed_unit);
         if let Some((ta_ms, ts_ms)) = ta {
-            w.record(&Record::Accel { ta_ms, ts_ms, block: None })?;
+            w.record(&Record::Accel {
+                ta_ms,
+                ts_ms,
+                block: None,
+            })?;
         }
         for r in &self.records[s..e] {
             w.record(r)?;
@@ -327,7 +338,11 @@ mod tests {
             assert_eq!(c.first_counter, next);
             next = c.last_counter + 1;
             assert_eq!(c.lines.last().unwrap(), "M33=0");
-            assert!(c.lines.iter().any(|l| l.contains(" F") || l.starts_with('F')), "{:?}", c.lines);
+            assert!(
+                c.lines.iter().any(|l| l.contains(" F") || l.starts_with('F')),
+                "{:?}",
+                c.lines
+            );
         }
         assert_eq!(next - 1, n);
         assert!(matches!(job.chunks(Some(8)), Err(PlanError::NoCut { .. })));

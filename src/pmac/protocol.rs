@@ -91,7 +91,9 @@ pub enum ProtocolError {
 /// it goes out in one write.
 pub fn getresponse(cmd: &str) -> Result<Vec<u8>, ProtocolError> {
     check_command(cmd, u16::MAX as usize)?;
-    let mut v = Header::new(VR_DOWNLOAD, GETRESPONSE, cmd.len() as u16).encode().to_vec();
+    let mut v = Header::new(VR_DOWNLOAD, GETRESPONSE, cmd.len() as u16)
+        .encode()
+        .to_vec();
     v.extend_from_slice(cmd.as_bytes());
     Ok(v)
 }
@@ -158,7 +160,9 @@ pub fn pack_lines<S: AsRef<str>>(lines: &[S]) -> Result<Vec<Packet>, ProtocolErr
 }
 
 fn finish_packet(payload: &[u8], lines: usize) -> Packet {
-    let mut bytes = Header::new(VR_DOWNLOAD, WRITEBUFFER, payload.len() as u16).encode().to_vec();
+    let mut bytes = Header::new(VR_DOWNLOAD, WRITEBUFFER, payload.len() as u16)
+        .encode()
+        .to_vec();
     bytes.extend_from_slice(payload);
     Packet { bytes, lines }
 }
@@ -333,7 +337,9 @@ mod tests {
     #[test]
     fn parsers_never_panic_on_bytes() {
         for n in 0..2000u32 {
-            let b: Vec<u8> = (0..(n % 17)).map(|k| (n.wrapping_mul(2654435761).wrapping_add(k * 97) >> 3) as u8).collect();
+            let b: Vec<u8> = (0..(n % 17))
+                .map(|k| (n.wrapping_mul(2654435761).wrapping_add(k * 97) >> 3) as u8)
+                .collect();
             let _ = parse_reply(&b);
             let _ = parse_writebuffer_status(&b);
             let _ = line_words(&String::from_utf8_lossy(&b));

@@ -130,7 +130,8 @@ pub enum SendError {
 }
 
 impl SendError {
-    fn is_link(&self) -> bool {
+    /// The link failed (not the controller): the stop needs a new one.
+    pub fn is_link(&self) -> bool {
         match self {
             SendError::Client(e) => e.is_link(),
             SendError::Download(d) => d.error.is_link(),
@@ -179,7 +180,14 @@ pub struct Sender<'a> {
 }
 
 impl<'a> Sender<'a> {
-    pub fn new(client: Client, host: &str, timeout: Duration, opts: SendOptions, stop: Arc<AtomicBool>, progress: &'a mut dyn Write) -> Self {
+    pub fn new(
+        client: Client,
+        host: &str,
+        timeout: Duration,
+        opts: SendOptions,
+        stop: Arc<AtomicBool>,
+        progress: &'a mut dyn Write,
+    ) -> Self {
         Sender {
             transport: client.transport(),
             client: Some(client),
@@ -204,7 +212,11 @@ impl<'a> Sender<'a> {
     }
 
     fn check_stop(&self) -> Result<(), SendError> {
-        if self.stop.load(Ordering::SeqCst) { Err(SendError::Interrupted) } else { Ok(()) }
+        if self.stop.load(Ordering::SeqCst) {
+            Err(SendError::Interrupted)
+        } else {
+            Ok(())
+        }
     }
 
     fn note(&mut self, force: bool, msg: impl FnOnce() -> String) {
@@ -234,7 +246,10 @@ impl<'a> Sender<'a> {
             return Err(SendError::BadReply(r.join(" ")));
         };
         let (run, inpos) = parse_status(st).ok_or_else(|| SendError::BadReply(st.clone()))?;
-        let c = cnt.trim().parse::<f64>().map_err(|_| SendError::BadReply(cnt.clone()))?;
+        let c = cnt
+            .trim()
+            .parse::<f64>()
+            .map_err(|_| SendError::BadReply(cnt.clone()))?;
         Ok((run, inpos, if c.is_finite() && c > 0.0 { c as u64 } else { 0 }))
     }
 
@@ -285,6 +300,11 @@ impl<'a> Sender<'a> {
         }
     }
 
+    /// Close the shutter and abort (for a failure outside [`Sender::run`]).
+    pub fn stop_safely(&mut self, link_failed: bool) -> Result<(), String> {
+        self.safe_stop(link_failed).0
+    }
+
     /// Close the shutter and abort, on the current link or a new one.
     /// Returns the status read first (before the abort) when it could.
     fn safe_stop(&mut self, link_failed: bool) -> (Result<(), String>, Option<(bool, bool, u64)>) {
@@ -305,7 +325,10 @@ impl<'a> Sender<'a> {
                 }
             }
             if self.client.is_none() {
-                return (Err(format!("could not reach the controller to close the shutter: {last}")), None);
+                return (
+                    Err(format!("could not reach the controller to close the shutter: {last}")),
+                    None,
+                );
             }
         }
         let status = self.poll().ok();
@@ -368,7 +391,9 @@ impl<'a> Sender<'a> {
             }
             self.cmd("CLOSE")?;
             self.summary.upload_seconds += t.elapsed().as_secs_f64();
-            self.note(true, || format!("chunk {}/{n}: {} lines uploaded, running", i + 1, lines.len()));
+            self.note(true, || {
+                format!("chunk {}/{n}: {} lines uploaded, running", i + 1, lines.len())
+            });
             self.cmd(&format!("&1B{prog}R"))?;
             let (last, remaining): (u64, f64) = (chunk.last_counter, chunks[i + 1..].iter().map(|c| c.seconds).sum());
             let got = self.wait_done(i, n, chunk, remaining)?;
@@ -401,7 +426,14 @@ impl<'a> Sender<'a> {
             let span = (chunk.last_counter + 1).saturating_sub(chunk.first_counter).max(1) as f64;
             let done_frac = (counter.saturating_sub(chunk.first_counter - 1) as f64 / span).clamp(0.0, 1.0);
             let left = remaining + chunk.seconds * (1.0 - done_frac);
-            self.note(false, || format!("chunk {}/{n}: {} = {counter} of {}; about {left:.1} s left", i + 1, "line", chunk.last_counter));
+            self.note(false, || {
+                format!(
+                    "chunk {}/{n}: {} = {counter} of {}; about {left:.1} s left",
+                    i + 1,
+                    "line",
+                    chunk.last_counter
+                )
+            });
             if !running && inpos {
                 return Ok(counter);
             }
@@ -417,7 +449,10 @@ impl<'a> Sender<'a> {
             let ls = self.chunk_lines(c, i == start && i > 0);
             lines.extend(ls.into_iter().map(|l| (i, l)));
         }
-        let words: Vec<usize> = lines.iter().map(|(_, l)| crate::pmac::protocol::line_words(l)).collect();
+        let words: Vec<usize> = lines
+            .iter()
+            .map(|(_, l)| crate::pmac::protocol::line_words(l))
+            .collect();
         let final_counter = chunks.last().map_or(0, |c| c.last_counter);
         let cap = self.opts.rotary_words;
         let limit = ((cap as f64) * self.opts.rotary_fill.clamp(0.1, 1.0)) as usize;
@@ -464,7 +499,9 @@ impl<'a> Sender<'a> {
             if !started {
                 self.cmd("&1R")?;
                 started = true;
-                self.note(true, || format!("rotary: running, {sent} of {} lines queued", lines.len()));
+                self.note(true, || {
+                    format!("rotary: running, {sent} of {} lines queued", lines.len())
+                });
             }
             let q = format!("PR &1?? {}", self.opts.names.counter);
             let r = self.cmd(&q)?;
@@ -473,7 +510,10 @@ impl<'a> Sender<'a> {
             };
             queued = pr.trim().parse().map_err(|_| SendError::BadReply(pr.clone()))?;
             let (running, inpos) = parse_status(st).ok_or_else(|| SendError::BadReply(st.clone()))?;
-            let c = cnt.trim().parse::<f64>().map_err(|_| SendError::BadReply(cnt.clone()))?;
+            let c = cnt
+                .trim()
+                .parse::<f64>()
+                .map_err(|_| SendError::BadReply(cnt.clone()))?;
             let counter = if c.is_finite() && c > 0.0 { c as u64 } else { 0 };
             let cur_chunk = lines.get(sent.saturating_sub(queued + 1)).map_or(n, |(i, _)| *i + 1);
             self.summary.final_counter = counter;
@@ -489,13 +529,19 @@ impl<'a> Sender<'a> {
             if sent == lines.len() && queued == 0 && inpos {
                 if counter < final_counter {
                     if !running {
-                        return Err(SendError::Incomplete { got: counter, want: final_counter });
+                        return Err(SendError::Incomplete {
+                            got: counter,
+                            want: final_counter,
+                        });
                     }
                 } else {
                     break;
                 }
             } else if !running {
-                return Err(SendError::Incomplete { got: counter, want: final_counter });
+                return Err(SendError::Incomplete {
+                    got: counter,
+                    want: final_counter,
+                });
             }
             if end == sent && sent < lines.len() || sent == lines.len() {
                 std::thread::sleep(self.opts.poll);

@@ -234,7 +234,10 @@ fn serve_ethernet(mut conn: TcpStream, sh: &Shared) -> io::Result<()> {
 
 /// The command text of a payload: up to the first NUL or CR.
 fn text_of(payload: &[u8]) -> String {
-    let end = payload.iter().position(|&c| c == 0 || c == b'\r').unwrap_or(payload.len());
+    let end = payload
+        .iter()
+        .position(|&c| c == 0 || c == b'\r')
+        .unwrap_or(payload.len());
     String::from_utf8_lossy(&payload[..end]).into_owned()
 }
 
