@@ -137,7 +137,9 @@ fn mv(e: &Value) -> Move {
 /// confirmed; the rest is redone after resume); minus the beam-off
 /// reposition that starts a resumed session (first move of run `reposition_run`).
 fn executed(ev: &[Value], confirmed: u64, reposition_run: Option<u64>) -> Vec<Move> {
-    let mut runs: Vec<(u64, Vec<(Move, u64)>, bool)> = Vec::new();
+    // Per run: id, (move, counter when it started), finished.
+    type Run = (u64, Vec<(Move, u64)>, bool);
+    let mut runs: Vec<Run> = Vec::new();
     let mut counter = 0u64;
     for e in ev {
         match e["ev"].as_str().unwrap() {

@@ -140,6 +140,9 @@ impl SendError {
     }
 }
 
+/// `&1??` and the counter: (running, in position, counter).
+type Polled = (bool, bool, u64);
+
 /// What a session did, printed as JSON at the end.
 #[derive(Debug, Clone, Serialize, Default)]
 pub struct Summary {
@@ -255,7 +258,7 @@ impl<'a> Sender<'a> {
 
     /// Run the chunks from `state.chunks_done` on; `state` is updated and
     /// saved after each confirmed chunk.
-    pub fn run(mut self, chunks: &[Chunk], state: &mut State) -> Result<Summary, Failure> {
+    pub fn run(mut self, chunks: &[Chunk], state: &mut State) -> Result<Summary, Box<Failure>> {
         let t0 = Instant::now();
         self.summary.mode = self.opts.mode.name().into();
         self.summary.chunks = chunks.len();
@@ -295,7 +298,7 @@ impl<'a> Sender<'a> {
                     failure.safe_stop = failure.safe_stop.and(Err(e.to_string()));
                 }
                 failure.state = state.clone();
-                Err(failure)
+                Err(Box::new(failure))
             }
         }
     }
@@ -307,7 +310,7 @@ impl<'a> Sender<'a> {
 
     /// Close the shutter and abort, on the current link or a new one.
     /// Returns the status read first (before the abort) when it could.
-    fn safe_stop(&mut self, link_failed: bool) -> (Result<(), String>, Option<(bool, bool, u64)>) {
+    fn safe_stop(&mut self, link_failed: bool) -> (Result<(), String>, Option<Polled>) {
         if link_failed || self.client.is_none() {
             self.client = None;
             // Bounded: a few tries, each with the client timeout.
