@@ -99,6 +99,9 @@ struct Args {
     /// Blocks the controller calculates ahead of motion (rotary resume).
     #[arg(long, default_value_t = 2)]
     lookahead: u64,
+    /// Program mode only: store the program but do not run it.
+    #[arg(long)]
+    upload_only: bool,
     #[arg(long, default_value = "M33")]
     shutter_var: String,
     #[arg(long, default_value = "P400")]
@@ -123,6 +126,9 @@ fn run(args: Args) -> Result<(), CliError> {
         ModeArg::Split => Mode::Split,
         ModeArg::Rotary => Mode::Rotary,
     };
+    if args.upload_only && mode != Mode::Program {
+        return Err(CliError::input("--upload-only needs --mode program"));
+    }
     let chunk_words = args.chunk_words.unwrap_or(args.rotary_words / 4).max(16);
     if let Some(dir) = &args.dry_run {
         let budget = match mode {
@@ -197,6 +203,7 @@ fn run(args: Args) -> Result<(), CliError> {
         lookahead: args.lookahead,
         names,
         state_path: args.state.clone(),
+        upload_only: args.upload_only,
     };
     let mut stderr = std::io::stderr();
     let mut sender = Sender::new(client, &host, timeout, opts, stop, &mut stderr);

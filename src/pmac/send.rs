@@ -60,6 +60,9 @@ pub struct SendOptions {
     pub names: Names,
     /// Where the resume state goes.
     pub state_path: PathBuf,
+    /// Program mode: store the program, do not run it (benchmarks,
+    /// downloads checked by hand before running).
+    pub upload_only: bool,
 }
 
 /// The resume state, written after every confirmed chunk and on a stop.
@@ -394,6 +397,10 @@ impl<'a> Sender<'a> {
             }
             self.cmd("CLOSE")?;
             self.summary.upload_seconds += t.elapsed().as_secs_f64();
+            if self.opts.upload_only {
+                self.note(true, || format!("chunk {}/{n}: {} lines uploaded, not run", i + 1, lines.len()));
+                continue;
+            }
             self.note(true, || {
                 format!("chunk {}/{n}: {} lines uploaded, running", i + 1, lines.len())
             });
