@@ -218,7 +218,11 @@ fn run(args: Args) -> Result<(), CliError> {
         }
         (Mode::Rotary, None) => Some(chunk_words),
     };
-    let chunks = job.chunks(budget).map_err(|e| CliError::in_file(&input.name, e))?;
+    let chunks = match (mode, budget) {
+        (Mode::Rotary, Some(b)) => job.stream_chunks(b),
+        _ => job.chunks(budget),
+    }
+    .map_err(|e| CliError::in_file(&input.name, e))?;
     if mode == Mode::Program {
         let free = sender.free_words().map_err(|e| stopped(&mut sender, e, &args))?;
         if chunks[0].words as i64 > free {
@@ -298,7 +302,11 @@ fn stopped(sender: &mut Sender, e: SendError, args: &Args) -> CliError {
 }
 
 fn dry_run(job: &Job, mode: Mode, budget: Option<usize>, prog: u32, dir: &Path) -> Result<(), CliError> {
-    let chunks = job.chunks(budget).map_err(|e| CliError::input(e.to_string()))?;
+    let chunks = match (mode, budget) {
+        (Mode::Rotary, Some(b)) => job.stream_chunks(b),
+        _ => job.chunks(budget),
+    }
+    .map_err(|e| CliError::input(e.to_string()))?;
     std::fs::create_dir_all(dir).map_err(|e| CliError::failure(format!("{}: {e}", dir.display())))?;
     let mut plan = Vec::new();
     for (i, c) in chunks.iter().enumerate() {

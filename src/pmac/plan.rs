@@ -161,6 +161,17 @@ impl Job {
     /// Cut the job into chunks of at most `budget` words (`None`: one
     /// chunk with everything).
     pub fn chunks(&self, budget: Option<usize>) -> Result<Vec<Chunk>, PlanError> {
+        self.cut(budget, true)
+    }
+
+    /// Chunks of about `budget` words for a stream, where a chunk is only
+    /// the unit of resume: a beam-on stretch longer than the budget makes
+    /// one longer chunk instead of an error.
+    pub fn stream_chunks(&self, budget: usize) -> Result<Vec<Chunk>, PlanError> {
+        self.cut(Some(budget), false)
+    }
+
+    fn cut(&self, budget: Option<usize>, strict: bool) -> Result<Vec<Chunk>, PlanError> {
         let cuts = self.cuts();
         let mut out = Vec::new();
         let mut s = 0usize;
@@ -218,6 +229,7 @@ impl Job {
                 }
                 match lo {
                     Some((k, c)) => (k, Some(c)),
+                    None if !strict => (0, Some(self.write(s, cand[0], pos, ta, counter)?)),
                     None => {
                         return Err(PlanError::NoCut {
                             budget: budget.unwrap_or(0),
@@ -346,5 +358,8 @@ mod tests {
         }
         assert_eq!(next - 1, n);
         assert!(matches!(job.chunks(Some(8)), Err(PlanError::NoCut { .. })));
+        let stream = job.stream_chunks(8).unwrap();
+        assert_eq!(stream.last().unwrap().last_counter, n);
+        assert!(stream.len() > small.len());
     }
 }

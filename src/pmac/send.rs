@@ -398,7 +398,9 @@ impl<'a> Sender<'a> {
             self.cmd("CLOSE")?;
             self.summary.upload_seconds += t.elapsed().as_secs_f64();
             if self.opts.upload_only {
-                self.note(true, || format!("chunk {}/{n}: {} lines uploaded, not run", i + 1, lines.len()));
+                self.note(true, || {
+                    format!("chunk {}/{n}: {} lines uploaded, not run", i + 1, lines.len())
+                });
                 continue;
             }
             self.note(true, || {
@@ -436,11 +438,11 @@ impl<'a> Sender<'a> {
             let span = (chunk.last_counter + 1).saturating_sub(chunk.first_counter).max(1) as f64;
             let done_frac = (counter.saturating_sub(chunk.first_counter - 1) as f64 / span).clamp(0.0, 1.0);
             let left = remaining + chunk.seconds * (1.0 - done_frac);
+            let var = self.opts.names.counter.clone();
             self.note(false, || {
                 format!(
-                    "chunk {}/{n}: {} = {counter} of {}; about {left:.1} s left",
+                    "chunk {}/{n}: {var} = {counter} of {}; about {left:.1} s left",
                     i + 1,
-                    "line",
                     chunk.last_counter
                 )
             });
@@ -527,7 +529,13 @@ impl<'a> Sender<'a> {
             let counter = if c.is_finite() && c > 0.0 { c as u64 } else { 0 };
             let cur_chunk = lines.get(sent.saturating_sub(queued + 1)).map_or(n, |(i, _)| *i + 1);
             self.summary.final_counter = counter;
-            self.note(false, || format!("rotary: chunk {cur_chunk}/{n}, {sent}/{} lines sent, {queued} queued, line {counter} of {final_counter}", lines.len()));
+            let (var, total) = (self.opts.names.counter.clone(), lines.len());
+            self.note(false, || {
+                format!(
+                    "rotary: chunk {cur_chunk}/{n}, {sent}/{total} lines sent, {queued} queued, \
+                     {var} = {counter} of {final_counter}"
+                )
+            });
             let s = (running, inpos, counter, queued);
             if s != last {
                 last = s;
