@@ -15,6 +15,9 @@ use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
 use std::time::Duration;
 
+/// Most unfetched SENDLINE reply text kept per connection.
+const LINE_OUT_MAX: usize = 1 << 16;
+
 /// Faults to inject, for testing a client's recovery.
 #[derive(Debug, Clone, Default)]
 pub struct Faults {
@@ -191,6 +194,11 @@ fn serve_ethernet(mut conn: TcpStream, sh: &Shared) -> io::Result<()> {
             p::SENDLINE => {
                 let cmd = text_of(&payload);
                 let r = lock(&sh.ctl).command_line(&mut sess, &cmd);
+                // A client that never fetches must not grow this without
+                // bound: keep the newest text.
+                if line_out.len() > LINE_OUT_MAX {
+                    line_out.clear();
+                }
                 line_out.extend_from_slice(&p::frame_reply(&r));
                 vec![0x40]
             }
