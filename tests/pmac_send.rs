@@ -206,6 +206,22 @@ fn program_mode_runs_every_move_once() {
 }
 
 #[test]
+fn iso_input_is_converted_and_runs_as_read() {
+    let e = emu(Config::default(), Faults::default(), 500.0);
+    let iso = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/testdata/writer/laser.ngc")).unwrap();
+    // Content decides the dialect, not the file name.
+    std::fs::write(e.dir.path().join("job.pmac"), &iso).unwrap();
+    let o = send(&e, &["--mode", "program"]);
+    assert_eq!(o.code, 0, "{}", o.stderr);
+    let want = expected(&iso);
+    assert!(want.iter().any(|m| m.3), "the sample switches the beam");
+    let ev = events(&e.log);
+    assert!(same(&executed(&ev, 0, None), &want));
+    // F120 mm/min in ISO is F2 mm/s on the controller.
+    assert!(ev.iter().any(|v| v["ev"] == "move" && v["feed"] == 2.0));
+}
+
+#[test]
 fn program_mode_over_plain_line_transport() {
     let e = emu(Config::default(), Faults::default(), 500.0);
     let o = send(&e, &["--mode", "program", "--transport", "line"]);
