@@ -72,17 +72,10 @@ struct Outcome {
 fn send(e: &Emu, extra: &[&str]) -> Outcome {
     let port = e.server.addr().port().to_string();
     let host = format!("127.0.0.1:{port}");
-    let mut args = vec![
-        "job.pmac",
-        "--host",
-        &host,
-        "--poll-ms",
-        "5",
-        "--timeout-ms",
-        "2000",
-        "--stall-s",
-        "10",
-    ];
+    let mut args = vec!["job.pmac", "--host", &host, "--poll-ms", "5", "--stall-s", "10"];
+    if !extra.contains(&"--timeout-ms") {
+        args.extend_from_slice(&["--timeout-ms", "2000"]);
+    }
     args.extend_from_slice(extra);
     let mut child = Command::new(env!("CARGO_BIN_EXE_pmac-send"))
         .args(&args)
@@ -514,4 +507,35 @@ fn dry_run_writes_chunks_and_plan_without_network() {
         all.extend(moves);
     }
     assert!(same(&all, &expected(&program(30))));
+}
+
+#[test]
+fn split_mode_line_by_line_getresponse_transport() {
+    let e = emu(small(), Faults::default(), 500.0);
+    let o = send(&e, &["--mode", "split", "--transport", "ethernet-lines"]);
+    assert_eq!(o.code, 0, "{}", o.stderr);
+    assert!(same(&executed(&events(&e.log), 0, None), &expected(&program(30))));
+}
+
+#[test]
+fn replies_slower_than_the_timeout_stop_with_a_clear_message() {
+    // The controller answers normally, then (from request 30, mid-job)
+    // slower than the client waits.
+    let faults = Faults {
+        delay: Duration::from_millis(400),
+        delay_from: 30,
+        ..Faults::default()
+    };
+    let e = emu(small(), faults, 500.0);
+    let o = send(&e, &["--mode", "split", "--timeout-ms", "150"]);
+    assert_eq!(o.code, 1);
+    assert!(o.stderr.contains("no reply within"), "{}", o.stderr);
+    // Nothing answers in time, so neither can the safety stop: the message
+    // must say so rather than claim the shutter is closed.
+    assert!(
+        o.stderr.contains("SAFETY: could not reach the controller"),
+        "{}",
+        o.stderr
+    );
+    assert!(!o.stderr.contains("shutter closed"), "{}", o.stderr);
 }

@@ -61,6 +61,9 @@ struct Args {
     /// Fault: wait this many milliseconds before every reply.
     #[arg(long, value_name = "MS", default_value_t = 0)]
     delay_ms: u64,
+    /// Fault: delay only from request N on.
+    #[arg(long, value_name = "N", default_value_t = 0)]
+    delay_from: u64,
     /// Fault: answer ERR006 to the Nth program line stored (once).
     #[arg(long, value_name = "N")]
     err006_at_line: Option<u64>,
@@ -96,6 +99,7 @@ fn run(args: Args) -> Result<(), CliError> {
     let faults = Faults {
         drop_at: args.drop_at,
         delay: Duration::from_millis(args.delay_ms),
+        delay_from: args.delay_from,
         reset_at: args.reset_at,
     };
     let ctl = Controller::new(cfg, Clock::scaled(args.time_scale), log);

@@ -24,8 +24,10 @@ pub struct Faults {
     /// Close the connection instead of answering the Nth request (counted
     /// over all connections from 1), once.
     pub drop_at: Option<u64>,
-    /// Wait this long before every reply.
+    /// Wait this long before every reply ...
     pub delay: Duration,
+    /// ... from request N on (0: from the first).
+    pub delay_from: u64,
     /// Reset the controller (`$$$`) on the Nth request, once.
     pub reset_at: Option<u64>,
 }
@@ -112,7 +114,7 @@ fn count(sh: &Shared) -> bool {
     if sh.faults.reset_at == Some(n) {
         lock(&sh.ctl).reset();
     }
-    if !sh.faults.delay.is_zero() {
+    if !sh.faults.delay.is_zero() && n >= sh.faults.delay_from {
         std::thread::sleep(sh.faults.delay);
     }
     sh.faults.drop_at != Some(n)
