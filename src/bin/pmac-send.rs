@@ -4,7 +4,7 @@
 use clap::{Parser, ValueEnum};
 use microcam::cli::{self, CliError};
 use microcam::pmac::client::{Client, Transport};
-use microcam::pmac::plan::{Job, Names};
+use microcam::pmac::plan::{Job, MARKER_WORDS, Names, marker_lines};
 use microcam::pmac::send::{Mode, SendError, SendOptions, Sender, State, input_hash};
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -106,6 +106,10 @@ struct Args {
     shutter_var: String,
     #[arg(long, default_value = "P400")]
     line_counter: String,
+    /// Variable set to the chunk number after a chunk's last motion
+    /// (behind DWELL0); confirms chunks even across an abort.
+    #[arg(long, default_value = "P401")]
+    done_var: String,
 }
 
 fn main() -> ExitCode {
@@ -119,6 +123,7 @@ fn run(args: Args) -> Result<(), CliError> {
     let names = Names {
         shutter: args.shutter_var.to_ascii_uppercase(),
         counter: args.line_counter.to_ascii_uppercase(),
+        done: args.done_var.to_ascii_uppercase(),
     };
     let job = Job::read(&text, &names).map_err(|e| CliError::in_file(&input.name, e))?;
     let mode = match args.mode {
@@ -135,11 +140,12 @@ fn run(args: Args) -> Result<(), CliError> {
             Mode::Program => None,
             Mode::Split => Some(
                 args.buffer_words
-                    .ok_or_else(|| CliError::input("--dry-run in split mode needs --buffer-words"))?,
+                    .ok_or_else(|| CliError::input("--dry-run in split mode needs --buffer-words"))?
+                    .saturating_sub(MARKER_WORDS),
             ),
             Mode::Rotary => Some(chunk_words),
         };
-        return dry_run(&job, mode, budget, args.prog, dir);
+        return dry_run(&job, mode, budget, args.prog, &args.done_var.to_ascii_uppercase(), dir);
     }
     let hash = input_hash(&text);
     let transport = match args.transport {
@@ -214,7 +220,8 @@ fn run(args: Args) -> Result<(), CliError> {
         (Mode::Split, None) => {
             let free = sender.free_words().map_err(|e| stopped(&mut sender, e, &args))?;
             let from_size = (free.max(0) as f64 * 0.9) as usize;
-            Some(args.buffer_words.map_or(from_size, |b| b.min(from_size)))
+            let b = args.buffer_words.map_or(from_size, |b| b.min(from_size));
+            Some(b.saturating_sub(MARKER_WORDS))
         }
         (Mode::Rotary, None) => Some(chunk_words),
     };
@@ -301,7 +308,7 @@ fn stopped(sender: &mut Sender, e: SendError, args: &Args) -> CliError {
     ))
 }
 
-fn dry_run(job: &Job, mode: Mode, budget: Option<usize>, prog: u32, dir: &Path) -> Result<(), CliError> {
+fn dry_run(job: &Job, mode: Mode, budget: Option<usize>, prog: u32, done: &str, dir: &Path) -> Result<(), CliError> {
     let chunks = match (mode, budget) {
         (Mode::Rotary, Some(b)) => job.stream_chunks(b),
         _ => job.chunks(budget),
@@ -320,6 +327,10 @@ fn dry_run(job: &Job, mode: Mode, budget: Option<usize>, prog: u32, dir: &Path) 
             text.push('\n');
         }
         if mode != Mode::Rotary {
+            for l in marker_lines(done, i + 1) {
+                text.push_str(&l);
+                text.push('\n');
+            }
             text.push_str("CLOSE\n");
         }
         let path = dir.join(&name);

@@ -38,6 +38,10 @@ pub enum PlanError {
 pub struct Names {
     pub shutter: String,
     pub counter: String,
+    /// Set to the chunk number at the very end of a buffer chunk, after
+    /// `DWELL0` (which stops look-ahead): it changes only once all motion
+    /// of the chunk has ended, so it confirms the chunk even after an abort.
+    pub done: String,
 }
 
 impl Default for Names {
@@ -45,6 +49,7 @@ impl Default for Names {
         Names {
             shutter: "M33".into(),
             counter: "P400".into(),
+            done: "P401".into(),
         }
     }
 }
@@ -258,6 +263,15 @@ impl Job {
         }
         Ok(out)
     }
+}
+
+/// Words the completion marker of a buffer chunk takes (with margin).
+pub const MARKER_WORDS: usize = 8;
+
+/// The completion marker ending buffer chunk `number` (1-based). Not used
+/// in rotary streams: `DWELL0` would stop the stage between chunks.
+pub fn marker_lines(done_var: &str, number: usize) -> [String; 2] {
+    ["DWELL0".into(), format!("{done_var}={number}")]
 }
 
 /// Replace `VAR=n` (the line counter) by `VAR=n+offset` in a line.

@@ -10,7 +10,7 @@
 
 use crate::pmac::client::{Client, ClientError, DownloadError};
 use crate::pmac::controller::parse_status;
-use crate::pmac::plan::{Chunk, Names};
+use crate::pmac::plan::{Chunk, Names, marker_lines};
 use serde::{Deserialize, Serialize};
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -143,8 +143,18 @@ impl SendError {
     }
 }
 
-/// `&1??` and the counter: (running, in position, counter).
-type Polled = (bool, bool, u64);
+/// `&1??`, the line counter and the done marker: (running, in position,
+/// counter, chunks done).
+type Polled = (bool, bool, u64, u64);
+
+/// A counter variable's value as a count (negative or junk: 0).
+fn count(s: &str) -> Result<u64, SendError> {
+    let v = s
+        .trim()
+        .parse::<f64>()
+        .map_err(|_| SendError::BadReply(s.to_string()))?;
+    Ok(if v.is_finite() && v > 0.0 { v as u64 } else { 0 })
+}
 
 /// What a session did, printed as JSON at the end.
 #[derive(Debug, Clone, Serialize, Default)]
@@ -244,19 +254,16 @@ impl<'a> Sender<'a> {
         s.trim().parse::<i64>().map_err(|_| SendError::BadReply(s))
     }
 
-    /// `&1?? P400` in one request: (running, in position, counter).
-    fn poll(&mut self) -> Result<(bool, bool, u64), SendError> {
-        let q = format!("&1?? {}", self.opts.names.counter);
+    /// `&1?? P400 P401` in one request: (running, in position, counter,
+    /// chunks marked done).
+    fn poll(&mut self) -> Result<Polled, SendError> {
+        let q = format!("&1?? {} {}", self.opts.names.counter, self.opts.names.done);
         let r = self.cmd(&q)?;
-        let (Some(st), Some(cnt)) = (r.first(), r.get(1)) else {
+        let (Some(st), Some(cnt), Some(done)) = (r.first(), r.get(1), r.get(2)) else {
             return Err(SendError::BadReply(r.join(" ")));
         };
         let (run, inpos) = parse_status(st).ok_or_else(|| SendError::BadReply(st.clone()))?;
-        let c = cnt
-            .trim()
-            .parse::<f64>()
-            .map_err(|_| SendError::BadReply(cnt.clone()))?;
-        Ok((run, inpos, if c.is_finite() && c > 0.0 { c as u64 } else { 0 }))
+        Ok((run, inpos, count(cnt)?, count(done)?))
     }
 
     /// Run the chunks from `state.chunks_done` on; `state` is updated and
@@ -287,8 +294,8 @@ impl<'a> Sender<'a> {
                 let link = error.is_link();
                 let (safe_stop, status) = self.safe_stop(link);
                 // What the controller says decides what is complete.
-                if let Some((running, _, counter)) = status {
-                    confirm(chunks, state, running, counter, self.opts.mode, self.opts.lookahead);
+                if let Some((_, _, counter, done)) = status {
+                    confirm(chunks, state, counter, done, self.opts.mode, self.opts.lookahead);
                 }
                 state.stopped = Some(error.to_string());
                 let mut failure = Failure {
@@ -348,6 +355,9 @@ impl<'a> Sender<'a> {
                 res = Err(format!("'{cmd}' failed: {e}"));
             }
         }
+        // A chunk that ended between the first poll and the abort set its
+        // done marker; read it again so it is not run twice.
+        let status = self.poll().ok().or(status);
         (res, status)
     }
 
@@ -355,8 +365,11 @@ impl<'a> Sender<'a> {
         state.save(&self.opts.state_path)
     }
 
-    fn chunk_lines(&mut self, c: &Chunk, reposition: bool) -> Vec<String> {
+    fn chunk_lines(&mut self, c: &Chunk, reposition: bool, number: usize) -> Vec<String> {
         let mut lines = c.lines.clone();
+        if self.opts.mode != Mode::Rotary {
+            lines.extend(marker_lines(&self.opts.names.done, number));
+        }
         if reposition {
             // After an interrupted chunk the stage is not where this chunk
             // starts: go there with the beam off (the header closed it).
@@ -378,13 +391,13 @@ impl<'a> Sender<'a> {
         let n = chunks.len();
         let start = state.chunks_done;
         if start == 0 {
-            let c = self.opts.names.counter.clone();
-            self.cmd(&format!("{c}=0"))?;
+            let (c, d) = (self.opts.names.counter.clone(), self.opts.names.done.clone());
+            self.cmd(&format!("{c}=0 {d}=0"))?;
         }
         for (i, chunk) in chunks.iter().enumerate().skip(start) {
             self.check_stop()?;
             let reposition = i == start && i > 0;
-            let lines = self.chunk_lines(chunk, reposition);
+            let lines = self.chunk_lines(chunk, reposition, i + 1);
             let t = Instant::now();
             self.cmd("CLOSE")?;
             self.cmd("DELETE GATHER")?;
@@ -408,8 +421,8 @@ impl<'a> Sender<'a> {
             });
             self.cmd(&format!("&1B{prog}R"))?;
             let (last, remaining): (u64, f64) = (chunk.last_counter, chunks[i + 1..].iter().map(|c| c.seconds).sum());
-            let got = self.wait_done(i, n, chunk, remaining)?;
-            if got < last {
+            let (got, done) = self.wait_done(i, n, chunk, remaining)?;
+            if got < last || done < (i + 1) as u64 {
                 return Err(SendError::Incomplete { got, want: last });
             }
             state.chunks_done = i + 1;
@@ -422,8 +435,8 @@ impl<'a> Sender<'a> {
     }
 
     /// Poll until the program is not running and in position.
-    fn wait_done(&mut self, i: usize, n: usize, chunk: &Chunk, remaining: f64) -> Result<u64, SendError> {
-        let mut last = (true, false, u64::MAX);
+    fn wait_done(&mut self, i: usize, n: usize, chunk: &Chunk, remaining: f64) -> Result<(u64, u64), SendError> {
+        let mut last = (true, false, u64::MAX, u64::MAX);
         let mut changed = Instant::now();
         loop {
             self.check_stop()?;
@@ -434,7 +447,7 @@ impl<'a> Sender<'a> {
             } else if changed.elapsed() > self.opts.stall {
                 return Err(SendError::Stalled(self.opts.stall, s.2));
             }
-            let (running, inpos, counter) = s;
+            let (running, inpos, counter, done) = s;
             let span = (chunk.last_counter + 1).saturating_sub(chunk.first_counter).max(1) as f64;
             let done_frac = (counter.saturating_sub(chunk.first_counter - 1) as f64 / span).clamp(0.0, 1.0);
             let left = remaining + chunk.seconds * (1.0 - done_frac);
@@ -447,7 +460,7 @@ impl<'a> Sender<'a> {
                 )
             });
             if !running && inpos {
-                return Ok(counter);
+                return Ok((counter, done));
             }
             std::thread::sleep(self.opts.poll);
         }
@@ -458,7 +471,7 @@ impl<'a> Sender<'a> {
         // Every line with the chunk it belongs to.
         let mut lines: Vec<(usize, String)> = Vec::new();
         for (i, c) in chunks.iter().enumerate().skip(start) {
-            let ls = self.chunk_lines(c, i == start && i > 0);
+            let ls = self.chunk_lines(c, i == start && i > 0, i + 1);
             lines.extend(ls.into_iter().map(|l| (i, l)));
         }
         let words: Vec<usize> = lines
@@ -522,11 +535,7 @@ impl<'a> Sender<'a> {
             };
             queued = pr.trim().parse().map_err(|_| SendError::BadReply(pr.clone()))?;
             let (running, inpos) = parse_status(st).ok_or_else(|| SendError::BadReply(st.clone()))?;
-            let c = cnt
-                .trim()
-                .parse::<f64>()
-                .map_err(|_| SendError::BadReply(cnt.clone()))?;
-            let counter = if c.is_finite() && c > 0.0 { c as u64 } else { 0 };
+            let counter = count(cnt)?;
             let cur_chunk = lines.get(sent.saturating_sub(queued + 1)).map_or(n, |(i, _)| *i + 1);
             self.summary.final_counter = counter;
             let (var, total) = (self.opts.names.counter.clone(), lines.len());
@@ -543,7 +552,7 @@ impl<'a> Sender<'a> {
             } else if changed.elapsed() > self.opts.stall {
                 return Err(SendError::Stalled(self.opts.stall, counter));
             }
-            confirm(chunks, state, true, counter, Mode::Rotary, self.opts.lookahead);
+            confirm(chunks, state, counter, 0, Mode::Rotary, self.opts.lookahead);
             if sent == lines.len() && queued == 0 && inpos {
                 if counter < final_counter {
                     if !running {
@@ -577,21 +586,20 @@ impl<'a> Sender<'a> {
 }
 
 /// Mark chunks complete from what the controller reports.
-fn confirm(chunks: &[Chunk], state: &mut State, running: bool, counter: u64, mode: Mode, lookahead: u64) {
-    let mut done = state.chunks_done;
-    while let Some(c) = chunks.get(done) {
+fn confirm(chunks: &[Chunk], state: &mut State, counter: u64, done: u64, mode: Mode, lookahead: u64) {
+    let mut k = state.chunks_done;
+    while let Some(c) = chunks.get(k) {
         let ok = match mode {
-            // A buffer program that is no longer running and got past its
-            // last counter is complete.
-            Mode::Program | Mode::Split => !running && counter >= c.last_counter,
+            // The done marker runs after DWELL0: all motion has ended.
+            Mode::Program | Mode::Split => done > k as u64,
             // In a stream, later lines may be calculated ahead of motion.
-            Mode::Rotary => counter >= c.last_counter + lookahead || (!running && counter >= c.last_counter),
+            Mode::Rotary => counter >= c.last_counter + lookahead,
         };
         if !ok {
             break;
         }
-        done += 1;
+        k += 1;
         state.last_counter = c.last_counter;
     }
-    state.chunks_done = done;
+    state.chunks_done = k;
 }
