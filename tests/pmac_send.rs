@@ -378,14 +378,15 @@ fn err006_during_download_stops_safely_and_resumes() {
 #[test]
 fn controller_reset_mid_job_is_detected_and_resumed() {
     // A reset between chunks is harmless (the next chunk is uploaded
-    // whole); one during a run or an upload must stop the job.
+    // whole); one during a run or an upload must stop the job. Time runs
+    // slowly enough here that most requests are polls of a running chunk.
     let mut stopped = 0;
     for at in [15, 30, 45, 60] {
         let faults = Faults {
             reset_at: Some(at),
             ..Faults::default()
         };
-        stopped += usize::from(fault_then_resume(small(), faults, 500.0, &["--mode", "split"]));
+        stopped += usize::from(fault_then_resume(small(), faults, 100.0, &["--mode", "split"]));
     }
     assert!(stopped >= 2, "only {stopped} of 4 resets stopped the job");
 }
