@@ -84,6 +84,11 @@ fn run(args: Args) -> Result<(), CliError> {
     if !(args.time_scale.is_finite() && args.time_scale > 0.0) {
         return Err(CliError::input("--time-scale must be a positive number"));
     }
+    if !args.bind.is_loopback() {
+        // An emulator reachable from the network could be mistaken for the
+        // machine's controller by a real client.
+        eprintln!("pmac-emu: warning: listening on {}, not loopback", args.bind);
+    }
     let log: Option<Box<dyn Write + Send>> = match &args.log {
         Some(p) => Some(Box::new(std::io::BufWriter::new(
             std::fs::File::create(p).map_err(|e| CliError::failure(format!("{}: {e}", p.display())))?,
