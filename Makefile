@@ -25,9 +25,12 @@ golden:
 update-golden:
 	UPDATE_GOLDEN=1 $(CARGO) test --release --test golden
 
-# Differential test against LinuxCNC's rs274 (installs linuxcnc-uspace when missing).
+# Conformance with tools nobody here wrote: LinuxCNC's rs274 interpreter
+# (installs linuxcnc-uspace when missing) and the dls-pmaclib PMAC client
+# against our controller emulator (installs dls-pmaclib when missing).
 conformance: build
 	python3 scripts/rs274-diff --gsim $(BIN)/gsim
+	python3 scripts/pmac-conformance --emu $(BIN)/pmac-emu
 
 lint:
 	$(CARGO) fmt --all -- --check
@@ -36,8 +39,11 @@ lint:
 demo: build
 	scripts/demo
 
+# Benchmarks, each side by side with its anchor in one run.
 bench: build
 	scripts/bench/interp
+	scripts/bench/heightfield
+	scripts/bench/upload
 
 fuzz-smoke:
 	scripts/fuzz-smoke

@@ -7,6 +7,10 @@
 //! - [`model`]: chains and toolpaths in memory.
 //! - [`formats`]: the JSON Lines pipe formats, streaming.
 //! - [`gcode`]: ISO and PMAC G-code, read and written.
+//! - [`sim`]: what a program does on the machine (path summary).
+//! - [`stock`]: material removal in a height-field stock.
+//! - [`preview`]: SVG previews of toolpaths.
+//! - [`pmac`]: Turbo PMAC protocol, client, emulator, splitting and upload.
 //! - [`cli`]: conventions shared by every binary.
 
 pub mod cli;
@@ -14,6 +18,7 @@ pub mod formats;
 pub mod gcode;
 pub mod geometry;
 pub mod model;
+pub mod pmac;
 pub mod preview;
 pub mod sim;
 pub mod source;

@@ -1,0 +1,363 @@
+//! pmac-send: upload a program to a Turbo PMAC and run it, whole, in
+//! chunks cut where the beam is off, or streamed through a rotary buffer.
+
+use clap::{Parser, ValueEnum};
+use microcam::cli::{self, CliError};
+use microcam::pmac::client::{Client, Transport};
+use microcam::pmac::plan::{Job, MARKER_WORDS, Names, marker_lines};
+use microcam::pmac::send::{Mode, SendError, SendOptions, Sender, State, input_hash};
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::Duration;
+
+const EXAMPLES: &str = "\
+Examples:
+  pmac-send part.pmac --host 10.0.0.5              split into chunks that fit, run each
+  pathgen emit --dialect pmac tp.jsonl | pmac-send --mode rotary --host 10.0.0.5
+  pmac-send part.ngc --mode program --host 127.0.0.1:1025
+  pmac-send part.pmac --dry-run chunks/ --buffer-words 5000
+  pmac-send part.pmac --resume                      after a stop: go on from the
+                                                    last chunk confirmed complete
+
+Input is PMAC motion-program text or ISO G-code ('-' or no FILE: stdin); it is
+read by the project's interpreter and rewritten as PMAC text (ABS, M33==1 shutter
+switching, P400 line counter running on across chunks). Progress goes to stderr,
+a JSON summary to stdout.
+
+Safety: on Ctrl-C, SIGTERM, an ERR reply, a timeout or a lost connection the
+shutter is closed (M33=0) and &1 aborted (reconnecting if needed), the resume
+state is written (--state), and the exit status is 1. --resume never re-runs a
+chunk the controller confirmed complete; the interrupted chunk starts over with
+a beam-off RAPID to its start.
+Exit status: 0 done, 1 stopped or failed, 2 bad usage or bad input.";
+
+#[derive(Clone, Copy, ValueEnum)]
+enum ModeArg {
+    Program,
+    Split,
+    Rotary,
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum TransportArg {
+    /// Turbo PMAC Ethernet protocol, WRITEBUFFER downloads.
+    Ethernet,
+    /// Ethernet protocol, one GETRESPONSE per line (slow; for old firmware).
+    EthernetLines,
+    /// Plain text lines over TCP.
+    Line,
+}
+
+/// Upload, run and watch a motion program on a Turbo PMAC.
+#[derive(Parser)]
+#[command(name = "pmac-send", version, about, after_help = EXAMPLES)]
+struct Args {
+    /// Program to send ('-' for stdin).
+    file: Option<PathBuf>,
+    /// Controller address, HOST or HOST:PORT (port 1025 by default).
+    #[arg(long, default_value = "127.0.0.1")]
+    host: String,
+    /// How to get the job onto the controller.
+    #[arg(long, value_enum, default_value = "split")]
+    mode: ModeArg,
+    #[arg(long, value_enum, default_value = "ethernet")]
+    transport: TransportArg,
+    /// Program buffer number (program and split modes).
+    #[arg(long, default_value_t = 1)]
+    prog: u32,
+    /// Most words a chunk may take (default: 90% of SIZE after clearing).
+    #[arg(long)]
+    buffer_words: Option<usize>,
+    /// Rotary buffer size, words.
+    #[arg(long, default_value_t = 4096)]
+    rotary_words: usize,
+    /// Rotary mode: words per chunk (the unit of resume); default a quarter
+    /// of the rotary buffer.
+    #[arg(long)]
+    chunk_words: Option<usize>,
+    /// Write the chunks and plan.json here; no network.
+    #[arg(long, value_name = "DIR")]
+    dry_run: Option<PathBuf>,
+    /// Continue a stopped job from its state file.
+    #[arg(long)]
+    resume: bool,
+    /// Resume state file.
+    #[arg(long, default_value = "pmac-send.state.json")]
+    state: PathBuf,
+    /// Status poll interval, ms.
+    #[arg(long, default_value_t = 50)]
+    poll_ms: u64,
+    /// Reply timeout, ms.
+    #[arg(long, default_value_t = 5000)]
+    timeout_ms: u64,
+    /// Give up when the controller shows no progress for this many seconds.
+    #[arg(long, default_value_t = 60.0)]
+    stall_s: f64,
+    /// Blocks the controller calculates ahead of motion (rotary resume).
+    #[arg(long, default_value_t = 2)]
+    lookahead: u64,
+    /// Program mode only: store the program but do not run it.
+    #[arg(long)]
+    upload_only: bool,
+    #[arg(long, default_value = "M33")]
+    shutter_var: String,
+    #[arg(long, default_value = "P400")]
+    line_counter: String,
+    /// Variable set to the chunk number after a chunk's last motion
+    /// (behind DWELL0); confirms chunks even across an abort.
+    #[arg(long, default_value = "P401")]
+    done_var: String,
+}
+
+fn main() -> ExitCode {
+    let args = Args::parse();
+    cli::run("pmac-send", || run(args))
+}
+
+fn run(args: Args) -> Result<(), CliError> {
+    let mut input = cli::open_input(args.file.as_deref())?;
+    let text = cli::read_to_string(&mut input)?;
+    let names = Names {
+        shutter: args.shutter_var.to_ascii_uppercase(),
+        counter: args.line_counter.to_ascii_uppercase(),
+        done: args.done_var.to_ascii_uppercase(),
+    };
+    let job = Job::read(&text, &names).map_err(|e| CliError::in_file(&input.name, e))?;
+    let mode = match args.mode {
+        ModeArg::Program => Mode::Program,
+        ModeArg::Split => Mode::Split,
+        ModeArg::Rotary => Mode::Rotary,
+    };
+    if args.upload_only && mode != Mode::Program {
+        return Err(CliError::input("--upload-only needs --mode program"));
+    }
+    let chunk_words = args.chunk_words.unwrap_or(args.rotary_words / 4).max(16);
+    if let Some(dir) = &args.dry_run {
+        let budget = match mode {
+            Mode::Program => None,
+            Mode::Split => Some(
+                args.buffer_words
+                    .ok_or_else(|| CliError::input("--dry-run in split mode needs --buffer-words"))?
+                    .saturating_sub(MARKER_WORDS),
+            ),
+            Mode::Rotary => Some(chunk_words),
+        };
+        return dry_run(&job, mode, budget, args.prog, &args.done_var.to_ascii_uppercase(), dir);
+    }
+    let hash = input_hash(&text);
+    let transport = match args.transport {
+        TransportArg::Ethernet => Transport::Ethernet,
+        TransportArg::EthernetLines => Transport::EthernetLines,
+        TransportArg::Line => Transport::Line,
+    };
+    let host = if args.host.contains(':') {
+        args.host.clone()
+    } else {
+        format!("{}:1025", args.host)
+    };
+    let timeout = Duration::from_millis(args.timeout_ms.max(1));
+    let mut state = if args.resume {
+        let s = State::load(&args.state).map_err(|e| CliError::input(e.to_string()))?;
+        if s.input_hash != hash {
+            return Err(CliError::input(format!(
+                "{} belongs to another program (input changed): refusing to resume",
+                args.state.display()
+            )));
+        }
+        if s.mode != mode {
+            return Err(CliError::input(format!(
+                "{} was written in {} mode",
+                args.state.display(),
+                s.mode.name()
+            )));
+        }
+        s
+    } else {
+        State {
+            version: 1,
+            input_hash: hash,
+            mode,
+            budget: None,
+            chunks: 0,
+            chunks_done: 0,
+            last_counter: 0,
+            stopped: None,
+        }
+    };
+    let stop = Arc::new(AtomicBool::new(false));
+    {
+        let stop = stop.clone();
+        // Ctrl-C and SIGTERM ask the run loop to stop; it then closes the
+        // shutter and aborts before exiting.
+        ctrlc::set_handler(move || stop.store(true, Ordering::SeqCst))
+            .map_err(|e| CliError::failure(format!("cannot install the signal handler: {e}")))?;
+    }
+    // Written before the controller is touched, so a stop at any point
+    // leaves a state to resume from.
+    state.save(&args.state).map_err(|e| CliError::failure(e.to_string()))?;
+    let client = Client::connect(&host, transport, timeout).map_err(|e| CliError::failure(e.to_string()))?;
+    let opts = SendOptions {
+        mode,
+        prog: args.prog,
+        rotary_words: args.rotary_words,
+        rotary_fill: 0.9,
+        poll: Duration::from_millis(args.poll_ms),
+        stall: Duration::from_secs_f64(args.stall_s.max(0.1)),
+        lookahead: args.lookahead,
+        names,
+        state_path: args.state.clone(),
+        upload_only: args.upload_only,
+    };
+    let mut stderr = std::io::stderr();
+    let mut sender = Sender::new(client, &host, timeout, opts, stop, &mut stderr);
+    // The budget: from the state on resume (the same cut), else measured.
+    let budget = match (mode, state.budget) {
+        (Mode::Program, _) => None,
+        (_, Some(b)) => Some(b),
+        (Mode::Split, None) => {
+            let free = sender.free_words().map_err(|e| stopped(&mut sender, e, &args))?;
+            let from_size = (free.max(0) as f64 * 0.9) as usize;
+            let b = args.buffer_words.map_or(from_size, |b| b.min(from_size));
+            Some(b.saturating_sub(MARKER_WORDS))
+        }
+        (Mode::Rotary, None) => Some(chunk_words),
+    };
+    let chunks = match (mode, budget) {
+        (Mode::Rotary, Some(b)) => job.stream_chunks(b),
+        _ => job.chunks(budget),
+    }
+    .map_err(|e| CliError::in_file(&input.name, e))?;
+    if mode == Mode::Program {
+        let free = sender.free_words().map_err(|e| stopped(&mut sender, e, &args))?;
+        if chunks[0].words as i64 > free {
+            return Err(CliError::failure(format!(
+                "the program needs {} words, the controller has {free} free: use --mode split or rotary",
+                chunks[0].words
+            )));
+        }
+    }
+    state.budget = budget;
+    state.chunks = chunks.len();
+    if state.chunks_done >= chunks.len() && args.resume {
+        eprintln!("pmac-send: nothing to resume: all {} chunks are complete", chunks.len());
+        let summary = microcam::pmac::send::Summary {
+            mode: mode.name().into(),
+            chunks: chunks.len(),
+            first_chunk: chunks.len(),
+            final_counter: state.last_counter,
+            ..Default::default()
+        };
+        let mut v = serde_json::to_value(&summary).map_err(|e| CliError::failure(e.to_string()))?;
+        v["ok"] = serde_json::json!(true);
+        println!("{v}");
+        return Ok(());
+    }
+    eprintln!(
+        "pmac-send: {} mode, {} chunk(s), {} lines, starting at chunk {}",
+        mode.name(),
+        chunks.len(),
+        chunks.iter().map(|c| c.lines.len()).sum::<usize>(),
+        state.chunks_done + 1
+    );
+    match sender.run(&chunks, &mut state) {
+        Ok(summary) => {
+            let mut v = serde_json::to_value(&summary).map_err(|e| CliError::failure(e.to_string()))?;
+            v["ok"] = serde_json::json!(true);
+            println!("{v}");
+            Ok(())
+        }
+        Err(f) => {
+            let mut v = serde_json::to_value(&f.summary).map_err(|e| CliError::failure(e.to_string()))?;
+            v["ok"] = serde_json::json!(false);
+            v["chunks_done"] = serde_json::json!(f.state.chunks_done);
+            v["error"] = serde_json::json!(f.error.to_string());
+            println!("{v}");
+            let safety = match &f.safe_stop {
+                Ok(()) => format!(
+                    "shutter closed ({}=0) and &1 aborted",
+                    args.shutter_var.to_ascii_uppercase()
+                ),
+                Err(e) => format!("SAFETY: {e}"),
+            };
+            Err(CliError::failure(format!(
+                "stopped: {}; {safety}; {} of {} chunks complete; continue with --resume (state in {})",
+                f.error,
+                f.state.chunks_done,
+                chunks.len(),
+                args.state.display()
+            )))
+        }
+    }
+}
+
+/// A failure before the first chunk: stop safely all the same.
+fn stopped(sender: &mut Sender, e: SendError, args: &Args) -> CliError {
+    let safety = match sender.stop_safely(e.is_link()) {
+        Ok(()) => format!(
+            "shutter closed ({}=0) and &1 aborted",
+            args.shutter_var.to_ascii_uppercase()
+        ),
+        Err(s) => format!("SAFETY: {s}"),
+    };
+    CliError::failure(format!(
+        "stopped: {e}; {safety}; no chunk run; continue with --resume (state in {})",
+        args.state.display()
+    ))
+}
+
+fn dry_run(job: &Job, mode: Mode, budget: Option<usize>, prog: u32, done: &str, dir: &Path) -> Result<(), CliError> {
+    let chunks = match (mode, budget) {
+        (Mode::Rotary, Some(b)) => job.stream_chunks(b),
+        _ => job.chunks(budget),
+    }
+    .map_err(|e| CliError::input(e.to_string()))?;
+    std::fs::create_dir_all(dir).map_err(|e| CliError::failure(format!("{}: {e}", dir.display())))?;
+    let mut plan = Vec::new();
+    for (i, c) in chunks.iter().enumerate() {
+        let name = format!("chunk-{:03}.pmac", i + 1);
+        let mut text = String::new();
+        if mode != Mode::Rotary {
+            text.push_str(&format!("CLOSE\nDELETE GATHER\nOPEN PROG {prog} CLEAR\n"));
+        }
+        for l in &c.lines {
+            text.push_str(l);
+            text.push('\n');
+        }
+        if mode != Mode::Rotary {
+            for l in marker_lines(done, i + 1) {
+                text.push_str(&l);
+                text.push('\n');
+            }
+            text.push_str("CLOSE\n");
+        }
+        let path = dir.join(&name);
+        let mut out = cli::Output::new(Some(&path));
+        out.write_all(text.as_bytes())?;
+        out.commit()?;
+        plan.push(serde_json::json!({
+            "file": name, "lines": c.lines.len(), "words": c.words,
+            "first_counter": c.first_counter, "last_counter": c.last_counter,
+            "start": c.start, "end": c.end, "seconds": c.seconds,
+        }));
+    }
+    let summary = serde_json::json!({
+        "schema": "microcam.pmac-plan/1",
+        "mode": mode.name(),
+        "prog": prog,
+        "budget_words": budget,
+        "chunks": plan,
+        "lines": chunks.iter().map(|c| c.lines.len()).sum::<usize>(),
+        "estimated_seconds": chunks.iter().map(|c| c.seconds).sum::<f64>(),
+    });
+    let mut out = cli::Output::new(Some(&dir.join("plan.json")));
+    writeln!(out, "{}", serde_json::to_string_pretty(&summary).unwrap_or_default())?;
+    out.commit()?;
+    println!(
+        "{}",
+        serde_json::json!({"dry_run": dir.display().to_string(), "chunks": chunks.len()})
+    );
+    Ok(())
+}

@@ -1,0 +1,379 @@
+//! The program as pmac-send uploads it: read (either dialect), rewritten
+//! by the project's G-code writer into PMAC text, and cut into chunks.
+//!
+//! A chunk is self-contained: it restates ABS, the centre mode, the shutter
+//! closed, TA, the motion mode and the feed (a fresh writer writes them on
+//! first use), and ends with the shutter closed. Chunks are cut only where
+//! the stage may stop without burning the part: between two moves that both
+//! have the beam off. The line counter (`P400`) runs on across chunks, so a
+//! counter read back from the controller names one line of the whole job.
+
+use crate::gcode::writer::{GcodeWriter, WriteOptions};
+use crate::gcode::{Dialect, ReadOptions, read_str};
+use crate::geometry::P3;
+use crate::geometry::arc::Arc3;
+use crate::model::toolpath::{FeedUnit, MotionKind, Record};
+use crate::pmac::controller::{DEFAULT_FEED, DEFAULT_TA_MS, RAPID_MM_S};
+use crate::pmac::protocol::line_words;
+use serde::Serialize;
+use thiserror::Error;
+
+#[derive(Debug, Error)]
+pub enum PlanError {
+    #[error("{0}")]
+    Read(#[from] crate::gcode::GcodeError),
+    #[error("writing PMAC text: {0}")]
+    Write(#[from] crate::gcode::writer::WriteError),
+    #[error(
+        "no place to cut within {budget} words after line counter {counter}: the beam stays on for longer than a \
+         buffer holds (use rotary mode or a larger buffer)"
+    )]
+    NoCut { budget: usize, counter: u64 },
+    #[error("the program has no moves")]
+    Empty,
+}
+
+/// Variable names used in the generated text.
+#[derive(Debug, Clone)]
+pub struct Names {
+    pub shutter: String,
+    pub counter: String,
+    /// Set to the chunk number at the very end of a buffer chunk, after
+    /// `DWELL0` (which stops look-ahead): it changes only once all motion
+    /// of the chunk has ended, so it confirms the chunk even after an abort.
+    pub done: String,
+}
+
+impl Default for Names {
+    fn default() -> Self {
+        Names {
+            shutter: "M33".into(),
+            counter: "P400".into(),
+            done: "P401".into(),
+        }
+    }
+}
+
+/// One chunk of the job.
+#[derive(Debug, Clone, Serialize)]
+pub struct Chunk {
+    /// Lines to store in a buffer (no OPEN / CLOSE).
+    pub lines: Vec<String>,
+    /// Memory words the lines take (as `SIZE` counts).
+    pub words: usize,
+    /// Line counter values of its first and last motion line.
+    pub first_counter: u64,
+    pub last_counter: u64,
+    /// Where the stage is when the chunk starts, mm.
+    pub start: [f64; 3],
+    pub end: [f64; 3],
+    /// Estimated run time, s (trapezoid model: max(length/F, TA)).
+    pub seconds: f64,
+}
+
+/// The program read and ready to cut.
+pub struct Job {
+    pub records: Vec<Record>,
+    pub feed_unit: FeedUnit,
+    pub dialect: Dialect,
+    pub names: Names,
+}
+
+impl Job {
+    pub fn read(text: &str, names: &Names) -> Result<Job, PlanError> {
+        let opts = ReadOptions {
+            shutter_var: names.shutter.clone(),
+            line_counter_var: names.counter.clone(),
+            ..ReadOptions::default()
+        };
+        let (dialect, records) = read_str(text, &opts)?;
+        if !records.iter().any(|r| matches!(r, Record::Move(_))) {
+            return Err(PlanError::Empty);
+        }
+        Ok(Job {
+            records,
+            feed_unit: dialect.feed_unit(),
+            dialect,
+            names: names.clone(),
+        })
+    }
+
+    /// Cut points: record indices `i` (a move) such that the move before
+    /// and the move at `i` both have the beam off. Index `records.len()` is
+    /// always a cut.
+    fn cuts(&self) -> Vec<usize> {
+        let mut v = Vec::new();
+        let mut prev_beam: Option<bool> = None;
+        for (i, r) in self.records.iter().enumerate() {
+            if let Record::Move(m) = r {
+                if prev_beam == Some(false) && !m.beam {
+                    v.push(i);
+                }
+                prev_beam = Some(m.beam);
+            }
+        }
+        v.push(self.records.len());
+        v
+    }
+
+    /// Write records `s..e` as a chunk starting at `start`, with TA
+    /// restated and counters offset by `counter0`.
+    fn write(
+        &self,
+        s: usize,
+        e: usize,
+        start: P3,
+        ta: Option<(Option<f64>, Option<f64>)>,
+        counter0: u64,
+    ) -> Result<Chunk, PlanError> {
+        let mut opts = WriteOptions::for_dialect(Dialect::Pmac);
+        opts.shutter_var = self.names.shutter.clone();
+        opts.line_counter = Some(self.names.counter.clone());
+        opts.start = start;
+        opts.trailer = Some(vec![format!("{}=0", self.names.shutter)]);
+        let mut w = GcodeWriter::new(Vec::new(), opts, self.feed_unit);
+        if let Some((ta_ms, ts_ms)) = ta {
+            w.record(&Record::Accel {
+                ta_ms,
+                ts_ms,
+                block: None,
+            })?;
+        }
+        for r in &self.records[s..e] {
+            w.record(r)?;
+        }
+        let blocks = w.motion_blocks();
+        let end = w.position();
+        let out = w.finish()?;
+        let text = String::from_utf8_lossy(&out);
+        let lines: Vec<String> = text
+            .lines()
+            .filter(|l| !l.trim_start().to_ascii_uppercase().starts_with("OPEN PROG"))
+            .map(|l| offset_counter(l, &self.names.counter, counter0))
+            .collect();
+        let words = lines.iter().map(|l| line_words(l)).sum();
+        Ok(Chunk {
+            lines,
+            words,
+            first_counter: counter0 + 1,
+            last_counter: counter0 + blocks,
+            start: [start.x, start.y, start.z],
+            end: [end.x, end.y, end.z],
+            seconds: estimate(&self.records[s..e], start, self.feed_unit),
+        })
+    }
+
+    /// Cut the job into chunks of at most `budget` words (`None`: one
+    /// chunk with everything).
+    pub fn chunks(&self, budget: Option<usize>) -> Result<Vec<Chunk>, PlanError> {
+        self.cut(budget, true)
+    }
+
+    /// Chunks of about `budget` words for a stream, where a chunk is only
+    /// the unit of resume: a beam-on stretch longer than the budget makes
+    /// one longer chunk instead of an error.
+    pub fn stream_chunks(&self, budget: usize) -> Result<Vec<Chunk>, PlanError> {
+        self.cut(Some(budget), false)
+    }
+
+    fn cut(&self, budget: Option<usize>, strict: bool) -> Result<Vec<Chunk>, PlanError> {
+        let cuts = self.cuts();
+        let mut out = Vec::new();
+        let mut s = 0usize;
+        let mut pos = P3::origin();
+        let mut ta: Option<(Option<f64>, Option<f64>)> = None;
+        let mut counter = 0u64;
+        while s < self.records.len() {
+            // Candidate ends: cuts after s. Grow exponentially while the
+            // chunk fits, then bisect between the last fit and the first
+            // miss: O(m log m) writing per chunk of m records.
+            let cand: Vec<usize> = cuts.iter().copied().filter(|&c| c > s).collect();
+            let fits = |k: usize| -> Result<Option<Chunk>, PlanError> {
+                let c = self.write(s, cand[k], pos, ta, counter)?;
+                Ok(match budget {
+                    Some(b) if c.words > b => None,
+                    _ => Some(c),
+                })
+            };
+            let chosen = if budget.is_none() {
+                let k = cand.len() - 1;
+                (k, fits(k)?)
+            } else {
+                let mut lo: Option<(usize, Chunk)> = None;
+                let mut hi = cand.len();
+                let mut k = 0usize;
+                loop {
+                    if k >= hi {
+                        break;
+                    }
+                    match fits(k)? {
+                        Some(c) => {
+                            lo = Some((k, c));
+                            if k + 1 >= hi {
+                                break;
+                            }
+                            k = (k * 2 + 1).min(hi - 1);
+                        }
+                        None => {
+                            hi = k;
+                            break;
+                        }
+                    }
+                }
+                let base = lo.as_ref().map_or(0, |(k, _)| *k + 1);
+                let (mut a, mut b) = (base, hi);
+                while a < b {
+                    let mid = (a + b) / 2;
+                    match fits(mid)? {
+                        Some(c) => {
+                            lo = Some((mid, c));
+                            a = mid + 1;
+                        }
+                        None => b = mid,
+                    }
+                }
+                match lo {
+                    Some((k, c)) => (k, Some(c)),
+                    None if !strict => (0, Some(self.write(s, cand[0], pos, ta, counter)?)),
+                    None => {
+                        return Err(PlanError::NoCut {
+                            budget: budget.unwrap_or(0),
+                            counter,
+                        });
+                    }
+                }
+            };
+            let (k, Some(chunk)) = chosen else {
+                return Err(PlanError::Empty);
+            };
+            let e = cand[k];
+            for r in &self.records[s..e] {
+                match r {
+                    Record::Move(m) => pos = m.to,
+                    Record::Accel { ta_ms, ts_ms, .. } => {
+                        let (a0, s0) = ta.unwrap_or((None, None));
+                        ta = Some((ta_ms.or(a0), ts_ms.or(s0)));
+                    }
+                    _ => {}
+                }
+            }
+            counter = chunk.last_counter;
+            out.push(chunk);
+            s = e;
+        }
+        Ok(out)
+    }
+}
+
+/// Words the completion marker of a buffer chunk takes (with margin).
+pub const MARKER_WORDS: usize = 8;
+
+/// The completion marker ending buffer chunk `number` (1-based). Not used
+/// in rotary streams: `DWELL0` would stop the stage between chunks.
+pub fn marker_lines(done_var: &str, number: usize) -> [String; 2] {
+    ["DWELL0".into(), format!("{done_var}={number}")]
+}
+
+/// Replace `VAR=n` (the line counter) by `VAR=n+offset` in a line.
+pub fn offset_counter(line: &str, var: &str, offset: u64) -> String {
+    if offset == 0 {
+        return line.to_string();
+    }
+    let pat = format!("{var}=");
+    let mut out = String::with_capacity(line.len() + 4);
+    let mut rest = line;
+    while let Some(p) = rest.find(&pat) {
+        // `P4000=` must not match `P400=`: require a non-digit before.
+        let before_ok = p == 0 || !rest.as_bytes()[p - 1].is_ascii_alphanumeric();
+        out.push_str(&rest[..p + pat.len()]);
+        rest = &rest[p + pat.len()..];
+        let digits = rest.bytes().take_while(u8::is_ascii_digit).count();
+        if before_ok
+            && digits > 0
+            && let Ok(n) = rest[..digits].parse::<u64>()
+        {
+            out.push_str(&(n + offset).to_string());
+            rest = &rest[digits..];
+        }
+    }
+    out.push_str(rest);
+    out
+}
+
+/// The trapezoid time model the emulator uses: a move takes
+/// max(length / F, TA); rapids at [`RAPID_MM_S`]; dwells their time.
+pub fn estimate(records: &[Record], start: P3, unit: FeedUnit) -> f64 {
+    let mut pos = start;
+    let mut ta = DEFAULT_TA_MS / 1000.0;
+    let mut t = 0.0;
+    for r in records {
+        match r {
+            Record::Move(m) => {
+                let len = match m.kind {
+                    MotionKind::Arc(a) => {
+                        Arc3::new(a.center, pos, m.to, a.ccw, a.plane, a.extra_turns).map_or(0.0, |a| a.length())
+                    }
+                    _ => (m.to - pos).norm(),
+                };
+                let v = match m.kind {
+                    MotionKind::Rapid => RAPID_MM_S,
+                    _ => m
+                        .feed
+                        .map(|f| unit.convert(f, FeedUnit::MmPerS))
+                        .filter(|f| *f > 0.0)
+                        .unwrap_or(DEFAULT_FEED),
+                };
+                t += (len / v).max(ta);
+                pos = m.to;
+            }
+            Record::Dwell { seconds, .. } => t += seconds.max(0.0),
+            Record::Accel { ta_ms: Some(a), .. } => ta = a / 1000.0,
+            _ => {}
+        }
+    }
+    t
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn laser() -> Job {
+        let text = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/testdata/writer/laser.pmac")).unwrap();
+        Job::read(&text, &Names::default()).unwrap()
+    }
+
+    #[test]
+    fn counter_offset() {
+        assert_eq!(offset_counter("LINEAR X1 P400=3", "P400", 10), "LINEAR X1 P400=13");
+        assert_eq!(offset_counter("P4000=3 P400=2", "P400", 1), "P4000=3 P400=3");
+        assert_eq!(offset_counter("X1", "P400", 1), "X1");
+    }
+
+    #[test]
+    fn one_chunk_holds_all_and_chunks_cut_with_beam_off() {
+        let job = laser();
+        let all = job.chunks(None).unwrap();
+        assert_eq!(all.len(), 1);
+        let n = all[0].last_counter;
+        let small = job.chunks(Some(40)).unwrap();
+        assert!(small.len() > 1, "{}", small.len());
+        let mut next = 1;
+        for c in &small {
+            assert!(c.words <= 40);
+            assert_eq!(c.first_counter, next);
+            next = c.last_counter + 1;
+            assert_eq!(c.lines.last().unwrap(), "M33=0");
+            assert!(
+                c.lines.iter().any(|l| l.contains(" F") || l.starts_with('F')),
+                "{:?}",
+                c.lines
+            );
+        }
+        assert_eq!(next - 1, n);
+        assert!(matches!(job.chunks(Some(8)), Err(PlanError::NoCut { .. })));
+        let stream = job.stream_chunks(8).unwrap();
+        assert_eq!(stream.last().unwrap().last_counter, n);
+        assert!(stream.len() > small.len());
+    }
+}
