@@ -14,6 +14,7 @@ pub mod cutter;
 pub mod heightfield;
 pub mod mesh;
 pub mod path;
+pub mod run;
 
 pub use cutter::Cutter;
 pub use heightfield::{HeightField, StockError};
