@@ -6,7 +6,10 @@ use microcam::cli::{self, CliError, Output};
 use microcam::formats::toolpath::{StreamError, write_stream};
 use microcam::gcode::{Dialect, ReadOptions};
 use microcam::geometry::P3;
-use microcam::sim::summary::Summary;
+use microcam::model::toolpath::FeedUnit;
+use microcam::sim::beam::CommandTiming;
+use microcam::sim::machine::{Controller, Machine, Overrides};
+use microcam::sim::report::{SimError, Simulator};
 use microcam::source::ToolpathSource;
 use std::io::Write;
 use std::path::PathBuf;
@@ -16,8 +19,19 @@ const EXAMPLES: &str = "\
 Examples:
   gsim --moves part.ngc > part.jsonl        interpreted moves as toolpath JSON Lines
   gsim --moves --dialect pmac prog.pmc      a PMAC motion program
-  pathgen emit --dialect pmac part.jsonl | gsim    summary of a generated program
-  gsim part.ngc | jq .feed_length_mm
+  pathgen emit --dialect pmac part.jsonl | gsim    report on a generated program
+  gsim --machine micro-mill --blocks b.csv prog.pmc   per-block feeds and times
+  gsim --machine my-stage.json --ta-ms 50 prog.pmc    a profile file, TA overridden
+  gsim part.ngc | jq .cycle_time_s
+
+Without --moves gsim prints a microcam.gsim/1 report: path lengths, counts
+and extents; cycle, cutting, rapid and dwell time under the machine's
+controller model; the blocks that cannot reach their feed and why; where
+the shutter really passes the beam, per cut. Built-in machines: laser-stage
+(Turbo PMAC, the default for PMAC programs and mm/s toolpaths), micro-mill
+(Turbo PMAC, TA 133 ms), lookahead (grbl-style planner, the default for ISO
+programs). Moves outside the machine's travel, feed moves without a feed and
+bad profiles are errors (exit 2) naming the line.
 
 Input is G-code (ISO/RS274 or Turbo PMAC text, detected unless --dialect is
 given) or microcam.toolpath/1 JSON Lines; '-' or no FILE reads stdin.
@@ -49,11 +63,72 @@ struct Args {
     /// Write output here instead of stdout.
     #[arg(short, long)]
     output: Option<PathBuf>,
+    /// Machine profile: a built-in name (laser-stage, micro-mill, lookahead)
+    /// or a microcam.machine/1 JSON file.
+    #[arg(long)]
+    machine: Option<String>,
+    /// Per-block series as CSV (line, kind, length, commanded and achieved
+    /// feed, time, limit).
+    #[arg(long, value_name = "FILE.csv")]
+    blocks: Option<PathBuf>,
+    /// How the PMAC program assigns the shutter: `M33==` (sync, as pathgen
+    /// writes) or `M33=` (immediate, executed one move ahead).
+    #[arg(long, value_parser = ["sync", "immediate"], default_value = "sync")]
+    shutter_timing: String,
+    /// Controller model, overriding the profile's.
+    #[arg(long, value_parser = ["pmac", "lookahead"])]
+    controller: Option<String>,
+    /// PMAC acceleration time TA until the program sets one, ms.
+    #[arg(long, allow_negative_numbers = true)]
+    ta_ms: Option<f64>,
+    /// PMAC S-curve time TS until the program sets one, ms.
+    #[arg(long, allow_negative_numbers = true)]
+    ts_ms: Option<f64>,
+    /// Path acceleration of the look-ahead planner, mm/s².
+    #[arg(long, allow_negative_numbers = true)]
+    accel_mm_s2: Option<f64>,
+    /// Junction deviation of the look-ahead planner, mm.
+    #[arg(long, allow_negative_numbers = true)]
+    junction_deviation_mm: Option<f64>,
+    /// Blocks the look-ahead planner sees.
+    #[arg(long)]
+    lookahead_blocks: Option<usize>,
+    /// Highest path feed, mm/s.
+    #[arg(long, allow_negative_numbers = true)]
+    max_feed_mm_s: Option<f64>,
+    /// Rapid speed, mm/s.
+    #[arg(long, allow_negative_numbers = true)]
+    rapid_mm_s: Option<f64>,
+    /// Blocks per second the controller can compute (0 = no limit).
+    #[arg(long, allow_negative_numbers = true)]
+    block_rate_hz: Option<f64>,
+    /// Machine travel, mm: XMIN,XMAX,YMIN,YMAX,ZMIN,ZMAX.
+    #[arg(long, value_name = "XMIN,XMAX,YMIN,YMAX,ZMIN,ZMAX", allow_hyphen_values = true)]
+    limits: Option<String>,
 }
 
 fn main() -> ExitCode {
     let args = Args::parse();
     cli::run("gsim", || run(args))
+}
+
+/// `--limits`: six comma-separated numbers.
+fn parse_limits(s: &str) -> Result<[f64; 6], CliError> {
+    let v: Vec<f64> = s
+        .split(',')
+        .map(|x| x.trim().parse::<f64>())
+        .collect::<Result<_, _>>()
+        .map_err(|e| CliError::input(format!("--limits '{s}': {e}")))?;
+    v.try_into()
+        .map_err(|_| CliError::input(format!("--limits '{s}': six numbers XMIN,XMAX,YMIN,YMAX,ZMIN,ZMAX")))
+}
+
+/// A bad program is bad input (exit 2); a failed series write is a failure.
+fn sim_error(source: &str, e: SimError) -> CliError {
+    match e {
+        SimError::Io(e) => CliError::failure(e.to_string()),
+        e => CliError::in_file(source, e),
+    }
 }
 
 fn run(args: Args) -> Result<(), CliError> {
@@ -82,11 +157,44 @@ fn run(args: Args) -> Result<(), CliError> {
         }
     } else {
         let name = source.header.source.clone();
-        let mut s = Summary::new(source.header.feed_unit, start);
+        let spec = args.machine.clone().unwrap_or_else(|| {
+            match source.header.feed_unit {
+                FeedUnit::MmPerS => "laser-stage",
+                FeedUnit::MmPerMin => "lookahead",
+            }
+            .to_string()
+        });
+        let mut machine = Machine::load(&spec).map_err(|e| CliError::input(e.to_string()))?;
+        let overrides = Overrides {
+            controller: args.controller.as_deref().and_then(Controller::from_name),
+            ta_ms: args.ta_ms,
+            ts_ms: args.ts_ms,
+            accel_mm_s2: args.accel_mm_s2,
+            junction_deviation_mm: args.junction_deviation_mm,
+            max_feed_mm_s: args.max_feed_mm_s,
+            rapid_mm_s: args.rapid_mm_s,
+            block_rate_hz: args.block_rate_hz,
+            lookahead_blocks: args.lookahead_blocks,
+            limits_mm: args.limits.as_deref().map(parse_limits).transpose()?,
+        };
+        machine.apply(&overrides).map_err(|e| CliError::input(e.to_string()))?;
+        let timing = if args.shutter_timing == "immediate" {
+            CommandTiming::Immediate
+        } else {
+            CommandTiming::Sync
+        };
+        let csv = args.blocks.as_deref().map(|p| Output::new(Some(p)));
+        let src_name = source.name().to_string();
+        let header = source.header.clone();
+        let mut sim = Simulator::new(&header, machine, timing, start, csv);
         for rec in source {
-            s.add(&rec?);
+            sim.add(&rec?).map_err(|e| sim_error(&src_name, e))?;
         }
-        writeln!(out, "{}", s.to_json(name.as_deref()))?;
+        let (report, csv) = sim.finish().map_err(|e| sim_error(&src_name, e))?;
+        writeln!(out, "{}", report.to_json(name.as_deref()))?;
+        if let Some(csv) = csv {
+            csv.commit()?;
+        }
     }
     out.commit()
 }

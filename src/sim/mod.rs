@@ -3,7 +3,11 @@
 //! - [`summary`]: path lengths, counts and extents, one pass, constant memory.
 //! - [`machine`]: machine profiles (controller model, limits, latencies).
 //! - [`time`]: motion time per block under the PMAC or look-ahead model.
+//! - [`beam`]: where the shutter really passes the beam, per cut.
+//! - [`report`]: all of it in one streaming pass, and the gsim report.
 
+pub mod beam;
 pub mod machine;
+pub mod report;
 pub mod summary;
 pub mod time;

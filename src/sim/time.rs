@@ -171,7 +171,8 @@ pub struct TimedBlock {
     pub exec_start_s: f64,
     pub pieces: [Piece; MAX_PIECES],
     pub n_pieces: usize,
-    /// Highest speed within the block, mm/s.
+    /// The block's peak feed, mm/s: the top of its trapezoid (look-ahead)
+    /// or its plateau speed (PMAC).
     pub achieved_feed_mm_s: f64,
     /// The feed the block was meant to run at (commanded, or the rapid
     /// speed), mm/s.
@@ -200,6 +201,9 @@ impl TimedBlock {
 }
 
 /// What the time models put out, in time order.
+// Boxing the block would cost an allocation per block on the hot path;
+// events live only in a short queue.
+#[allow(clippy::large_enum_variant)]
 #[derive(Debug, Clone, PartialEq)]
 pub enum Event {
     Block(TimedBlock),
@@ -482,13 +486,11 @@ impl Pmac {
         let v = p.v;
         let mut pieces = [Piece::default(); MAX_PIECES];
         let mut n = 0;
-        let mut peak = v;
         // Entry: the part of the incoming ramp after the boundary.
         let (d_in, tau_in) = match self.entry {
             Some((vp, d)) => {
                 let tau = boundary_in_ramp(d, vp, v);
                 let vb = (vp * v).sqrt();
-                peak = peak.max(vb);
                 add_piece(
                     &mut pieces,
                     &mut n,
@@ -529,7 +531,6 @@ impl Pmac {
             Some((vn, d)) => {
                 let tau = boundary_in_ramp(d, v, vn);
                 let vb = (v * vn).sqrt();
-                peak = peak.max(vb);
                 add_piece(&mut pieces, &mut n, Piece { dt: tau, v0: v, v1: vb });
             }
             None => add_piece(
@@ -549,7 +550,10 @@ impl Pmac {
             exec_start_s: self.t - tau_in,
             pieces,
             n_pieces: n,
-            achieved_feed_mm_s: peak,
+            // A PMAC blend is the sum of each move's own profile, whose
+            // peak is the plateau: the feed this block ran at. The speed at
+            // its ends belongs to the neighbours' ramps.
+            achieved_feed_mm_s: v,
             commanded_feed_mm_s: p.commanded,
             limited_by: p.limit,
             block: p.block,
