@@ -3,9 +3,11 @@
 
 use clap::Parser;
 use microcam::cli::{self, CliError, Output};
+use microcam::formats::chains::ChainsReader;
 use microcam::formats::toolpath::{StreamError, write_stream};
 use microcam::gcode::{Dialect, ReadOptions};
 use microcam::geometry::P3;
+use microcam::model::chain::Chain;
 use microcam::model::toolpath::FeedUnit;
 use microcam::sim::beam::CommandTiming;
 use microcam::sim::machine::{Controller, Machine, Overrides};
@@ -102,6 +104,14 @@ struct Args {
     /// Blocks per second the controller can compute (0 = no limit).
     #[arg(long, allow_negative_numbers = true)]
     block_rate_hz: Option<f64>,
+    /// The drawing's chains (microcam.chains/1): report exposure per chain,
+    /// matching each cut to the chain its moves lie on.
+    #[arg(long, value_name = "FILE")]
+    chains: Option<PathBuf>,
+    /// How far (mm, in XY) a cut's moves may lie from a drawing chain and
+    /// still count as cutting it.
+    #[arg(long, default_value_t = 0.1)]
+    chain_tol_mm: f64,
     /// Machine travel, mm: XMIN,XMAX,YMIN,YMAX,ZMIN,ZMAX.
     #[arg(long, value_name = "XMIN,XMAX,YMIN,YMAX,ZMIN,ZMAX", allow_hyphen_values = true)]
     limits: Option<String>,
@@ -121,6 +131,15 @@ fn parse_limits(s: &str) -> Result<[f64; 6], CliError> {
         .map_err(|e| CliError::input(format!("--limits '{s}': {e}")))?;
     v.try_into()
         .map_err(|_| CliError::input(format!("--limits '{s}': six numbers XMIN,XMAX,YMIN,YMAX,ZMIN,ZMAX")))
+}
+
+/// All chains of a drawing.
+fn read_chains(path: &std::path::Path) -> Result<Vec<Chain>, CliError> {
+    let input = cli::open_input(Some(path))?;
+    let name = input.name.clone();
+    let r = ChainsReader::new(input.reader).map_err(|e| CliError::in_file(&name, e))?;
+    r.collect::<Result<Vec<_>, _>>()
+        .map_err(|e| CliError::in_file(&name, e))
 }
 
 /// A bad program is bad input (exit 2); a failed series write is a failure.
@@ -190,7 +209,10 @@ fn run(args: Args) -> Result<(), CliError> {
         for rec in source {
             sim.add(&rec?).map_err(|e| sim_error(&src_name, e))?;
         }
-        let (report, csv) = sim.finish().map_err(|e| sim_error(&src_name, e))?;
+        let (mut report, csv) = sim.finish().map_err(|e| sim_error(&src_name, e))?;
+        if let Some(p) = args.chains.as_deref() {
+            report = report.with_drawing(&read_chains(p)?, args.chain_tol_mm);
+        }
         writeln!(out, "{}", report.to_json(name.as_deref()))?;
         if let Some(csv) = csv {
             csv.commit()?;

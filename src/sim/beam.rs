@@ -32,6 +32,8 @@
 
 use super::machine::Shutter;
 use super::time::{MAX_PIECES, Piece, TimedBlock};
+use crate::geometry::{Arc3, Line3, P3, Plane};
+use crate::model::chain::{Chain, Segment};
 use std::collections::{HashMap, VecDeque};
 
 /// When a program's shutter commands take effect.
@@ -69,6 +71,9 @@ pub struct Cut {
     pub overexposed_mm: f64,
     /// Time the beam passed while the machine stood still (dwells).
     pub stationary_exposure_s: f64,
+    /// End points of the first few beam-on moves, to find the drawing
+    /// chain this cut belongs to.
+    pub probes: Vec<P3>,
 }
 
 impl Cut {
@@ -148,6 +153,9 @@ pub struct BeamModel {
 /// How many example lines a report lists.
 pub const EXAMPLES: usize = 20;
 
+/// Move end points per cut used to match it to a drawing chain.
+const PROBES: usize = 16;
+
 impl BeamModel {
     pub fn new(shutter: &Shutter, timing: CommandTiming) -> BeamModel {
         BeamModel {
@@ -206,6 +214,9 @@ impl BeamModel {
                 cut.first_line = b.line;
             }
             cut.last_line = b.line.or(cut.last_line);
+            if cut.probes.len() < PROBES {
+                cut.probes.push(b.end);
+            }
             self.current = Some(idx);
             Some(idx)
         } else {
@@ -361,6 +372,104 @@ impl BeamModel {
     }
 }
 
+/// Exposure of one chain of the drawing (`--chains`).
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct ChainExposure {
+    pub id: u64,
+    pub drawing_length_mm: f64,
+    /// Cuts matched to this chain, their beam-on length, and how much of
+    /// that was exposed or spilled onto beam-off path.
+    pub cuts: u64,
+    pub cut_length_mm: f64,
+    pub exposed_mm: f64,
+    pub overexposed_mm: f64,
+}
+
+impl ChainExposure {
+    /// Drawing length the beam did not cover (never negative).
+    pub fn unexposed_mm(&self) -> f64 {
+        (self.drawing_length_mm - self.exposed_mm).max(0.0)
+    }
+}
+
+fn segment_length(s: &Segment) -> f64 {
+    match *s {
+        Segment::Line { start, end } => Line3::new(start, end).length(),
+        Segment::Arc {
+            start,
+            end,
+            center,
+            ccw,
+        } => Arc3::new(center, start, end, ccw, Plane::Xy, 0).map_or(0.0, |a| a.length()),
+    }
+}
+
+/// Distance in XY from `p` to a segment (chains are planar drawings; the
+/// path may run at any depth below them).
+fn segment_distance(s: &Segment, p: &P3) -> f64 {
+    match *s {
+        Segment::Line { start, end } => Line3::new(start, end).distance(&P3::new(p.x, p.y, start.z)),
+        Segment::Arc {
+            start,
+            end,
+            center,
+            ccw,
+        } => Arc3::new(center, start, end, ccw, Plane::Xy, 0)
+            .and_then(|a| a.distance(&P3::new(p.x, p.y, start.z)))
+            .unwrap_or(f64::INFINITY),
+    }
+}
+
+/// Match each cut to the drawing chain most of its probe points lie on
+/// (within `tol` mm in XY), and total the exposure per chain. Chains no cut
+/// matched are wholly unexposed. Returns the chain index per cut and the
+/// per-chain figures in the drawing's order.
+pub fn match_chains(cuts: &[Cut], chains: &[Chain], tol: f64) -> (Vec<Option<usize>>, Vec<ChainExposure>) {
+    let mut out: Vec<ChainExposure> = chains
+        .iter()
+        .map(|c| ChainExposure {
+            id: c.id,
+            drawing_length_mm: c.segments.iter().map(segment_length).sum(),
+            ..Default::default()
+        })
+        .collect();
+    let mut which = Vec::with_capacity(cuts.len());
+    let mut votes = vec![0u32; chains.len()];
+    for cut in cuts {
+        votes.iter_mut().for_each(|v| *v = 0);
+        for p in &cut.probes {
+            let mut best = (f64::INFINITY, usize::MAX);
+            for (i, c) in chains.iter().enumerate() {
+                for s in &c.segments {
+                    let d = segment_distance(s, p);
+                    if d < best.0 {
+                        best = (d, i);
+                    }
+                }
+            }
+            if best.0 <= tol {
+                votes[best.1] += 1;
+            }
+        }
+        // Most votes wins; the first chain on a tie, so output is stable.
+        let m = votes
+            .iter()
+            .enumerate()
+            .filter(|(_, v)| **v > 0)
+            .max_by(|a, b| a.1.cmp(b.1).then(b.0.cmp(&a.0)))
+            .map(|(i, _)| i);
+        if let Some(i) = m {
+            let e = &mut out[i];
+            e.cuts += 1;
+            e.cut_length_mm += cut.length_mm;
+            e.exposed_mm += cut.exposed_mm;
+            e.overexposed_mm += cut.overexposed_mm;
+        }
+        which.push(m);
+    }
+    (which, out)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -382,8 +491,11 @@ mod tests {
     fn run(m: &Machine, timing: CommandTiming, moves: &[(f64, f64, bool)]) -> BeamModel {
         let mut tm = TimeModel::new(m);
         let mut bm = BeamModel::new(&m.shutter, timing);
+        let mut x = 0.0;
         for (i, &(l, f, beam)) in moves.iter().enumerate() {
             let mut b = Block::straight(MoveClass::Line, V3::new(l, 0.0, 0.0), f);
+            x += l;
+            b.end = P3::new(x, 0.0, 0.0);
             b.beam = beam;
             b.line = Some(i as u64 + 1);
             tm.push_move(b);
@@ -472,5 +584,38 @@ mod tests {
         assert_eq!(b.short_exposure_lines, [4]);
         let exposed: f64 = b.cuts.iter().map(|c| c.exposed_mm + c.unexposed_mm()).sum();
         assert!(close(exposed, b.intended_mm()));
+    }
+
+    #[test]
+    fn cuts_match_the_drawing_chains_they_lie_on() {
+        let m = machine(Controller::Lookahead);
+        // Cut 1 runs along y = 0 from x = 0 to 2, then a beam-off move, then
+        // cut 2 from x = 3 to 3.1.
+        let b = run(
+            &m,
+            CommandTiming::Boundary,
+            &[
+                (1.0, 10.0, true),
+                (1.0, 10.0, true),
+                (1.0, 10.0, false),
+                (0.1, 10.0, true),
+            ],
+        );
+        let line = |id, x0: f64, x1: f64| Chain {
+            id,
+            segments: vec![Segment::Line {
+                start: P3::new(x0, 0.0, 0.0),
+                end: P3::new(x1, 0.0, 0.0),
+            }],
+            ..Default::default()
+        };
+        let chains = [line(7, 0.0, 2.0), line(8, 2.95, 3.2), line(9, 10.0, 11.0)];
+        let (which, per) = match_chains(&b.cuts, &chains, 0.01);
+        assert_eq!(which, [Some(0), Some(1)]);
+        assert_eq!(per.iter().map(|c| c.cuts).collect::<Vec<_>>(), [1, 1, 0]);
+        assert!(close(per[0].unexposed_mm(), 2.0 - b.cuts[0].exposed_mm));
+        // The drawing's chain 8 is 0.25 mm, of which at most 0.1 was cut.
+        assert!(per[1].unexposed_mm() >= 0.15);
+        assert!(close(per[2].unexposed_mm(), 1.0));
     }
 }

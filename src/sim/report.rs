@@ -2,12 +2,13 @@
 //! time model and the beam model, with the per-block series written as it
 //! goes. Constant memory apart from one record per cut.
 
-use super::beam::{BeamModel, CommandTiming, EXAMPLES};
+use super::beam::{BeamModel, ChainExposure, CommandTiming, EXAMPLES, match_chains};
 use super::machine::{Controller, Machine};
 use super::summary::Summary;
 use super::time::{Block, Event, Limit, MoveClass, TimeModel, TimedBlock};
 use crate::formats::{push_num, push_str_lit, push_uint};
 use crate::geometry::{Arc3, BBox3, P3, V3};
+use crate::model::chain::Chain;
 use crate::model::toolpath::{Header, MotionKind, Record};
 use std::io::Write;
 use thiserror::Error;
@@ -166,6 +167,7 @@ impl<W: Write> Simulator<W> {
                             dir_out: arc.tangent_at(1.0).unwrap_or(V3::zeros()),
                             radius_mm: arc.radius(),
                             delta,
+                            end: m.to,
                             beam: false,
                             chain: None,
                         }
@@ -176,6 +178,7 @@ impl<W: Write> Simulator<W> {
                     }
                 };
                 block.line = m.block;
+                block.end = m.to;
                 block.beam = m.beam;
                 block.chain = m.chain;
                 self.pos = m.to;
@@ -260,6 +263,7 @@ impl<W: Write> Simulator<W> {
                 summary: self.summary,
                 time: self.stats,
                 beam: self.beam,
+                drawing: None,
             },
             self.blocks_csv,
         ))
@@ -303,6 +307,9 @@ pub struct Report {
     pub summary: Summary,
     pub time: TimeStats,
     pub beam: BeamModel,
+    /// With a drawing (`--chains`): the drawing chain index per cut and the
+    /// exposure per drawing chain.
+    pub drawing: Option<(Vec<Option<usize>>, Vec<ChainExposure>)>,
 }
 
 fn field(b: &mut String, k: &str, v: f64) {
@@ -313,6 +320,12 @@ fn field(b: &mut String, k: &str, v: f64) {
 }
 
 impl Report {
+    /// Compare the cuts with the drawing's chains (`tol` mm in XY).
+    pub fn with_drawing(mut self, chains: &[Chain], tol: f64) -> Report {
+        self.drawing = Some(match_chains(&self.beam.cuts, chains, tol));
+        self
+    }
+
     /// The report as one JSON object (`microcam.gsim/1`).
     pub fn to_json(&self, source: Option<&str>) -> String {
         let mut b = format!("{{\"schema\":\"{SCHEMA}\"");
@@ -418,6 +431,12 @@ impl Report {
                 b.push_str(",\"last_line\":");
                 push_uint(b, l);
             }
+            if let Some((which, per)) = &self.drawing
+                && let Some(Some(k)) = which.get(i)
+            {
+                b.push_str(",\"drawing_chain\":");
+                push_uint(b, per[*k].id);
+            }
             field(b, "length_mm", c.length_mm);
             field(b, "exposed_mm", c.exposed_mm);
             field(b, "unexposed_mm", c.unexposed_mm());
@@ -425,6 +444,31 @@ impl Report {
             field(b, "stationary_exposure_s", c.stationary_exposure_s);
             b.push('}');
         }
-        b.push_str("]}");
+        b.push(']');
+        if let Some((_, per)) = &self.drawing {
+            field(b, "drawing_length_mm", per.iter().map(|c| c.drawing_length_mm).sum());
+            field(
+                b,
+                "drawing_unexposed_length_mm",
+                per.iter().map(|c| c.unexposed_mm()).sum(),
+            );
+            b.push_str(",\"chains\":[");
+            for (i, c) in per.iter().enumerate() {
+                if i > 0 {
+                    b.push(',');
+                }
+                b.push_str("{\"chain\":");
+                push_uint(b, c.id);
+                field(b, "drawing_length_mm", c.drawing_length_mm);
+                field(b, "cuts", c.cuts as f64);
+                field(b, "cut_length_mm", c.cut_length_mm);
+                field(b, "exposed_mm", c.exposed_mm);
+                field(b, "unexposed_mm", c.unexposed_mm());
+                field(b, "overexposed_mm", c.overexposed_mm);
+                b.push('}');
+            }
+            b.push(']');
+        }
+        b.push('}');
     }
 }

@@ -106,6 +106,8 @@ pub struct Block {
     pub radius_mm: f64,
     /// End minus start, for the per-axis rapid model.
     pub delta: V3,
+    /// End point (mm), for matching cuts to drawing chains.
+    pub end: crate::geometry::P3,
     pub beam: bool,
     pub chain: Option<u64>,
 }
@@ -124,6 +126,7 @@ impl Block {
             dir_out: dir,
             radius_mm: f64::INFINITY,
             delta,
+            end: crate::geometry::P3::from(delta),
             beam: false,
             chain: None,
         }
