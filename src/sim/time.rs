@@ -990,4 +990,110 @@ mod tests {
         assert!(close(t[0].achieved_feed_mm_s, 5.0, 1e-12));
         assert_eq!(t[0].limited_by, Limit::Centripetal);
     }
+
+    mod props {
+        use super::*;
+        use proptest::prelude::*;
+
+        /// (kind, length, heading, feed, radius): kind 0-4 line, 5 rapid,
+        /// 6-7 arc, 8 dwell, 9 TA change.
+        fn step() -> impl Strategy<Value = (u8, f64, f64, f64, f64)> {
+            (
+                0u8..10,
+                prop_oneof![Just(0.0), 0.0..3.0f64],
+                0.0..6.3f64,
+                0.1..50.0f64,
+                0.05..5.0f64,
+            )
+        }
+
+        fn check_stream(m: &Machine, steps: &[(u8, f64, f64, f64, f64)]) {
+            let mut tm = TimeModel::new(m);
+            let mut dir = V3::x();
+            for &(k, l, h, f, r) in steps {
+                let d = V3::new(h.cos(), h.sin(), 0.0);
+                match k {
+                    8 => tm.push_dwell(l * 0.01, None),
+                    // A PMAC with zero acceleration time jumps in speed; not tested.
+                    9 => tm.set_accel(Some(1.0 + l * 50.0), Some(l * 10.0)),
+                    5 => tm.push_move(Block::straight(MoveClass::Rapid, d * l, 0.0)),
+                    6 | 7 => {
+                        // An arc turning by up to a right angle.
+                        let mut b = Block::straight(MoveClass::Arc, d * l, f);
+                        b.dir_in = dir;
+                        b.dir_out = d;
+                        b.radius_mm = r;
+                        if l == 0.0 {
+                            b.dir_in = V3::zeros();
+                            b.dir_out = V3::zeros();
+                        }
+                        tm.push_move(b);
+                    }
+                    _ => tm.push_move(Block::straight(MoveClass::Line, d * l, f)),
+                }
+                if l > 0.0 && k != 8 && k != 9 {
+                    dir = d;
+                }
+            }
+            tm.finish();
+            let (mut now, mut v) = (0.0_f64, 0.0_f64);
+            while let Some(e) = tm.pop() {
+                match e {
+                    Event::Dwell { t_start_s, seconds, .. } => {
+                        assert!(close(t_start_s, now, 1e-9) && v.abs() < 1e-9, "dwell while moving");
+                        now += seconds;
+                    }
+                    Event::Block(b) => {
+                        assert!(close(b.t_start_s, now, 1e-9));
+                        let dist: f64 = b.pieces().iter().map(|p| p.distance()).sum();
+                        assert!(close(dist, b.block.length_mm, 1e-9 * (1.0 + b.block.length_mm)));
+                        assert!(b.time_s >= 0.0 && b.time_s.is_finite());
+                        for p in b.pieces() {
+                            assert!(close(p.v0, v, 1e-9 * (1.0 + v)), "speed jumps {v} -> {}", p.v0);
+                            assert!(p.v0 >= -1e-12 && p.v1 >= -1e-12 && p.dt > 0.0);
+                            if m.controller == Controller::Lookahead {
+                                let acc = (p.v1 - p.v0).abs() / p.dt;
+                                assert!(acc <= m.accel_mm_s2 * (1.0 + 1e-6), "accel {acc}");
+                            }
+                            v = p.v1;
+                        }
+                        // A zero-length block only passes on the speed around it.
+                        if b.block.class != MoveClass::Rapid && b.block.length_mm > 0.0 {
+                            let cap = b.commanded_feed_mm_s.min(m.max_feed_mm_s);
+                            assert!(
+                                b.achieved_feed_mm_s <= cap * (1.0 + 1e-9),
+                                "{} > {cap}",
+                                b.achieved_feed_mm_s
+                            );
+                            let reached = b.achieved_feed_mm_s >= b.commanded_feed_mm_s * (1.0 - 1e-9);
+                            assert!((b.limited_by == Limit::None) == reached, "{b:?}");
+                        }
+                        now += b.time_s;
+                    }
+                }
+            }
+            assert!(v.abs() < 1e-9, "ends moving at {v}");
+            assert!(close(now, tm.now_s(), 1e-9));
+        }
+
+        proptest! {
+            #![proptest_config(ProptestConfig::with_cases(256))]
+
+            #[test]
+            fn lookahead_streams_are_consistent(steps in prop::collection::vec(step(), 1..40)) {
+                let mut m = machine(Controller::Lookahead);
+                m.max_feed_mm_s = 30.0;
+                m.block_rate_hz = 200.0;
+                m.lookahead_blocks = 4;
+                check_stream(&m, &steps);
+            }
+
+            #[test]
+            fn pmac_streams_are_consistent(steps in prop::collection::vec(step(), 1..40)) {
+                let mut m = machine(Controller::Pmac);
+                m.max_feed_mm_s = 30.0;
+                check_stream(&m, &steps);
+            }
+        }
+    }
 }
