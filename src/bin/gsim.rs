@@ -12,6 +12,7 @@ use microcam::model::toolpath::FeedUnit;
 use microcam::sim::beam::CommandTiming;
 use microcam::sim::machine::{Controller, Machine, Overrides};
 use microcam::sim::report::{SimError, Simulator};
+use microcam::sim::stock::{Cutter, Stock};
 use microcam::source::ToolpathSource;
 use std::io::Write;
 use std::path::PathBuf;
@@ -112,6 +113,23 @@ struct Args {
     /// still count as cutting it.
     #[arg(long, default_value_t = 0.1)]
     chain_tol_mm: f64,
+    /// Stock box for material removal, mm: XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX.
+    #[arg(
+        long,
+        value_name = "X0,Y0,Z0,X1,Y1,Z1",
+        allow_hyphen_values = true,
+        requires = "tool"
+    )]
+    stock: Option<String>,
+    /// Cutter for material removal: flat:D, ball:D or torus:D:RC (mm).
+    #[arg(long, requires = "stock")]
+    tool: Option<String>,
+    /// Height-field cell size, mm (default: tool diameter / 50).
+    #[arg(long)]
+    cell_mm: Option<f64>,
+    /// Per-block removed volume as CSV (needs --stock).
+    #[arg(long, value_name = "FILE.csv", requires = "stock")]
+    removal: Option<PathBuf>,
     /// Machine travel, mm: XMIN,XMAX,YMIN,YMAX,ZMIN,ZMAX.
     #[arg(long, value_name = "XMIN,XMAX,YMIN,YMAX,ZMIN,ZMAX", allow_hyphen_values = true)]
     limits: Option<String>,
@@ -122,15 +140,20 @@ fn main() -> ExitCode {
     cli::run("gsim", || run(args))
 }
 
-/// `--limits`: six comma-separated numbers.
-fn parse_limits(s: &str) -> Result<[f64; 6], CliError> {
+/// `N` comma-separated numbers for option `opt`.
+fn parse_numbers<const N: usize>(s: &str, opt: &str, form: &str) -> Result<[f64; N], CliError> {
     let v: Vec<f64> = s
         .split(',')
         .map(|x| x.trim().parse::<f64>())
         .collect::<Result<_, _>>()
-        .map_err(|e| CliError::input(format!("--limits '{s}': {e}")))?;
+        .map_err(|e| CliError::input(format!("{opt} '{s}': {e}")))?;
     v.try_into()
-        .map_err(|_| CliError::input(format!("--limits '{s}': six numbers XMIN,XMAX,YMIN,YMAX,ZMIN,ZMAX")))
+        .map_err(|_| CliError::input(format!("{opt} '{s}': {N} numbers {form}")))
+}
+
+/// `--limits`: six comma-separated numbers.
+fn parse_limits(s: &str) -> Result<[f64; 6], CliError> {
+    parse_numbers::<6>(s, "--limits", "XMIN,XMAX,YMIN,YMAX,ZMIN,ZMAX")
 }
 
 /// All chains of a drawing.
@@ -206,16 +229,25 @@ fn run(args: Args) -> Result<(), CliError> {
         let src_name = source.name().to_string();
         let header = source.header.clone();
         let mut sim = Simulator::new(&header, machine, timing, start, csv);
+        if let (Some(st), Some(tool)) = (args.stock.as_deref(), args.tool.as_deref()) {
+            let cutter = Cutter::parse(tool).map_err(|e| CliError::input(format!("--tool: {e}")))?;
+            let b = parse_numbers::<6>(st, "--stock", "X0,Y0,Z0,X1,Y1,Z1")?;
+            let cell = args.cell_mm.unwrap_or(cutter.radius() / 25.0);
+            let stock = Stock::new(P3::new(b[0], b[1], b[2]), P3::new(b[3], b[4], b[5]), cell)
+                .map_err(|e| CliError::input(format!("--stock: {e}")))?;
+            let rcsv = args.removal.as_deref().map(|p| Output::new(Some(p)));
+            sim = sim.with_removal(stock, cutter, rcsv);
+        }
         for rec in source {
             sim.add(&rec?).map_err(|e| sim_error(&src_name, e))?;
         }
-        let (mut report, csv) = sim.finish().map_err(|e| sim_error(&src_name, e))?;
+        let (mut report, csv, rcsv) = sim.finish().map_err(|e| sim_error(&src_name, e))?;
         if let Some(p) = args.chains.as_deref() {
             report = report.with_drawing(&read_chains(p)?, args.chain_tol_mm);
         }
         writeln!(out, "{}", report.to_json(name.as_deref()))?;
-        if let Some(csv) = csv {
-            csv.commit()?;
+        for w in [csv, rcsv].into_iter().flatten() {
+            w.commit()?;
         }
     }
     out.commit()

@@ -4,6 +4,7 @@
 
 use super::beam::{BeamModel, ChainExposure, CommandTiming, EXAMPLES, match_chains};
 use super::machine::{Controller, Machine};
+use super::stock::{Cutter, Stock};
 use super::summary::Summary;
 use super::time::{Block, Event, Limit, MoveClass, TimeModel, TimedBlock};
 use crate::formats::{push_num, push_str_lit, push_uint};
@@ -55,6 +56,29 @@ pub struct TimeStats {
     pub min_achieved_feed_mm_s: Option<f64>,
 }
 
+/// Material removal figures.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct RemovalStats {
+    pub initial_volume_mm3: f64,
+    pub removed_volume_mm3: f64,
+    pub max_block_volume_mm3: f64,
+    pub max_block_line: Option<u64>,
+    /// Rapids that removed material (a crash on a real machine).
+    pub rapids_in_material: u64,
+    pub rapid_lines: Vec<u64>,
+}
+
+/// Stock, cutter and the per-block removal series.
+pub struct Removal<W: Write> {
+    pub stock: Stock,
+    pub cutter: Cutter,
+    pub csv: Option<W>,
+    pub stats: RemovalStats,
+}
+
+/// The header row of the `--removal` CSV.
+pub const REMOVAL_HEADER: &str = "line,kind,length_mm,removed_volume_mm3,removed_per_length_mm2\n";
+
 /// The whole simulation, fed one record at a time.
 pub struct Simulator<W: Write> {
     machine: Machine,
@@ -67,6 +91,7 @@ pub struct Simulator<W: Write> {
     stats: TimeStats,
     blocks_csv: Option<W>,
     row: String,
+    removal: Option<Removal<W>>,
 }
 
 impl<W: Write> Simulator<W> {
@@ -94,7 +119,27 @@ impl<W: Write> Simulator<W> {
             blocks_csv: csv,
             row,
             machine,
+            removal: None,
         }
+    }
+
+    /// Also remove material from `stock` with `cutter`, writing the
+    /// per-block volumes to `csv`.
+    pub fn with_removal(mut self, stock: Stock, cutter: Cutter, mut csv: Option<W>) -> Self {
+        if let Some(w) = csv.as_mut() {
+            let _ = w.write_all(REMOVAL_HEADER.as_bytes());
+        }
+        let stats = RemovalStats {
+            initial_volume_mm3: stock.volume(),
+            ..Default::default()
+        };
+        self.removal = Some(Removal {
+            stock,
+            cutter,
+            csv,
+            stats,
+        });
+        self
     }
 
     fn err(&self, line: Option<u64>, msg: String) -> SimError {
@@ -181,6 +226,9 @@ impl<W: Write> Simulator<W> {
                 block.end = m.to;
                 block.beam = m.beam;
                 block.chain = m.chain;
+                if let Some(r) = self.removal.as_mut() {
+                    r.cut(&block, &from, &m.to, &m.kind)?;
+                }
                 self.pos = m.to;
                 self.time.push_move(block);
             }
@@ -248,7 +296,10 @@ impl<W: Write> Simulator<W> {
     }
 
     /// Bring the machine to rest and close the books.
-    pub fn finish(mut self) -> Result<(Report, Option<W>), SimError> {
+    /// Returns the report and the two series writers (blocks, removal) for
+    /// the caller to commit.
+    #[allow(clippy::type_complexity)]
+    pub fn finish(mut self) -> Result<(Report, Option<W>, Option<W>), SimError> {
         self.time.finish();
         self.drain()?;
         let t_end = self.time.now_s();
@@ -257,6 +308,15 @@ impl<W: Write> Simulator<W> {
         if let Some(w) = self.blocks_csv.as_mut() {
             w.flush()?;
         }
+        let (removal, removal_csv) = match self.removal {
+            Some(mut r) => {
+                if let Some(w) = r.csv.as_mut() {
+                    w.flush()?;
+                }
+                (Some((r.stats, r.stock)), r.csv)
+            }
+            None => (None, None),
+        };
         Ok((
             Report {
                 machine: self.machine,
@@ -264,9 +324,61 @@ impl<W: Write> Simulator<W> {
                 time: self.stats,
                 beam: self.beam,
                 drawing: None,
+                removal,
             },
             self.blocks_csv,
+            removal_csv,
         ))
+    }
+}
+
+impl<W: Write> Removal<W> {
+    fn cut(&mut self, block: &Block, from: &P3, to: &P3, kind: &MotionKind) -> Result<(), SimError> {
+        let v = match kind {
+            MotionKind::Arc(a) => match Arc3::new(a.center, *from, *to, a.ccw, a.plane, a.extra_turns) {
+                Some(arc) => self.stock.cut_arc(&arc, &self.cutter),
+                None => 0.0,
+            },
+            _ => self.stock.cut_line(from, to, &self.cutter),
+        };
+        let s = &mut self.stats;
+        s.removed_volume_mm3 += v;
+        if v > s.max_block_volume_mm3 {
+            s.max_block_volume_mm3 = v;
+            s.max_block_line = block.line;
+        }
+        if block.class == MoveClass::Rapid && v > 0.0 {
+            s.rapids_in_material += 1;
+            if let Some(l) = block.line
+                && s.rapid_lines.len() < EXAMPLES
+            {
+                s.rapid_lines.push(l);
+            }
+        }
+        if let Some(w) = self.csv.as_mut() {
+            let mut b = String::with_capacity(64);
+            if let Some(l) = block.line {
+                push_uint(&mut b, l);
+            }
+            b.push(',');
+            b.push_str(block.class.name());
+            b.push(',');
+            push_num(&mut b, block.length_mm);
+            b.push(',');
+            push_num(&mut b, v);
+            b.push(',');
+            push_num(
+                &mut b,
+                if block.length_mm > 0.0 {
+                    v / block.length_mm
+                } else {
+                    0.0
+                },
+            );
+            b.push('\n');
+            w.write_all(b.as_bytes())?;
+        }
+        Ok(())
     }
 }
 
@@ -310,6 +422,8 @@ pub struct Report {
     /// With a drawing (`--chains`): the drawing chain index per cut and the
     /// exposure per drawing chain.
     pub drawing: Option<(Vec<Option<usize>>, Vec<ChainExposure>)>,
+    /// With a stock (`--stock`): removal figures and the final stock.
+    pub removal: Option<(RemovalStats, Stock)>,
 }
 
 fn field(b: &mut String, k: &str, v: f64) {
@@ -385,6 +499,31 @@ impl Report {
         }
         b.push(']');
         self.push_beam(&mut b);
+        if let Some((r, stock)) = &self.removal {
+            b.push_str(",\"removal\":{\"cells\":[");
+            push_uint(&mut b, stock.nx as u64);
+            b.push(',');
+            push_uint(&mut b, stock.ny as u64);
+            b.push(']');
+            field(&mut b, "cell_mm", stock.cell);
+            field(&mut b, "initial_volume_mm3", r.initial_volume_mm3);
+            field(&mut b, "removed_volume_mm3", r.removed_volume_mm3);
+            field(&mut b, "final_volume_mm3", stock.volume());
+            field(&mut b, "max_block_volume_mm3", r.max_block_volume_mm3);
+            if let Some(l) = r.max_block_line {
+                b.push_str(",\"max_block_line\":");
+                push_uint(&mut b, l);
+            }
+            field(&mut b, "rapids_in_material", r.rapids_in_material as f64);
+            b.push_str(",\"rapid_in_material_lines\":[");
+            for (i, l) in r.rapid_lines.iter().enumerate() {
+                if i > 0 {
+                    b.push(',');
+                }
+                push_uint(&mut b, *l);
+            }
+            b.push_str("]}");
+        }
         b.push('}');
         b
     }
