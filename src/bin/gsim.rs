@@ -11,7 +11,7 @@ use microcam::model::chain::Chain;
 use microcam::model::toolpath::FeedUnit;
 use microcam::sim::beam::CommandTiming;
 use microcam::sim::machine::{Controller, Machine, Overrides};
-use microcam::sim::report::{SimError, Simulator};
+use microcam::sim::report::{SimError, Simulator, StepPlan};
 use microcam::sim::stock::{Cutter, Stock};
 use microcam::source::ToolpathSource;
 use std::io::Write;
@@ -130,6 +130,19 @@ struct Args {
     /// Per-block removed volume as CSV (needs --stock).
     #[arg(long, value_name = "FILE.csv", requires = "stock")]
     removal: Option<PathBuf>,
+    /// Cutter flutes: cut feed moves in steps of feed per tooth × --step-scale
+    /// and report chip volume per step (seed 000 §3.1).
+    #[arg(long, requires = "stock")]
+    flutes: Option<u32>,
+    /// Steps are this many feeds per tooth long.
+    #[arg(long, default_value_t = 10.0, requires = "flutes")]
+    step_scale: f64,
+    /// Spindle speed, rpm, overriding the program's S words.
+    #[arg(long, requires = "flutes")]
+    rpm: Option<f64>,
+    /// Per-step chip volume as CSV (needs --flutes).
+    #[arg(long, value_name = "FILE.csv", requires = "flutes")]
+    steps: Option<PathBuf>,
     /// Machine travel, mm: XMIN,XMAX,YMIN,YMAX,ZMIN,ZMAX.
     #[arg(long, value_name = "XMIN,XMAX,YMIN,YMAX,ZMIN,ZMAX", allow_hyphen_values = true)]
     limits: Option<String>,
@@ -237,16 +250,27 @@ fn run(args: Args) -> Result<(), CliError> {
                 .map_err(|e| CliError::input(format!("--stock: {e}")))?;
             let rcsv = args.removal.as_deref().map(|p| Output::new(Some(p)));
             sim = sim.with_removal(stock, cutter, rcsv);
+            if let Some(flutes) = args.flutes {
+                if flutes == 0 || !(args.step_scale.is_finite() && args.step_scale > 0.0) {
+                    return Err(CliError::input("--flutes and --step-scale must be positive"));
+                }
+                let plan = StepPlan {
+                    flutes,
+                    scale: args.step_scale,
+                    rpm: args.rpm,
+                };
+                sim = sim.with_steps(plan, args.steps.as_deref().map(|p| Output::new(Some(p))));
+            }
         }
         for rec in source {
             sim.add(&rec?).map_err(|e| sim_error(&src_name, e))?;
         }
-        let (mut report, csv, rcsv) = sim.finish().map_err(|e| sim_error(&src_name, e))?;
+        let (mut report, series) = sim.finish().map_err(|e| sim_error(&src_name, e))?;
         if let Some(p) = args.chains.as_deref() {
             report = report.with_drawing(&read_chains(p)?, args.chain_tol_mm);
         }
         writeln!(out, "{}", report.to_json(name.as_deref()))?;
-        for w in [csv, rcsv].into_iter().flatten() {
+        for w in series.into_iter().flatten() {
             w.commit()?;
         }
     }

@@ -68,16 +68,38 @@ pub struct RemovalStats {
     pub rapid_lines: Vec<u64>,
 }
 
+/// Per-step chip volume (seed 000 §3.1): moves are cut in steps of feed
+/// per tooth × `scale`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct StepPlan {
+    pub flutes: u32,
+    pub scale: f64,
+    /// Spindle speed overriding the program's S words, rpm.
+    pub rpm: Option<f64>,
+}
+
 /// Stock, cutter and the per-block removal series.
 pub struct Removal<W: Write> {
     pub stock: Stock,
     pub cutter: Cutter,
     pub csv: Option<W>,
     pub stats: RemovalStats,
+    pub steps: Option<StepPlan>,
+    pub steps_csv: Option<W>,
+    /// The program's spindle speed so far.
+    pub rpm: Option<f64>,
+    /// The CSV header depends on whether steps are on: written with the
+    /// first row.
+    header_written: bool,
 }
 
+/// The header row of the `--steps` CSV.
+pub const STEPS_HEADER: &str = "line,step,x_mm,y_mm,z_mm,step_length_mm,chip_volume_mm3\n";
+
 /// The header row of the `--removal` CSV.
-pub const REMOVAL_HEADER: &str = "line,kind,length_mm,removed_volume_mm3,removed_per_length_mm2\n";
+pub const REMOVAL_HEADER: &str = "line,kind,length_mm,removed_volume_mm3,removed_per_length_mm2";
+/// Columns added to the `--removal` CSV when moves are cut in steps.
+pub const REMOVAL_STEP_COLUMNS: &str = ",steps,mean_step_volume_mm3,max_step_volume_mm3";
 
 /// The whole simulation, fed one record at a time.
 pub struct Simulator<W: Write> {
@@ -125,10 +147,7 @@ impl<W: Write> Simulator<W> {
 
     /// Also remove material from `stock` with `cutter`, writing the
     /// per-block volumes to `csv`.
-    pub fn with_removal(mut self, stock: Stock, cutter: Cutter, mut csv: Option<W>) -> Self {
-        if let Some(w) = csv.as_mut() {
-            let _ = w.write_all(REMOVAL_HEADER.as_bytes());
-        }
+    pub fn with_removal(mut self, stock: Stock, cutter: Cutter, csv: Option<W>) -> Self {
         let stats = RemovalStats {
             initial_volume_mm3: stock.volume(),
             ..Default::default()
@@ -138,7 +157,24 @@ impl<W: Write> Simulator<W> {
             cutter,
             csv,
             stats,
+            steps: None,
+            steps_csv: None,
+            rpm: None,
+            header_written: false,
         });
+        self
+    }
+
+    /// Cut feed moves in steps of feed per tooth × scale and write each
+    /// step's chip volume to `csv`. Call after [`Self::with_removal`].
+    pub fn with_steps(mut self, plan: StepPlan, mut csv: Option<W>) -> Self {
+        if let Some(r) = self.removal.as_mut() {
+            if let Some(w) = csv.as_mut() {
+                let _ = w.write_all(STEPS_HEADER.as_bytes());
+            }
+            r.steps = Some(plan);
+            r.steps_csv = csv;
+        }
         self
     }
 
@@ -227,7 +263,11 @@ impl<W: Write> Simulator<W> {
                 block.beam = m.beam;
                 block.chain = m.chain;
                 if let Some(r) = self.removal.as_mut() {
-                    r.cut(&block, &from, &m.to, &m.kind)?;
+                    let index = self.index;
+                    r.cut(&block, &from, &m.to, &m.kind).map_err(|e| match e {
+                        SimError::Record { msg, .. } => SimError::Record { index, msg },
+                        e => e,
+                    })?;
                 }
                 self.pos = m.to;
                 self.time.push_move(block);
@@ -239,7 +279,12 @@ impl<W: Write> Simulator<W> {
                 self.time.push_dwell(*seconds, *block);
             }
             Record::Accel { ta_ms, ts_ms, .. } => self.time.set_accel(*ta_ms, *ts_ms),
-            Record::Spindle { .. } | Record::Var { .. } => {}
+            Record::Spindle { rpm, .. } => {
+                if let Some(r) = self.removal.as_mut() {
+                    r.rpm = Some(*rpm);
+                }
+            }
+            Record::Var { .. } => {}
         }
         self.drain()
     }
@@ -296,10 +341,9 @@ impl<W: Write> Simulator<W> {
     }
 
     /// Bring the machine to rest and close the books.
-    /// Returns the report and the two series writers (blocks, removal) for
-    /// the caller to commit.
-    #[allow(clippy::type_complexity)]
-    pub fn finish(mut self) -> Result<(Report, Option<W>, Option<W>), SimError> {
+    /// Returns the report and the series writers (blocks, removal, steps)
+    /// for the caller to commit.
+    pub fn finish(mut self) -> Result<(Report, [Option<W>; 3]), SimError> {
         self.time.finish();
         self.drain()?;
         let t_end = self.time.now_s();
@@ -308,14 +352,14 @@ impl<W: Write> Simulator<W> {
         if let Some(w) = self.blocks_csv.as_mut() {
             w.flush()?;
         }
-        let (removal, removal_csv) = match self.removal {
+        let (removal, removal_csv, steps_csv) = match self.removal {
             Some(mut r) => {
-                if let Some(w) = r.csv.as_mut() {
+                for w in [r.csv.as_mut(), r.steps_csv.as_mut()].into_iter().flatten() {
                     w.flush()?;
                 }
-                (Some((r.stats, r.stock)), r.csv)
+                (Some((r.stats, r.stock)), r.csv, r.steps_csv)
             }
-            None => (None, None),
+            None => (None, None, None),
         };
         Ok((
             Report {
@@ -326,21 +370,83 @@ impl<W: Write> Simulator<W> {
                 drawing: None,
                 removal,
             },
-            self.blocks_csv,
-            removal_csv,
+            [self.blocks_csv, removal_csv, steps_csv],
         ))
     }
 }
 
 impl<W: Write> Removal<W> {
+    /// Length of one step for `block`, when steps are asked for.
+    fn step_length(&self, block: &Block) -> Result<Option<f64>, SimError> {
+        let Some(plan) = &self.steps else { return Ok(None) };
+        if block.class == MoveClass::Rapid {
+            return Ok(None);
+        }
+        let rpm = plan.rpm.or(self.rpm).filter(|r| *r > 0.0).ok_or_else(|| {
+            let msg = "chip volume per step needs a spindle speed (S in the program, or --rpm)".to_string();
+            match block.line {
+                Some(line) => SimError::Line { line, msg },
+                None => SimError::Record { index: 0, msg },
+            }
+        })?;
+        let per_tooth = block.feed_mm_s / (rpm / 60.0 * plan.flutes as f64);
+        Ok(Some(per_tooth * plan.scale))
+    }
+
     fn cut(&mut self, block: &Block, from: &P3, to: &P3, kind: &MotionKind) -> Result<(), SimError> {
-        let v = match kind {
-            MotionKind::Arc(a) => match Arc3::new(a.center, *from, *to, a.ccw, a.plane, a.extra_turns) {
-                Some(arc) => self.stock.cut_arc(&arc, &self.cutter),
-                None => 0.0,
-            },
-            _ => self.stock.cut_line(from, to, &self.cutter),
+        let arc = match kind {
+            MotionKind::Arc(a) => Arc3::new(a.center, *from, *to, a.ccw, a.plane, a.extra_turns),
+            _ => None,
         };
+        let step = self.step_length(block)?;
+        let n = match step {
+            Some(st) if block.length_mm > 0.0 => ((block.length_mm / st).ceil() as usize).clamp(1, 1 << 24),
+            _ => 1,
+        };
+        // Sub-arcs are built without extra turns: keep each under a turn.
+        let n = match &arc {
+            Some(a) if n > 1 => n.max(4 * (a.extra_turns as usize + 1)),
+            _ => n,
+        };
+        let (mut v, mut vmax) = (0.0_f64, 0.0_f64);
+        let mut prev = *from;
+        for k in 1..=n {
+            let t = k as f64 / n as f64;
+            let (p, vk) = match &arc {
+                Some(a) => {
+                    let p = if k == n { *to } else { a.point_at(t) };
+                    let sub = if n == 1 {
+                        Some(*a)
+                    } else {
+                        Arc3::new(a.center, prev, p, a.ccw, a.plane, 0)
+                    };
+                    (p, sub.map_or(0.0, |sa| self.stock.cut_arc(&sa, &self.cutter)))
+                }
+                None => {
+                    let p = if k == n { *to } else { from + (to - from) * t };
+                    (p, self.stock.cut_line(&prev, &p, &self.cutter))
+                }
+            };
+            if step.is_some()
+                && let Some(w) = self.steps_csv.as_mut()
+            {
+                let mut b = String::with_capacity(80);
+                if let Some(l) = block.line {
+                    push_uint(&mut b, l);
+                }
+                b.push(',');
+                push_uint(&mut b, k as u64);
+                for c in [p.x, p.y, p.z, block.length_mm / n as f64, vk] {
+                    b.push(',');
+                    push_num(&mut b, c);
+                }
+                b.push('\n');
+                w.write_all(b.as_bytes())?;
+            }
+            v += vk;
+            vmax = vmax.max(vk);
+            prev = p;
+        }
         let s = &mut self.stats;
         s.removed_volume_mm3 += v;
         if v > s.max_block_volume_mm3 {
@@ -357,6 +463,14 @@ impl<W: Write> Removal<W> {
         }
         if let Some(w) = self.csv.as_mut() {
             let mut b = String::with_capacity(64);
+            if !self.header_written {
+                self.header_written = true;
+                b.push_str(REMOVAL_HEADER);
+                if self.steps.is_some() {
+                    b.push_str(REMOVAL_STEP_COLUMNS);
+                }
+                b.push('\n');
+            }
             if let Some(l) = block.line {
                 push_uint(&mut b, l);
             }
@@ -375,6 +489,14 @@ impl<W: Write> Removal<W> {
                     0.0
                 },
             );
+            if step.is_some() {
+                b.push(',');
+                push_uint(&mut b, n as u64);
+                b.push(',');
+                push_num(&mut b, v / n as f64);
+                b.push(',');
+                push_num(&mut b, vmax);
+            }
             b.push('\n');
             w.write_all(b.as_bytes())?;
         }
@@ -609,5 +731,143 @@ impl Report {
             b.push(']');
         }
         b.push('}');
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::gcode::{ReadOptions, read_str};
+    use crate::model::toolpath::{FeedUnit, Motion};
+
+    fn sim(text: &str, machine: Machine) -> Result<(Report, [Option<Vec<u8>>; 3]), SimError> {
+        let (d, recs) = read_str(text, &ReadOptions::default()).unwrap();
+        let header = Header {
+            feed_unit: d.feed_unit(),
+            source: None,
+        };
+        let mut s = Simulator::new(&header, machine, CommandTiming::Sync, P3::origin(), Some(Vec::new()));
+        for r in &recs {
+            s.add(r)?;
+        }
+        s.finish()
+    }
+
+    #[test]
+    fn times_add_up_and_the_series_has_a_row_per_block() {
+        let mut m = Machine::builtin("lookahead");
+        m.accel_mm_s2 = 100.0;
+        m.block_rate_hz = 0.0;
+        // 10 mm at 600 mm/min = 10 mm/s: 1.1 s; G4 P0.5; rapid back.
+        let (r, [csv, ..]) = sim("G1 X10 F600\nG4 P0.5\nG0 X0\n", m).unwrap();
+        assert!((r.time.cutting_time_s - 1.1).abs() < 1e-12);
+        assert_eq!(r.time.dwell_time_s, 0.5);
+        let total = r.time.cutting_time_s + r.time.dwell_time_s + r.time.rapid_time_s;
+        assert!((r.time.cycle_time_s - total).abs() < 1e-12);
+        assert!((r.time.ideal_cutting_time_s - 1.0).abs() < 1e-12);
+        let csv = String::from_utf8(csv.unwrap()).unwrap();
+        let rows: Vec<&str> = csv.lines().collect();
+        assert_eq!(rows[0], BLOCKS_HEADER.trim_end());
+        assert_eq!(rows[1], "1,line,10,10,10,1.1,");
+        assert_eq!(rows[2], "2,dwell,0,,,0.5,");
+        assert!(rows[3].starts_with("3,rapid,10,100,"));
+        assert_eq!(rows.len(), 4);
+    }
+
+    #[test]
+    fn bad_programs_name_their_line() {
+        let mut m = Machine::builtin("lookahead");
+        m.limits_min_mm = Some([0.0, 0.0, -5.0]);
+        m.limits_max_mm = Some([10.0, 10.0, 5.0]);
+        // The arc's end is inside but its extent is not.
+        let e = sim("G1 X5 Y5 F100\nG2 X5 Y5 I3 J0\n", m.clone()).err().unwrap();
+        assert!(e.to_string().starts_with("line 2: move reaches X11"), "{e}");
+        let e = sim("G1 X5 F100\nG0 Z6\n", m).err().unwrap();
+        assert!(e.to_string().starts_with("line 2:"), "{e}");
+        // A toolpath record with no feed on a feed move.
+        let h = Header {
+            feed_unit: FeedUnit::MmPerS,
+            source: None,
+        };
+        let mut s: Simulator<Vec<u8>> = Simulator::new(
+            &h,
+            Machine::builtin("laser-stage"),
+            CommandTiming::Sync,
+            P3::origin(),
+            None,
+        );
+        let rec = Record::Move(Motion {
+            kind: MotionKind::Line,
+            to: P3::new(1.0, 0.0, 0.0),
+            feed: Some(0.0),
+            beam: false,
+            role: None,
+            chain: None,
+            block: None,
+        });
+        let e = s.add(&rec).unwrap_err().to_string();
+        assert_eq!(e, "record 1: feed move with feed 0");
+    }
+
+    #[test]
+    fn steps_split_blocks_by_feed_per_tooth_and_add_up() {
+        // 2 mm/s at 60,000 rpm with 2 flutes: 1 µm per tooth, steps of 10 µm.
+        let text = "G0 Z1\nS60000\nG1 Z-0.1 F120\nG1 X0.5\n";
+        let (d, recs) = read_str(text, &ReadOptions::default()).unwrap();
+        let header = Header {
+            feed_unit: d.feed_unit(),
+            source: None,
+        };
+        let stock = Stock::new(P3::new(-1.0, -1.0, -1.0), P3::new(2.0, 1.0, 0.0), 0.01).unwrap();
+        let mut s = Simulator::new(
+            &header,
+            Machine::builtin("lookahead"),
+            CommandTiming::Sync,
+            P3::origin(),
+            None,
+        )
+        .with_removal(stock, Cutter::Flat { radius: 0.397 }, Some(Vec::new()))
+        .with_steps(
+            StepPlan {
+                flutes: 2,
+                scale: 10.0,
+                rpm: None,
+            },
+            Some(Vec::new()),
+        );
+        for r in &recs {
+            s.add(r).unwrap();
+        }
+        let (r, [_, removal, steps]) = s.finish().unwrap();
+        let steps = String::from_utf8(steps.unwrap()).unwrap();
+        let of_line = |l: &str| -> Vec<f64> {
+            steps
+                .lines()
+                .skip(1)
+                .filter(|row| row.split(',').next() == Some(l))
+                .map(|row| row.rsplit(',').next().unwrap().parse().unwrap())
+                .collect()
+        };
+        // 0.5 mm in 10 µm steps.
+        let v4 = of_line("4");
+        assert_eq!(v4.len(), 50);
+        let removal = String::from_utf8(removal.unwrap()).unwrap();
+        let row4: Vec<&str> = removal
+            .lines()
+            .find(|l| l.starts_with("4,"))
+            .unwrap()
+            .split(',')
+            .collect();
+        let block: f64 = row4[3].parse().unwrap();
+        assert!(
+            (v4.iter().sum::<f64>() - block).abs() < 1e-8,
+            "steps add up to the block"
+        );
+        assert_eq!(row4[5], "50");
+        // In the steady part of the slot each step removes width × depth × step.
+        let mid = v4[25];
+        assert!((mid - 0.794 * 0.1 * 0.01).abs() < 0.05 * mid, "{mid}");
+        let (stats, stock) = r.removal.as_ref().unwrap();
+        assert!((stats.removed_volume_mm3 - (6.0 - stock.volume())).abs() < 1e-9);
     }
 }
