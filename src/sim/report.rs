@@ -740,7 +740,9 @@ mod tests {
     use crate::gcode::{ReadOptions, read_str};
     use crate::model::toolpath::{FeedUnit, Motion};
 
-    fn sim(text: &str, machine: Machine) -> Result<(Report, [Option<Vec<u8>>; 3]), SimError> {
+    type Finished = (Report, [Option<Vec<u8>>; 3]);
+
+    fn sim(text: &str, machine: Machine) -> Result<Finished, SimError> {
         let (d, recs) = read_str(text, &ReadOptions::default()).unwrap();
         let header = Header {
             feed_unit: d.feed_unit(),
