@@ -12,6 +12,7 @@ use microcam::model::toolpath::FeedUnit;
 use microcam::sim::beam::CommandTiming;
 use microcam::sim::machine::{Controller, Machine, Overrides};
 use microcam::sim::report::{SimError, Simulator, StepPlan};
+use microcam::sim::stl::write_stl;
 use microcam::sim::stock::{Cutter, Stock};
 use microcam::source::ToolpathSource;
 use std::io::Write;
@@ -127,6 +128,9 @@ struct Args {
     /// Height-field cell size, mm (default: tool diameter / 50).
     #[arg(long)]
     cell_mm: Option<f64>,
+    /// The simulated stock as a watertight binary STL (needs --stock).
+    #[arg(long, value_name = "FILE.stl", requires = "stock")]
+    stl: Option<PathBuf>,
     /// Per-block removed volume as CSV (needs --stock).
     #[arg(long, value_name = "FILE.csv", requires = "stock")]
     removal: Option<PathBuf>,
@@ -272,6 +276,11 @@ fn run(args: Args) -> Result<(), CliError> {
         writeln!(out, "{}", report.to_json(name.as_deref()))?;
         for w in series.into_iter().flatten() {
             w.commit()?;
+        }
+        if let (Some(p), Some((_, stock))) = (args.stl.as_deref(), report.removal.as_ref()) {
+            let mut o = Output::new(Some(p));
+            write_stl(stock, &mut o).map_err(|e| CliError::failure(format!("{}: {e}", p.display())))?;
+            o.commit()?;
         }
     }
     out.commit()

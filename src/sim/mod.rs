@@ -5,11 +5,13 @@
 //! - [`time`]: motion time per block under the PMAC or look-ahead model.
 //! - [`beam`]: where the shutter really passes the beam, per cut.
 //! - [`stock`]: material removal on a height-field stock.
+//! - [`stl`]: the simulated stock as a watertight STL.
 //! - [`report`]: all of it in one streaming pass, and the gsim report.
 
 pub mod beam;
 pub mod machine;
 pub mod report;
+pub mod stl;
 pub mod stock;
 pub mod summary;
 pub mod time;
