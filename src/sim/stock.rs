@@ -172,10 +172,36 @@ impl Stock {
         }
         let level = (a.z - b.z).abs() <= 1e-12;
         let (x0, y0, nx) = (self.x0, self.y0, self.nx);
+        let bottom = self.bottom;
         let row = |j: usize, zrow: &mut [f64]| -> f64 {
             let py = y0 + (j as f64 + 0.5) * c;
             let mut removed = 0.0;
-            for (i, zc) in zrow.iter_mut().enumerate().take(i1).skip(i0) {
+            // A level move touches one run of cells per row: the row's
+            // chord through the stadium (the move's XY segment grown by r).
+            let (ia, ib) = if level {
+                match stadium_chord(a, b, r, py) {
+                    Some((xl, xr)) => {
+                        let ia = ((xl - x0) / c - 0.5).ceil().max(i0 as f64) as usize;
+                        let ib = (((xr - x0) / c - 0.5).floor() + 1.0).clamp(0.0, i1 as f64) as usize;
+                        (ia, ib.max(ia))
+                    }
+                    None => (i0, i0),
+                }
+            } else {
+                (i0, i1)
+            };
+            if level && let Cutter::Flat { .. } = cutter {
+                // Flat bottom: one height for the whole run, a branch-free
+                // loop the compiler vectorises.
+                let h = a.z.max(bottom);
+                for zc in &mut zrow[ia..ib] {
+                    let cut = (*zc - h).max(0.0);
+                    removed += cut;
+                    *zc -= cut;
+                }
+                return removed;
+            }
+            for (i, zc) in zrow.iter_mut().enumerate().take(ib).skip(ia) {
                 let px = x0 + (i as f64 + 0.5) * c;
                 let h = if level {
                     let rho = dist_xy_segment(px, py, a, b);
@@ -184,7 +210,7 @@ impl Stock {
                     lowest_on_move(px, py, a, b, cutter)
                 };
                 if let Some(h) = h {
-                    let h = h.max(self.bottom);
+                    let h = h.max(bottom);
                     // Rounding in the move's height (a + (b - a)·1 is not
                     // always b) must not count as a cut.
                     if h < *zc - 1e-12 {
@@ -286,6 +312,50 @@ fn lowest_on_move(px: f64, py: f64, a: &P3, b: &P3, cutter: &Cutter) -> Option<f
         }
     }
     Some(g(t0).min(g(t1)).min(f1).min(f2))
+}
+
+/// Where the horizontal line y = `py` crosses the stadium of the XY
+/// segment a-b grown by `r` (the points within `r` of the segment): an
+/// interval, since the stadium is convex; `None` if it misses.
+fn stadium_chord(a: &P3, b: &P3, r: f64, py: f64) -> Option<(f64, f64)> {
+    let mut lo = f64::INFINITY;
+    let mut hi = f64::NEG_INFINITY;
+    // The two end discs.
+    for e in [a, b] {
+        let dy = py - e.y;
+        if dy.abs() <= r {
+            let w = (r * r - dy * dy).sqrt();
+            lo = lo.min(e.x - w);
+            hi = hi.max(e.x + w);
+        }
+    }
+    // The band of points whose projection falls inside the segment.
+    let (dx, dy) = (b.x - a.x, b.y - a.y);
+    let l = (dx * dx + dy * dy).sqrt();
+    if l > 0.0 {
+        let (ux, uy) = (dx / l, dy / l);
+        let (nx, ny) = (-uy, ux);
+        let wy = py - a.y;
+        // Constraints linear in x: 0 <= (x-ax)·ux + wy·uy <= l and
+        // -r <= (x-ax)·nx + wy·ny <= r.
+        let mut blo = f64::NEG_INFINITY;
+        let mut bhi = f64::INFINITY;
+        let mut ok = true;
+        for (k, c0, c1) in [(ux, -wy * uy, l - wy * uy), (nx, -r - wy * ny, r - wy * ny)] {
+            if k.abs() < 1e-15 {
+                ok &= c0 <= 0.0 && 0.0 <= c1;
+            } else {
+                let (p, q) = (c0 / k, c1 / k);
+                blo = blo.max(p.min(q));
+                bhi = bhi.min(p.max(q));
+            }
+        }
+        if ok && blo <= bhi {
+            lo = lo.min(a.x + blo);
+            hi = hi.max(a.x + bhi);
+        }
+    }
+    (lo <= hi).then_some((lo, hi))
 }
 
 /// Distance in XY from (px, py) to the segment a-b.
@@ -407,6 +477,61 @@ mod tests {
         assert!((v - exact).abs() / exact < 0.005, "{v} vs {exact}");
         // Cutting the same path again removes nothing.
         assert!(s.cut_arc(&arc, &c).abs() < 1e-12);
+    }
+
+    #[test]
+    fn level_moves_agree_with_the_general_search() {
+        // The fast path (stadium chord, closed-form depth, branch-free flat
+        // loop) against the golden-section search on the same moves.
+        let mut seed = 12345u64;
+        let mut rnd = || {
+            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            (seed >> 11) as f64 / (1u64 << 53) as f64
+        };
+        for c in [
+            Cutter::Flat { radius: 0.7 },
+            Cutter::Ball { radius: 0.7 },
+            Cutter::Torus {
+                radius: 0.7,
+                corner: 0.2,
+            },
+        ] {
+            let mut fast = Stock::new(P3::new(-3.0, -3.0, -2.0), P3::new(3.0, 3.0, 0.0), 0.05).unwrap();
+            let mut slow = fast.clone();
+            for _ in 0..12 {
+                let z = -rnd();
+                let a = P3::new(6.0 * rnd() - 3.0, 6.0 * rnd() - 3.0, z);
+                // Some moves axis-parallel, some a point.
+                let b = match (rnd() * 4.0) as u32 {
+                    0 => P3::new(a.x, 6.0 * rnd() - 3.0, z),
+                    1 => P3::new(6.0 * rnd() - 3.0, a.y, z),
+                    2 => a,
+                    _ => P3::new(6.0 * rnd() - 3.0, 6.0 * rnd() - 3.0, z),
+                };
+                let vf = fast.cut_line(&a, &b, &c);
+                let mut vs = 0.0;
+                for j in 0..slow.ny {
+                    for i in 0..slow.nx {
+                        let (px, py) = (
+                            slow.x0 + (i as f64 + 0.5) * slow.cell,
+                            slow.y0 + (j as f64 + 0.5) * slow.cell,
+                        );
+                        let zc = &mut slow.z[j * slow.nx + i];
+                        // A tiny tilt sends the general path through the search.
+                        if let Some(h) = lowest_on_move(px, py, &a, &P3::new(b.x, b.y, b.z + 1e-13), &c)
+                            && h < *zc - 1e-9
+                        {
+                            vs += (*zc - h) * slow.cell * slow.cell;
+                            *zc = h;
+                        }
+                    }
+                }
+                assert!((vf - vs).abs() < 1e-6, "{c:?}: {vf} vs {vs}");
+            }
+            for (f, s) in fast.z.iter().zip(&slow.z) {
+                assert!((f - s).abs() < 1e-9);
+            }
+        }
     }
 
     #[test]
