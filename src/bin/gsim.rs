@@ -11,6 +11,7 @@ use microcam::model::chain::Chain;
 use microcam::model::toolpath::FeedUnit;
 use microcam::sim::beam::CommandTiming;
 use microcam::sim::machine::{Controller, Machine, Overrides};
+use microcam::sim::picture::write_png;
 use microcam::sim::report::{SimError, Simulator, StepPlan};
 use microcam::sim::stl::write_stl;
 use microcam::sim::stock::{Cutter, Stock};
@@ -131,6 +132,10 @@ struct Args {
     /// The simulated stock as a watertight binary STL (needs --stock).
     #[arg(long, value_name = "FILE.stl", requires = "stock")]
     stl: Option<PathBuf>,
+    /// Top view of the simulated stock with the path drawn over it, PNG
+    /// (needs --stock).
+    #[arg(long, value_name = "FILE.png", requires = "stock")]
+    png: Option<PathBuf>,
     /// Per-block removed volume as CSV (needs --stock).
     #[arg(long, value_name = "FILE.csv", requires = "stock")]
     removal: Option<PathBuf>,
@@ -254,6 +259,9 @@ fn run(args: Args) -> Result<(), CliError> {
                 .map_err(|e| CliError::input(format!("--stock: {e}")))?;
             let rcsv = args.removal.as_deref().map(|p| Output::new(Some(p)));
             sim = sim.with_removal(stock, cutter, rcsv);
+            if args.png.is_some() {
+                sim = sim.with_picture();
+            }
             if let Some(flutes) = args.flutes {
                 if flutes == 0 || !(args.step_scale.is_finite() && args.step_scale > 0.0) {
                     return Err(CliError::input("--flutes and --step-scale must be positive"));
@@ -276,6 +284,12 @@ fn run(args: Args) -> Result<(), CliError> {
         writeln!(out, "{}", report.to_json(name.as_deref()))?;
         for w in series.into_iter().flatten() {
             w.commit()?;
+        }
+        if let (Some(p), Some((_, stock)), Some(o)) = (args.png.as_deref(), report.removal.as_ref(), &report.picture) {
+            let (w, h, rgb) = o.render(stock);
+            let mut out = Output::new(Some(p));
+            write_png(&mut out, w, h, &rgb).map_err(|e| CliError::failure(format!("{}: {e}", p.display())))?;
+            out.commit()?;
         }
         if let (Some(p), Some((_, stock))) = (args.stl.as_deref(), report.removal.as_ref()) {
             let mut o = Output::new(Some(p));

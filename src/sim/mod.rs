@@ -6,10 +6,12 @@
 //! - [`beam`]: where the shutter really passes the beam, per cut.
 //! - [`stock`]: material removal on a height-field stock.
 //! - [`stl`]: the simulated stock as a watertight STL.
+//! - [`picture`]: a PNG of the stock with the path drawn over it.
 //! - [`report`]: all of it in one streaming pass, and the gsim report.
 
 pub mod beam;
 pub mod machine;
+pub mod picture;
 pub mod report;
 pub mod stl;
 pub mod stock;

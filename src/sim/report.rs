@@ -4,6 +4,7 @@
 
 use super::beam::{BeamModel, ChainExposure, CommandTiming, EXAMPLES, match_chains};
 use super::machine::{Controller, Machine};
+use super::picture::Overlay;
 use super::stock::{Cutter, Stock};
 use super::summary::Summary;
 use super::time::{Block, Event, Limit, MoveClass, TimeModel, TimedBlock};
@@ -91,6 +92,8 @@ pub struct Removal<W: Write> {
     /// The CSV header depends on whether steps are on: written with the
     /// first row.
     header_written: bool,
+    /// The path drawn for `--png`.
+    pub overlay: Option<Overlay>,
 }
 
 /// The header row of the `--steps` CSV.
@@ -161,7 +164,16 @@ impl<W: Write> Simulator<W> {
             steps_csv: None,
             rpm: None,
             header_written: false,
+            overlay: None,
         });
+        self
+    }
+
+    /// Draw the path for a picture. Call after [`Self::with_removal`].
+    pub fn with_picture(mut self) -> Self {
+        if let Some(r) = self.removal.as_mut() {
+            r.overlay = Some(Overlay::for_stock(&r.stock));
+        }
         self
     }
 
@@ -352,14 +364,14 @@ impl<W: Write> Simulator<W> {
         if let Some(w) = self.blocks_csv.as_mut() {
             w.flush()?;
         }
-        let (removal, removal_csv, steps_csv) = match self.removal {
+        let (removal, removal_csv, steps_csv, picture) = match self.removal {
             Some(mut r) => {
                 for w in [r.csv.as_mut(), r.steps_csv.as_mut()].into_iter().flatten() {
                     w.flush()?;
                 }
-                (Some((r.stats, r.stock)), r.csv, r.steps_csv)
+                (Some((r.stats, r.stock)), r.csv, r.steps_csv, r.overlay)
             }
-            None => (None, None, None),
+            None => (None, None, None, None),
         };
         Ok((
             Report {
@@ -369,6 +381,7 @@ impl<W: Write> Simulator<W> {
                 beam: self.beam,
                 drawing: None,
                 removal,
+                picture,
             },
             [self.blocks_csv, removal_csv, steps_csv],
         ))
@@ -398,6 +411,21 @@ impl<W: Write> Removal<W> {
             MotionKind::Arc(a) => Arc3::new(a.center, *from, *to, a.ccw, a.plane, a.extra_turns),
             _ => None,
         };
+        if let Some(o) = self.overlay.as_mut() {
+            let feed = block.class != MoveClass::Rapid;
+            match &arc {
+                Some(a) => {
+                    let n = ((a.length() / (0.5 * self.stock.cell)).ceil() as usize).clamp(1, 1 << 16);
+                    let mut p0 = *from;
+                    for k in 1..=n {
+                        let p1 = a.point_at(k as f64 / n as f64);
+                        o.line(&p0, &p1, feed);
+                        p0 = p1;
+                    }
+                }
+                None => o.line(from, to, feed),
+            }
+        }
         let step = self.step_length(block)?;
         let n = match step {
             Some(st) if block.length_mm > 0.0 => ((block.length_mm / st).ceil() as usize).clamp(1, 1 << 24),
@@ -546,6 +574,8 @@ pub struct Report {
     pub drawing: Option<(Vec<Option<usize>>, Vec<ChainExposure>)>,
     /// With a stock (`--stock`): removal figures and the final stock.
     pub removal: Option<(RemovalStats, Stock)>,
+    /// The path overlay for a picture, when asked for.
+    pub picture: Option<Overlay>,
 }
 
 fn field(b: &mut String, k: &str, v: f64) {
