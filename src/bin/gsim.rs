@@ -16,7 +16,7 @@ use microcam::sim::report::{SimError, Simulator, StepPlan};
 use microcam::sim::stl::write_stl;
 use microcam::sim::stock::{Cutter, Stock};
 use microcam::source::ToolpathSource;
-use std::io::Write;
+use std::io::{IsTerminal, Write};
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -152,6 +152,9 @@ struct Args {
     /// Per-step chip volume as CSV (needs --flutes).
     #[arg(long, value_name = "FILE.csv", requires = "flutes")]
     steps: Option<PathBuf>,
+    /// Show progress on stderr (on by default when stderr is a terminal).
+    #[arg(long)]
+    progress: bool,
     /// Machine travel, mm: XMIN,XMAX,YMIN,YMAX,ZMIN,ZMAX.
     #[arg(long, value_name = "XMIN,XMAX,YMIN,YMAX,ZMIN,ZMAX", allow_hyphen_values = true)]
     limits: Option<String>,
@@ -274,8 +277,25 @@ fn run(args: Args) -> Result<(), CliError> {
                 sim = sim.with_steps(plan, args.steps.as_deref().map(|p| Output::new(Some(p))));
             }
         }
-        for rec in source {
+        // Progress for long runs, only where a person watches (a terminal)
+        // or when asked, so pipelines and tests see a clean stderr.
+        let progress = args.progress || std::io::stderr().is_terminal();
+        let started = std::time::Instant::now();
+        let mut last = started;
+        for (n, rec) in source.enumerate() {
             sim.add(&rec?).map_err(|e| sim_error(&src_name, e))?;
+            if progress && n % 4096 == 0 && last.elapsed().as_secs_f64() >= 1.0 {
+                last = std::time::Instant::now();
+                eprint!(
+                    "\rgsim: {} records, {:.1} s machine time, {:.0} s elapsed ",
+                    n,
+                    sim.machine_time_s(),
+                    started.elapsed().as_secs_f64()
+                );
+            }
+        }
+        if progress && last != started {
+            eprintln!();
         }
         let (mut report, series) = sim.finish().map_err(|e| sim_error(&src_name, e))?;
         if let Some(p) = args.chains.as_deref() {

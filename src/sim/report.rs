@@ -352,6 +352,11 @@ impl<W: Write> Simulator<W> {
         }
     }
 
+    /// Machine time simulated so far, s (for progress reports).
+    pub fn machine_time_s(&self) -> f64 {
+        self.time.now_s()
+    }
+
     /// Bring the machine to rest and close the books.
     /// Returns the report and the series writers (blocks, removal, steps)
     /// for the caller to commit.
