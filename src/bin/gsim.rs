@@ -63,8 +63,10 @@ struct Args {
     #[arg(long, default_value = "P400")]
     line_counter_var: String,
     /// Machine position when the program starts, mm: X,Y,Z.
-    #[arg(long, value_delimiter = ',', num_args = 3, default_values_t = [0.0, 0.0, 0.0])]
-    start: Vec<f64>,
+    // One string parsed here: clap's delimiter and value count disagree on
+    // "0,0,-1" (it counted the items before splitting them).
+    #[arg(long, default_value = "0,0,0", value_name = "X,Y,Z", allow_hyphen_values = true)]
+    start: String,
     /// Write output here instead of stdout.
     #[arg(short, long)]
     output: Option<PathBuf>,
@@ -204,7 +206,8 @@ fn run(args: Args) -> Result<(), CliError> {
         .as_deref()
         .map(|d| d.parse::<Dialect>().map_err(CliError::input))
         .transpose()?;
-    let start = P3::new(args.start[0], args.start[1], args.start[2]);
+    let st = parse_numbers::<3>(&args.start, "--start", "X,Y,Z")?;
+    let start = P3::new(st[0], st[1], st[2]);
     let opts = ReadOptions {
         dialect,
         shutter_var: args.shutter_var.to_ascii_uppercase(),
