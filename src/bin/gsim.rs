@@ -257,6 +257,9 @@ fn run(args: Args) -> Result<(), CliError> {
         let src_name = source.name().to_string();
         let header = source.header.clone();
         let mut sim = Simulator::new(&header, machine, timing, start, csv);
+        if args.chains.is_some() {
+            sim = sim.with_chain_probes();
+        }
         if let (Some(st), Some(tool)) = (args.stock.as_deref(), args.tool.as_deref()) {
             let cutter = Cutter::parse(tool).map_err(|e| CliError::input(format!("--tool: {e}")))?;
             let b = parse_numbers::<6>(st, "--stock", "X0,Y0,Z0,X1,Y1,Z1")?;

@@ -148,6 +148,9 @@ pub struct BeamModel {
     pub missed_exposures: u64,
     /// Total time the shutter passes the beam.
     pub light_time_s: f64,
+    /// Keep probe points for matching cuts to a drawing (`--chains`);
+    /// off by default, since they cost a few hundred bytes per cut.
+    pub keep_probes: bool,
 }
 
 /// How many example lines a report lists.
@@ -181,6 +184,7 @@ impl BeamModel {
             short_exposure_lines: Vec::new(),
             missed_exposures: 0,
             light_time_s: 0.0,
+            keep_probes: false,
         }
     }
 
@@ -214,7 +218,7 @@ impl BeamModel {
                 cut.first_line = b.line;
             }
             cut.last_line = b.line.or(cut.last_line);
-            if cut.probes.len() < PROBES {
+            if self.keep_probes && cut.probes.len() < PROBES {
                 cut.probes.push(b.end);
             }
             self.current = Some(idx);
@@ -491,6 +495,7 @@ mod tests {
     fn run(m: &Machine, timing: CommandTiming, moves: &[(f64, f64, bool)]) -> BeamModel {
         let mut tm = TimeModel::new(m);
         let mut bm = BeamModel::new(&m.shutter, timing);
+        bm.keep_probes = true;
         let mut x = 0.0;
         for (i, &(l, f, beam)) in moves.iter().enumerate() {
             let mut b = Block::straight(MoveClass::Line, V3::new(l, 0.0, 0.0), f);

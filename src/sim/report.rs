@@ -352,6 +352,12 @@ impl<W: Write> Simulator<W> {
         }
     }
 
+    /// Keep what [`Report::with_drawing`] needs to match cuts to chains.
+    pub fn with_chain_probes(mut self) -> Self {
+        self.beam.keep_probes = true;
+        self
+    }
+
     /// Machine time simulated so far, s (for progress reports).
     pub fn machine_time_s(&self) -> f64 {
         self.time.now_s()
