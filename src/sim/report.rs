@@ -669,6 +669,8 @@ impl Report {
             push_uint(&mut b, stock.ny as u64);
             b.push(']');
             field(&mut b, "cell_mm", stock.cell);
+            b.push_str(",\"cells_visited\":");
+            push_uint(&mut b, stock.cells_visited);
             field(&mut b, "initial_volume_mm3", r.initial_volume_mm3);
             field(&mut b, "removed_volume_mm3", r.removed_volume_mm3);
             field(&mut b, "final_volume_mm3", stock.volume());

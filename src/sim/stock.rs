@@ -118,6 +118,8 @@ pub struct Stock {
     pub top: f64,
     /// Row-major heights (`y` rows of `x` cells).
     pub z: Vec<f64>,
+    /// Cells examined by the cuts so far (the work done, for benchmarks).
+    pub cells_visited: u64,
 }
 
 /// Below this many cells a move runs on one thread: spawning costs more.
@@ -148,6 +150,7 @@ impl Stock {
             bottom: min.z,
             top: max.z,
             z: vec![max.z; nx * ny],
+            cells_visited: 0,
         })
     }
 
@@ -173,7 +176,7 @@ impl Stock {
         let level = (a.z - b.z).abs() <= 1e-12;
         let (x0, y0, nx) = (self.x0, self.y0, self.nx);
         let bottom = self.bottom;
-        let row = |j: usize, zrow: &mut [f64]| -> f64 {
+        let row = |j: usize, zrow: &mut [f64]| -> (f64, u64) {
             let py = y0 + (j as f64 + 0.5) * c;
             let mut removed = 0.0;
             // A level move touches one run of cells per row: the row's
@@ -199,7 +202,7 @@ impl Stock {
                     removed += cut;
                     *zc -= cut;
                 }
-                return removed;
+                return (removed, (ib - ia) as u64);
             }
             for (i, zc) in zrow.iter_mut().enumerate().take(ib).skip(ia) {
                 let px = x0 + (i as f64 + 0.5) * c;
@@ -219,17 +222,22 @@ impl Stock {
                     }
                 }
             }
-            removed
+            (removed, (ib - ia) as u64)
         };
         let rows = &mut self.z[j0 * nx..j1 * nx];
-        let sum: f64 = if (i1 - i0) * (j1 - j0) >= PAR_CELLS {
+        let add = |x: (f64, u64), y: (f64, u64)| (x.0 + y.0, x.1 + y.1);
+        let (sum, visited) = if (i1 - i0) * (j1 - j0) >= PAR_CELLS {
             rows.par_chunks_mut(nx)
                 .enumerate()
                 .map(|(k, zrow)| row(j0 + k, zrow))
-                .sum()
+                .reduce(|| (0.0, 0), add)
         } else {
-            rows.chunks_mut(nx).enumerate().map(|(k, zrow)| row(j0 + k, zrow)).sum()
+            rows.chunks_mut(nx)
+                .enumerate()
+                .map(|(k, zrow)| row(j0 + k, zrow))
+                .fold((0.0, 0), add)
         };
+        self.cells_visited += visited;
         sum * c * c
     }
 
