@@ -79,6 +79,20 @@ pub struct StepPlan {
     pub rpm: Option<f64>,
 }
 
+/// Pieces cut together: large enough to keep two cores busy, small enough
+/// that the queue stays a few hundred kilobytes.
+const BATCH_PIECES: usize = 4096;
+
+/// A block waiting for its batch to be cut.
+struct Queued {
+    line: Option<u64>,
+    class: MoveClass,
+    length_mm: f64,
+    stepped: bool,
+    /// Per step: end point, first piece, piece count.
+    steps: Vec<(P3, usize, usize)>,
+}
+
 /// Stock, cutter and the per-block removal series.
 pub struct Removal<W: Write> {
     pub stock: Stock,
@@ -94,6 +108,8 @@ pub struct Removal<W: Write> {
     header_written: bool,
     /// The path drawn for `--png`.
     pub overlay: Option<Overlay>,
+    pieces: Vec<(P3, P3)>,
+    queued: Vec<Queued>,
 }
 
 /// The header row of the `--steps` CSV.
@@ -165,6 +181,8 @@ impl<W: Write> Simulator<W> {
             rpm: None,
             header_written: false,
             overlay: None,
+            pieces: Vec::new(),
+            queued: Vec::new(),
         });
         self
     }
@@ -377,6 +395,7 @@ impl<W: Write> Simulator<W> {
         }
         let (removal, removal_csv, steps_csv, picture) = match self.removal {
             Some(mut r) => {
+                r.flush()?;
                 for w in [r.csv.as_mut(), r.steps_csv.as_mut()].into_iter().flatten() {
                     w.flush()?;
                 }
@@ -447,11 +466,13 @@ impl<W: Write> Removal<W> {
             Some(a) if n > 1 => n.max(4 * (a.extra_turns as usize + 1)),
             _ => n,
         };
-        let (mut v, mut vmax) = (0.0_f64, 0.0_f64);
+        // Queue the pieces; volumes come when the batch is cut.
         let mut prev = *from;
+        let mut steps = Vec::with_capacity(n);
         for k in 1..=n {
             let t = k as f64 / n as f64;
-            let (p, vk) = match &arc {
+            let first = self.pieces.len();
+            let p = match &arc {
                 Some(a) => {
                     let p = if k == n { *to } else { a.point_at(t) };
                     let sub = if n == 1 {
@@ -459,42 +480,81 @@ impl<W: Write> Removal<W> {
                     } else {
                         Arc3::new(a.center, prev, p, a.ccw, a.plane, 0)
                     };
-                    (p, sub.map_or(0.0, |sa| self.stock.cut_arc(&sa, &self.cutter)))
+                    if let Some(sa) = sub {
+                        self.pieces.extend(self.stock.arc_chords(&sa));
+                    }
+                    p
                 }
                 None => {
                     let p = if k == n { *to } else { from + (to - from) * t };
-                    (p, self.stock.cut_line(&prev, &p, &self.cutter))
+                    self.pieces.push((prev, p));
+                    p
                 }
             };
-            if step.is_some()
-                && let Some(w) = self.steps_csv.as_mut()
-            {
-                let mut b = String::with_capacity(80);
-                if let Some(l) = block.line {
-                    push_uint(&mut b, l);
-                }
-                b.push(',');
-                push_uint(&mut b, k as u64);
-                for c in [p.x, p.y, p.z, block.length_mm / n as f64, vk] {
-                    b.push(',');
-                    push_num(&mut b, c);
-                }
-                b.push('\n');
-                w.write_all(b.as_bytes())?;
-            }
-            v += vk;
-            vmax = vmax.max(vk);
+            steps.push((p, first, self.pieces.len() - first));
             prev = p;
         }
+        self.queued.push(Queued {
+            line: block.line,
+            class: block.class,
+            length_mm: block.length_mm,
+            stepped: step.is_some(),
+            steps,
+        });
+        if self.pieces.len() >= BATCH_PIECES {
+            self.flush()?;
+        }
+        Ok(())
+    }
+
+    /// Cut the queued pieces and account them block by block, in order.
+    fn flush(&mut self) -> Result<(), SimError> {
+        if self.queued.is_empty() {
+            return Ok(());
+        }
+        let vols = self.stock.cut_lines(&self.pieces, &self.cutter);
+        let queued = std::mem::take(&mut self.queued);
+        for q in &queued {
+            let n = q.steps.len();
+            let (mut v, mut vmax) = (0.0_f64, 0.0_f64);
+            for (k, (p, first, count)) in q.steps.iter().enumerate() {
+                let vk: f64 = vols[*first..first + count].iter().sum();
+                if q.stepped
+                    && let Some(w) = self.steps_csv.as_mut()
+                {
+                    let mut b = String::with_capacity(80);
+                    if let Some(l) = q.line {
+                        push_uint(&mut b, l);
+                    }
+                    b.push(',');
+                    push_uint(&mut b, k as u64 + 1);
+                    for c in [p.x, p.y, p.z, q.length_mm / n as f64, vk] {
+                        b.push(',');
+                        push_num(&mut b, c);
+                    }
+                    b.push('\n');
+                    w.write_all(b.as_bytes())?;
+                }
+                v += vk;
+                vmax = vmax.max(vk);
+            }
+            self.account(q, v, vmax)?;
+        }
+        self.pieces.clear();
+        Ok(())
+    }
+
+    fn account(&mut self, q: &Queued, v: f64, vmax: f64) -> Result<(), SimError> {
+        let n = q.steps.len();
         let s = &mut self.stats;
         s.removed_volume_mm3 += v;
         if v > s.max_block_volume_mm3 {
             s.max_block_volume_mm3 = v;
-            s.max_block_line = block.line;
+            s.max_block_line = q.line;
         }
-        if block.class == MoveClass::Rapid && v > 0.0 {
+        if q.class == MoveClass::Rapid && v > 0.0 {
             s.rapids_in_material += 1;
-            if let Some(l) = block.line
+            if let Some(l) = q.line
                 && s.rapid_lines.len() < EXAMPLES
             {
                 s.rapid_lines.push(l);
@@ -510,25 +570,18 @@ impl<W: Write> Removal<W> {
                 }
                 b.push('\n');
             }
-            if let Some(l) = block.line {
+            if let Some(l) = q.line {
                 push_uint(&mut b, l);
             }
             b.push(',');
-            b.push_str(block.class.name());
+            b.push_str(q.class.name());
             b.push(',');
-            push_num(&mut b, block.length_mm);
+            push_num(&mut b, q.length_mm);
             b.push(',');
             push_num(&mut b, v);
             b.push(',');
-            push_num(
-                &mut b,
-                if block.length_mm > 0.0 {
-                    v / block.length_mm
-                } else {
-                    0.0
-                },
-            );
-            if step.is_some() {
+            push_num(&mut b, if q.length_mm > 0.0 { v / q.length_mm } else { 0.0 });
+            if q.stepped {
                 b.push(',');
                 push_uint(&mut b, n as u64);
                 b.push(',');

@@ -162,7 +162,12 @@ impl Stock {
     /// Cut a straight move of the tool tip from `a` to `b`; returns the
     /// volume removed (mm³).
     pub fn cut_line(&mut self, a: &P3, b: &P3, cutter: &Cutter) -> f64 {
-        let r = cutter.radius();
+        self.cut_lines(&[(*a, *b)], cutter)[0]
+    }
+
+    /// The cells a move's tool can touch: columns `i0..i1`, rows `j0..j1`,
+    /// and whether the move is level. `None` when it misses the stock.
+    fn reach(&self, a: &P3, b: &P3, r: f64) -> Option<Reach> {
         let (lo_x, hi_x) = (a.x.min(b.x) - r, a.x.max(b.x) + r);
         let (lo_y, hi_y) = (a.y.min(b.y) - r, a.y.max(b.y) + r);
         let c = self.cell;
@@ -171,78 +176,94 @@ impl Stock {
         let i1 = ((((hi_x - self.x0) / c - 0.5).ceil() + 1.0).max(0.0) as usize).min(self.nx);
         let j1 = ((((hi_y - self.y0) / c - 0.5).ceil() + 1.0).max(0.0) as usize).min(self.ny);
         if i0 >= i1 || j0 >= j1 || a.z.min(b.z) >= self.top {
-            return 0.0;
+            return None;
         }
-        let level = (a.z - b.z).abs() <= 1e-12;
-        let (x0, y0, nx) = (self.x0, self.y0, self.nx);
-        let bottom = self.bottom;
-        let row = |j: usize, zrow: &mut [f64]| -> (f64, u64) {
-            let py = y0 + (j as f64 + 0.5) * c;
-            let mut removed = 0.0;
-            // A level move touches one run of cells per row: the row's
-            // chord through the stadium (the move's XY segment grown by r).
-            let (ia, ib) = if level {
-                match stadium_chord(a, b, r, py) {
-                    Some((xl, xr)) => {
-                        let ia = ((xl - x0) / c - 0.5).ceil().max(i0 as f64) as usize;
-                        let ib = (((xr - x0) / c - 0.5).floor() + 1.0).clamp(0.0, i1 as f64) as usize;
-                        (ia, ib.max(ia))
-                    }
-                    None => (i0, i0),
-                }
-            } else {
-                (i0, i1)
-            };
-            if level && let Cutter::Flat { .. } = cutter {
-                // Flat bottom: one height for the whole run, a branch-free
-                // loop the compiler vectorises.
-                let h = a.z.max(bottom);
-                for zc in &mut zrow[ia..ib] {
-                    let cut = (*zc - h).max(0.0);
-                    removed += cut;
-                    *zc -= cut;
-                }
-                return (removed, (ib - ia) as u64);
-            }
-            for (i, zc) in zrow.iter_mut().enumerate().take(ib).skip(ia) {
-                let px = x0 + (i as f64 + 0.5) * c;
-                let h = if level {
-                    let rho = dist_xy_segment(px, py, a, b);
-                    cutter.profile(rho).map(|h| a.z + h)
-                } else {
-                    lowest_on_move(px, py, a, b, cutter)
-                };
-                if let Some(h) = h {
-                    let h = h.max(bottom);
-                    // Rounding in the move's height (a + (b - a)·1 is not
-                    // always b) must not count as a cut.
-                    if h < *zc - 1e-12 {
-                        removed += *zc - h;
-                        *zc = h;
-                    }
+        Some(Reach {
+            i0,
+            i1,
+            j0,
+            j1,
+            level: (a.z - b.z).abs() <= 1e-12,
+        })
+    }
+
+    /// Cut straight moves in order; returns the volume each removed (mm³).
+    ///
+    /// Large batches run in parallel by bands of rows: each band applies
+    /// every move, in order, to its own rows. A cell only ever sees the
+    /// moves in program order, so the stock is the same as cutting one move
+    /// after the other; volumes are summed band by band in a fixed order, so
+    /// they do not depend on the number of threads.
+    pub fn cut_lines(&mut self, pieces: &[(P3, P3)], cutter: &Cutter) -> Vec<f64> {
+        let r = cutter.radius();
+        let reach: Vec<Option<Reach>> = pieces.iter().map(|(a, b)| self.reach(a, b, r)).collect();
+        let work: usize = reach.iter().flatten().map(|q| (q.i1 - q.i0) * (q.j1 - q.j0)).sum();
+        let g = Grid {
+            x0: self.x0,
+            y0: self.y0,
+            c: self.cell,
+            bottom: self.bottom,
+        };
+        let nx = self.nx;
+        let band_rows = BAND_ROWS.min(self.ny).max(1);
+        let band = |bi: usize, zband: &mut [f64]| -> (Vec<f64>, u64) {
+            let jb0 = bi * band_rows;
+            let jb1 = jb0 + zband.len() / nx;
+            let mut vols = vec![0.0; pieces.len()];
+            let mut visited = 0;
+            for (k, ((a, b), q)) in pieces.iter().zip(&reach).enumerate() {
+                let Some(q) = q else { continue };
+                for j in q.j0.max(jb0)..q.j1.min(jb1) {
+                    let zrow = &mut zband[(j - jb0) * nx..(j - jb0 + 1) * nx];
+                    let (v, n) = cut_row(&g, a, b, cutter, q, j, zrow);
+                    vols[k] += v;
+                    visited += n;
                 }
             }
-            (removed, (ib - ia) as u64)
+            (vols, visited)
         };
-        let rows = &mut self.z[j0 * nx..j1 * nx];
-        let add = |x: (f64, u64), y: (f64, u64)| (x.0 + y.0, x.1 + y.1);
-        let (sum, visited) = if (i1 - i0) * (j1 - j0) >= PAR_CELLS {
-            rows.par_chunks_mut(nx)
-                .enumerate()
-                .map(|(k, zrow)| row(j0 + k, zrow))
-                .reduce(|| (0.0, 0), add)
-        } else {
-            rows.chunks_mut(nx)
-                .enumerate()
-                .map(|(k, zrow)| row(j0 + k, zrow))
-                .fold((0.0, 0), add)
-        };
-        self.cells_visited += visited;
-        sum * c * c
+        if work < PAR_CELLS {
+            // Small batches: straight through, no per-band bookkeeping.
+            let mut vols = Vec::with_capacity(pieces.len());
+            for ((a, b), q) in pieces.iter().zip(&reach) {
+                let mut v = 0.0;
+                if let Some(q) = q {
+                    for j in q.j0..q.j1 {
+                        let (dv, n) = cut_row(&g, a, b, cutter, q, j, &mut self.z[j * nx..(j + 1) * nx]);
+                        v += dv;
+                        self.cells_visited += n;
+                    }
+                }
+                vols.push(v * self.cell * self.cell);
+            }
+            return vols;
+        }
+        let parts: Vec<(Vec<f64>, u64)> = self
+            .z
+            .par_chunks_mut(nx * band_rows)
+            .enumerate()
+            .map(|(bi, zb)| band(bi, zb))
+            .collect();
+        let mut vols = vec![0.0; pieces.len()];
+        for (v, n) in parts {
+            for (acc, x) in vols.iter_mut().zip(v) {
+                *acc += x;
+            }
+            self.cells_visited += n;
+        }
+        let area = self.cell * self.cell;
+        vols.iter_mut().for_each(|v| *v *= area);
+        vols
     }
 
     /// Cut an arc as chords whose sagitta stays under a tenth of a cell.
     pub fn cut_arc(&mut self, arc: &Arc3, cutter: &Cutter) -> f64 {
+        let pieces = self.arc_chords(arc);
+        self.cut_lines(&pieces, cutter).iter().sum()
+    }
+
+    /// The chords [`Self::cut_arc`] cuts.
+    pub fn arc_chords(&self, arc: &Arc3) -> Vec<(P3, P3)> {
         let r = arc.radius().max(1e-12);
         let sag = 0.1 * self.cell;
         let dphi = if sag >= r {
@@ -251,14 +272,14 @@ impl Stock {
             2.0 * (1.0 - sag / r).acos()
         };
         let n = ((arc.sweep().abs() / dphi).ceil() as usize).clamp(1, 1 << 20);
+        let mut pieces = Vec::with_capacity(n);
         let mut prev = arc.start;
-        let mut v = 0.0;
         for k in 1..=n {
             let p = arc.point_at(k as f64 / n as f64);
-            v += self.cut_line(&prev, &p, cutter);
+            pieces.push((prev, p));
             prev = p;
         }
-        v
+        pieces
     }
 }
 
@@ -320,6 +341,81 @@ fn lowest_on_move(px: f64, py: f64, a: &P3, b: &P3, cutter: &Cutter) -> Option<f
         }
     }
     Some(g(t0).min(g(t1)).min(f1).min(f2))
+}
+
+/// Rows per band when a batch is cut in parallel.
+const BAND_ROWS: usize = 32;
+
+/// The cells a move can touch (see [`Stock::cut_lines`]).
+#[derive(Debug, Clone, Copy)]
+struct Reach {
+    i0: usize,
+    i1: usize,
+    j0: usize,
+    j1: usize,
+    level: bool,
+}
+
+/// Grid placement, copied out so bands can borrow rows mutably.
+struct Grid {
+    x0: f64,
+    y0: f64,
+    c: f64,
+    bottom: f64,
+}
+
+/// Cut one row `j` with the move a-b; returns the height removed (sum over
+/// cells, mm) and the cells examined.
+fn cut_row(g: &Grid, a: &P3, b: &P3, cutter: &Cutter, q: &Reach, j: usize, zrow: &mut [f64]) -> (f64, u64) {
+    let (x0, c, r) = (g.x0, g.c, cutter.radius());
+    let py = g.y0 + (j as f64 + 0.5) * c;
+    let mut removed = 0.0;
+    // A level move touches one run of cells per row: the row's chord
+    // through the stadium (the move's XY segment grown by r).
+    let (ia, ib) = if q.level {
+        match stadium_chord(a, b, r, py) {
+            Some((xl, xr)) => {
+                let ia = ((xl - x0) / c - 0.5).ceil().max(q.i0 as f64) as usize;
+                let ib = (((xr - x0) / c - 0.5).floor() + 1.0).clamp(0.0, q.i1 as f64) as usize;
+                (ia, ib.max(ia))
+            }
+            None => (q.i0, q.i0),
+        }
+    } else {
+        (q.i0, q.i1)
+    };
+    if q.level
+        && let Cutter::Flat { .. } = cutter
+    {
+        // Flat bottom: one height for the whole run, a branch-free loop
+        // the compiler vectorises.
+        let h = a.z.max(g.bottom);
+        for zc in &mut zrow[ia..ib] {
+            let cut = (*zc - h).max(0.0);
+            removed += cut;
+            *zc -= cut;
+        }
+        return (removed, (ib - ia) as u64);
+    }
+    for (i, zc) in zrow.iter_mut().enumerate().take(ib).skip(ia) {
+        let px = x0 + (i as f64 + 0.5) * c;
+        let h = if q.level {
+            let rho = dist_xy_segment(px, py, a, b);
+            cutter.profile(rho).map(|h| a.z + h)
+        } else {
+            lowest_on_move(px, py, a, b, cutter)
+        };
+        if let Some(h) = h {
+            let h = h.max(g.bottom);
+            // Rounding in the move's height (a + (b - a)·1 is not always b)
+            // must not count as a cut.
+            if h < *zc - 1e-12 {
+                removed += *zc - h;
+                *zc = h;
+            }
+        }
+    }
+    (removed, (ib - ia) as u64)
 }
 
 /// Where the horizontal line y = `py` crosses the stadium of the XY
@@ -540,6 +636,36 @@ mod tests {
                 assert!((f - s).abs() < 1e-9);
             }
         }
+    }
+
+    #[test]
+    fn a_parallel_batch_cuts_like_one_move_after_another() {
+        let c = Cutter::Torus {
+            radius: 0.5,
+            corner: 0.2,
+        };
+        let mut one = Stock::new(P3::new(0.0, 0.0, -2.0), P3::new(10.0, 10.0, 0.0), 0.02).unwrap();
+        let mut batch = one.clone();
+        // Overlapping moves, level and ramping, so order matters per cell.
+        let pieces: Vec<(P3, P3)> = (0..40)
+            .map(|k| {
+                let t = k as f64 * 0.37;
+                let a = P3::new(5.0 + 4.0 * t.cos(), 5.0 + 4.0 * t.sin(), -0.2 - 0.01 * k as f64);
+                let b = P3::new(
+                    5.0 + 3.0 * (t + 2.0).cos(),
+                    5.0 + 3.0 * (t + 2.0).sin(),
+                    if k % 2 == 0 { a.z } else { -0.9 },
+                );
+                (a, b)
+            })
+            .collect();
+        let v1: Vec<f64> = pieces.iter().map(|(a, b)| one.cut_line(a, b, &c)).collect();
+        let vb = batch.cut_lines(&pieces, &c);
+        for (x, y) in v1.iter().zip(&vb) {
+            assert!((x - y).abs() < 1e-9, "{x} vs {y}");
+        }
+        assert_eq!(one.z, batch.z);
+        assert_eq!(one.cells_visited, batch.cells_visited);
     }
 
     #[test]
