@@ -5,7 +5,7 @@
 CARGO ?= cargo
 BIN   := target/release
 
-.PHONY: all build test unit golden update-golden conformance lint demo bench fuzz-smoke clean
+.PHONY: all build test unit golden update-golden conformance checks fig3-20 removal-check lint demo bench fuzz-smoke clean
 
 all: build
 
@@ -14,7 +14,7 @@ build:
 
 # Release profile for tests too: one build serves the tests, the golden
 # files, the conformance script and the benchmarks.
-test: build unit conformance
+test: build unit conformance checks
 
 unit:
 	$(CARGO) test --release
@@ -32,6 +32,18 @@ conformance: build
 	python3 scripts/rs274-diff --gsim $(BIN)/gsim
 	python3 scripts/pmac-conformance --emu $(BIN)/pmac-emu
 
+# Checks of the physics against independent references.
+checks: fig3-20 removal-check
+
+# Seed 000 Fig. 3-20: achieved feed against segment length under the PMAC model.
+fig3-20: build
+	python3 scripts/fig3-20 --gsim $(BIN)/gsim
+
+# Material removal against exact mesh Booleans (installs manifold3d when missing).
+removal-check: build
+	python3 -c "import manifold3d" 2>/dev/null || python3 -m pip install -q manifold3d
+	python3 scripts/removal-check --gsim $(BIN)/gsim
+
 lint:
 	$(CARGO) fmt --all -- --check
 	$(CARGO) clippy --all-targets -- -D warnings
@@ -42,7 +54,8 @@ demo: build
 # Benchmarks, each side by side with its anchor in one run.
 bench: build
 	scripts/bench/interp
-	scripts/bench/heightfield
+	python3 -c "import manifold3d" 2>/dev/null || python3 -m pip install -q manifold3d
+	scripts/bench/removal --gsim $(BIN)/gsim
 	scripts/bench/upload
 
 fuzz-smoke:

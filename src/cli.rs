@@ -118,6 +118,17 @@ enum Sink {
 
 const SPILL_BYTES: usize = 8 << 20;
 
+/// A destination that must be written in place: a device, FIFO or socket,
+/// or anything under /dev or /proc (`-o /dev/stdout` is a symlink to
+/// /proc/self/fd/1, which may be a regular file; renaming a temp file over
+/// it would replace the system's link).
+fn is_special(path: &Path) -> bool {
+    let under = |p: &Path| p.starts_with("/dev") || p.starts_with("/proc");
+    under(path)
+        || std::fs::canonicalize(path).is_ok_and(|p| under(&p))
+        || std::fs::metadata(path).is_ok_and(|m| !m.is_file() && !m.is_dir())
+}
+
 impl Output {
     /// `None` or `-` is stdout.
     pub fn new(path: Option<&Path>) -> Output {
@@ -126,20 +137,26 @@ impl Output {
                 mem: Vec::with_capacity(1 << 16),
                 spill: None,
             },
-            Some(path) if std::fs::metadata(path).is_ok_and(|m| !m.is_file() && !m.is_dir()) => {
-                match std::fs::OpenOptions::new().write(true).open(path) {
-                    Ok(f) => Sink::Special(io::BufWriter::with_capacity(1 << 20, f)),
-                    Err(e) => Sink::Broken(format!("{}: {e}", path.display())),
-                }
-            }
+            Some(path) if is_special(path) => match std::fs::OpenOptions::new().write(true).open(path) {
+                Ok(f) => Sink::Special(io::BufWriter::with_capacity(1 << 20, f)),
+                Err(e) => Sink::Broken(format!("{}: {e}", path.display())),
+            },
             Some(path) => {
-                let dir = path
+                // Write beside the file a symlink points to, and rename onto
+                // that file, so the link survives.
+                let target = match std::fs::symlink_metadata(path) {
+                    Ok(m) if m.file_type().is_symlink() => {
+                        std::fs::canonicalize(path).unwrap_or_else(|_| path.to_path_buf())
+                    }
+                    _ => path.to_path_buf(),
+                };
+                let dir = target
                     .parent()
                     .filter(|d| !d.as_os_str().is_empty())
                     .unwrap_or(Path::new("."));
                 match tempfile::NamedTempFile::new_in(dir) {
                     Ok(t) => Sink::File {
-                        path: path.to_path_buf(),
+                        path: target.clone(),
                         tmp: io::BufWriter::with_capacity(1 << 20, t),
                     },
                     Err(e) => Sink::Broken(format!("{}: {e}", path.display())),

@@ -7,8 +7,7 @@
 //! - [`model`]: chains and toolpaths in memory.
 //! - [`formats`]: the JSON Lines pipe formats, streaming.
 //! - [`gcode`]: ISO and PMAC G-code, read and written.
-//! - [`sim`]: what a program does on the machine (path summary).
-//! - [`stock`]: material removal in a height-field stock.
+//! - [`sim`]: what a program does on the machine: time, beam and material removal.
 //! - [`preview`]: SVG previews of toolpaths.
 //! - [`pmac`]: Turbo PMAC protocol, client, emulator, splitting and upload.
 //! - [`cli`]: conventions shared by every binary.
@@ -22,4 +21,3 @@ pub mod pmac;
 pub mod preview;
 pub mod sim;
 pub mod source;
-pub mod stock;

@@ -81,6 +81,50 @@ fn a_failed_run_leaves_no_output_file_and_keeps_an_old_one() {
 }
 
 #[test]
+fn devices_and_symlinks_are_written_in_place() {
+    let dir = tempfile::tempdir().unwrap();
+    // -o /dev/stdout with stdout redirected to a regular file: the system's
+    // /dev/stdout link must survive and the data reach the file.
+    let target = dir.path().join("out.jsonl");
+    let f = std::fs::File::create(&target).unwrap();
+    let status = Command::new(GSIM)
+        .args(["--moves", "-o", "/dev/stdout", "testdata/gcode/heart.ngc"])
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .stdout(f)
+        .status()
+        .unwrap();
+    assert!(status.success());
+    assert!(
+        std::fs::symlink_metadata("/dev/stdout")
+            .unwrap()
+            .file_type()
+            .is_symlink()
+            || !Path::new("/dev/stdout").is_file()
+    );
+    assert!(
+        std::fs::read_to_string(&target)
+            .unwrap()
+            .contains("microcam.toolpath/1")
+    );
+    // A symlink to a file: the file is replaced, the link kept.
+    #[cfg(unix)]
+    {
+        let real = dir.path().join("real.jsonl");
+        let link = dir.path().join("link.jsonl");
+        std::fs::write(&real, "old\n").unwrap();
+        std::os::unix::fs::symlink(&real, &link).unwrap();
+        let o = run(
+            GSIM,
+            &["--moves", "-o", link.to_str().unwrap(), "testdata/gcode/heart.ngc"],
+            None,
+        );
+        assert_eq!(o.status.code(), Some(0));
+        assert!(std::fs::symlink_metadata(&link).unwrap().file_type().is_symlink());
+        assert!(std::fs::read_to_string(&real).unwrap().contains("microcam.toolpath/1"));
+    }
+}
+
+#[test]
 fn identical_input_gives_identical_output() {
     let prog = Path::new("testdata/gcode/genes-encoder.ngc").to_str().unwrap();
     let a = run(GSIM, &["--moves", prog], None);

@@ -3,14 +3,21 @@
 
 use clap::Parser;
 use microcam::cli::{self, CliError, Output};
+use microcam::formats::chains::ChainsReader;
 use microcam::formats::toolpath::{StreamError, write_stream};
 use microcam::gcode::{Dialect, ReadOptions};
 use microcam::geometry::P3;
-use microcam::model::toolpath::Record;
+use microcam::model::chain::Chain;
+use microcam::model::toolpath::{FeedUnit, Record};
 use microcam::preview::Preview;
-use microcam::sim::summary::Summary;
+use microcam::sim::beam::CommandTiming;
+use microcam::sim::machine::{Controller, Machine, Overrides};
+use microcam::sim::picture::write_png;
+use microcam::sim::report::{SimError, Simulator, StepPlan};
+use microcam::sim::stl::write_stl;
+use microcam::sim::stock::{Cutter, Stock};
 use microcam::source::ToolpathSource;
-use std::io::Write;
+use std::io::{IsTerminal, Write};
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -18,9 +25,20 @@ const EXAMPLES: &str = "\
 Examples:
   gsim --moves part.ngc > part.jsonl        interpreted moves as toolpath JSON Lines
   gsim --moves --dialect pmac prog.pmc      a PMAC motion program
-  pathgen emit --dialect pmac part.jsonl | gsim    summary of a generated program
-  gsim part.ngc | jq .feed_length_mm
-  gsim --svg part.svg part.ngc              summary, and a top-view preview
+  pathgen emit --dialect pmac part.jsonl | gsim    report on a generated program
+  gsim --machine micro-mill --blocks b.csv prog.pmc   per-block feeds and times
+  gsim --machine my-stage.json --ta-ms 50 prog.pmc    a profile file, TA overridden
+  gsim part.ngc | jq .cycle_time_s
+  gsim --svg part.svg part.ngc              report, and a top-view preview
+
+Without --moves gsim prints a microcam.gsim/1 report: path lengths, counts
+and extents; cycle, cutting, rapid and dwell time under the machine's
+controller model; the blocks that cannot reach their feed and why; where
+the shutter really passes the beam, per cut. Built-in machines: laser-stage
+(Turbo PMAC, the default for PMAC programs and mm/s toolpaths), micro-mill
+(Turbo PMAC, TA 133 ms), lookahead (grbl-style planner, the default for ISO
+programs). Moves outside the machine's travel, feed moves without a feed and
+bad profiles are errors (exit 2) naming the line.
 
 Input is G-code (ISO/RS274 or Turbo PMAC text, detected unless --dialect is
 given) or microcam.toolpath/1 JSON Lines; '-' or no FILE reads stdin.
@@ -47,19 +65,145 @@ struct Args {
     #[arg(long, default_value = "P400")]
     line_counter_var: String,
     /// Machine position when the program starts, mm: X,Y,Z.
-    #[arg(long, value_delimiter = ',', num_args = 3, default_values_t = [0.0, 0.0, 0.0])]
-    start: Vec<f64>,
-    /// Also write a top-view SVG preview of the path to this file.
-    #[arg(long, value_name = "FILE")]
-    svg: Option<PathBuf>,
+    // One string parsed here: clap's delimiter and value count disagree on
+    // "0,0,-1" (it counted the items before splitting them).
+    #[arg(long, default_value = "0,0,0", value_name = "X,Y,Z", allow_hyphen_values = true)]
+    start: String,
     /// Write output here instead of stdout.
     #[arg(short, long)]
     output: Option<PathBuf>,
+    /// Machine profile: a built-in name (laser-stage, micro-mill, lookahead)
+    /// or a microcam.machine/1 JSON file.
+    #[arg(long)]
+    machine: Option<String>,
+    /// Per-block series as CSV (line, kind, length, commanded and achieved
+    /// feed, time, limit).
+    #[arg(long, value_name = "FILE.csv")]
+    blocks: Option<PathBuf>,
+    /// How the PMAC program assigns the shutter: `M33==` (sync, as pathgen
+    /// writes) or `M33=` (immediate, executed one move ahead).
+    #[arg(long, value_parser = ["sync", "immediate"], default_value = "sync")]
+    shutter_timing: String,
+    /// Controller model, overriding the profile's.
+    #[arg(long, value_parser = ["pmac", "lookahead"])]
+    controller: Option<String>,
+    /// PMAC acceleration time TA until the program sets one, ms.
+    #[arg(long, allow_negative_numbers = true)]
+    ta_ms: Option<f64>,
+    /// PMAC S-curve time TS until the program sets one, ms.
+    #[arg(long, allow_negative_numbers = true)]
+    ts_ms: Option<f64>,
+    /// Path acceleration of the look-ahead planner, mm/s².
+    #[arg(long, allow_negative_numbers = true)]
+    accel_mm_s2: Option<f64>,
+    /// Junction deviation of the look-ahead planner, mm.
+    #[arg(long, allow_negative_numbers = true)]
+    junction_deviation_mm: Option<f64>,
+    /// Blocks the look-ahead planner sees.
+    #[arg(long)]
+    lookahead_blocks: Option<usize>,
+    /// Highest path feed, mm/s.
+    #[arg(long, allow_negative_numbers = true)]
+    max_feed_mm_s: Option<f64>,
+    /// Rapid speed, mm/s.
+    #[arg(long, allow_negative_numbers = true)]
+    rapid_mm_s: Option<f64>,
+    /// Blocks per second the controller can compute (0 = no limit).
+    #[arg(long, allow_negative_numbers = true)]
+    block_rate_hz: Option<f64>,
+    /// The drawing's chains (microcam.chains/1): report exposure per chain,
+    /// matching each cut to the chain its moves lie on.
+    #[arg(long, value_name = "FILE")]
+    chains: Option<PathBuf>,
+    /// How far (mm, in XY) a cut's moves may lie from a drawing chain and
+    /// still count as cutting it.
+    #[arg(long, default_value_t = 0.1)]
+    chain_tol_mm: f64,
+    /// Stock box for material removal, mm: XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX.
+    #[arg(
+        long,
+        value_name = "X0,Y0,Z0,X1,Y1,Z1",
+        allow_hyphen_values = true,
+        requires = "tool"
+    )]
+    stock: Option<String>,
+    /// Cutter for material removal: flat:D, ball:D or torus:D:RC (mm).
+    #[arg(long, requires = "stock")]
+    tool: Option<String>,
+    /// Height-field cell size, mm (default: tool diameter / 50).
+    #[arg(long)]
+    cell_mm: Option<f64>,
+    /// The simulated stock as a watertight binary STL (needs --stock).
+    #[arg(long, value_name = "FILE.stl", requires = "stock")]
+    stl: Option<PathBuf>,
+    /// Top view of the simulated stock with the path drawn over it, PNG
+    /// (needs --stock).
+    #[arg(long, value_name = "FILE.png", requires = "stock")]
+    png: Option<PathBuf>,
+    /// Per-block removed volume as CSV (needs --stock).
+    #[arg(long, value_name = "FILE.csv", requires = "stock")]
+    removal: Option<PathBuf>,
+    /// Cutter flutes: cut feed moves in steps of feed per tooth × --step-scale
+    /// and report chip volume per step (seed 000 §3.1).
+    #[arg(long, requires = "stock")]
+    flutes: Option<u32>,
+    /// Steps are this many feeds per tooth long.
+    #[arg(long, default_value_t = 10.0, requires = "flutes")]
+    step_scale: f64,
+    /// Spindle speed, rpm, overriding the program's S words.
+    #[arg(long, requires = "flutes")]
+    rpm: Option<f64>,
+    /// Per-step chip volume as CSV (needs --flutes).
+    #[arg(long, value_name = "FILE.csv", requires = "flutes")]
+    steps: Option<PathBuf>,
+    /// Show progress on stderr (on by default when stderr is a terminal).
+    #[arg(long)]
+    progress: bool,
+    /// Also write a top-view SVG preview of the path (exact arcs, beam-on
+    /// moves in red) to this file.
+    #[arg(long, value_name = "FILE.svg")]
+    svg: Option<PathBuf>,
+    /// Machine travel, mm: XMIN,XMAX,YMIN,YMAX,ZMIN,ZMAX.
+    #[arg(long, value_name = "XMIN,XMAX,YMIN,YMAX,ZMIN,ZMAX", allow_hyphen_values = true)]
+    limits: Option<String>,
 }
 
 fn main() -> ExitCode {
     let args = Args::parse();
     cli::run("gsim", || run(args))
+}
+
+/// `N` comma-separated numbers for option `opt`.
+fn parse_numbers<const N: usize>(s: &str, opt: &str, form: &str) -> Result<[f64; N], CliError> {
+    let v: Vec<f64> = s
+        .split(',')
+        .map(|x| x.trim().parse::<f64>())
+        .collect::<Result<_, _>>()
+        .map_err(|e| CliError::input(format!("{opt} '{s}': {e}")))?;
+    v.try_into()
+        .map_err(|_| CliError::input(format!("{opt} '{s}': {N} numbers {form}")))
+}
+
+/// `--limits`: six comma-separated numbers.
+fn parse_limits(s: &str) -> Result<[f64; 6], CliError> {
+    parse_numbers::<6>(s, "--limits", "XMIN,XMAX,YMIN,YMAX,ZMIN,ZMAX")
+}
+
+/// All chains of a drawing.
+fn read_chains(path: &std::path::Path) -> Result<Vec<Chain>, CliError> {
+    let input = cli::open_input(Some(path))?;
+    let name = input.name.clone();
+    let r = ChainsReader::new(input.reader).map_err(|e| CliError::in_file(&name, e))?;
+    r.collect::<Result<Vec<_>, _>>()
+        .map_err(|e| CliError::in_file(&name, e))
+}
+
+/// A bad program is bad input (exit 2); a failed series write is a failure.
+fn sim_error(source: &str, e: SimError) -> CliError {
+    match e {
+        SimError::Io(e) => CliError::failure(e.to_string()),
+        e => CliError::in_file(source, e),
+    }
 }
 
 fn run(args: Args) -> Result<(), CliError> {
@@ -68,7 +212,8 @@ fn run(args: Args) -> Result<(), CliError> {
         .as_deref()
         .map(|d| d.parse::<Dialect>().map_err(CliError::input))
         .transpose()?;
-    let start = P3::new(args.start[0], args.start[1], args.start[2]);
+    let st = parse_numbers::<3>(&args.start, "--start", "X,Y,Z")?;
+    let start = P3::new(st[0], st[1], st[2]);
     let opts = ReadOptions {
         dialect,
         shutter_var: args.shutter_var.to_ascii_uppercase(),
@@ -100,13 +245,103 @@ fn run(args: Args) -> Result<(), CliError> {
         }
     } else {
         let name = source.header.source.clone();
-        let mut s = Summary::new(source.header.feed_unit, start);
-        for rec in source {
+        let spec = args.machine.clone().unwrap_or_else(|| {
+            match source.header.feed_unit {
+                FeedUnit::MmPerS => "laser-stage",
+                FeedUnit::MmPerMin => "lookahead",
+            }
+            .to_string()
+        });
+        let mut machine = Machine::load(&spec).map_err(|e| CliError::input(e.to_string()))?;
+        let overrides = Overrides {
+            controller: args.controller.as_deref().and_then(Controller::from_name),
+            ta_ms: args.ta_ms,
+            ts_ms: args.ts_ms,
+            accel_mm_s2: args.accel_mm_s2,
+            junction_deviation_mm: args.junction_deviation_mm,
+            max_feed_mm_s: args.max_feed_mm_s,
+            rapid_mm_s: args.rapid_mm_s,
+            block_rate_hz: args.block_rate_hz,
+            lookahead_blocks: args.lookahead_blocks,
+            limits_mm: args.limits.as_deref().map(parse_limits).transpose()?,
+        };
+        machine.apply(&overrides).map_err(|e| CliError::input(e.to_string()))?;
+        let timing = if args.shutter_timing == "immediate" {
+            CommandTiming::Immediate
+        } else {
+            CommandTiming::Sync
+        };
+        let csv = args.blocks.as_deref().map(|p| Output::new(Some(p)));
+        let src_name = source.name().to_string();
+        let header = source.header.clone();
+        let mut sim = Simulator::new(&header, machine, timing, start, csv);
+        if args.chains.is_some() {
+            sim = sim.with_chain_probes();
+        }
+        if let (Some(st), Some(tool)) = (args.stock.as_deref(), args.tool.as_deref()) {
+            let cutter = Cutter::parse(tool).map_err(|e| CliError::input(format!("--tool: {e}")))?;
+            let b = parse_numbers::<6>(st, "--stock", "X0,Y0,Z0,X1,Y1,Z1")?;
+            let cell = args.cell_mm.unwrap_or(cutter.radius() / 25.0);
+            let stock = Stock::new(P3::new(b[0], b[1], b[2]), P3::new(b[3], b[4], b[5]), cell)
+                .map_err(|e| CliError::input(format!("--stock: {e}")))?;
+            let rcsv = args.removal.as_deref().map(|p| Output::new(Some(p)));
+            sim = sim.with_removal(stock, cutter, rcsv);
+            if args.png.is_some() {
+                sim = sim.with_picture();
+            }
+            if let Some(flutes) = args.flutes {
+                if flutes == 0 || !(args.step_scale.is_finite() && args.step_scale > 0.0) {
+                    return Err(CliError::input("--flutes and --step-scale must be positive"));
+                }
+                let plan = StepPlan {
+                    flutes,
+                    scale: args.step_scale,
+                    rpm: args.rpm,
+                };
+                sim = sim.with_steps(plan, args.steps.as_deref().map(|p| Output::new(Some(p))));
+            }
+        }
+        // Progress for long runs, only where a person watches (a terminal)
+        // or when asked, so pipelines and tests see a clean stderr.
+        let progress = args.progress || std::io::stderr().is_terminal();
+        let started = std::time::Instant::now();
+        let mut last = started;
+        for (n, rec) in source.enumerate() {
             let rec = rec?;
             observe(&rec);
-            s.add(&rec);
+            sim.add(&rec).map_err(|e| sim_error(&src_name, e))?;
+            if progress && n % 4096 == 0 && last.elapsed().as_secs_f64() >= 1.0 {
+                last = std::time::Instant::now();
+                eprint!(
+                    "\rgsim: {} records, {:.1} s machine time, {:.0} s elapsed ",
+                    n,
+                    sim.machine_time_s(),
+                    started.elapsed().as_secs_f64()
+                );
+            }
         }
-        writeln!(out, "{}", s.to_json(name.as_deref()))?;
+        if progress && last != started {
+            eprintln!();
+        }
+        let (mut report, series) = sim.finish().map_err(|e| sim_error(&src_name, e))?;
+        if let Some(p) = args.chains.as_deref() {
+            report = report.with_drawing(&read_chains(p)?, args.chain_tol_mm);
+        }
+        writeln!(out, "{}", report.to_json(name.as_deref()))?;
+        for w in series.into_iter().flatten() {
+            w.commit()?;
+        }
+        if let (Some(p), Some((_, stock)), Some(o)) = (args.png.as_deref(), report.removal.as_ref(), &report.picture) {
+            let (w, h, rgb) = o.render(stock);
+            let mut out = Output::new(Some(p));
+            write_png(&mut out, w, h, &rgb).map_err(|e| CliError::failure(format!("{}: {e}", p.display())))?;
+            out.commit()?;
+        }
+        if let (Some(p), Some((_, stock))) = (args.stl.as_deref(), report.removal.as_ref()) {
+            let mut o = Output::new(Some(p));
+            write_stl(stock, &mut o).map_err(|e| CliError::failure(format!("{}: {e}", p.display())))?;
+            o.commit()?;
+        }
     }
     if let (Some(path), Some(p)) = (args.svg.as_deref(), preview) {
         let mut f = Output::new(Some(path));

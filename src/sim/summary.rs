@@ -118,12 +118,21 @@ impl Summary {
 
     /// The summary as a JSON report (`microcam.summary/1`).
     pub fn to_json(&self, source: Option<&str>) -> String {
-        use crate::formats::{push_num, push_point3, push_str_lit};
+        use crate::formats::push_str_lit;
         let mut b = String::from("{\"schema\":\"microcam.summary/1\"");
         if let Some(s) = source {
             b.push_str(",\"source\":");
             push_str_lit(&mut b, s);
         }
+        self.push_fields(&mut b);
+        b.push('}');
+        b
+    }
+
+    /// Append the summary's fields (`,"records":..`) to a JSON object, so
+    /// bigger reports carry them under the same names.
+    pub fn push_fields(&self, b: &mut String) {
+        use crate::formats::{push_num, push_point3};
         let fields: [(&str, f64); 9] = [
             ("records", self.records as f64),
             ("rapids", self.rapids as f64),
@@ -139,7 +148,7 @@ impl Summary {
             b.push_str(",\"");
             b.push_str(k);
             b.push_str("\":");
-            push_num(&mut b, v);
+            push_num(b, v);
         }
         let unit = match self.feed_unit {
             FeedUnit::MmPerS => "mm_per_s",
@@ -148,17 +157,15 @@ impl Summary {
         for (k, v) in [("min_feed", self.min_feed), ("max_feed", self.max_feed)] {
             if let Some(v) = v {
                 b.push_str(&format!(",\"{k}_{unit}\":"));
-                push_num(&mut b, v);
+                push_num(b, v);
             }
         }
         if let Some((lo, hi)) = self.bbox {
             b.push_str(",\"bbox_min_mm\":");
-            push_point3(&mut b, &lo);
+            push_point3(b, &lo);
             b.push_str(",\"bbox_max_mm\":");
-            push_point3(&mut b, &hi);
+            push_point3(b, &hi);
         }
-        b.push('}');
-        b
     }
 }
 

@@ -1,5 +1,5 @@
-/* The anchor for scripts/bench/heightfield: the same flat-tool height-field
- * cut as microcam's kernel (row interval of the swept capsule, then a plain
+/* The anchor for scripts/bench/removal: a flat-tool height-field
+ * cut (row interval of the swept capsule, then a plain
  * minimum over it), written as plain single-threaded C. */
 #include <math.h>
 #include <stdio.h>

@@ -1,0 +1,307 @@
+//! Machine profiles: what the controller and the stage can do, read from a
+//! small JSON file (`microcam.machine/1`, see testdata/machines/) and
+//! adjusted by command-line flags.
+//!
+//! A profile names its controller model, because the same program runs very
+//! differently on a Turbo PMAC (fixed acceleration *time*, blended moves,
+//! short moves stretched) than on a grbl/Klipper-style look-ahead planner
+//! (fixed acceleration *rate*, junction speeds).
+
+use serde::Deserialize;
+use std::path::Path;
+use thiserror::Error;
+
+pub const SCHEMA: &str = "microcam.machine/1";
+
+/// Profiles that ship with microcam, by name. The files are the single
+/// source: tests and `--machine NAME` read the same text.
+pub const BUILTIN: [(&str, &str); 3] = [
+    ("laser-stage", include_str!("../../testdata/machines/laser-stage.json")),
+    ("micro-mill", include_str!("../../testdata/machines/micro-mill.json")),
+    ("lookahead", include_str!("../../testdata/machines/lookahead.json")),
+];
+
+#[derive(Debug, Error)]
+pub enum MachineError {
+    #[error("{0}: {1}")]
+    Io(String, std::io::Error),
+    #[error("{0}: {1}")]
+    Json(String, serde_json::Error),
+    #[error("{0}: {1}")]
+    Invalid(String, String),
+}
+
+/// The controller's motion model.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Controller {
+    /// Turbo PMAC LINEAR/CIRCLE blending: each move lasts at least the
+    /// acceleration time, velocity changes are ramps of that time centred
+    /// on the move boundaries, RAPID moves start and end at rest.
+    Pmac,
+    /// grbl/Klipper family: constant acceleration, junction-deviation corner
+    /// speeds, a bounded planner buffer, trapezoidal profiles.
+    Lookahead,
+}
+
+impl Controller {
+    pub fn name(self) -> &'static str {
+        match self {
+            Controller::Pmac => "pmac",
+            Controller::Lookahead => "lookahead",
+        }
+    }
+
+    pub fn from_name(s: &str) -> Option<Self> {
+        match s {
+            "pmac" => Some(Controller::Pmac),
+            "lookahead" => Some(Controller::Lookahead),
+            _ => None,
+        }
+    }
+}
+
+/// Shutter latencies, milliseconds (seed 000 Fig. 6-40 for the defaults).
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Shutter {
+    /// From the open command to the start of the opening transfer.
+    pub open_delay_ms: f64,
+    /// Opening transfer (blade travel).
+    pub open_transfer_ms: f64,
+    /// From the close command to the start of the closing transfer.
+    pub close_delay_ms: f64,
+    /// Closing transfer.
+    pub close_transfer_ms: f64,
+    /// Shortest command window that gives a reliable exposure.
+    pub min_exposure_ms: f64,
+}
+
+impl Shutter {
+    /// The beam is taken to pass from halfway through the opening transfer
+    /// to halfway through the closing transfer: a half-open aperture passes
+    /// about half the beam, so this threshold neither favours under- nor
+    /// over-exposure.
+    pub fn open_latency_s(&self) -> f64 {
+        (self.open_delay_ms + 0.5 * self.open_transfer_ms) * 1e-3
+    }
+
+    pub fn close_latency_s(&self) -> f64 {
+        (self.close_delay_ms + 0.5 * self.close_transfer_ms) * 1e-3
+    }
+}
+
+/// A machine profile. Every figure carries its unit in its name.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Machine {
+    pub schema: String,
+    pub name: String,
+    /// Where the figures come from (free text, for people).
+    #[serde(default)]
+    pub note: Option<String>,
+    pub controller: Controller,
+    /// Axis travel, mm; absent = unchecked.
+    #[serde(default)]
+    pub limits_min_mm: Option<[f64; 3]>,
+    #[serde(default)]
+    pub limits_max_mm: Option<[f64; 3]>,
+    /// Highest path feed the controller will run; faster F is clamped.
+    pub max_feed_mm_s: f64,
+    /// Rapid (RAPID / G0) speed: per axis on a PMAC, along the path on a
+    /// look-ahead planner.
+    pub rapid_mm_s: f64,
+    /// Acceleration of rapid moves (PMAC jog acceleration, per axis).
+    pub rapid_accel_mm_s2: f64,
+    /// Path acceleration of the look-ahead planner.
+    pub accel_mm_s2: f64,
+    /// Junction deviation (grbl `$11`), mm.
+    pub junction_deviation_mm: f64,
+    /// Blocks the look-ahead planner sees ahead (grbl: 16).
+    pub lookahead_blocks: usize,
+    /// PMAC acceleration time Isx87 / TA until the program sets TA, ms.
+    pub ta_ms: f64,
+    /// PMAC S-curve time Isx88 / TS until the program sets TS, ms.
+    pub ts_ms: f64,
+    /// Blocks per second the controller can compute; 0 = no limit. A block
+    /// shorter in time than 1/rate starves the planner, so it lasts 1/rate.
+    pub block_rate_hz: f64,
+    pub shutter: Shutter,
+}
+
+/// Command-line adjustments of a profile.
+#[derive(Debug, Clone, Default)]
+pub struct Overrides {
+    pub controller: Option<Controller>,
+    pub ta_ms: Option<f64>,
+    pub ts_ms: Option<f64>,
+    pub accel_mm_s2: Option<f64>,
+    pub junction_deviation_mm: Option<f64>,
+    pub max_feed_mm_s: Option<f64>,
+    pub rapid_mm_s: Option<f64>,
+    pub block_rate_hz: Option<f64>,
+    pub lookahead_blocks: Option<usize>,
+    /// xmin,xmax,ymin,ymax,zmin,zmax.
+    pub limits_mm: Option<[f64; 6]>,
+}
+
+impl Machine {
+    /// Parse and check a profile; `name` is used in messages.
+    pub fn from_json(text: &str, name: &str) -> Result<Machine, MachineError> {
+        let m: Machine = serde_json::from_str(text).map_err(|e| MachineError::Json(name.into(), e))?;
+        m.check().map_err(|msg| MachineError::Invalid(name.into(), msg))?;
+        Ok(m)
+    }
+
+    /// A built-in profile by name, or a profile file.
+    pub fn load(spec: &str) -> Result<Machine, MachineError> {
+        if let Some((name, text)) = BUILTIN.iter().find(|(n, _)| *n == spec) {
+            return Machine::from_json(text, name);
+        }
+        let p = Path::new(spec);
+        let text = std::fs::read_to_string(p).map_err(|e| MachineError::Io(spec.into(), e))?;
+        Machine::from_json(&text, spec)
+    }
+
+    /// A built-in profile; panics only if a shipped file is broken, which
+    /// the tests catch.
+    pub fn builtin(name: &str) -> Machine {
+        match Machine::load(name) {
+            Ok(m) => m,
+            Err(e) => panic!("built-in machine profile: {e}"),
+        }
+    }
+
+    /// Apply flags, then re-check.
+    pub fn apply(&mut self, o: &Overrides) -> Result<(), MachineError> {
+        if let Some(c) = o.controller {
+            self.controller = c;
+        }
+        let set = |dst: &mut f64, v: Option<f64>| {
+            if let Some(v) = v {
+                *dst = v;
+            }
+        };
+        set(&mut self.ta_ms, o.ta_ms);
+        set(&mut self.ts_ms, o.ts_ms);
+        set(&mut self.accel_mm_s2, o.accel_mm_s2);
+        set(&mut self.junction_deviation_mm, o.junction_deviation_mm);
+        set(&mut self.max_feed_mm_s, o.max_feed_mm_s);
+        set(&mut self.rapid_mm_s, o.rapid_mm_s);
+        set(&mut self.block_rate_hz, o.block_rate_hz);
+        if let Some(n) = o.lookahead_blocks {
+            self.lookahead_blocks = n;
+        }
+        if let Some(l) = o.limits_mm {
+            self.limits_min_mm = Some([l[0], l[2], l[4]]);
+            self.limits_max_mm = Some([l[1], l[3], l[5]]);
+        }
+        self.check()
+            .map_err(|msg| MachineError::Invalid(format!("machine '{}'", self.name), msg))
+    }
+
+    fn check(&self) -> Result<(), String> {
+        if self.schema != SCHEMA {
+            return Err(format!("unknown schema '{}' (expected '{SCHEMA}')", self.schema));
+        }
+        let positive = [
+            ("max_feed_mm_s", self.max_feed_mm_s),
+            ("rapid_mm_s", self.rapid_mm_s),
+            ("rapid_accel_mm_s2", self.rapid_accel_mm_s2),
+            ("accel_mm_s2", self.accel_mm_s2),
+        ];
+        for (k, v) in positive {
+            if !(v.is_finite() && v > 0.0) {
+                return Err(format!("'{k}' must be a positive number, got {v}"));
+            }
+        }
+        let non_negative = [
+            ("junction_deviation_mm", self.junction_deviation_mm),
+            ("ta_ms", self.ta_ms),
+            ("ts_ms", self.ts_ms),
+            ("block_rate_hz", self.block_rate_hz),
+            ("shutter.open_delay_ms", self.shutter.open_delay_ms),
+            ("shutter.open_transfer_ms", self.shutter.open_transfer_ms),
+            ("shutter.close_delay_ms", self.shutter.close_delay_ms),
+            ("shutter.close_transfer_ms", self.shutter.close_transfer_ms),
+            ("shutter.min_exposure_ms", self.shutter.min_exposure_ms),
+        ];
+        for (k, v) in non_negative {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(format!("'{k}' must be a number >= 0, got {v}"));
+            }
+        }
+        if self.lookahead_blocks == 0 {
+            return Err("'lookahead_blocks' must be at least 1".into());
+        }
+        match (self.limits_min_mm, self.limits_max_mm) {
+            (None, None) => {}
+            (Some(lo), Some(hi)) => {
+                for i in 0..3 {
+                    if !(lo[i].is_finite() && hi[i].is_finite() && lo[i] <= hi[i]) {
+                        return Err(format!(
+                            "axis {} limits {}..{} are not a range",
+                            "XYZ".as_bytes()[i] as char,
+                            lo[i],
+                            hi[i]
+                        ));
+                    }
+                }
+            }
+            _ => return Err("'limits_min_mm' and 'limits_max_mm' go together".into()),
+        }
+        Ok(())
+    }
+
+    /// Effective PMAC acceleration time (s) for TA and TS in ms: the S-curve
+    /// needs 2·TS, so a TA shorter than that is lengthened (Turbo PMAC rule).
+    pub fn pmac_accel_time_s(ta_ms: f64, ts_ms: f64) -> f64 {
+        ta_ms.max(2.0 * ts_ms) * 1e-3
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn builtin_profiles_parse_and_carry_the_seed_facts() {
+        for (name, _) in BUILTIN {
+            let m = Machine::builtin(name);
+            assert_eq!(m.name, name);
+        }
+        let laser = Machine::builtin("laser-stage");
+        assert_eq!(laser.controller, Controller::Pmac);
+        // Seed 000 Fig. 6-40: 3 ms delay + 9 ms transfer to open, 14 ms to close.
+        assert_eq!(laser.shutter.open_delay_ms + laser.shutter.open_transfer_ms, 12.0);
+        assert_eq!(laser.shutter.close_transfer_ms, 14.0);
+        assert_eq!(laser.shutter.min_exposure_ms, 15.0);
+        let mill = Machine::builtin("micro-mill");
+        // 0.4 mm at 3 mm/s: about 133 ms.
+        let t = Machine::pmac_accel_time_s(mill.ta_ms, mill.ts_ms);
+        assert!((t * 3.0 - 0.4).abs() < 0.005, "{t}");
+        assert_eq!(Machine::builtin("lookahead").controller, Controller::Lookahead);
+    }
+
+    #[test]
+    fn bad_profiles_are_named() {
+        let mut text = BUILTIN[0].1.replace("\"max_feed_mm_s\": 50", "\"max_feed_mm_s\": -1");
+        assert!(text != BUILTIN[0].1, "fixture drift");
+        let e = Machine::from_json(&text, "x.json").unwrap_err().to_string();
+        assert!(e.contains("x.json") && e.contains("max_feed_mm_s"), "{e}");
+        text = BUILTIN[0].1.replace("\"controller\"", "\"bogus\": 1, \"controller\"");
+        assert!(Machine::from_json(&text, "y.json").is_err());
+        let mut m = Machine::builtin("lookahead");
+        let o = Overrides {
+            limits_mm: Some([0.0, 1.0, 0.0, -1.0, 0.0, 1.0]),
+            ..Default::default()
+        };
+        assert!(m.apply(&o).unwrap_err().to_string().contains("axis Y"));
+    }
+
+    #[test]
+    fn accel_time_follows_the_s_curve_rule() {
+        assert_eq!(Machine::pmac_accel_time_s(100.0, 20.0), 0.1);
+        assert_eq!(Machine::pmac_accel_time_s(10.0, 50.0), 0.1);
+    }
+}

@@ -1,0 +1,971 @@
+//! The gsim report: one pass over a toolpath through the path summary, the
+//! time model and the beam model, with the per-block series written as it
+//! goes. Constant memory apart from one record per cut.
+
+use super::beam::{BeamModel, ChainExposure, CommandTiming, EXAMPLES, match_chains};
+use super::machine::{Controller, Machine};
+use super::picture::Overlay;
+use super::stock::{Cutter, Stock};
+use super::summary::Summary;
+use super::time::{Block, Event, Limit, MoveClass, TimeModel, TimedBlock};
+use crate::formats::{push_num, push_str_lit, push_uint};
+use crate::geometry::{Arc3, BBox3, P3, V3};
+use crate::model::chain::Chain;
+use crate::model::toolpath::{Header, MotionKind, Record};
+use std::io::Write;
+use thiserror::Error;
+
+pub const SCHEMA: &str = "microcam.gsim/1";
+
+/// A program the machine must not run, or a failed write of the series.
+#[derive(Debug, Error)]
+pub enum SimError {
+    #[error("line {line}: {msg}")]
+    Line { line: u64, msg: String },
+    #[error("record {index}: {msg}")]
+    Record { index: u64, msg: String },
+    #[error("block series: {0}")]
+    Io(#[from] std::io::Error),
+}
+
+/// The header row of the `--blocks` CSV.
+pub const BLOCKS_HEADER: &str = "line,kind,length_mm,commanded_feed_mm_s,achieved_feed_mm_s,time_s,limited_by\n";
+
+/// A block that did not reach its feed, for the report.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Example {
+    pub line: Option<u64>,
+    pub length_mm: f64,
+    pub commanded_feed_mm_s: f64,
+    pub achieved_feed_mm_s: f64,
+    pub limited_by: Limit,
+}
+
+/// Time figures.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct TimeStats {
+    pub cycle_time_s: f64,
+    pub cutting_time_s: f64,
+    pub rapid_time_s: f64,
+    pub dwell_time_s: f64,
+    /// Feed-move length over commanded feed: the time a program "should" take.
+    pub ideal_cutting_time_s: f64,
+    pub feed_blocks: u64,
+    pub limited_blocks: u64,
+    pub limited_by: [u64; Limit::ALL.len()],
+    pub examples: Vec<Example>,
+    pub min_achieved_feed_mm_s: Option<f64>,
+}
+
+/// Material removal figures.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct RemovalStats {
+    pub initial_volume_mm3: f64,
+    pub removed_volume_mm3: f64,
+    pub max_block_volume_mm3: f64,
+    pub max_block_line: Option<u64>,
+    /// Rapids that removed material (a crash on a real machine).
+    pub rapids_in_material: u64,
+    pub rapid_lines: Vec<u64>,
+}
+
+/// Per-step chip volume (seed 000 §3.1): moves are cut in steps of feed
+/// per tooth × `scale`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct StepPlan {
+    pub flutes: u32,
+    pub scale: f64,
+    /// Spindle speed overriding the program's S words, rpm.
+    pub rpm: Option<f64>,
+}
+
+/// Pieces cut together: large enough to keep two cores busy, small enough
+/// that the queue stays a few hundred kilobytes.
+const BATCH_PIECES: usize = 4096;
+
+/// A block waiting for its batch to be cut.
+struct Queued {
+    line: Option<u64>,
+    class: MoveClass,
+    length_mm: f64,
+    stepped: bool,
+    /// Per step: end point, first piece, piece count.
+    steps: Vec<(P3, usize, usize)>,
+}
+
+/// Stock, cutter and the per-block removal series.
+pub struct Removal<W: Write> {
+    pub stock: Stock,
+    pub cutter: Cutter,
+    pub csv: Option<W>,
+    pub stats: RemovalStats,
+    pub steps: Option<StepPlan>,
+    pub steps_csv: Option<W>,
+    /// The program's spindle speed so far.
+    pub rpm: Option<f64>,
+    /// The CSV header depends on whether steps are on: written with the
+    /// first row.
+    header_written: bool,
+    /// The path drawn for `--png`.
+    pub overlay: Option<Overlay>,
+    pieces: Vec<(P3, P3)>,
+    queued: Vec<Queued>,
+}
+
+/// The header row of the `--steps` CSV.
+pub const STEPS_HEADER: &str = "line,step,x_mm,y_mm,z_mm,step_length_mm,chip_volume_mm3\n";
+
+/// The header row of the `--removal` CSV.
+pub const REMOVAL_HEADER: &str = "line,kind,length_mm,removed_volume_mm3,removed_per_length_mm2";
+/// Columns added to the `--removal` CSV when moves are cut in steps.
+pub const REMOVAL_STEP_COLUMNS: &str = ",steps,mean_step_volume_mm3,max_step_volume_mm3";
+
+/// The whole simulation, fed one record at a time.
+pub struct Simulator<W: Write> {
+    machine: Machine,
+    feed_factor: f64,
+    pos: P3,
+    index: u64,
+    summary: Summary,
+    time: TimeModel,
+    beam: BeamModel,
+    stats: TimeStats,
+    blocks_csv: Option<W>,
+    row: String,
+    removal: Option<Removal<W>>,
+}
+
+impl<W: Write> Simulator<W> {
+    /// `timing` is how the program's shutter commands were written (PMAC);
+    /// look-ahead controllers always switch at the block boundary.
+    pub fn new(header: &Header, machine: Machine, timing: CommandTiming, start: P3, blocks_csv: Option<W>) -> Self {
+        let timing = match machine.controller {
+            Controller::Pmac => timing,
+            Controller::Lookahead => CommandTiming::Boundary,
+        };
+        let mut csv = blocks_csv;
+        let row = String::with_capacity(128);
+        if let Some(w) = csv.as_mut() {
+            // A failed header write surfaces on the first row.
+            let _ = w.write_all(BLOCKS_HEADER.as_bytes());
+        }
+        Simulator {
+            feed_factor: header.feed_unit.to_mm_per_s(),
+            pos: start,
+            index: 0,
+            summary: Summary::new(header.feed_unit, start),
+            time: TimeModel::new(&machine),
+            beam: BeamModel::new(&machine.shutter, timing),
+            stats: TimeStats::default(),
+            blocks_csv: csv,
+            row,
+            machine,
+            removal: None,
+        }
+    }
+
+    /// Also remove material from `stock` with `cutter`, writing the
+    /// per-block volumes to `csv`.
+    pub fn with_removal(mut self, stock: Stock, cutter: Cutter, csv: Option<W>) -> Self {
+        let stats = RemovalStats {
+            initial_volume_mm3: stock.volume(),
+            ..Default::default()
+        };
+        self.removal = Some(Removal {
+            stock,
+            cutter,
+            csv,
+            stats,
+            steps: None,
+            steps_csv: None,
+            rpm: None,
+            header_written: false,
+            overlay: None,
+            pieces: Vec::new(),
+            queued: Vec::new(),
+        });
+        self
+    }
+
+    /// Draw the path for a picture. Call after [`Self::with_removal`].
+    pub fn with_picture(mut self) -> Self {
+        if let Some(r) = self.removal.as_mut() {
+            r.overlay = Some(Overlay::for_stock(&r.stock));
+        }
+        self
+    }
+
+    /// Cut feed moves in steps of feed per tooth × scale and write each
+    /// step's chip volume to `csv`. Call after [`Self::with_removal`].
+    pub fn with_steps(mut self, plan: StepPlan, mut csv: Option<W>) -> Self {
+        if let Some(r) = self.removal.as_mut() {
+            if let Some(w) = csv.as_mut() {
+                let _ = w.write_all(STEPS_HEADER.as_bytes());
+            }
+            r.steps = Some(plan);
+            r.steps_csv = csv;
+        }
+        self
+    }
+
+    fn err(&self, line: Option<u64>, msg: String) -> SimError {
+        match line {
+            Some(line) => SimError::Line { line, msg },
+            None => SimError::Record { index: self.index, msg },
+        }
+    }
+
+    /// Check that `bb` lies within the machine's travel.
+    fn check_limits(&self, bb: &BBox3, line: Option<u64>) -> Result<(), SimError> {
+        let (Some(lo), Some(hi)) = (self.machine.limits_min_mm, self.machine.limits_max_mm) else {
+            return Ok(());
+        };
+        const TOL: f64 = 1e-9;
+        for i in 0..3 {
+            let axis = "XYZ".as_bytes()[i] as char;
+            let (a, b) = (bb.min[i], bb.max[i]);
+            if a < lo[i] - TOL || b > hi[i] + TOL {
+                let v = if a < lo[i] - TOL { a } else { b };
+                let mut s = String::new();
+                push_num(&mut s, v);
+                let mut r = String::new();
+                push_num(&mut r, lo[i]);
+                r.push_str("..");
+                push_num(&mut r, hi[i]);
+                return Err(self.err(
+                    line,
+                    format!("move reaches {axis}{s}, outside the machine's travel {axis} {r} mm"),
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    pub fn add(&mut self, rec: &Record) -> Result<(), SimError> {
+        self.index += 1;
+        self.summary.add(rec);
+        match rec {
+            Record::Move(m) => {
+                let from = self.pos;
+                let delta = m.to - from;
+                let (class, feed) = match m.kind {
+                    MotionKind::Rapid => (MoveClass::Rapid, 0.0),
+                    MotionKind::Line | MotionKind::Arc(_) => {
+                        let class = if matches!(m.kind, MotionKind::Line) {
+                            MoveClass::Line
+                        } else {
+                            MoveClass::Arc
+                        };
+                        match m.feed {
+                            Some(f) if f > 0.0 && f.is_finite() => (class, f * self.feed_factor),
+                            Some(f) => return Err(self.err(m.block, format!("feed move with feed {f}"))),
+                            None => return Err(self.err(m.block, "feed move without a feed".into())),
+                        }
+                    }
+                };
+                let mut block = match m.kind {
+                    MotionKind::Arc(a) => {
+                        let arc = Arc3::new(a.center, from, m.to, a.ccw, a.plane, a.extra_turns)
+                            .ok_or_else(|| self.err(m.block, "arc of zero radius".into()))?;
+                        self.check_limits(&arc.bbox(), m.block)?;
+                        let len = arc.length();
+                        Block {
+                            line: None,
+                            class,
+                            length_mm: len,
+                            feed_mm_s: feed,
+                            dir_in: arc.tangent_at(0.0).unwrap_or(V3::zeros()),
+                            dir_out: arc.tangent_at(1.0).unwrap_or(V3::zeros()),
+                            radius_mm: arc.radius(),
+                            delta,
+                            end: m.to,
+                            beam: false,
+                            chain: None,
+                        }
+                    }
+                    _ => {
+                        self.check_limits(&BBox3::from_points(&[from, m.to]), m.block)?;
+                        Block::straight(class, delta, feed)
+                    }
+                };
+                block.line = m.block;
+                block.end = m.to;
+                block.beam = m.beam;
+                block.chain = m.chain;
+                if let Some(r) = self.removal.as_mut() {
+                    let index = self.index;
+                    r.cut(&block, &from, &m.to, &m.kind).map_err(|e| match e {
+                        SimError::Record { msg, .. } => SimError::Record { index, msg },
+                        e => e,
+                    })?;
+                }
+                self.pos = m.to;
+                self.time.push_move(block);
+            }
+            Record::Dwell { seconds, block } => {
+                if !(seconds.is_finite() && *seconds >= 0.0) {
+                    return Err(self.err(*block, format!("dwell of {seconds} s")));
+                }
+                self.time.push_dwell(*seconds, *block);
+            }
+            Record::Accel { ta_ms, ts_ms, .. } => self.time.set_accel(*ta_ms, *ts_ms),
+            Record::Spindle { rpm, .. } => {
+                if let Some(r) = self.removal.as_mut() {
+                    r.rpm = Some(*rpm);
+                }
+            }
+            Record::Var { .. } => {}
+        }
+        self.drain()
+    }
+
+    fn drain(&mut self) -> Result<(), SimError> {
+        while let Some(ev) = self.time.pop() {
+            match &ev {
+                Event::Block(tb) => {
+                    self.account(tb);
+                    self.beam.add_block(tb);
+                }
+                Event::Dwell { t_start_s, seconds, .. } => {
+                    self.stats.dwell_time_s += seconds;
+                    self.beam.add_dwell(*t_start_s, *seconds);
+                }
+            }
+            if let Some(w) = self.blocks_csv.as_mut() {
+                self.row.clear();
+                csv_row(&mut self.row, &ev);
+                w.write_all(self.row.as_bytes())?;
+            }
+        }
+        Ok(())
+    }
+
+    fn account(&mut self, tb: &TimedBlock) {
+        let s = &mut self.stats;
+        if tb.block.class == MoveClass::Rapid {
+            s.rapid_time_s += tb.time_s;
+            return;
+        }
+        s.cutting_time_s += tb.time_s;
+        s.ideal_cutting_time_s += tb.block.length_mm / tb.block.feed_mm_s;
+        s.feed_blocks += 1;
+        if tb.block.length_mm > 0.0 {
+            let f = tb.achieved_feed_mm_s;
+            s.min_achieved_feed_mm_s = Some(s.min_achieved_feed_mm_s.map_or(f, |m| m.min(f)));
+        }
+        if tb.limited_by != Limit::None {
+            s.limited_blocks += 1;
+            if let Some(i) = Limit::ALL.iter().position(|l| *l == tb.limited_by) {
+                s.limited_by[i] += 1;
+            }
+            if s.examples.len() < EXAMPLES {
+                s.examples.push(Example {
+                    line: tb.block.line,
+                    length_mm: tb.block.length_mm,
+                    commanded_feed_mm_s: tb.commanded_feed_mm_s,
+                    achieved_feed_mm_s: tb.achieved_feed_mm_s,
+                    limited_by: tb.limited_by,
+                });
+            }
+        }
+    }
+
+    /// Keep what [`Report::with_drawing`] needs to match cuts to chains.
+    pub fn with_chain_probes(mut self) -> Self {
+        self.beam.keep_probes = true;
+        self
+    }
+
+    /// Machine time simulated so far, s (for progress reports).
+    pub fn machine_time_s(&self) -> f64 {
+        self.time.now_s()
+    }
+
+    /// Bring the machine to rest and close the books.
+    /// Returns the report and the series writers (blocks, removal, steps)
+    /// for the caller to commit.
+    pub fn finish(mut self) -> Result<(Report, [Option<W>; 3]), SimError> {
+        self.time.finish();
+        self.drain()?;
+        let t_end = self.time.now_s();
+        self.beam.finish();
+        self.stats.cycle_time_s = t_end;
+        if let Some(w) = self.blocks_csv.as_mut() {
+            w.flush()?;
+        }
+        let (removal, removal_csv, steps_csv, picture) = match self.removal {
+            Some(mut r) => {
+                r.flush()?;
+                for w in [r.csv.as_mut(), r.steps_csv.as_mut()].into_iter().flatten() {
+                    w.flush()?;
+                }
+                (Some((r.stats, r.stock)), r.csv, r.steps_csv, r.overlay)
+            }
+            None => (None, None, None, None),
+        };
+        Ok((
+            Report {
+                machine: self.machine,
+                summary: self.summary,
+                time: self.stats,
+                beam: self.beam,
+                drawing: None,
+                removal,
+                picture,
+            },
+            [self.blocks_csv, removal_csv, steps_csv],
+        ))
+    }
+}
+
+impl<W: Write> Removal<W> {
+    /// Length of one step for `block`, when steps are asked for.
+    fn step_length(&self, block: &Block) -> Result<Option<f64>, SimError> {
+        let Some(plan) = &self.steps else { return Ok(None) };
+        if block.class == MoveClass::Rapid {
+            return Ok(None);
+        }
+        let rpm = plan.rpm.or(self.rpm).filter(|r| *r > 0.0).ok_or_else(|| {
+            let msg = "chip volume per step needs a spindle speed (S in the program, or --rpm)".to_string();
+            match block.line {
+                Some(line) => SimError::Line { line, msg },
+                None => SimError::Record { index: 0, msg },
+            }
+        })?;
+        let per_tooth = block.feed_mm_s / (rpm / 60.0 * plan.flutes as f64);
+        Ok(Some(per_tooth * plan.scale))
+    }
+
+    fn cut(&mut self, block: &Block, from: &P3, to: &P3, kind: &MotionKind) -> Result<(), SimError> {
+        let arc = match kind {
+            MotionKind::Arc(a) => Arc3::new(a.center, *from, *to, a.ccw, a.plane, a.extra_turns),
+            _ => None,
+        };
+        if let Some(o) = self.overlay.as_mut() {
+            let feed = block.class != MoveClass::Rapid;
+            match &arc {
+                Some(a) => {
+                    let n = ((a.length() / (0.5 * self.stock.cell)).ceil() as usize).clamp(1, 1 << 16);
+                    let mut p0 = *from;
+                    for k in 1..=n {
+                        let p1 = a.point_at(k as f64 / n as f64);
+                        o.line(&p0, &p1, feed);
+                        p0 = p1;
+                    }
+                }
+                None => o.line(from, to, feed),
+            }
+        }
+        let step = self.step_length(block)?;
+        let n = match step {
+            Some(st) if block.length_mm > 0.0 => ((block.length_mm / st).ceil() as usize).clamp(1, 1 << 24),
+            _ => 1,
+        };
+        // Sub-arcs are built without extra turns: keep each under a turn.
+        let n = match &arc {
+            Some(a) if n > 1 => n.max(4 * (a.extra_turns as usize + 1)),
+            _ => n,
+        };
+        // Queue the pieces; volumes come when the batch is cut.
+        let mut prev = *from;
+        let mut steps = Vec::with_capacity(n);
+        for k in 1..=n {
+            let t = k as f64 / n as f64;
+            let first = self.pieces.len();
+            let p = match &arc {
+                Some(a) => {
+                    let p = if k == n { *to } else { a.point_at(t) };
+                    let sub = if n == 1 {
+                        Some(*a)
+                    } else {
+                        Arc3::new(a.center, prev, p, a.ccw, a.plane, 0)
+                    };
+                    if let Some(sa) = sub {
+                        self.pieces.extend(self.stock.arc_chords(&sa));
+                    }
+                    p
+                }
+                None => {
+                    let p = if k == n { *to } else { from + (to - from) * t };
+                    self.pieces.push((prev, p));
+                    p
+                }
+            };
+            steps.push((p, first, self.pieces.len() - first));
+            prev = p;
+        }
+        self.queued.push(Queued {
+            line: block.line,
+            class: block.class,
+            length_mm: block.length_mm,
+            stepped: step.is_some(),
+            steps,
+        });
+        if self.pieces.len() >= BATCH_PIECES {
+            self.flush()?;
+        }
+        Ok(())
+    }
+
+    /// Cut the queued pieces and account them block by block, in order.
+    fn flush(&mut self) -> Result<(), SimError> {
+        if self.queued.is_empty() {
+            return Ok(());
+        }
+        let vols = self.stock.cut_lines(&self.pieces, &self.cutter);
+        let queued = std::mem::take(&mut self.queued);
+        for q in &queued {
+            let n = q.steps.len();
+            let (mut v, mut vmax) = (0.0_f64, 0.0_f64);
+            for (k, (p, first, count)) in q.steps.iter().enumerate() {
+                let vk: f64 = vols[*first..first + count].iter().sum();
+                if q.stepped
+                    && let Some(w) = self.steps_csv.as_mut()
+                {
+                    let mut b = String::with_capacity(80);
+                    if let Some(l) = q.line {
+                        push_uint(&mut b, l);
+                    }
+                    b.push(',');
+                    push_uint(&mut b, k as u64 + 1);
+                    for c in [p.x, p.y, p.z, q.length_mm / n as f64, vk] {
+                        b.push(',');
+                        push_num(&mut b, c);
+                    }
+                    b.push('\n');
+                    w.write_all(b.as_bytes())?;
+                }
+                v += vk;
+                vmax = vmax.max(vk);
+            }
+            self.account(q, v, vmax)?;
+        }
+        self.pieces.clear();
+        Ok(())
+    }
+
+    fn account(&mut self, q: &Queued, v: f64, vmax: f64) -> Result<(), SimError> {
+        let n = q.steps.len();
+        let s = &mut self.stats;
+        s.removed_volume_mm3 += v;
+        if v > s.max_block_volume_mm3 {
+            s.max_block_volume_mm3 = v;
+            s.max_block_line = q.line;
+        }
+        if q.class == MoveClass::Rapid && v > 0.0 {
+            s.rapids_in_material += 1;
+            if let Some(l) = q.line
+                && s.rapid_lines.len() < EXAMPLES
+            {
+                s.rapid_lines.push(l);
+            }
+        }
+        if let Some(w) = self.csv.as_mut() {
+            let mut b = String::with_capacity(64);
+            if !self.header_written {
+                self.header_written = true;
+                b.push_str(REMOVAL_HEADER);
+                if self.steps.is_some() {
+                    b.push_str(REMOVAL_STEP_COLUMNS);
+                }
+                b.push('\n');
+            }
+            if let Some(l) = q.line {
+                push_uint(&mut b, l);
+            }
+            b.push(',');
+            b.push_str(q.class.name());
+            b.push(',');
+            push_num(&mut b, q.length_mm);
+            b.push(',');
+            push_num(&mut b, v);
+            b.push(',');
+            push_num(&mut b, if q.length_mm > 0.0 { v / q.length_mm } else { 0.0 });
+            if q.stepped {
+                b.push(',');
+                push_uint(&mut b, n as u64);
+                b.push(',');
+                push_num(&mut b, v / n as f64);
+                b.push(',');
+                push_num(&mut b, vmax);
+            }
+            b.push('\n');
+            w.write_all(b.as_bytes())?;
+        }
+        Ok(())
+    }
+}
+
+fn csv_row(b: &mut String, ev: &Event) {
+    match ev {
+        Event::Block(tb) => {
+            if let Some(l) = tb.block.line {
+                push_uint(b, l);
+            }
+            b.push(',');
+            b.push_str(tb.block.class.name());
+            b.push(',');
+            push_num(b, tb.block.length_mm);
+            b.push(',');
+            push_num(b, tb.commanded_feed_mm_s);
+            b.push(',');
+            push_num(b, tb.achieved_feed_mm_s);
+            b.push(',');
+            push_num(b, tb.time_s);
+            b.push(',');
+            b.push_str(tb.limited_by.name());
+            b.push('\n');
+        }
+        Event::Dwell { seconds, line, .. } => {
+            if let Some(l) = line {
+                push_uint(b, *l);
+            }
+            b.push_str(",dwell,0,,,");
+            push_num(b, *seconds);
+            b.push_str(",\n");
+        }
+    }
+}
+
+/// Everything gsim reports.
+pub struct Report {
+    pub machine: Machine,
+    pub summary: Summary,
+    pub time: TimeStats,
+    pub beam: BeamModel,
+    /// With a drawing (`--chains`): the drawing chain index per cut and the
+    /// exposure per drawing chain.
+    pub drawing: Option<(Vec<Option<usize>>, Vec<ChainExposure>)>,
+    /// With a stock (`--stock`): removal figures and the final stock.
+    pub removal: Option<(RemovalStats, Stock)>,
+    /// The path overlay for a picture, when asked for.
+    pub picture: Option<Overlay>,
+}
+
+fn field(b: &mut String, k: &str, v: f64) {
+    b.push_str(",\"");
+    b.push_str(k);
+    b.push_str("\":");
+    push_num(b, v);
+}
+
+impl Report {
+    /// Compare the cuts with the drawing's chains (`tol` mm in XY).
+    pub fn with_drawing(mut self, chains: &[Chain], tol: f64) -> Report {
+        self.drawing = Some(match_chains(&self.beam.cuts, chains, tol));
+        self
+    }
+
+    /// The report as one JSON object (`microcam.gsim/1`).
+    pub fn to_json(&self, source: Option<&str>) -> String {
+        let mut b = format!("{{\"schema\":\"{SCHEMA}\"");
+        if let Some(s) = source {
+            b.push_str(",\"source\":");
+            push_str_lit(&mut b, s);
+        }
+        b.push_str(",\"machine\":");
+        push_str_lit(&mut b, &self.machine.name);
+        b.push_str(",\"controller\":\"");
+        b.push_str(self.machine.controller.name());
+        b.push('"');
+        self.summary.push_fields(&mut b);
+        let t = &self.time;
+        field(&mut b, "cycle_time_s", t.cycle_time_s);
+        field(&mut b, "cutting_time_s", t.cutting_time_s);
+        field(&mut b, "rapid_time_s", t.rapid_time_s);
+        field(&mut b, "dwell_time_s", t.dwell_time_s);
+        field(&mut b, "ideal_cutting_time_s", t.ideal_cutting_time_s);
+        if let Some(f) = t.min_achieved_feed_mm_s {
+            field(&mut b, "min_achieved_feed_mm_s", f);
+        }
+        field(&mut b, "feed_blocks", t.feed_blocks as f64);
+        field(&mut b, "limited_blocks", t.limited_blocks as f64);
+        b.push_str(",\"limited_by\":{");
+        let mut first = true;
+        for (i, l) in Limit::ALL.iter().enumerate() {
+            if t.limited_by[i] > 0 {
+                if !first {
+                    b.push(',');
+                }
+                first = false;
+                b.push('"');
+                b.push_str(l.name());
+                b.push_str("\":");
+                push_uint(&mut b, t.limited_by[i]);
+            }
+        }
+        b.push_str("},\"limited_examples\":[");
+        for (i, e) in t.examples.iter().enumerate() {
+            if i > 0 {
+                b.push(',');
+            }
+            b.push('{');
+            if let Some(l) = e.line {
+                b.push_str("\"line\":");
+                push_uint(&mut b, l);
+                b.push(',');
+            }
+            b.push_str("\"length_mm\":");
+            push_num(&mut b, e.length_mm);
+            field(&mut b, "commanded_feed_mm_s", e.commanded_feed_mm_s);
+            field(&mut b, "achieved_feed_mm_s", e.achieved_feed_mm_s);
+            b.push_str(",\"limited_by\":\"");
+            b.push_str(e.limited_by.name());
+            b.push_str("\"}");
+        }
+        b.push(']');
+        self.push_beam(&mut b);
+        if let Some((r, stock)) = &self.removal {
+            b.push_str(",\"removal\":{\"cells\":[");
+            push_uint(&mut b, stock.nx as u64);
+            b.push(',');
+            push_uint(&mut b, stock.ny as u64);
+            b.push(']');
+            field(&mut b, "cell_mm", stock.cell);
+            b.push_str(",\"cells_visited\":");
+            push_uint(&mut b, stock.cells_visited);
+            field(&mut b, "initial_volume_mm3", r.initial_volume_mm3);
+            field(&mut b, "removed_volume_mm3", r.removed_volume_mm3);
+            field(&mut b, "final_volume_mm3", stock.volume());
+            field(&mut b, "max_block_volume_mm3", r.max_block_volume_mm3);
+            if let Some(l) = r.max_block_line {
+                b.push_str(",\"max_block_line\":");
+                push_uint(&mut b, l);
+            }
+            field(&mut b, "rapids_in_material", r.rapids_in_material as f64);
+            b.push_str(",\"rapid_in_material_lines\":[");
+            for (i, l) in r.rapid_lines.iter().enumerate() {
+                if i > 0 {
+                    b.push(',');
+                }
+                push_uint(&mut b, *l);
+            }
+            b.push_str("]}");
+        }
+        b.push('}');
+        b
+    }
+
+    fn push_beam(&self, b: &mut String) {
+        let m = &self.beam;
+        b.push_str(",\"beam\":{\"command_timing\":\"");
+        b.push_str(m.timing.name());
+        b.push('"');
+        field(b, "open_latency_ms", self.machine.shutter.open_latency_s() * 1e3);
+        field(b, "close_latency_ms", self.machine.shutter.close_latency_s() * 1e3);
+        field(b, "shutter_opens", m.opens as f64);
+        field(b, "shutter_open_time_s", m.light_time_s);
+        field(b, "intended_length_mm", m.intended_mm());
+        field(b, "exposed_length_mm", m.exposed_mm());
+        field(b, "unexposed_length_mm", m.unexposed_mm());
+        field(b, "overexposed_length_mm", m.overexposed_mm());
+        field(b, "stationary_exposure_s", m.stationary_exposure_s());
+        field(b, "short_exposures", m.short_exposures as f64);
+        field(b, "missed_exposures", m.missed_exposures as f64);
+        b.push_str(",\"short_exposure_lines\":[");
+        for (i, l) in m.short_exposure_lines.iter().enumerate() {
+            if i > 0 {
+                b.push(',');
+            }
+            push_uint(b, *l);
+        }
+        b.push_str("],\"cuts\":[");
+        for (i, c) in m.cuts.iter().enumerate() {
+            if i > 0 {
+                b.push(',');
+            }
+            b.push_str("{\"cut\":");
+            push_uint(b, i as u64 + 1);
+            if let Some(ch) = c.chain {
+                b.push_str(",\"chain\":");
+                push_uint(b, ch);
+            }
+            if let Some(l) = c.first_line {
+                b.push_str(",\"first_line\":");
+                push_uint(b, l);
+            }
+            if let Some(l) = c.last_line {
+                b.push_str(",\"last_line\":");
+                push_uint(b, l);
+            }
+            if let Some((which, per)) = &self.drawing
+                && let Some(Some(k)) = which.get(i)
+            {
+                b.push_str(",\"drawing_chain\":");
+                push_uint(b, per[*k].id);
+            }
+            field(b, "length_mm", c.length_mm);
+            field(b, "exposed_mm", c.exposed_mm);
+            field(b, "unexposed_mm", c.unexposed_mm());
+            field(b, "overexposed_mm", c.overexposed_mm);
+            field(b, "stationary_exposure_s", c.stationary_exposure_s);
+            b.push('}');
+        }
+        b.push(']');
+        if let Some((_, per)) = &self.drawing {
+            field(b, "drawing_length_mm", per.iter().map(|c| c.drawing_length_mm).sum());
+            field(
+                b,
+                "drawing_unexposed_length_mm",
+                per.iter().map(|c| c.unexposed_mm()).sum(),
+            );
+            b.push_str(",\"chains\":[");
+            for (i, c) in per.iter().enumerate() {
+                if i > 0 {
+                    b.push(',');
+                }
+                b.push_str("{\"chain\":");
+                push_uint(b, c.id);
+                field(b, "drawing_length_mm", c.drawing_length_mm);
+                field(b, "cuts", c.cuts as f64);
+                field(b, "cut_length_mm", c.cut_length_mm);
+                field(b, "exposed_mm", c.exposed_mm);
+                field(b, "unexposed_mm", c.unexposed_mm());
+                field(b, "overexposed_mm", c.overexposed_mm);
+                b.push('}');
+            }
+            b.push(']');
+        }
+        b.push('}');
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::gcode::{ReadOptions, read_str};
+    use crate::model::toolpath::{FeedUnit, Motion};
+
+    type Finished = (Report, [Option<Vec<u8>>; 3]);
+
+    fn sim(text: &str, machine: Machine) -> Result<Finished, SimError> {
+        let (d, recs) = read_str(text, &ReadOptions::default()).unwrap();
+        let header = Header {
+            feed_unit: d.feed_unit(),
+            source: None,
+        };
+        let mut s = Simulator::new(&header, machine, CommandTiming::Sync, P3::origin(), Some(Vec::new()));
+        for r in &recs {
+            s.add(r)?;
+        }
+        s.finish()
+    }
+
+    #[test]
+    fn times_add_up_and_the_series_has_a_row_per_block() {
+        let mut m = Machine::builtin("lookahead");
+        m.accel_mm_s2 = 100.0;
+        m.block_rate_hz = 0.0;
+        // 10 mm at 600 mm/min = 10 mm/s: 1.1 s; G4 P0.5; rapid back.
+        let (r, [csv, ..]) = sim("G1 X10 F600\nG4 P0.5\nG0 X0\n", m).unwrap();
+        assert!((r.time.cutting_time_s - 1.1).abs() < 1e-12);
+        assert_eq!(r.time.dwell_time_s, 0.5);
+        let total = r.time.cutting_time_s + r.time.dwell_time_s + r.time.rapid_time_s;
+        assert!((r.time.cycle_time_s - total).abs() < 1e-12);
+        assert!((r.time.ideal_cutting_time_s - 1.0).abs() < 1e-12);
+        let csv = String::from_utf8(csv.unwrap()).unwrap();
+        let rows: Vec<&str> = csv.lines().collect();
+        assert_eq!(rows[0], BLOCKS_HEADER.trim_end());
+        assert_eq!(rows[1], "1,line,10,10,10,1.1,");
+        assert_eq!(rows[2], "2,dwell,0,,,0.5,");
+        assert!(rows[3].starts_with("3,rapid,10,100,"));
+        assert_eq!(rows.len(), 4);
+    }
+
+    #[test]
+    fn bad_programs_name_their_line() {
+        let mut m = Machine::builtin("lookahead");
+        m.limits_min_mm = Some([0.0, 0.0, -5.0]);
+        m.limits_max_mm = Some([10.0, 10.0, 5.0]);
+        // The arc's end is inside but its extent is not.
+        let e = sim("G1 X5 Y5 F100\nG2 X5 Y5 I3 J0\n", m.clone()).err().unwrap();
+        assert!(e.to_string().starts_with("line 2: move reaches X11"), "{e}");
+        let e = sim("G1 X5 F100\nG0 Z6\n", m).err().unwrap();
+        assert!(e.to_string().starts_with("line 2:"), "{e}");
+        // A toolpath record with no feed on a feed move.
+        let h = Header {
+            feed_unit: FeedUnit::MmPerS,
+            source: None,
+        };
+        let mut s: Simulator<Vec<u8>> = Simulator::new(
+            &h,
+            Machine::builtin("laser-stage"),
+            CommandTiming::Sync,
+            P3::origin(),
+            None,
+        );
+        let rec = Record::Move(Motion {
+            kind: MotionKind::Line,
+            to: P3::new(1.0, 0.0, 0.0),
+            feed: Some(0.0),
+            beam: false,
+            role: None,
+            chain: None,
+            block: None,
+        });
+        let e = s.add(&rec).unwrap_err().to_string();
+        assert_eq!(e, "record 1: feed move with feed 0");
+    }
+
+    #[test]
+    fn steps_split_blocks_by_feed_per_tooth_and_add_up() {
+        // 2 mm/s at 60,000 rpm with 2 flutes: 1 µm per tooth, steps of 10 µm.
+        let text = "G0 Z1\nS60000\nG1 Z-0.1 F120\nG1 X0.5\n";
+        let (d, recs) = read_str(text, &ReadOptions::default()).unwrap();
+        let header = Header {
+            feed_unit: d.feed_unit(),
+            source: None,
+        };
+        let stock = Stock::new(P3::new(-1.0, -1.0, -1.0), P3::new(2.0, 1.0, 0.0), 0.01).unwrap();
+        let mut s = Simulator::new(
+            &header,
+            Machine::builtin("lookahead"),
+            CommandTiming::Sync,
+            P3::origin(),
+            None,
+        )
+        .with_removal(stock, Cutter::Flat { radius: 0.397 }, Some(Vec::new()))
+        .with_steps(
+            StepPlan {
+                flutes: 2,
+                scale: 10.0,
+                rpm: None,
+            },
+            Some(Vec::new()),
+        );
+        for r in &recs {
+            s.add(r).unwrap();
+        }
+        let (r, [_, removal, steps]) = s.finish().unwrap();
+        let steps = String::from_utf8(steps.unwrap()).unwrap();
+        let of_line = |l: &str| -> Vec<f64> {
+            steps
+                .lines()
+                .skip(1)
+                .filter(|row| row.split(',').next() == Some(l))
+                .map(|row| row.rsplit(',').next().unwrap().parse().unwrap())
+                .collect()
+        };
+        // 0.5 mm in 10 µm steps.
+        let v4 = of_line("4");
+        assert_eq!(v4.len(), 50);
+        let removal = String::from_utf8(removal.unwrap()).unwrap();
+        let row4: Vec<&str> = removal
+            .lines()
+            .find(|l| l.starts_with("4,"))
+            .unwrap()
+            .split(',')
+            .collect();
+        let block: f64 = row4[3].parse().unwrap();
+        assert!(
+            (v4.iter().sum::<f64>() - block).abs() < 1e-8,
+            "steps add up to the block"
+        );
+        assert_eq!(row4[5], "50");
+        // In the steady part of the slot each step removes width × depth × step.
+        let mid = v4[25];
+        assert!((mid - 0.794 * 0.1 * 0.01).abs() < 0.05 * mid, "{mid}");
+        let (stats, stock) = r.removal.as_ref().unwrap();
+        assert!((stats.removed_volume_mm3 - (6.0 - stock.volume())).abs() < 1e-9);
+    }
+}

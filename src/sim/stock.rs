@@ -1,0 +1,685 @@
+//! Material removal on a height-field stock: a grid of columns over XY,
+//! each holding the height of the top of the material, cut by flat, ball
+//! and torus end mills moving along the path.
+//!
+//! A cell is lowered to the lowest height the cutter's underside reaches
+//! over its centre during a move. For a move at constant height that is
+//! exact: the underside at horizontal distance ρ from the tool axis is
+//! `z + h(ρ)`, and over a straight move ρ is smallest at the point of the
+//! move nearest the cell. For moves that change height the underside over
+//! a cell is a convex function of the position along the move, minimised by
+//! golden-section search (exact to 1e-10 of the move). Arcs are cut into
+//! chords whose sagitta stays under a tenth of a cell. Rows are processed in parallel with rayon.
+//!
+//! Not yet here: multi-dexel stock (undercuts), STL export, pictures,
+//! per-tooth steps (see docs/gsim.md).
+
+use crate::geometry::{Arc3, P3};
+use rayon::prelude::*;
+use thiserror::Error;
+
+#[derive(Debug, Error, PartialEq)]
+pub enum StockError {
+    #[error("stock box {0}")]
+    Box(String),
+    #[error("cutter {0}")]
+    Cutter(String),
+}
+
+/// An end mill, dimensions in mm.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Cutter {
+    Flat {
+        radius: f64,
+    },
+    Ball {
+        radius: f64,
+    },
+    /// Bull nose: corner radius `corner` (0 < corner <= radius).
+    Torus {
+        radius: f64,
+        corner: f64,
+    },
+}
+
+impl Cutter {
+    /// `flat:D`, `ball:D` or `torus:D:RC` (diameter and corner radius, mm).
+    pub fn parse(s: &str) -> Result<Cutter, StockError> {
+        let parts: Vec<&str> = s.split(':').collect();
+        let num = |i: usize| -> Result<f64, StockError> {
+            parts
+                .get(i)
+                .and_then(|x| x.trim().parse::<f64>().ok())
+                .filter(|v| v.is_finite() && *v > 0.0)
+                .ok_or_else(|| StockError::Cutter(format!("'{s}': expected flat:D, ball:D or torus:D:RC in mm")))
+        };
+        let c = match (parts[0], parts.len()) {
+            ("flat", 2) => Cutter::Flat { radius: num(1)? / 2.0 },
+            ("ball", 2) => Cutter::Ball { radius: num(1)? / 2.0 },
+            ("torus", 3) => Cutter::Torus {
+                radius: num(1)? / 2.0,
+                corner: num(2)?,
+            },
+            _ => {
+                return Err(StockError::Cutter(format!(
+                    "'{s}': expected flat:D, ball:D or torus:D:RC in mm"
+                )));
+            }
+        };
+        if let Cutter::Torus { radius, corner } = c
+            && corner > radius
+        {
+            return Err(StockError::Cutter(format!(
+                "'{s}': corner radius above the tool radius"
+            )));
+        }
+        Ok(c)
+    }
+
+    pub fn radius(&self) -> f64 {
+        match *self {
+            Cutter::Flat { radius } | Cutter::Ball { radius } | Cutter::Torus { radius, .. } => radius,
+        }
+    }
+
+    /// Height of the underside above the tool tip at distance `rho` from
+    /// the axis; `None` outside the tool.
+    #[inline]
+    pub fn profile(&self, rho: f64) -> Option<f64> {
+        match *self {
+            Cutter::Flat { radius } => (rho <= radius).then_some(0.0),
+            Cutter::Ball { radius } => (rho <= radius).then(|| radius - (radius * radius - rho * rho).max(0.0).sqrt()),
+            Cutter::Torus { radius, corner } => {
+                if rho > radius {
+                    None
+                } else {
+                    let flat = radius - corner;
+                    if rho <= flat {
+                        Some(0.0)
+                    } else {
+                        let u = rho - flat;
+                        Some(corner - (corner * corner - u * u).max(0.0).sqrt())
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// Height-field stock over `[x0, x0 + nx·cell] × [y0, y0 + ny·cell]`.
+#[derive(Debug, Clone)]
+pub struct Stock {
+    pub x0: f64,
+    pub y0: f64,
+    pub cell: f64,
+    pub nx: usize,
+    pub ny: usize,
+    pub bottom: f64,
+    pub top: f64,
+    /// Row-major heights (`y` rows of `x` cells).
+    pub z: Vec<f64>,
+    /// Cells examined by the cuts so far (the work done, for benchmarks).
+    pub cells_visited: u64,
+}
+
+/// Below this many cells a move runs on one thread: spawning costs more.
+const PAR_CELLS: usize = 1 << 14;
+
+impl Stock {
+    pub fn new(min: P3, max: P3, cell: f64) -> Result<Stock, StockError> {
+        if !(cell.is_finite() && cell > 0.0) {
+            return Err(StockError::Box(format!("cell {cell} mm is not positive")));
+        }
+        let size = max - min;
+        if !(size.x > 0.0 && size.y > 0.0 && size.z > 0.0 && size.iter().all(|v| v.is_finite())) {
+            return Err(StockError::Box("needs min < max on every axis".into()));
+        }
+        let nx = (size.x / cell).round().max(1.0) as usize;
+        let ny = (size.y / cell).round().max(1.0) as usize;
+        if nx.saturating_mul(ny) > 400_000_000 {
+            return Err(StockError::Box(format!(
+                "{nx} x {ny} cells is too many; use a larger cell"
+            )));
+        }
+        Ok(Stock {
+            x0: min.x,
+            y0: min.y,
+            cell,
+            nx,
+            ny,
+            bottom: min.z,
+            top: max.z,
+            z: vec![max.z; nx * ny],
+            cells_visited: 0,
+        })
+    }
+
+    /// Material volume left, mm³.
+    pub fn volume(&self) -> f64 {
+        self.z.iter().map(|z| (z - self.bottom).max(0.0)).sum::<f64>() * self.cell * self.cell
+    }
+
+    /// Cut a straight move of the tool tip from `a` to `b`; returns the
+    /// volume removed (mm³).
+    pub fn cut_line(&mut self, a: &P3, b: &P3, cutter: &Cutter) -> f64 {
+        self.cut_lines(&[(*a, *b)], cutter)[0]
+    }
+
+    /// The cells a move's tool can touch: columns `i0..i1`, rows `j0..j1`,
+    /// and whether the move is level. `None` when it misses the stock.
+    fn reach(&self, a: &P3, b: &P3, r: f64) -> Option<Reach> {
+        let (lo_x, hi_x) = (a.x.min(b.x) - r, a.x.max(b.x) + r);
+        let (lo_y, hi_y) = (a.y.min(b.y) - r, a.y.max(b.y) + r);
+        let c = self.cell;
+        let i0 = (((lo_x - self.x0) / c - 0.5).floor().max(0.0)) as usize;
+        let j0 = (((lo_y - self.y0) / c - 0.5).floor().max(0.0)) as usize;
+        let i1 = ((((hi_x - self.x0) / c - 0.5).ceil() + 1.0).max(0.0) as usize).min(self.nx);
+        let j1 = ((((hi_y - self.y0) / c - 0.5).ceil() + 1.0).max(0.0) as usize).min(self.ny);
+        if i0 >= i1 || j0 >= j1 || a.z.min(b.z) >= self.top {
+            return None;
+        }
+        Some(Reach {
+            i0,
+            i1,
+            j0,
+            j1,
+            level: (a.z - b.z).abs() <= 1e-12,
+        })
+    }
+
+    /// Cut straight moves in order; returns the volume each removed (mm³).
+    ///
+    /// Large batches run in parallel by bands of rows: each band applies
+    /// every move, in order, to its own rows. A cell only ever sees the
+    /// moves in program order, so the stock is the same as cutting one move
+    /// after the other; volumes are summed band by band in a fixed order, so
+    /// they do not depend on the number of threads.
+    pub fn cut_lines(&mut self, pieces: &[(P3, P3)], cutter: &Cutter) -> Vec<f64> {
+        let r = cutter.radius();
+        let reach: Vec<Option<Reach>> = pieces.iter().map(|(a, b)| self.reach(a, b, r)).collect();
+        let work: usize = reach.iter().flatten().map(|q| (q.i1 - q.i0) * (q.j1 - q.j0)).sum();
+        let g = Grid {
+            x0: self.x0,
+            y0: self.y0,
+            c: self.cell,
+            bottom: self.bottom,
+        };
+        let nx = self.nx;
+        let band_rows = BAND_ROWS.min(self.ny).max(1);
+        let band = |bi: usize, zband: &mut [f64]| -> (Vec<f64>, u64) {
+            let jb0 = bi * band_rows;
+            let jb1 = jb0 + zband.len() / nx;
+            let mut vols = vec![0.0; pieces.len()];
+            let mut visited = 0;
+            for (k, ((a, b), q)) in pieces.iter().zip(&reach).enumerate() {
+                let Some(q) = q else { continue };
+                for j in q.j0.max(jb0)..q.j1.min(jb1) {
+                    let zrow = &mut zband[(j - jb0) * nx..(j - jb0 + 1) * nx];
+                    let (v, n) = cut_row(&g, a, b, cutter, q, j, zrow);
+                    vols[k] += v;
+                    visited += n;
+                }
+            }
+            (vols, visited)
+        };
+        if work < PAR_CELLS {
+            // Small batches: straight through, no per-band bookkeeping.
+            let mut vols = Vec::with_capacity(pieces.len());
+            for ((a, b), q) in pieces.iter().zip(&reach) {
+                let mut v = 0.0;
+                if let Some(q) = q {
+                    for j in q.j0..q.j1 {
+                        let (dv, n) = cut_row(&g, a, b, cutter, q, j, &mut self.z[j * nx..(j + 1) * nx]);
+                        v += dv;
+                        self.cells_visited += n;
+                    }
+                }
+                vols.push(v * self.cell * self.cell);
+            }
+            return vols;
+        }
+        let parts: Vec<(Vec<f64>, u64)> = self
+            .z
+            .par_chunks_mut(nx * band_rows)
+            .enumerate()
+            .map(|(bi, zb)| band(bi, zb))
+            .collect();
+        let mut vols = vec![0.0; pieces.len()];
+        for (v, n) in parts {
+            for (acc, x) in vols.iter_mut().zip(v) {
+                *acc += x;
+            }
+            self.cells_visited += n;
+        }
+        let area = self.cell * self.cell;
+        vols.iter_mut().for_each(|v| *v *= area);
+        vols
+    }
+
+    /// Cut an arc as chords whose sagitta stays under a tenth of a cell.
+    pub fn cut_arc(&mut self, arc: &Arc3, cutter: &Cutter) -> f64 {
+        let pieces = self.arc_chords(arc);
+        self.cut_lines(&pieces, cutter).iter().sum()
+    }
+
+    /// The chords [`Self::cut_arc`] cuts.
+    pub fn arc_chords(&self, arc: &Arc3) -> Vec<(P3, P3)> {
+        let r = arc.radius().max(1e-12);
+        let sag = 0.1 * self.cell;
+        let dphi = if sag >= r {
+            std::f64::consts::FRAC_PI_2
+        } else {
+            2.0 * (1.0 - sag / r).acos()
+        };
+        let n = ((arc.sweep().abs() / dphi).ceil() as usize).clamp(1, 1 << 20);
+        let mut pieces = Vec::with_capacity(n);
+        let mut prev = arc.start;
+        for k in 1..=n {
+            let p = arc.point_at(k as f64 / n as f64);
+            pieces.push((prev, p));
+            prev = p;
+        }
+        pieces
+    }
+}
+
+/// Lowest height the underside of `cutter` reaches over (px, py) while the
+/// tip moves from `a` to `b` (changing height), or `None` if the tool never
+/// covers the point. The tool covers it for t in an interval (a quadratic
+/// in t); there the underside height `z(t) + h(ρ(t))` is convex for all
+/// three cutters (ρ(t) is the norm of an affine map, h is convex and
+/// non-decreasing in ρ, z is linear), so a golden-section search finds the
+/// minimum.
+fn lowest_on_move(px: f64, py: f64, a: &P3, b: &P3, cutter: &Cutter) -> Option<f64> {
+    let r = cutter.radius();
+    let (dx, dy) = (b.x - a.x, b.y - a.y);
+    let (wx, wy) = (px - a.x, py - a.y);
+    let aa = dx * dx + dy * dy;
+    let bb = wx * dx + wy * dy;
+    let cc = wx * wx + wy * wy;
+    let (t0, t1) = if aa <= 0.0 {
+        // A plunge: the tool covers the point all along or never.
+        if cc > r * r {
+            return None;
+        }
+        (0.0, 1.0)
+    } else {
+        let disc = bb * bb - aa * (cc - r * r);
+        if disc < 0.0 {
+            return None;
+        }
+        let s = disc.sqrt();
+        (((bb - s) / aa).max(0.0), ((bb + s) / aa).min(1.0))
+    };
+    if t0 > t1 {
+        return None;
+    }
+    let g = |t: f64| -> f64 {
+        let (qx, qy) = (a.x + dx * t, a.y + dy * t);
+        let rho = ((px - qx).powi(2) + (py - qy).powi(2)).sqrt().min(r);
+        a.z + (b.z - a.z) * t + cutter.profile(rho).unwrap_or(0.0)
+    };
+    const INV_PHI: f64 = 0.618_033_988_749_895;
+    let (mut lo, mut hi) = (t0, t1);
+    let mut x1 = hi - INV_PHI * (hi - lo);
+    let mut x2 = lo + INV_PHI * (hi - lo);
+    let (mut f1, mut f2) = (g(x1), g(x2));
+    // 0.618^48 < 1e-10 of the interval: far below any cell.
+    for _ in 0..48 {
+        if f1 <= f2 {
+            hi = x2;
+            x2 = x1;
+            f2 = f1;
+            x1 = hi - INV_PHI * (hi - lo);
+            f1 = g(x1);
+        } else {
+            lo = x1;
+            x1 = x2;
+            f1 = f2;
+            x2 = lo + INV_PHI * (hi - lo);
+            f2 = g(x2);
+        }
+    }
+    Some(g(t0).min(g(t1)).min(f1).min(f2))
+}
+
+/// Rows per band when a batch is cut in parallel.
+const BAND_ROWS: usize = 32;
+
+/// The cells a move can touch (see [`Stock::cut_lines`]).
+#[derive(Debug, Clone, Copy)]
+struct Reach {
+    i0: usize,
+    i1: usize,
+    j0: usize,
+    j1: usize,
+    level: bool,
+}
+
+/// Grid placement, copied out so bands can borrow rows mutably.
+struct Grid {
+    x0: f64,
+    y0: f64,
+    c: f64,
+    bottom: f64,
+}
+
+/// Cut one row `j` with the move a-b; returns the height removed (sum over
+/// cells, mm) and the cells examined.
+fn cut_row(g: &Grid, a: &P3, b: &P3, cutter: &Cutter, q: &Reach, j: usize, zrow: &mut [f64]) -> (f64, u64) {
+    let (x0, c, r) = (g.x0, g.c, cutter.radius());
+    let py = g.y0 + (j as f64 + 0.5) * c;
+    let mut removed = 0.0;
+    // A level move touches one run of cells per row: the row's chord
+    // through the stadium (the move's XY segment grown by r).
+    let (ia, ib) = if q.level {
+        match stadium_chord(a, b, r, py) {
+            Some((xl, xr)) => {
+                let ia = ((xl - x0) / c - 0.5).ceil().max(q.i0 as f64) as usize;
+                let ib = (((xr - x0) / c - 0.5).floor() + 1.0).clamp(0.0, q.i1 as f64) as usize;
+                (ia, ib.max(ia))
+            }
+            None => (q.i0, q.i0),
+        }
+    } else {
+        (q.i0, q.i1)
+    };
+    if q.level
+        && let Cutter::Flat { .. } = cutter
+    {
+        // Flat bottom: one height for the whole run, a branch-free loop
+        // the compiler vectorises.
+        let h = a.z.max(g.bottom);
+        for zc in &mut zrow[ia..ib] {
+            let cut = (*zc - h).max(0.0);
+            removed += cut;
+            *zc -= cut;
+        }
+        return (removed, (ib - ia) as u64);
+    }
+    for (i, zc) in zrow.iter_mut().enumerate().take(ib).skip(ia) {
+        let px = x0 + (i as f64 + 0.5) * c;
+        let h = if q.level {
+            let rho = dist_xy_segment(px, py, a, b);
+            cutter.profile(rho).map(|h| a.z + h)
+        } else {
+            lowest_on_move(px, py, a, b, cutter)
+        };
+        if let Some(h) = h {
+            let h = h.max(g.bottom);
+            // Rounding in the move's height (a + (b - a)·1 is not always b)
+            // must not count as a cut.
+            if h < *zc - 1e-12 {
+                removed += *zc - h;
+                *zc = h;
+            }
+        }
+    }
+    (removed, (ib - ia) as u64)
+}
+
+/// Where the horizontal line y = `py` crosses the stadium of the XY
+/// segment a-b grown by `r` (the points within `r` of the segment): an
+/// interval, since the stadium is convex; `None` if it misses.
+fn stadium_chord(a: &P3, b: &P3, r: f64, py: f64) -> Option<(f64, f64)> {
+    let mut lo = f64::INFINITY;
+    let mut hi = f64::NEG_INFINITY;
+    // The two end discs.
+    for e in [a, b] {
+        let dy = py - e.y;
+        if dy.abs() <= r {
+            let w = (r * r - dy * dy).sqrt();
+            lo = lo.min(e.x - w);
+            hi = hi.max(e.x + w);
+        }
+    }
+    // The band of points whose projection falls inside the segment.
+    let (dx, dy) = (b.x - a.x, b.y - a.y);
+    let l = (dx * dx + dy * dy).sqrt();
+    if l > 0.0 {
+        let (ux, uy) = (dx / l, dy / l);
+        let (nx, ny) = (-uy, ux);
+        let wy = py - a.y;
+        // Constraints linear in x: 0 <= (x-ax)·ux + wy·uy <= l and
+        // -r <= (x-ax)·nx + wy·ny <= r.
+        let mut blo = f64::NEG_INFINITY;
+        let mut bhi = f64::INFINITY;
+        let mut ok = true;
+        for (k, c0, c1) in [(ux, -wy * uy, l - wy * uy), (nx, -r - wy * ny, r - wy * ny)] {
+            if k.abs() < 1e-15 {
+                ok &= c0 <= 0.0 && 0.0 <= c1;
+            } else {
+                let (p, q) = (c0 / k, c1 / k);
+                blo = blo.max(p.min(q));
+                bhi = bhi.min(p.max(q));
+            }
+        }
+        if ok && blo <= bhi {
+            lo = lo.min(a.x + blo);
+            hi = hi.max(a.x + bhi);
+        }
+    }
+    (lo <= hi).then_some((lo, hi))
+}
+
+/// Distance in XY from (px, py) to the segment a-b.
+#[inline]
+fn dist_xy_segment(px: f64, py: f64, a: &P3, b: &P3) -> f64 {
+    let (dx, dy) = (b.x - a.x, b.y - a.y);
+    let (wx, wy) = (px - a.x, py - a.y);
+    let l2 = dx * dx + dy * dy;
+    let t = if l2 > 0.0 {
+        ((wx * dx + wy * dy) / l2).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    ((wx - t * dx).powi(2) + (wy - t * dy).powi(2)).sqrt()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::f64::consts::PI;
+
+    fn stock(cell: f64) -> Stock {
+        Stock::new(P3::new(-2.0, -2.0, -2.0), P3::new(12.0, 2.0, 0.0), cell).unwrap()
+    }
+
+    /// Area of the groove cross-section a cutter leaves at depth `d`
+    /// (integral of the depth across the groove), by the midpoint rule on
+    /// a million strips: independent of the grid code.
+    fn groove_area(c: &Cutter, d: f64) -> f64 {
+        let r = c.radius();
+        let n = 1_000_000;
+        let w = 2.0 * r / n as f64;
+        (0..n)
+            .map(|k| {
+                let x = -r + (k as f64 + 0.5) * w;
+                c.profile(x.abs()).map_or(0.0, |h| (d - h).max(0.0)) * w
+            })
+            .sum()
+    }
+
+    /// Volume of the tool's footprint at depth `d` (a solid of revolution).
+    fn plunge_volume(c: &Cutter, d: f64) -> f64 {
+        let r = c.radius();
+        let n = 1_000_000;
+        let w = r / n as f64;
+        (0..n)
+            .map(|k| {
+                let rho = (k as f64 + 0.5) * w;
+                2.0 * PI * rho * c.profile(rho).map_or(0.0, |h| (d - h).max(0.0)) * w
+            })
+            .sum()
+    }
+
+    #[test]
+    fn straight_slots_match_their_exact_volume_at_d_over_50() {
+        // Slot of length L at depth d: groove cross-section × L plus the
+        // tool's footprint (two half ends make one plunge).
+        let d_tool = 2.0;
+        let (len, depth) = (10.0, 0.5);
+        for c in [
+            Cutter::Flat { radius: 1.0 },
+            Cutter::Ball { radius: 1.0 },
+            Cutter::Torus {
+                radius: 1.0,
+                corner: 0.3,
+            },
+        ] {
+            let exact = groove_area(&c, depth) * len + plunge_volume(&c, depth);
+            let mut s = stock(d_tool / 50.0);
+            let v0 = s.volume();
+            // Off the grid's symmetry: a slot edge exactly on a row of cell
+            // centres would count that row whole.
+            let removed = s.cut_line(&P3::new(0.0, 0.0137, -depth), &P3::new(len, 0.0137, -depth), &c);
+            assert!((v0 - s.volume() - removed).abs() < 1e-9 * v0, "{c:?} bookkeeping");
+            let err = (removed - exact).abs() / exact;
+            assert!(err < 0.005, "{c:?}: {removed} vs {exact} ({:.3} %)", err * 100.0);
+        }
+    }
+
+    #[test]
+    fn every_surface_sample_is_within_a_cell_of_the_exact_surface() {
+        let c = Cutter::Ball { radius: 1.0 };
+        let mut s = stock(0.04);
+        s.cut_line(&P3::new(0.0, 0.0, -0.5), &P3::new(10.0, 0.0, -0.5), &c);
+        for j in 0..s.ny {
+            for i in 0..s.nx {
+                let (px, py) = (s.x0 + (i as f64 + 0.5) * s.cell, s.y0 + (j as f64 + 0.5) * s.cell);
+                let rho = dist_xy_segment(px, py, &P3::new(0.0, 0.0, 0.0), &P3::new(10.0, 0.0, 0.0));
+                let want = c.profile(rho).map_or(0.0, |h| (h - 0.5).min(0.0));
+                assert!((s.z[j * s.nx + i] - want).abs() <= s.cell, "{px} {py}");
+            }
+        }
+    }
+
+    #[test]
+    fn ramps_and_arcs_cut_what_they_should() {
+        // A ramp from the top down to 0.5 mm deep with a flat tool removes
+        // half the level slot's groove volume along its length, plus the
+        // footprint at the deep end.
+        let c = Cutter::Flat { radius: 1.0 };
+        let mut s = stock(0.02);
+        let v = s.cut_line(&P3::new(0.0, 0.0, 0.0), &P3::new(10.0, 0.0, -0.5), &c);
+        let exact = 2.0 * 0.5 * 10.0 / 2.0 + PI * 0.5;
+        assert!((v - exact).abs() / exact < 0.01, "{v} vs {exact}");
+        // A half circle of radius 4 at 0.2 mm deep: groove × arc length +
+        // footprint.
+        let mut s = Stock::new(P3::new(-6.0, -6.0, -1.0), P3::new(6.0, 6.0, 0.0), 0.02).unwrap();
+        let arc = Arc3::new(
+            P3::origin(),
+            P3::new(4.0, 0.0, -0.2),
+            P3::new(-4.0, 0.0, -0.2),
+            true,
+            crate::geometry::Plane::Xy,
+            0,
+        )
+        .unwrap();
+        let v = s.cut_arc(&arc, &c);
+        let exact = 2.0 * 0.2 * 4.0 * PI + PI * 0.2;
+        assert!((v - exact).abs() / exact < 0.005, "{v} vs {exact}");
+        // Cutting the same path again removes nothing.
+        assert!(s.cut_arc(&arc, &c).abs() < 1e-12);
+    }
+
+    #[test]
+    fn level_moves_agree_with_the_general_search() {
+        // The fast path (stadium chord, closed-form depth, branch-free flat
+        // loop) against the golden-section search on the same moves.
+        let mut seed = 12345u64;
+        let mut rnd = || {
+            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            (seed >> 11) as f64 / (1u64 << 53) as f64
+        };
+        for c in [
+            Cutter::Flat { radius: 0.7 },
+            Cutter::Ball { radius: 0.7 },
+            Cutter::Torus {
+                radius: 0.7,
+                corner: 0.2,
+            },
+        ] {
+            let mut fast = Stock::new(P3::new(-3.0, -3.0, -2.0), P3::new(3.0, 3.0, 0.0), 0.05).unwrap();
+            let mut slow = fast.clone();
+            for _ in 0..12 {
+                let z = -rnd();
+                let a = P3::new(6.0 * rnd() - 3.0, 6.0 * rnd() - 3.0, z);
+                // Some moves axis-parallel, some a point.
+                let b = match (rnd() * 4.0) as u32 {
+                    0 => P3::new(a.x, 6.0 * rnd() - 3.0, z),
+                    1 => P3::new(6.0 * rnd() - 3.0, a.y, z),
+                    2 => a,
+                    _ => P3::new(6.0 * rnd() - 3.0, 6.0 * rnd() - 3.0, z),
+                };
+                let vf = fast.cut_line(&a, &b, &c);
+                let mut vs = 0.0;
+                for j in 0..slow.ny {
+                    for i in 0..slow.nx {
+                        let (px, py) = (
+                            slow.x0 + (i as f64 + 0.5) * slow.cell,
+                            slow.y0 + (j as f64 + 0.5) * slow.cell,
+                        );
+                        let zc = &mut slow.z[j * slow.nx + i];
+                        // A tiny tilt sends the general path through the search.
+                        if let Some(h) = lowest_on_move(px, py, &a, &P3::new(b.x, b.y, b.z + 1e-13), &c)
+                            && h < *zc - 1e-9
+                        {
+                            vs += (*zc - h) * slow.cell * slow.cell;
+                            *zc = h;
+                        }
+                    }
+                }
+                assert!((vf - vs).abs() < 1e-6, "{c:?}: {vf} vs {vs}");
+            }
+            for (f, s) in fast.z.iter().zip(&slow.z) {
+                assert!((f - s).abs() < 1e-9);
+            }
+        }
+    }
+
+    #[test]
+    fn a_parallel_batch_cuts_like_one_move_after_another() {
+        let c = Cutter::Torus {
+            radius: 0.5,
+            corner: 0.2,
+        };
+        let mut one = Stock::new(P3::new(0.0, 0.0, -2.0), P3::new(10.0, 10.0, 0.0), 0.02).unwrap();
+        let mut batch = one.clone();
+        // Overlapping moves, level and ramping, so order matters per cell.
+        let pieces: Vec<(P3, P3)> = (0..40)
+            .map(|k| {
+                let t = k as f64 * 0.37;
+                let a = P3::new(5.0 + 4.0 * t.cos(), 5.0 + 4.0 * t.sin(), -0.2 - 0.01 * k as f64);
+                let b = P3::new(
+                    5.0 + 3.0 * (t + 2.0).cos(),
+                    5.0 + 3.0 * (t + 2.0).sin(),
+                    if k % 2 == 0 { a.z } else { -0.9 },
+                );
+                (a, b)
+            })
+            .collect();
+        let v1: Vec<f64> = pieces.iter().map(|(a, b)| one.cut_line(a, b, &c)).collect();
+        let vb = batch.cut_lines(&pieces, &c);
+        for (x, y) in v1.iter().zip(&vb) {
+            assert!((x - y).abs() < 1e-9, "{x} vs {y}");
+        }
+        assert_eq!(one.z, batch.z);
+        assert_eq!(one.cells_visited, batch.cells_visited);
+    }
+
+    #[test]
+    fn cutters_parse() {
+        assert_eq!(Cutter::parse("flat:2").unwrap(), Cutter::Flat { radius: 1.0 });
+        assert_eq!(
+            Cutter::parse("torus:2:0.3").unwrap(),
+            Cutter::Torus {
+                radius: 1.0,
+                corner: 0.3
+            }
+        );
+        assert!(Cutter::parse("torus:2:1.5").is_err());
+        assert!(Cutter::parse("ball:-1").is_err());
+        assert!(Cutter::parse("drill:1").is_err());
+    }
+}
