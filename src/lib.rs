@@ -14,5 +14,6 @@ pub mod formats;
 pub mod gcode;
 pub mod geometry;
 pub mod model;
+pub mod paths;
 pub mod sim;
 pub mod source;

@@ -1,0 +1,10 @@
+//! Laser toolpath strategies (seed 000 §6.1.3): constant-velocity,
+//! shutter-exact paths from chains and from parametric patterns.
+//!
+//! - [`machine`]: the stage and shutter facts planning obeys.
+//! - [`elem`]: exact path pieces that can be split and joined.
+//! - [`dubins`]: minimum-radius corner loops.
+
+pub mod dubins;
+pub mod elem;
+pub mod machine;
