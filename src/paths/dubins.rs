@@ -199,7 +199,7 @@ pub fn to_elems(dp: &Dubins, p0: P2, h0: f64, goal: P2, plane: Plane, nz: f64) -
 /// When the shortest loop is shorter, both ends are extended straight along
 /// the headings by the least amount that makes it long enough, which keeps
 /// curvature at the limit and adds only straight travel.
-pub fn corner_loop(corner: P3, din: P2, dout: P2, r: f64, min_len: f64, plane: Plane) -> Option<Vec<Elem>> {
+pub fn corner_loop(corner: P3, din: V2, dout: V2, r: f64, min_len: f64, plane: Plane) -> Option<Vec<Elem>> {
     let c2 = plane.project(&corner);
     let nz = plane.normal_coord(&corner);
     let (h0, h1) = (din.y.atan2(din.x), dout.y.atan2(dout.x));
@@ -290,7 +290,7 @@ mod tests {
             let hin = 0.3f64;
             let hout = if left { hin + turn } else { hin - turn };
             let r = 0.2;
-            let els = corner_loop(corner, P2::new(hin.cos(), hin.sin()), P2::new(hout.cos(), hout.sin()), r, min_len, Plane::Xy).unwrap();
+            let els = corner_loop(corner, V2::new(hin.cos(), hin.sin()), V2::new(hout.cos(), hout.sin()), r, min_len, Plane::Xy).unwrap();
             prop_assert_eq!(els.first().unwrap().start(), corner);
             prop_assert!((els.last().unwrap().end() - corner).norm() < 1e-9);
             let d0 = els[0].dir_start();

@@ -5,6 +5,10 @@
 //! - [`elem`]: exact path pieces that can be split and joined.
 //! - [`dubins`]: minimum-radius corner loops.
 
+pub mod audit;
 pub mod dubins;
 pub mod elem;
 pub mod machine;
+pub mod offset;
+pub mod order;
+pub mod plan;
