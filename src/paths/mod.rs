@@ -6,9 +6,11 @@
 //! - [`dubins`]: minimum-radius corner loops.
 
 pub mod audit;
+pub mod contour;
 pub mod dubins;
 pub mod elem;
 pub mod machine;
 pub mod offset;
 pub mod order;
 pub mod plan;
+pub mod svg;

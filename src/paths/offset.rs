@@ -138,11 +138,60 @@ pub fn offset_chain(c: &Chain, side: Side, dist: f64) -> Vec<Vec<Elem>> {
     if signed == 0.0 || dist == 0.0 {
         return vec![chain_elems(c)];
     }
+    let vertices: Vec<P3> = c.segments.iter().map(|s| s.start()).collect();
     pl.parallel_offset(signed)
         .iter()
-        .map(|p| from_polyline(p, z))
+        .map(|p| miter_joins(from_polyline(p, z), &vertices, dist))
         .filter(|p| !p.is_empty())
         .collect()
+}
+
+/// Largest join sweep (radians) turned into one miter point; sharper
+/// corners get a bevel, since a miter's length grows as 1/cos(sweep/2).
+const MAX_MITER_SWEEP: f64 = 150.0 * std::f64::consts::PI / 180.0;
+
+/// An offset rounds every convex corner with an arc of radius `dist`
+/// about the source vertex. At V that arc asks V²/dist of the stage — at
+/// a 5 µm beam radius hundreds of times its limit — and dwells the beam on
+/// the corner. Replace each such join by the straight extensions of its
+/// neighbours meeting at a miter point (a bevel for very sharp corners):
+/// the corner then becomes a real corner, and planning loops it with the
+/// beam off at constant speed.
+fn miter_joins(path: Vec<Elem>, vertices: &[P3], dist: f64) -> Vec<Elem> {
+    let is_join = |e: &Elem| match e {
+        Elem::Arc(a) => {
+            (a.radius() - dist).abs() <= 1e-9 * (1.0 + dist)
+                && vertices.iter().any(|v| (v.xy() - a.center.xy()).norm() <= 1e-9 * (1.0 + dist))
+        }
+        Elem::Line(_) => false,
+    };
+    let mut out = Vec::with_capacity(path.len() + 4);
+    for e in &path {
+        let Elem::Arc(arc) = e else {
+            out.push(*e);
+            continue;
+        };
+        if !is_join(e) {
+            out.push(*e);
+            continue;
+        }
+        let (a, b) = (arc.start, arc.end);
+        let (ta, tb) = (e.dir_start(), e.dir_end());
+        let sweep = arc.sweep().abs();
+        if sweep <= MAX_MITER_SWEEP {
+            // Lines a + s·ta and b - u·tb meet at s = u = dist·tan(sweep/2).
+            let s = dist * (0.5 * sweep).tan();
+            let m = a + ta * s;
+            out.push(Elem::line(a, m));
+            out.push(Elem::line(m, b));
+        } else {
+            let (p, q) = (a + ta * dist, b - tb * dist);
+            out.push(Elem::line(a, p));
+            out.push(Elem::line(p, q));
+            out.push(Elem::line(q, b));
+        }
+    }
+    out
 }
 
 #[cfg(test)]
@@ -189,14 +238,20 @@ mod tests {
                 for e in &paths[0] {
                     for k in 0..=20 {
                         let p = e.point_at_length(e.length() * k as f64 / 20.0);
-                        assert!((dist_to_square(&p) - d).abs() < 1e-9, "{side:?} cw={cw} at {p:?}");
+                        // Along the sides the distance is d; at a miter it
+                        // grows to d·√2 at the corner point.
+                        let dd = dist_to_square(&p);
+                        let on_side = (dd - d).abs() < 1e-9;
+                        let in_miter = side == Side::Outside && dd > d && dd <= d * 2f64.sqrt() + 1e-9;
+                        assert!(on_side || in_miter, "{side:?} cw={cw} at {p:?}: {dd}");
                         let inside = p.x > 0.0 && p.x < 2.0 && p.y > 0.0 && p.y < 2.0;
                         assert_eq!(inside, side == Side::Inside);
                     }
                 }
-                // Outside corners are rounded by arcs of radius d: 4 lines + 4 arcs.
+                // Outside corners are mitred: 4 corners at distance d·√2.
                 if side == Side::Outside {
-                    assert_eq!(paths[0].len(), 8);
+                    let corners = paths[0].iter().filter(|e| (dist_to_square(&e.end()) - d * 2f64.sqrt()).abs() < 1e-9);
+                    assert_eq!(corners.count(), 4);
                 }
             }
         }
