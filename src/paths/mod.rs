@@ -14,3 +14,6 @@ pub mod offset;
 pub mod order;
 pub mod plan;
 pub mod svg;
+
+#[cfg(test)]
+mod physics_tests;
