@@ -332,9 +332,16 @@ fn emit(a: EmitArgs) -> Result<(), CliError> {
     out.commit()
 }
 
+/// Warnings beyond this many are counted, not printed: a drawing with
+/// thousands of tight fillets should not bury the rest of stderr.
+const MAX_WARNINGS: usize = 20;
+
 fn warn_all(warnings: &[Warning]) {
-    for w in warnings {
+    for w in warnings.iter().take(MAX_WARNINGS) {
         eprintln!("pathgen: warning: chain {}: {}", w.chain, w.message);
+    }
+    if warnings.len() > MAX_WARNINGS {
+        eprintln!("pathgen: warning: {} more warnings not shown", warnings.len() - MAX_WARNINGS);
     }
 }
 
@@ -412,10 +419,25 @@ fn contour_cmd(a: ContourArgs) -> Result<(), CliError> {
     let name = input.name.clone();
     let reader = ChainsReader::new(input.reader).map_err(|e| CliError::in_file(&name, e))?;
     let source = reader.header().source.clone().or(Some(name.clone()));
+    let timing = std::env::var_os("PATHGEN_TIMING").is_some();
+    let t0 = std::time::Instant::now();
     let chains = reader
         .collect::<Result<Vec<_>, _>>()
         .map_err(|e| CliError::in_file(&name, e))?;
+    let t1 = std::time::Instant::now();
     let job = contour(&chains, &m, &o);
+    drop(chains);
+    let t2 = std::time::Instant::now();
     warn_all(&job.warnings);
-    write_generated(&job.records, &a.out, source, &m)
+    write_generated(&job.records, &a.out, source, &m)?;
+    if timing {
+        let t3 = std::time::Instant::now();
+        eprintln!(
+            "pathgen: timing: read {:.3} s, plan {:.3} s, write {:.3} s",
+            (t1 - t0).as_secs_f64(),
+            (t2 - t1).as_secs_f64(),
+            (t3 - t2).as_secs_f64()
+        );
+    }
+    Ok(())
 }

@@ -151,23 +151,44 @@ fn nesting(chains: &[Chain]) -> Vec<(usize, usize)> {
             p.extents().map(|e| (P2::new(e.min_x, e.min_y), P2::new(e.max_x, e.max_y)))
         })
         .collect();
-    // Sweep by min x so each chain checks only boxes that start left of it.
-    let mut by_x: Vec<usize> = (0..chains.len()).filter(|&i| boxes[i].is_some()).collect();
-    by_x.sort_by(|&a, &b| boxes[a].unwrap().0.x.total_cmp(&boxes[b].unwrap().0.x).then(a.cmp(&b)));
+    // A uniform grid of about n cells; each closed chain's box is listed in
+    // every cell it overlaps, so a query point meets only the boxes around
+    // it (one big outer contour is listed everywhere, which is fine).
+    let mut lo = P2::new(f64::INFINITY, f64::INFINITY);
+    let mut hi = P2::new(f64::NEG_INFINITY, f64::NEG_INFINITY);
+    for (a, b) in boxes.iter().flatten() {
+        lo = lo.inf(a);
+        hi = hi.sup(b);
+    }
+    let side = (boxes.iter().flatten().count() as f64).sqrt().ceil().clamp(1.0, 1024.0) as usize;
+    let cell = ((hi - lo).max() / side as f64).max(1e-9);
+    let idx = |v: f64, o: f64| (((v - o) / cell).max(0.0) as usize).min(side - 1);
+    let mut grid: Vec<Vec<usize>> = vec![Vec::new(); if lo.x.is_finite() { side * side } else { 0 }];
+    for (j, b) in boxes.iter().enumerate() {
+        if let Some((a, b)) = b {
+            for y in idx(a.y, lo.y)..=idx(b.y, lo.y) {
+                for x in idx(a.x, lo.x)..=idx(b.x, lo.x) {
+                    grid[y * side + x].push(j);
+                }
+            }
+        }
+    }
     let containers: Vec<Vec<usize>> = (0..chains.len())
         .into_par_iter()
         .map(|i| {
             let Some(first) = chains[i].segments.first() else { return Vec::new() };
             let q = first.start();
-            let Some((lo, hi)) = boxes[i].or(Some((q.xy(), q.xy()))) else { return Vec::new() };
-            let end = by_x.partition_point(|&j| boxes[j].unwrap().0.x <= lo.x);
-            by_x[..end]
+            let (blo, bhi) = boxes[i].unwrap_or((q.xy(), q.xy()));
+            if grid.is_empty() || q.x < lo.x || q.y < lo.y || q.x > hi.x || q.y > hi.y {
+                return Vec::new();
+            }
+            grid[idx(q.y, lo.y) * side + idx(q.x, lo.x)]
                 .iter()
                 .copied()
                 .filter(|&j| {
                     j != i && {
-                        let (blo, bhi) = boxes[j].unwrap();
-                        blo.x <= lo.x && blo.y <= lo.y && bhi.x >= hi.x && bhi.y >= hi.y
+                        let (a, b) = boxes[j].expect("only boxes are listed");
+                        a.x <= blo.x && a.y <= blo.y && b.x >= bhi.x && b.y >= bhi.y
                     }
                 })
                 .filter(|&j| plines[j].winding_number(cavalier_contours::core::math::Vector2::new(q.x, q.y)) != 0)
@@ -269,9 +290,13 @@ pub fn contour(chains: &[Chain], m: &Machine, o: &ContourOptions) -> Job {
             });
         }
     }
-    // One warning per chain and message is enough, however many copies.
+    // One warning per chain and kind is enough, however many copies and
+    // tight arcs (the first, in cutting order, stands for the rest).
     let mut seen = std::collections::HashSet::new();
-    job.warnings.retain(|w| seen.insert((w.chain, w.message.clone())));
+    job.warnings.retain(|w| {
+        let kind = if w.message.starts_with("arc of radius") { "" } else { w.message.as_str() };
+        seen.insert((w.chain, kind.to_string()))
+    });
     job
 }
 
