@@ -40,7 +40,7 @@ enum Command {
     Emit(EmitArgs),
     /// Cut chains: offset, order, lead in/out, loop corners, time the shutter.
     #[command(after_help = CONTOUR_EXAMPLES)]
-    Contour(ContourArgs),
+    Contour(Box<ContourArgs>),
 }
 
 const CONTOUR_EXAMPLES: &str = "\
@@ -261,7 +261,7 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     cli::run("pathgen", || match cli.command {
         Command::Emit(a) => emit(a),
-        Command::Contour(a) => contour_cmd(a),
+        Command::Contour(a) => contour_cmd(*a),
     })
 }
 

@@ -97,7 +97,7 @@ pub fn signed_area(path: &[Elem]) -> f64 {
     a
 }
 
-fn reverse_path(path: &mut Vec<Elem>) {
+fn reverse_path(path: &mut [Elem]) {
     path.reverse();
     for e in path.iter_mut() {
         *e = e.reversed();
@@ -222,7 +222,7 @@ pub fn contour(chains: &[Chain], m: &Machine, o: &ContourOptions) -> Job {
             };
             let mut paths = offset_chain(c, side, o.distance);
             for p in &mut paths {
-                let closed = p.len() > 0 && (p[0].start() - p[p.len() - 1].end()).norm() < 1e-9;
+                let closed = !p.is_empty() && (p[0].start() - p[p.len() - 1].end()).norm() < 1e-9;
                 if !closed {
                     continue;
                 }

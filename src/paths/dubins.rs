@@ -196,16 +196,24 @@ pub fn to_elems(dp: &Dubins, p0: P2, h0: f64, goal: P2, plane: Plane, nz: f64) -
 /// A beam-off corner loop of radius `r` at `corner`: leaves along the
 /// incoming direction `din`, returns through the corner along `dout`, and is
 /// at least `min_len` long (so the shutter has time to close and reopen).
-/// When the shortest loop is shorter, both ends are extended straight along
-/// the headings by the least amount that makes it long enough, which keeps
-/// curvature at the limit and adds only straight travel.
 pub fn corner_loop(corner: P3, din: V2, dout: V2, r: f64, min_len: f64, plane: Plane) -> Option<Vec<Elem>> {
-    let c2 = plane.project(&corner);
-    let nz = plane.normal_coord(&corner);
+    connect(corner, din, corner, dout, r, min_len, plane)
+}
+
+/// The shortest path of radius `r` in `plane` from `from` heading `din` to
+/// `to` heading `dout`, at least `min_len` long. When the shortest is
+/// shorter, both ends are extended straight along their headings by the
+/// least amount that makes it long enough: curvature stays at the limit
+/// and only straight travel is added. `to` must share `from`'s normal
+/// coordinate.
+pub fn connect(from: P3, din: V2, to: P3, dout: V2, r: f64, min_len: f64, plane: Plane) -> Option<Vec<Elem>> {
+    let a2 = plane.project(&from);
+    let b2 = plane.project(&to);
+    let nz = plane.normal_coord(&from);
     let (h0, h1) = (din.y.atan2(din.x), dout.y.atan2(dout.x));
     let (u0, u1) = (V2::new(h0.cos(), h0.sin()), V2::new(h1.cos(), h1.sin()));
     let total = |e: f64| -> Option<(f64, Dubins)> {
-        let dp = shortest(c2 + u0 * e, h0, c2 - u1 * e, h1, r)?;
+        let dp = shortest(a2 + u0 * e, h0, b2 - u1 * e, h1, r)?;
         Some((2.0 * e + dp.length(), dp))
     };
     let (len0, _) = total(0.0)?;
@@ -215,31 +223,50 @@ pub fn corner_loop(corner: P3, din: V2, dout: V2, r: f64, min_len: f64, plane: P
         let (mut lo, mut hi) = (0.0, 0.5 * min_len);
         for _ in 0..60 {
             let mid = 0.5 * (lo + hi);
-            if total(mid)?.0 >= min_len { hi = mid } else { lo = mid }
+            if total(mid)?.0 >= min_len {
+                hi = mid
+            } else {
+                lo = mid
+            }
         }
         e = hi;
     }
     let (_, dp) = total(e)?;
-    let a = c2 + u0 * e;
-    let b = c2 - u1 * e;
+    let ext = e > MIN_PIECE;
+    let (s2, g2) = if ext { (a2 + u0 * e, b2 - u1 * e) } else { (a2, b2) };
     let mut out = Vec::with_capacity(5);
-    if e > MIN_PIECE {
-        out.push(Elem::line(corner, plane.lift(&a, nz)));
+    if ext {
+        out.push(Elem::line(from, plane.lift(&s2, nz)));
     }
-    let goal = if e > MIN_PIECE { b } else { c2 };
-    let start = if e > MIN_PIECE { a } else { c2 };
-    let mut mid = to_elems(&dp, start, h0, goal, plane, nz);
-    if e <= MIN_PIECE {
-        // Snap the loop's ends onto the corner exactly.
-        if let Some(Elem::Line(l)) = mid.first_mut() {
-            l.start = corner;
+    let mut mid = to_elems(&dp, s2, h0, g2, plane, nz);
+    if !ext {
+        // Snap the ends exactly onto the given points.
+        if let Some(first) = mid.first_mut() {
+            set_start(first, from);
+        }
+        if let Some(last) = mid.last_mut() {
+            set_end(last, to);
         }
     }
     out.append(&mut mid);
-    if e > MIN_PIECE {
-        out.push(Elem::line(plane.lift(&b, nz), corner));
+    if ext {
+        out.push(Elem::line(plane.lift(&g2, nz), to));
     }
     Some(out)
+}
+
+fn set_start(e: &mut Elem, p: P3) {
+    match e {
+        Elem::Line(l) => l.start = p,
+        Elem::Arc(a) => a.start = p,
+    }
+}
+
+fn set_end(e: &mut Elem, p: P3) {
+    match e {
+        Elem::Line(l) => l.end = p,
+        Elem::Arc(a) => a.end = p,
+    }
 }
 
 #[cfg(test)]

@@ -5,6 +5,7 @@
 //! - [`elem`]: exact path pieces that can be split and joined.
 //! - [`dubins`]: minimum-radius corner loops.
 
+pub mod arcfit;
 pub mod audit;
 pub mod contour;
 pub mod dubins;

@@ -49,8 +49,16 @@ impl std::fmt::Display for Note {
 /// Plan one cut path. `path` is continuous; `closed` paths end where they
 /// start (the seam gets a lead-out and the next pass its own lead-in).
 pub fn plan_path(path: &[Elem], m: &Machine, notes: &mut Vec<Note>) -> Vec<Piece> {
-    let path: Vec<Elem> = path.iter().copied().filter(|e| e.length() > MIN_PIECE).collect();
-    let (Some(first), Some(last)) = (path.first(), path.last()) else {
+    let tagged: Vec<(Elem, Role)> = path.iter().map(|e| (*e, Role::Cut)).collect();
+    plan_tagged(&tagged, m, notes)
+}
+
+/// Plan a path whose pieces are cuts or beam-off connections the caller
+/// already shaped (zigzag turnarounds: role `Loop` or `Link`, tangent to
+/// their neighbours). Loops are added only between two cut pieces.
+pub fn plan_tagged(path: &[(Elem, Role)], m: &Machine, notes: &mut Vec<Note>) -> Vec<Piece> {
+    let path: Vec<(Elem, Role)> = path.iter().copied().filter(|e| e.0.length() > MIN_PIECE).collect();
+    let (Some((first, _)), Some((last, _))) = (path.first(), path.last()) else {
         return Vec::new();
     };
     let r = m.min_radius();
@@ -62,7 +70,15 @@ pub fn plan_path(path: &[Elem], m: &Machine, notes: &mut Vec<Note>) -> Vec<Piece
         role: Role::LeadIn,
         beam: false,
     });
-    for (i, e) in path.iter().enumerate() {
+    for (i, (e, role)) in path.iter().enumerate() {
+        if *role != Role::Cut {
+            out.push(Piece {
+                elem: *e,
+                role: *role,
+                beam: false,
+            });
+            continue;
+        }
         if e.curvature_radius() < r * (1.0 - 1e-9) {
             let rad = e.curvature_radius();
             notes.push(Note::TightArc {
@@ -75,7 +91,9 @@ pub fn plan_path(path: &[Elem], m: &Machine, notes: &mut Vec<Note>) -> Vec<Piece
             role: Role::Cut,
             beam: true,
         });
-        let Some(next) = path.get(i + 1) else { break };
+        let Some((next, Role::Cut)) = path.get(i + 1) else {
+            continue;
+        };
         let (din, dout) = (e.dir_end(), next.dir_start());
         if din.dot(&dout) >= cos_tol {
             continue;
