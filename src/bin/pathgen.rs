@@ -2,15 +2,21 @@
 
 use clap::{Args as ClapArgs, Parser, Subcommand};
 use microcam::cli::{self, CliError, Output};
+use microcam::formats::chains::{ChainsReader, ChainsWriter};
+use microcam::formats::toolpath::ToolpathWriter;
 use microcam::gcode::writer::{GcodeWriter, WriteError, WriteOptions};
 use microcam::gcode::{Dialect, ReadOptions};
-use microcam::formats::chains::ChainsReader;
-use microcam::formats::toolpath::ToolpathWriter;
 use microcam::geometry::P2;
+use microcam::geometry::{P3, Plane};
+use microcam::model::chain::{Chain, ChainsHeader, Segment};
 use microcam::model::toolpath::{FeedUnit, Header, Record};
+use microcam::paths::arcfit;
 use microcam::paths::contour::{ContourOptions, Direction, OrderMode, Warning, contour};
+use microcam::paths::elem::Elem;
 use microcam::paths::machine::Machine;
 use microcam::paths::offset::Side;
+use microcam::paths::patterns;
+use microcam::paths::plan::{Tagged, all_cut, plan_paths};
 use microcam::source::ToolpathSource;
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -41,6 +47,193 @@ enum Command {
     /// Cut chains: offset, order, lead in/out, loop corners, time the shutter.
     #[command(after_help = CONTOUR_EXAMPLES)]
     Contour(Box<ContourArgs>),
+    /// A helix (holes): radius, pitch per turn, whole turns.
+    #[command(after_help = PATTERN_EXAMPLES)]
+    Helix(Box<HelixArgs>),
+    /// A square or Archimedean spiral, inward or outward.
+    #[command(after_help = PATTERN_EXAMPLES)]
+    Spiral(Box<SpiralArgs>),
+    /// Zigzag hatching along X or Y in plane XY or XZ.
+    #[command(after_help = PATTERN_EXAMPLES)]
+    Zigzag(Box<ZigzagArgs>),
+    /// A cone: spirals on Z levels, diameters per seed 000 eqs. 6.4-6.6.
+    #[command(after_help = PATTERN_EXAMPLES)]
+    Cone(Box<ConeArgs>),
+    /// Fit tangent-continuous arcs (biarcs) to points or a polyline.
+    Arcfit(Box<ArcfitArgs>),
+}
+
+const PATTERN_EXAMPLES: &str = "\
+Examples:
+  pathgen helix --center 1,1 --radius 0.3 --pitch -0.01 --turns 5 --gcode pmac
+  pathgen spiral --kind archimedean --radius 0.5 --step 0.01 --inward
+  pathgen spiral --kind square --size 1 --step 0.02 --svg sq.svg
+  pathgen zigzag --length 2 --width 1 --step 0.01 --along y --plane xz
+  pathgen cone --d1 1 --d2 0.4 --height 0.3 --levels 10 --step 0.01
+
+Output is microcam.toolpath/1 (feeds in mm/s) or G-code with --gcode; every
+move runs at --feed with the beam switched per the shutter timing.";
+
+#[derive(ClapArgs)]
+struct HelixArgs {
+    /// Centre X,Y.
+    #[arg(long, value_parser = parse_pair_f64, default_value = "0,0", allow_hyphen_values = true)]
+    center: (f64, f64),
+    /// Start height (mm).
+    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+    z: f64,
+    /// Radius (mm).
+    #[arg(long)]
+    radius: f64,
+    /// Rise per turn (mm; negative goes down).
+    #[arg(long, allow_hyphen_values = true)]
+    pitch: f64,
+    /// Whole turns.
+    #[arg(long, default_value_t = 1)]
+    turns: u32,
+    /// Clockwise instead of counter-clockwise.
+    #[arg(long)]
+    cw: bool,
+    #[command(flatten)]
+    machine: MachineArgs,
+    #[command(flatten)]
+    out: GenOutput,
+}
+
+#[derive(ClapArgs)]
+struct SpiralArgs {
+    /// square or archimedean.
+    #[arg(long, value_parser = ["square", "archimedean"], default_value = "archimedean")]
+    kind: String,
+    /// Centre X,Y.
+    #[arg(long, value_parser = parse_pair_f64, default_value = "0,0", allow_hyphen_values = true)]
+    center: (f64, f64),
+    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+    z: f64,
+    /// Distance between passes (mm).
+    #[arg(long)]
+    step: f64,
+    /// Square: side of the square (mm).
+    #[arg(long)]
+    size: Option<f64>,
+    /// Archimedean: outer radius (mm), closed by a full circle there.
+    #[arg(long)]
+    radius: Option<f64>,
+    /// Archimedean: radius where the spiral starts (a in r = a + b·θ; default: step).
+    #[arg(long)]
+    inner: Option<f64>,
+    /// Run from the outside in.
+    #[arg(long)]
+    inward: bool,
+    /// Archimedean: largest deviation of the arcs from the spiral (mm).
+    #[arg(long, default_value_t = 1e-5)]
+    tolerance: f64,
+    #[command(flatten)]
+    machine: MachineArgs,
+    #[command(flatten)]
+    out: GenOutput,
+}
+
+#[derive(ClapArgs)]
+struct ZigzagArgs {
+    /// Corner X,Y,Z where the first line starts.
+    #[arg(long, value_parser = parse_triple_f64, default_value = "0,0,0", allow_hyphen_values = true)]
+    origin: (f64, f64, f64),
+    /// Plane of the hatching.
+    #[arg(long, value_parser = ["xy", "xz"], default_value = "xy")]
+    plane: String,
+    /// Cut lines along this axis (the plane's other axis steps).
+    #[arg(long, value_parser = ["x", "y", "z"], default_value = "x")]
+    along: String,
+    /// Length of each line (mm).
+    #[arg(long)]
+    length: f64,
+    /// Extent across the lines (mm).
+    #[arg(long)]
+    width: f64,
+    /// Distance between lines (mm).
+    #[arg(long)]
+    step: f64,
+    /// Smallest turnaround radius (mm); never below V²/a.
+    #[arg(long, default_value_t = 0.0)]
+    corner_radius: f64,
+    #[command(flatten)]
+    machine: MachineArgs,
+    #[command(flatten)]
+    out: GenOutput,
+}
+
+#[derive(ClapArgs)]
+struct ConeArgs {
+    /// Centre X,Y.
+    #[arg(long, value_parser = parse_pair_f64, default_value = "0,0", allow_hyphen_values = true)]
+    center: (f64, f64),
+    /// Surface height (mm); passes go down from here.
+    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+    z: f64,
+    /// Diameter at the surface (mm).
+    #[arg(long)]
+    d1: f64,
+    /// Diameter at depth --height (mm).
+    #[arg(long)]
+    d2: f64,
+    /// Depth of the cone (mm).
+    #[arg(long)]
+    height: f64,
+    /// Number of Z levels.
+    #[arg(long, default_value_t = 10)]
+    levels: u32,
+    /// Distance between spiral passes (mm; default the beam diameter).
+    #[arg(long)]
+    step: Option<f64>,
+    /// Beam spot diameter (mm): each section is filled to its edge minus the radius.
+    #[arg(long, default_value_t = 0.01)]
+    beam_diameter: f64,
+    #[arg(long, default_value_t = 1e-5)]
+    tolerance: f64,
+    #[command(flatten)]
+    machine: MachineArgs,
+    #[command(flatten)]
+    out: GenOutput,
+}
+
+#[derive(ClapArgs)]
+struct ArcfitArgs {
+    /// Points, one 'x y' (or 'x,y') per line, '#' comments; '-' for stdin.
+    file: Option<PathBuf>,
+    /// Largest deviation from the polyline (mm).
+    #[arg(long, default_value_t = 0.001)]
+    tolerance: f64,
+    /// Print a JSON report (blocks, deviation) instead of chains.
+    #[arg(long)]
+    report: bool,
+    /// The input is a polyline to stay within (both ways), not samples of
+    /// a smooth curve (the default: only the points must be within).
+    #[arg(long)]
+    polyline: bool,
+    /// Write output here instead of stdout.
+    #[arg(short, long)]
+    output: Option<PathBuf>,
+}
+
+fn parse_triple_f64(s: &str) -> Result<(f64, f64, f64), String> {
+    let v: Vec<f64> = s
+        .split(',')
+        .map(|t| t.trim().parse::<f64>().ok().filter(|v| v.is_finite()))
+        .collect::<Option<_>>()
+        .ok_or_else(|| format!("expected X,Y,Z, got '{s}'"))?;
+    match v[..] {
+        [x, y, z] => Ok((x, y, z)),
+        _ => Err(format!("expected X,Y,Z, got '{s}'")),
+    }
+}
+
+fn positive(name: &str, v: f64) -> Result<f64, CliError> {
+    if v.is_finite() && v > 0.0 {
+        Ok(v)
+    } else {
+        Err(CliError::input(format!("--{name} must be positive, got {v}")))
+    }
 }
 
 const CONTOUR_EXAMPLES: &str = "\
@@ -262,6 +455,11 @@ fn main() -> ExitCode {
     cli::run("pathgen", || match cli.command {
         Command::Emit(a) => emit(a),
         Command::Contour(a) => contour_cmd(*a),
+        Command::Helix(a) => helix_cmd(*a),
+        Command::Spiral(a) => spiral_cmd(*a),
+        Command::Zigzag(a) => zigzag_cmd(*a),
+        Command::Cone(a) => cone_cmd(*a),
+        Command::Arcfit(a) => arcfit_cmd(*a),
     })
 }
 
@@ -341,7 +539,10 @@ fn warn_all(warnings: &[Warning]) {
         eprintln!("pathgen: warning: chain {}: {}", w.chain, w.message);
     }
     if warnings.len() > MAX_WARNINGS {
-        eprintln!("pathgen: warning: {} more warnings not shown", warnings.len() - MAX_WARNINGS);
+        eprintln!(
+            "pathgen: warning: {} more warnings not shown",
+            warnings.len() - MAX_WARNINGS
+        );
     }
 }
 
@@ -440,4 +641,177 @@ fn contour_cmd(a: ContourArgs) -> Result<(), CliError> {
         );
     }
     Ok(())
+}
+
+fn finish_pattern(paths: Vec<Tagged>, m: &Machine, out: &GenOutput, what: &str) -> Result<(), CliError> {
+    let (records, notes) = plan_paths(&paths, m, None);
+    let mut seen = std::collections::BTreeSet::new();
+    let warnings: Vec<Warning> = notes
+        .iter()
+        .map(|n| n.to_string())
+        .filter(|s| seen.insert(s.clone()))
+        .map(|message| Warning { chain: 0, message })
+        .collect();
+    for w in warnings.iter().take(MAX_WARNINGS) {
+        eprintln!("pathgen: warning: {what}: {}", w.message);
+    }
+    write_generated(&records, out, Some(what.to_string()), m)
+}
+
+fn helix_cmd(a: HelixArgs) -> Result<(), CliError> {
+    let m = a.machine.machine()?;
+    let r = positive("radius", a.radius)?;
+    if !a.pitch.is_finite() {
+        return Err(CliError::input("--pitch must be finite"));
+    }
+    let c = P3::new(a.center.0, a.center.1, a.z);
+    let path = patterns::helix(c, r, a.pitch, a.turns.max(1), !a.cw);
+    finish_pattern(vec![all_cut(path)], &m, &a.out, "helix")
+}
+
+fn spiral_cmd(a: SpiralArgs) -> Result<(), CliError> {
+    let m = a.machine.machine()?;
+    let step = positive("step", a.step)?;
+    let c = P3::new(a.center.0, a.center.1, a.z);
+    let path = if a.kind == "square" {
+        let size = positive(
+            "size",
+            a.size.ok_or_else(|| CliError::input("square spiral needs --size"))?,
+        )?;
+        patterns::square_spiral(c, step, size, a.inward)
+    } else {
+        let r = positive(
+            "radius",
+            a.radius
+                .ok_or_else(|| CliError::input("archimedean spiral needs --radius"))?,
+        )?;
+        let inner = a.inner.unwrap_or(step);
+        if !(inner.is_finite() && inner >= 0.0 && inner < r) {
+            return Err(CliError::input(format!("--inner must be in [0, radius), got {inner}")));
+        }
+        patterns::archimedean(c, inner, step, r, a.inward, positive("tolerance", a.tolerance)?)
+    };
+    finish_pattern(vec![all_cut(path)], &m, &a.out, "spiral")
+}
+
+fn zigzag_cmd(a: ZigzagArgs) -> Result<(), CliError> {
+    let m = a.machine.machine()?;
+    let (plane, along_second) = match (a.plane.as_str(), a.along.as_str()) {
+        ("xy", "x") => (Plane::Xy, false),
+        ("xy", "y") => (Plane::Xy, true),
+        // Plane XZ's axes are (Z, X): lines along X are its second axis.
+        ("xz", "x") => (Plane::Xz, true),
+        ("xz", "z") => (Plane::Xz, false),
+        (p, d) => return Err(CliError::input(format!("--along {d} is not in plane {p}"))),
+    };
+    let o = P3::new(a.origin.0, a.origin.1, a.origin.2);
+    let z = patterns::Zigzag {
+        origin: o,
+        plane,
+        along_second,
+        length: positive("length", a.length)?,
+        width: a.width.max(0.0),
+        step: positive("step", a.step)?,
+        corner_radius: a.corner_radius.max(0.0),
+    };
+    let path = patterns::zigzag(&z, &m);
+    finish_pattern(vec![path], &m, &a.out, "zigzag")
+}
+
+fn cone_cmd(a: ConeArgs) -> Result<(), CliError> {
+    let m = a.machine.machine()?;
+    let h = positive("height", a.height)?;
+    let (d1, d2) = (positive("d1", a.d1)?, positive("d2", a.d2)?);
+    let step = positive("step", a.step.unwrap_or(a.beam_diameter))?;
+    let tol = positive("tolerance", a.tolerance)?;
+    let mut paths = Vec::new();
+    for (z, d) in patterns::cone_levels(a.z, d1, d2, h, a.levels) {
+        let r = 0.5 * d - 0.5 * a.beam_diameter;
+        if r <= step {
+            eprintln!("pathgen: warning: cone: section at z={z} (diameter {d}) is narrower than the beam; skipped");
+            continue;
+        }
+        let c = P3::new(a.center.0, a.center.1, z);
+        paths.push(all_cut(patterns::archimedean(c, step, step, r, false, tol)));
+    }
+    finish_pattern(paths, &m, &a.out, "cone")
+}
+
+fn arcfit_cmd(a: ArcfitArgs) -> Result<(), CliError> {
+    let tol = positive("tolerance", a.tolerance)?;
+    let mut input = cli::open_input(a.file.as_deref())?;
+    let name = input.name.clone();
+    let text = cli::read_to_string(&mut input)?;
+    let mut pts = Vec::new();
+    for (i, line) in text.lines().enumerate() {
+        let line = line.split('#').next().unwrap_or("").trim();
+        if line.is_empty() {
+            continue;
+        }
+        let v: Vec<f64> = line
+            .split(|c: char| c == ',' || c.is_whitespace())
+            .filter(|t| !t.is_empty())
+            .map(|t| t.parse::<f64>().ok().filter(|v| v.is_finite()))
+            .collect::<Option<_>>()
+            .ok_or_else(|| CliError::input(format!("{name}:{}: expected numbers 'x y'", i + 1)))?;
+        if v.len() < 2 {
+            return Err(CliError::input(format!("{name}:{}: expected 'x y'", i + 1)));
+        }
+        pts.push(P2::new(v[0], v[1]));
+    }
+    if pts.len() < 2 {
+        return Err(CliError::input(format!("{name}: need at least two points")));
+    }
+    let fit = arcfit::fit_points(&pts, tol, 0.0, a.polyline);
+    // Dense check: 256 samples per piece against the polyline, and every
+    // point against the fit.
+    let dev_poly = arcfit::max_deviation(&fit, &pts, 256);
+    let dev_pts = arcfit::point_deviation(&fit, &pts);
+    let dev = if a.polyline { dev_poly } else { dev_pts };
+    let mut out = Output::new(a.output.as_deref());
+    use std::io::Write;
+    if a.report {
+        let arcs = fit.iter().filter(|e| matches!(e, Elem::Arc(_))).count();
+        writeln!(
+            out,
+            "{{\"schema\":\"microcam.arcfit-report/1\",\"points\":{},\"polyline_blocks\":{},\"biarc_blocks\":{},\"arcs\":{},\"lines\":{},\"tolerance_mm\":{},\"max_point_deviation_mm\":{:.9},\"max_polyline_deviation_mm\":{:.9}}}",
+            pts.len(),
+            pts.len() - 1,
+            fit.len(),
+            arcs,
+            fit.len() - arcs,
+            tol,
+            dev_pts,
+            dev_poly
+        )?;
+    } else {
+        let segments = fit
+            .iter()
+            .map(|e| match e {
+                Elem::Line(l) => Segment::Line {
+                    start: l.start,
+                    end: l.end,
+                },
+                Elem::Arc(x) => Segment::Arc {
+                    start: x.start,
+                    end: x.end,
+                    center: x.center,
+                    ccw: x.ccw,
+                },
+            })
+            .collect();
+        let mut w = ChainsWriter::new(&mut out);
+        w.header(&ChainsHeader { source: Some(name) })?;
+        w.chain(&Chain {
+            id: 1,
+            closed: false,
+            segments,
+            ..Default::default()
+        })?;
+        w.finish()?;
+    }
+    if dev > tol {
+        eprintln!("pathgen: warning: arcfit: deviation {dev} mm exceeds the tolerance {tol} mm");
+    }
+    out.commit()
 }

@@ -81,7 +81,11 @@ fn dist_to_polyline(p: &P2, pts: &[P2]) -> f64 {
         .map(|w| {
             let d = w[1] - w[0];
             let l2 = d.norm_squared();
-            let t = if l2 > 0.0 { ((p - w[0]).dot(&d) / l2).clamp(0.0, 1.0) } else { 0.0 };
+            let t = if l2 > 0.0 {
+                ((p - w[0]).dot(&d) / l2).clamp(0.0, 1.0)
+            } else {
+                0.0
+            };
             (p - (w[0] + d * t)).norm()
         })
         .fold(f64::INFINITY, f64::min)
@@ -98,7 +102,11 @@ pub fn tangents(pts: &[P2]) -> Vec<V2> {
                 return V2::x();
             }
             if i == 0 || i == n - 1 || n < 3 {
-                let d = if i == 0 { pts[1] - pts[0] } else { pts[n - 1] - pts[n - 2] };
+                let d = if i == 0 {
+                    pts[1] - pts[0]
+                } else {
+                    pts[n - 1] - pts[n - 2]
+                };
                 return d.normalize();
             }
             let (a, b) = (pts[i] - pts[i - 1], pts[i + 1] - pts[i]);
@@ -109,6 +117,14 @@ pub fn tangents(pts: &[P2]) -> Vec<V2> {
             if t.norm() > 0.0 { t.normalize() } else { b.normalize() }
         })
         .collect()
+}
+
+/// Largest distance from the points to the fit (points are the truth; the
+/// curve between them is unknown).
+pub fn point_deviation(fit: &[Elem], pts: &[P2]) -> f64 {
+    pts.iter()
+        .map(|p| fit.iter().map(|e| dist_to_elem(p, e)).fold(f64::INFINITY, f64::min))
+        .fold(0.0, f64::max)
 }
 
 /// Largest deviation between a fit and a polyline: the fit sampled densely
@@ -129,9 +145,10 @@ pub fn max_deviation(fit: &[Elem], pts: &[P2], samples_per_piece: usize) -> f64 
 }
 
 /// Fit biarcs to a point sequence within `tol`: spans grow greedily while
-/// the biarc over them stays within `tol` of every point and polyline
-/// piece in between.
-pub fn fit_points(pts: &[P2], tol: f64, z: f64) -> Vec<Elem> {
+/// the biarc over them stays within `tol` of every point in between and,
+/// when `polyline` is set, of every polyline piece too (the polyline is then
+/// the shape; otherwise the points are samples of an unknown smooth curve).
+pub fn fit_points(pts: &[P2], tol: f64, z: f64, polyline: bool) -> Vec<Elem> {
     let mut clean: Vec<P2> = Vec::with_capacity(pts.len());
     for p in pts {
         if clean.last().is_none_or(|q: &P2| (p - q).norm() > 1e-12) {
@@ -147,7 +164,12 @@ pub fn fit_points(pts: &[P2], tol: f64, z: f64) -> Vec<Elem> {
         let f = biarc(pts[i], tan[i], pts[j], tan[j], z);
         // 32 samples per arc, with 5 % margin, keeps the dense check
         // (which samples far finer) within tol.
-        (max_deviation(&f, &pts[i..=j], 32) <= 0.95 * tol).then_some(f)
+        let dev = if polyline {
+            max_deviation(&f, &pts[i..=j], 32)
+        } else {
+            point_deviation(&f, &pts[i..=j])
+        };
+        (dev <= 0.95 * tol).then_some(f)
     };
     let mut out = Vec::new();
     let mut i = 0;
@@ -209,13 +231,27 @@ mod tests {
     }
 
     #[test]
+    fn sampled_points_fit_far_fewer_blocks() {
+        // Coarse samples of a sine: as points (not a polyline) they fit in
+        // a handful of biarcs, every point within tol.
+        let pts: Vec<P2> = (0..=126)
+            .map(|i| P2::new(i as f64 * 0.05, (i as f64 * 0.05).sin()))
+            .collect();
+        let f = fit_points(&pts, 1e-4, 0.0, false);
+        assert!(point_deviation(&f, &pts) <= 1e-4);
+        assert!(f.len() * 3 < pts.len(), "{} pieces", f.len());
+    }
+
+    #[test]
     fn a_sine_fits_within_tolerance_in_fewer_blocks() {
-        let pts: Vec<P2> = (0..=400).map(|i| {
-            let x = i as f64 * 0.025;
-            P2::new(x, x.sin())
-        }).collect();
+        let pts: Vec<P2> = (0..=400)
+            .map(|i| {
+                let x = i as f64 * 0.025;
+                P2::new(x, x.sin())
+            })
+            .collect();
         for tol in [1e-3, 1e-4] {
-            let f = fit_points(&pts, tol, 0.0);
+            let f = fit_points(&pts, tol, 0.0, true);
             let dev = max_deviation(&f, &pts, 64);
             assert!(dev <= tol * 1.0001, "deviation {dev} > {tol}");
             assert!(f.len() * 4 < pts.len(), "{} pieces for {} points", f.len(), pts.len());

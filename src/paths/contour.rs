@@ -148,7 +148,8 @@ fn nesting(chains: &[Chain]) -> Vec<(usize, usize)> {
             if !c.closed || p.vertex_count() == 0 {
                 return None;
             }
-            p.extents().map(|e| (P2::new(e.min_x, e.min_y), P2::new(e.max_x, e.max_y)))
+            p.extents()
+                .map(|e| (P2::new(e.min_x, e.min_y), P2::new(e.max_x, e.max_y)))
         })
         .collect();
     // A uniform grid of about n cells; each closed chain's box is listed in
@@ -176,7 +177,9 @@ fn nesting(chains: &[Chain]) -> Vec<(usize, usize)> {
     let containers: Vec<Vec<usize>> = (0..chains.len())
         .into_par_iter()
         .map(|i| {
-            let Some(first) = chains[i].segments.first() else { return Vec::new() };
+            let Some(first) = chains[i].segments.first() else {
+                return Vec::new();
+            };
             let q = first.start();
             let (blo, bhi) = boxes[i].unwrap_or((q.xy(), q.xy()));
             if grid.is_empty() || q.x < lo.x || q.y < lo.y || q.x > hi.x || q.y > hi.y {
@@ -294,7 +297,11 @@ pub fn contour(chains: &[Chain], m: &Machine, o: &ContourOptions) -> Job {
     // tight arcs (the first, in cutting order, stands for the rest).
     let mut seen = std::collections::HashSet::new();
     job.warnings.retain(|w| {
-        let kind = if w.message.starts_with("arc of radius") { "" } else { w.message.as_str() };
+        let kind = if w.message.contains("tighter than V²/a") {
+            ""
+        } else {
+            w.message.as_str()
+        };
         seen.insert((w.chain, kind.to_string()))
     });
     job
@@ -317,7 +324,13 @@ fn order_items(items: &[Item], o: &ContourOptions) -> Vec<usize> {
     // Travel is measured at each cluster's exit (its outer path start).
     let reps: Vec<P2> = members
         .iter()
-        .map(|ms| point(*ms.iter().min_by_key(|&&i| (items[i].depth, i)).expect("non-empty cluster")))
+        .map(|ms| {
+            point(
+                *ms.iter()
+                    .min_by_key(|&&i| (items[i].depth, i))
+                    .expect("non-empty cluster"),
+            )
+        })
         .collect();
     let cluster_order: Vec<usize> = match o.order {
         OrderMode::Input => (0..members.len()).collect(),
@@ -355,5 +368,8 @@ fn order_items(items: &[Item], o: &ContourOptions) -> Vec<usize> {
 
 /// Where a job starts: the first rapid's target or the origin.
 pub fn first_point(records: &[Record]) -> P3 {
-    records.iter().find_map(|r| r.motion().map(|m| m.to)).unwrap_or_else(P3::origin)
+    records
+        .iter()
+        .find_map(|r| r.motion().map(|m| m.to))
+        .unwrap_or_else(P3::origin)
 }

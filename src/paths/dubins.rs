@@ -132,7 +132,11 @@ pub fn shortest(p0: P2, h0: f64, p1: P2, h1: f64, r: f64) -> Option<Dubins> {
     let mut best: Option<Dubins> = None;
     for w in Word::ALL {
         if let Some(params) = word_params(w, d, a, b) {
-            let cand = Dubins { word: w, params, radius: r };
+            let cand = Dubins {
+                word: w,
+                params,
+                radius: r,
+            };
             if best.is_none_or(|b| cand.length() < b.length() - 1e-12) {
                 best = Some(cand);
             }
@@ -223,11 +227,7 @@ pub fn connect(from: P3, din: V2, to: P3, dout: V2, r: f64, min_len: f64, plane:
         let (mut lo, mut hi) = (0.0, 0.5 * min_len);
         for _ in 0..60 {
             let mid = 0.5 * (lo + hi);
-            if total(mid)?.0 >= min_len {
-                hi = mid
-            } else {
-                lo = mid
-            }
+            if total(mid)?.0 >= min_len { hi = mid } else { lo = mid }
         }
         e = hi;
     }

@@ -13,6 +13,7 @@ pub mod elem;
 pub mod machine;
 pub mod offset;
 pub mod order;
+pub mod patterns;
 pub mod plan;
 pub mod svg;
 

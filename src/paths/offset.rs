@@ -161,7 +161,9 @@ fn miter_joins(path: Vec<Elem>, vertices: &[P3], dist: f64) -> Vec<Elem> {
     let is_join = |e: &Elem| match e {
         Elem::Arc(a) => {
             (a.radius() - dist).abs() <= 1e-9 * (1.0 + dist)
-                && vertices.iter().any(|v| (v.xy() - a.center.xy()).norm() <= 1e-9 * (1.0 + dist))
+                && vertices
+                    .iter()
+                    .any(|v| (v.xy() - a.center.xy()).norm() <= 1e-9 * (1.0 + dist))
         }
         Elem::Line(_) => false,
     };
@@ -250,7 +252,9 @@ mod tests {
                 }
                 // Outside corners are mitred: 4 corners at distance d·√2.
                 if side == Side::Outside {
-                    let corners = paths[0].iter().filter(|e| (dist_to_square(&e.end()) - d * 2f64.sqrt()).abs() < 1e-9);
+                    let corners = paths[0]
+                        .iter()
+                        .filter(|e| (dist_to_square(&e.end()) - d * 2f64.sqrt()).abs() < 1e-9);
                     assert_eq!(corners.count(), 4);
                 }
             }

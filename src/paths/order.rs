@@ -46,11 +46,20 @@ impl Grid {
         let n = pts.len().max(1) as f64;
         let span = (max - min).map(|v| v.max(1e-9));
         // About two points per cell.
-        let cell = ((span.x * span.y) / n * 2.0).sqrt().max(span.x.max(span.y) / 4096.0).max(1e-9);
+        let cell = ((span.x * span.y) / n * 2.0)
+            .sqrt()
+            .max(span.x.max(span.y) / 4096.0)
+            .max(1e-9);
         let nx = ((span.x / cell) as usize + 1).min(4096);
         let ny = ((span.y / cell) as usize + 1).min(4096);
         let mut cells = vec![Vec::new(); nx * ny];
-        let mut g = Grid { min, cell, nx, ny, cells: Vec::new() };
+        let mut g = Grid {
+            min,
+            cell,
+            nx,
+            ny,
+            cells: Vec::new(),
+        };
         for (i, p) in pts.iter().enumerate() {
             let (cx, cy) = g.cell_of(p);
             cells[cy * nx + cx].push(i);

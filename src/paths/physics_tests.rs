@@ -15,7 +15,10 @@ use crate::model::toolpath::{MotionKind, Record, Role};
 
 fn plate() -> Vec<Chain> {
     let text = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/testdata/chains/plate.chains")).unwrap();
-    ChainsReader::new(text.as_bytes()).unwrap().collect::<Result<_, _>>().unwrap()
+    ChainsReader::new(text.as_bytes())
+        .unwrap()
+        .collect::<Result<_, _>>()
+        .unwrap()
 }
 
 /// Random closed polygons (sharp and shallow corners, some arcs) and open
@@ -81,7 +84,11 @@ fn check_physics(a: &Audit, m: &Machine) {
         m.accel()
     );
     assert_eq!(a.beam_on_rapids, 0);
-    assert!(a.exposure_error < 1e-6, "shutter open off the cuts by {} mm", a.exposure_error);
+    assert!(
+        a.exposure_error < 1e-6,
+        "shutter open off the cuts by {} mm",
+        a.exposure_error
+    );
     assert!(
         a.min_run_before_open >= m.accel_distance() - 1e-9,
         "shutter commanded after only {} mm of lead-in",
@@ -144,8 +151,12 @@ fn plate_outside_two_levels_two_copies() {
         assert!(at(2) < at(1) && at(3) < at(1), "{pass:?}");
     }
     // Levels step down in Z.
-    let zs: std::collections::BTreeSet<i64> =
-        job.records.iter().filter_map(Record::motion).map(|mv| (mv.to.z * 1e6).round() as i64).collect();
+    let zs: std::collections::BTreeSet<i64> = job
+        .records
+        .iter()
+        .filter_map(Record::motion)
+        .map(|mv| (mv.to.z * 1e6).round() as i64)
+        .collect();
     assert_eq!(zs.into_iter().collect::<Vec<_>>(), vec![-10_000, 0]);
 }
 
@@ -180,9 +191,9 @@ fn cuts_run_at_the_offset_distance() {
             if mv.role == Some(Role::Cut) {
                 let c = chains.iter().find(|c| Some(c.id) == mv.chain).unwrap();
                 let e = match mv.kind {
-                    MotionKind::Arc(ad) => Elem::Arc(
-                        crate::geometry::arc::Arc3::new(ad.center, pos, mv.to, ad.ccw, ad.plane, 0).unwrap(),
-                    ),
+                    MotionKind::Arc(ad) => {
+                        Elem::Arc(crate::geometry::arc::Arc3::new(ad.center, pos, mv.to, ad.ccw, ad.plane, 0).unwrap())
+                    }
                     _ => Elem::line(pos, mv.to),
                 };
                 // Weighted by length: miter pieces are short.
@@ -201,7 +212,10 @@ fn cuts_run_at_the_offset_distance() {
             }
             pos = mv.to;
         }
-        assert!(exact >= 0.95 * total, "{side:?}: {exact}/{total} of the cut length at the offset");
+        assert!(
+            exact >= 0.95 * total,
+            "{side:?}: {exact}/{total} of the cut length at the offset"
+        );
     }
 }
 
@@ -235,7 +249,11 @@ fn random_drawings_obey_the_machine() {
             for c in &chains {
                 let want = offset_length(c, if c.closed { side } else { Side::On }, 0.02);
                 let got = a.cut_length.get(&c.id).copied().unwrap_or(0.0);
-                assert!((got - want).abs() < 1e-9, "seed {seed} {side:?} chain {}: {got} vs {want}", c.id);
+                assert!(
+                    (got - want).abs() < 1e-9,
+                    "seed {seed} {side:?} chain {}: {got} vs {want}",
+                    c.id
+                );
             }
         }
     }
@@ -251,4 +269,68 @@ fn planning_is_deterministic() {
         ..Default::default()
     };
     assert_eq!(contour(&chains, &m, &o).records, contour(&chains, &m, &o).records);
+}
+
+#[test]
+fn patterns_obey_the_machine() {
+    use super::patterns::*;
+    use super::plan::{all_cut, plan_paths};
+    use crate::geometry::Plane;
+    let m = Machine::default().with_accel(200.0);
+    let c = P3::new(1.0, 1.0, 0.0);
+    let zz = |plane, along_second, width, step, corner_radius| Zigzag {
+        origin: c,
+        plane,
+        along_second,
+        length: 1.0,
+        width,
+        step,
+        corner_radius,
+    };
+    let cases: Vec<(&str, Vec<super::plan::Tagged>)> = vec![
+        ("helix", vec![all_cut(helix(c, 0.3, -0.01, 4, true))]),
+        ("square", vec![all_cut(square_spiral(c, 0.05, 0.5, false))]),
+        ("square in", vec![all_cut(square_spiral(c, 0.05, 0.5, true))]),
+        (
+            "archimedean",
+            vec![all_cut(archimedean(c, 0.1, 0.02, 0.4, false, 1e-5))],
+        ),
+        (
+            "archimedean in",
+            vec![all_cut(archimedean(c, 0.1, 0.02, 0.4, true, 1e-5))],
+        ),
+        ("zigzag xy", vec![zigzag(&zz(Plane::Xy, false, 0.3, 0.02, 0.0), &m)]),
+        ("zigzag xz", vec![zigzag(&zz(Plane::Xz, true, 0.1, 0.01, 0.05), &m)]),
+        (
+            "cone",
+            cone_levels(0.0, 1.0, 0.4, 0.3, 3)
+                .into_iter()
+                .map(|(z, d)| all_cut(archimedean(P3::new(1.0, 1.0, z), 0.02, 0.02, 0.5 * d, false, 1e-5)))
+                .collect(),
+        ),
+    ];
+    for (name, paths) in cases {
+        let want: f64 = paths
+            .iter()
+            .flatten()
+            .filter(|p| p.1 == Role::Cut)
+            .map(|p| p.0.length())
+            .sum();
+        let (recs, _notes) = plan_paths(&paths, &m, Some(7));
+        let a = audit(&recs, &m, P3::origin());
+        assert_eq!(a.off_feed_moves, 0, "{name}");
+        assert_eq!(a.corners_at_speed, 0, "{name}");
+        assert!(
+            a.max_accel_off_cut <= m.accel() * (1.0 + 1e-9),
+            "{name}: {}",
+            a.max_accel_off_cut
+        );
+        assert!(a.exposure_error < 1e-6, "{name}: {}", a.exposure_error);
+        assert!((a.cut_length[&7] - want).abs() < 1e-9, "{name}");
+        // Roles on every move.
+        assert!(
+            recs.iter().filter_map(Record::motion).all(|mv| mv.role.is_some()),
+            "{name}"
+        );
+    }
 }

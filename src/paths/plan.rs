@@ -9,6 +9,9 @@ use super::machine::Machine;
 use crate::geometry::{P3, Plane, V2};
 use crate::model::toolpath::{Motion, MotionKind, Record, Role};
 
+/// A path whose pieces carry their role (cut, or a beam-off connection).
+pub type Tagged = Vec<(Elem, Role)>;
+
 /// One planned piece: geometry, why it is there, and the commanded beam.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Piece {
@@ -24,7 +27,7 @@ pub enum Note {
     ShortCut { length: f64, min: f64 },
     /// A drawing arc tighter than V²/a: the stage cannot follow it at V
     /// within its acceleration (radius mm, demanded acceleration mm/s²).
-    TightArc { radius: f64, demand: f64 },
+    TightArc { radius: f64, demand: f64, count: usize },
     /// A corner between pieces whose turn could not be looped (the
     /// direction has no component in the loop plane).
     UnloopedCorner { at: P3 },
@@ -37,9 +40,9 @@ impl std::fmt::Display for Note {
                 f,
                 "cut of {length:.6} mm is shorter than the minimum exposure ({min:.6} mm at this feed)"
             ),
-            Note::TightArc { radius, demand } => write!(
+            Note::TightArc { radius, demand, count } => write!(
                 f,
-                "arc of radius {radius:.6} mm asks {demand:.3} mm/s² at this feed, more than the stage's acceleration"
+                "{count} arc(s) tighter than V²/a; the tightest, radius {radius:.6} mm, asks {demand:.3} mm/s² at this feed"
             ),
             Note::UnloopedCorner { at } => write!(f, "corner at ({}, {}, {}) could not be looped", at.x, at.y, at.z),
         }
@@ -64,6 +67,9 @@ pub fn plan_tagged(path: &[(Elem, Role)], m: &Machine, notes: &mut Vec<Note>) ->
     let r = m.min_radius();
     let cos_tol = m.tangent_cos();
     let mut out = Vec::with_capacity(path.len() + 2);
+    // Count of drawing arcs tighter than V²/a and the tightest radius:
+    // one note per path, not one per arc.
+    let mut tight = (0usize, f64::INFINITY);
     let s0 = first.start();
     out.push(Piece {
         elem: Elem::line(s0 - first.dir_start() * m.lead_in(), s0),
@@ -80,11 +86,8 @@ pub fn plan_tagged(path: &[(Elem, Role)], m: &Machine, notes: &mut Vec<Note>) ->
             continue;
         }
         if e.curvature_radius() < r * (1.0 - 1e-9) {
-            let rad = e.curvature_radius();
-            notes.push(Note::TightArc {
-                radius: rad,
-                demand: m.feed * m.feed / rad,
-            });
+            tight.0 += 1;
+            tight.1 = tight.1.min(e.curvature_radius());
         }
         out.push(Piece {
             elem: *e,
@@ -103,7 +106,16 @@ pub fn plan_tagged(path: &[(Elem, Role)], m: &Machine, notes: &mut Vec<Note>) ->
         let d2 = |v: crate::geometry::V3| V2::new(v[a], v[b]);
         let corner = e.end();
         let lp = (d2(din).norm() > 1e-9 && d2(dout).norm() > 1e-9)
-            .then(|| corner_loop(corner, d2(din).normalize(), d2(dout).normalize(), r, m.shutter_window(), plane))
+            .then(|| {
+                corner_loop(
+                    corner,
+                    d2(din).normalize(),
+                    d2(dout).normalize(),
+                    r,
+                    m.shutter_window(),
+                    plane,
+                )
+            })
             .flatten();
         match lp {
             Some(lp) => out.extend(lp.into_iter().map(|elem| Piece {
@@ -113,6 +125,13 @@ pub fn plan_tagged(path: &[(Elem, Role)], m: &Machine, notes: &mut Vec<Note>) ->
             })),
             None => notes.push(Note::UnloopedCorner { at: corner }),
         }
+    }
+    if tight.0 > 0 {
+        notes.push(Note::TightArc {
+            radius: tight.1,
+            demand: m.feed * m.feed / tight.1,
+            count: tight.0,
+        });
     }
     let e = last.end();
     out.push(Piece {
@@ -228,4 +247,21 @@ pub fn to_records(pieces: &[Piece], feed: f64, chain: Option<u64>, out: &mut Vec
             block: None,
         }));
     }
+}
+
+/// Plan several tagged paths in order, each with its own leads and shutter
+/// timing, joined by rapids. Pattern generators use this.
+pub fn plan_paths(paths: &[Vec<(Elem, Role)>], m: &Machine, chain: Option<u64>) -> (Vec<Record>, Vec<Note>) {
+    let mut notes = Vec::new();
+    let mut recs = Vec::new();
+    for p in paths {
+        let pieces = plan_tagged(p, m, &mut notes);
+        to_records(&pieces, m.feed, chain, &mut recs);
+    }
+    (recs, notes)
+}
+
+/// Tag every piece of a path as a cut.
+pub fn all_cut(path: Vec<Elem>) -> Vec<(Elem, Role)> {
+    path.into_iter().map(|e| (e, Role::Cut)).collect()
 }

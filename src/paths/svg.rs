@@ -48,7 +48,9 @@ pub fn write_svg(out: &mut impl Write, records: &[Record], _m: &Machine) -> std:
     s.push(' ');
     num(&mut s, size.y + 2.0 * pad);
     s.push_str("\" width=\"800\">\n");
-    s.push_str("<!-- red: beam on; green: lead-in/out; blue: corner loops; purple: other beam-off; grey dashed: rapids -->\n");
+    s.push_str(
+        "<!-- red: beam on; green: lead-in/out; blue: corner loops; purple: other beam-off; grey dashed: rapids -->\n",
+    );
     let mut pos = P3::origin();
     let mut order = 0u64;
     for r in records {
@@ -77,7 +79,11 @@ pub fn write_svg(out: &mut impl Write, records: &[Record], _m: &Machine) -> std:
                     s.push(' ');
                     num(&mut s, r);
                     s.push_str(" 0 ");
-                    s.push(if sweep.abs() / 2.0 > std::f64::consts::PI { '1' } else { '0' });
+                    s.push(if sweep.abs() / 2.0 > std::f64::consts::PI {
+                        '1'
+                    } else {
+                        '0'
+                    });
                     // Y is flipped, so counter-clockwise becomes sweep-flag 0.
                     s.push_str(if a.ccw { " 0 " } else { " 1 " });
                     num(&mut s, p.x);
