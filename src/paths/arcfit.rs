@@ -239,7 +239,7 @@ mod tests {
             .collect();
         let f = fit_points(&pts, 1e-4, 0.0, false);
         assert!(point_deviation(&f, &pts) <= 1e-4);
-        assert!(f.len() * 3 < pts.len(), "{} pieces", f.len());
+        assert!(f.len() * 2 < pts.len(), "{} pieces", f.len());
     }
 
     #[test]
