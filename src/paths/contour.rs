@@ -240,7 +240,11 @@ pub fn contour(chains: &[Chain], m: &Machine, o: &ContourOptions) -> Job {
             }
             let warn = (paths.is_empty() && !c.segments.is_empty()).then(|| Warning {
                 chain: c.id,
-                message: format!("offset {} mm {:?} makes the chain vanish; dropped", o.distance, side),
+                message: format!(
+                    "offset {} mm {} makes the chain vanish; dropped",
+                    o.distance,
+                    format!("{side:?}").to_lowercase()
+                ),
             });
             (paths, warn)
         })
