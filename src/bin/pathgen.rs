@@ -2,7 +2,8 @@
 
 use clap::{Args as ClapArgs, Parser, Subcommand};
 use microcam::cli::{self, CliError, Output};
-use microcam::formats::chains::{ChainsReader, ChainsWriter};
+use microcam::formats::chains::ChainsWriter;
+use microcam::paths::input::read_chains;
 use microcam::formats::toolpath::ToolpathWriter;
 use microcam::gcode::writer::{GcodeWriter, WriteError, WriteOptions};
 use microcam::gcode::{Dialect, ReadOptions};
@@ -618,13 +619,10 @@ fn contour_cmd(a: ContourArgs) -> Result<(), CliError> {
     };
     let input = cli::open_input(a.file.as_deref())?;
     let name = input.name.clone();
-    let reader = ChainsReader::new(input.reader).map_err(|e| CliError::in_file(&name, e))?;
-    let source = reader.header().source.clone().or(Some(name.clone()));
     let timing = std::env::var_os("PATHGEN_TIMING").is_some();
     let t0 = std::time::Instant::now();
-    let chains = reader
-        .collect::<Result<Vec<_>, _>>()
-        .map_err(|e| CliError::in_file(&name, e))?;
+    let (header, chains) = read_chains(input.reader).map_err(|e| CliError::in_file(&name, e))?;
+    let source = header.source.or(Some(name.clone()));
     let t1 = std::time::Instant::now();
     let job = contour(&chains, &m, &o);
     drop(chains);

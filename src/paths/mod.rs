@@ -10,6 +10,7 @@ pub mod audit;
 pub mod contour;
 pub mod dubins;
 pub mod elem;
+pub mod input;
 pub mod machine;
 pub mod offset;
 pub mod order;
