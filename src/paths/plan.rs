@@ -155,11 +155,12 @@ fn loop_plane(a: &Elem, b: &Elem) -> Plane {
 /// [s0, s1] becomes [s0 - open lead, s1 - close lead], so that the shutter,
 /// commanded at V, is fully open from s0 and starts to close at s1.
 fn time_shutter(pieces: Vec<Piece>, m: &Machine, notes: &mut Vec<Note>) -> Vec<Piece> {
+    // Arc lengths cost an atan2 each; a million-segment job asks them once.
+    let lens: Vec<f64> = pieces.iter().map(|p| p.elem.length()).collect();
     let mut on: Vec<(f64, f64)> = Vec::new();
     let mut s = 0.0;
     let mut run: Option<f64> = None;
-    for p in &pieces {
-        let len = p.elem.length();
+    for (p, &len) in pieces.iter().zip(&lens) {
         match (p.role == Role::Cut, run) {
             (true, None) => run = Some(s),
             (false, Some(s0)) => {
@@ -187,17 +188,29 @@ fn time_shutter(pieces: Vec<Piece>, m: &Machine, notes: &mut Vec<Note>) -> Vec<P
         .collect();
     let mut cuts: Vec<f64> = cmd.iter().flat_map(|&(a, b)| [a, b]).collect();
     cuts.sort_by(f64::total_cmp);
-    let inside = |x: f64| cmd.iter().any(|&(a, b)| x > a && x < b);
+    // Intervals come in path order, so the one that may hold x is the last
+    // starting before it (overlaps, if a loop were too short, are checked
+    // one step back).
+    let inside = |x: f64| {
+        let k = cmd.partition_point(|&(a, _)| a < x);
+        cmd[..k].iter().rev().take(2).any(|&(a, b)| x > a && x < b)
+    };
     let mut out = Vec::with_capacity(pieces.len() + 2 * cmd.len());
     let mut s = 0.0;
     let mut k = 0;
-    for p in pieces {
-        let len = p.elem.length();
+    for (p, len) in pieces.into_iter().zip(lens) {
         let end = s + len;
         let mut rest = p.elem;
         let mut rest_s = s;
         while k < cuts.len() && cuts[k] <= s + MIN_PIECE {
             k += 1;
+        }
+        if k >= cuts.len() || cuts[k] >= end - MIN_PIECE {
+            // No switching inside this piece: the common case.
+            let beam = inside(s + 0.5 * len);
+            out.push(Piece { beam, ..p });
+            s = end;
+            continue;
         }
         while k < cuts.len() && cuts[k] < end - MIN_PIECE {
             if let Some((a, b)) = rest.split_at_length(cuts[k] - rest_s) {
