@@ -550,6 +550,14 @@ fn warn_all(warnings: &[Warning]) {
 /// Write generated records as a toolpath or, with `--gcode`, as G-code
 /// through the same writer as `emit`; the SVG preview goes beside.
 fn write_generated(records: &[Record], o: &GenOutput, source: Option<String>, m: &Machine) -> Result<(), CliError> {
+    let (short, total) = microcam::paths::audit::short_blocks(records, m, P3::origin());
+    if short > 0 {
+        eprintln!(
+            "pathgen: note: {short} of {total} feed moves are shorter than V·TA ({:.4} mm); a PMAC not in \
+             segmentation mode stretches them to TA and slows down there",
+            m.feed * m.ta_ms / 1000.0
+        );
+    }
     if let Some(path) = &o.svg {
         let mut svg = Output::new(Some(path));
         microcam::paths::svg::write_svg(&mut svg, records, m).map_err(CliError::from)?;

@@ -140,3 +140,32 @@ pub fn audit(records: &[Record], m: &Machine, start: P3) -> Audit {
     };
     a
 }
+
+/// Feed moves that last less than the acceleration time TA at V. A Turbo
+/// PMAC that is not in segmentation mode stretches such a LINEAR/CIRCLE
+/// block to TA (PMAC.md; seed 000 Fig. 3-20), so the stage slows on it
+/// and the beam dwells: the count says how much of a program depends on
+/// the controller running segmented with look-ahead.
+pub fn short_blocks(records: &[Record], m: &Machine, start: P3) -> (usize, usize) {
+    let min_len = m.feed * m.ta_ms / 1000.0;
+    let mut pos = start;
+    let (mut short, mut feed_moves) = (0, 0);
+    for r in records {
+        let Record::Move(mv) = r else { continue };
+        let len = match mv.kind {
+            MotionKind::Rapid => {
+                pos = mv.to;
+                continue;
+            }
+            MotionKind::Line => (mv.to - pos).norm(),
+            MotionKind::Arc(d) => Arc3::new(d.center, pos, mv.to, d.ccw, d.plane, d.extra_turns)
+                .map_or((mv.to - pos).norm(), |a| a.length()),
+        };
+        feed_moves += 1;
+        if len < min_len {
+            short += 1;
+        }
+        pos = mv.to;
+    }
+    (short, feed_moves)
+}
