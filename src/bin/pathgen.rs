@@ -3,7 +3,6 @@
 use clap::{Args as ClapArgs, Parser, Subcommand};
 use microcam::cli::{self, CliError, Output};
 use microcam::formats::chains::ChainsWriter;
-use microcam::paths::input::read_chains;
 use microcam::formats::toolpath::ToolpathWriter;
 use microcam::gcode::writer::{GcodeWriter, WriteError, WriteOptions};
 use microcam::gcode::{Dialect, ReadOptions};
@@ -14,6 +13,7 @@ use microcam::model::toolpath::{FeedUnit, Header, Record};
 use microcam::paths::arcfit;
 use microcam::paths::contour::{ContourOptions, Direction, OrderMode, Warning, contour};
 use microcam::paths::elem::Elem;
+use microcam::paths::input::read_chains;
 use microcam::paths::machine::Machine;
 use microcam::paths::offset::Side;
 use microcam::paths::patterns;

@@ -58,7 +58,9 @@ pub fn read_chains(mut input: impl BufRead) -> Result<(ChainsHeader, Vec<Chain>)
             buf.push_str(chunk);
             // In `buf` the chunk's first line is line 2.
             let reader = ChainsReader::new(buf.as_bytes()).map_err(|e| renumber(e, first - 2))?;
-            reader.collect::<Result<Vec<_>, _>>().map_err(|e| renumber(e, first - 2))
+            reader
+                .collect::<Result<Vec<_>, _>>()
+                .map_err(|e| renumber(e, first - 2))
         })
         .collect();
     let mut chains = Vec::new();
@@ -101,7 +103,10 @@ mod tests {
             }
         }
         let (_, got) = read_chains(text.as_bytes()).unwrap();
-        let want: Vec<Chain> = ChainsReader::new(text.as_bytes()).unwrap().map(|c| c.unwrap()).collect();
+        let want: Vec<Chain> = ChainsReader::new(text.as_bytes())
+            .unwrap()
+            .map(|c| c.unwrap())
+            .collect();
         assert_eq!(got, want);
         // A bad record deep in a later chunk reports its line in the stream.
         let bad = text.clone() + "{\"id\":1}\n";
