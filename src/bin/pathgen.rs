@@ -769,6 +769,9 @@ fn arcfit_cmd(a: ArcfitArgs) -> Result<(), CliError> {
         return Err(CliError::input(format!("{name}: need at least two points")));
     }
     let fit = arcfit::fit_points(&pts, tol, 0.0, a.polyline);
+    if fit.is_empty() {
+        return Err(CliError::input(format!("{name}: need at least two distinct points")));
+    }
     // Dense check: 256 samples per piece against the polyline, and every
     // point against the fit.
     let dev_poly = arcfit::max_deviation(&fit, &pts, 256);

@@ -224,6 +224,8 @@ pub fn contour(chains: &[Chain], m: &Machine, o: &ContourOptions) -> Job {
                 (s, _) => s,
             };
             let mut paths = offset_chain(c, side, o.distance);
+            // A chain of zero-length pieces has nothing to cut.
+            paths.retain(|p| !p.is_empty());
             for p in &mut paths {
                 let closed = !p.is_empty() && (p[0].start() - p[p.len() - 1].end()).norm() < 1e-9;
                 if !closed {

@@ -178,8 +178,14 @@ mod tests {
                 let nz = plane.normal_coord(&c);
                 let a = Arc3::new(c, plane.lift(&s2, nz), plane.lift(&e2, nz), ccw, plane, 0).unwrap();
                 let el = Elem::Arc(a);
-                assert!((el.dir_start() - a.tangent_at(0.0).unwrap()).norm() < 1e-9, "{plane:?} {ccw}");
-                assert!((el.dir_end() - a.tangent_at(1.0).unwrap()).norm() < 1e-6, "{plane:?} {ccw}");
+                assert!(
+                    (el.dir_start() - a.tangent_at(0.0).unwrap()).norm() < 1e-9,
+                    "{plane:?} {ccw}"
+                );
+                assert!(
+                    (el.dir_end() - a.tangent_at(1.0).unwrap()).norm() < 1e-6,
+                    "{plane:?} {ccw}"
+                );
             }
         }
     }

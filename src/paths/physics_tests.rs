@@ -334,3 +334,43 @@ fn patterns_obey_the_machine() {
         );
     }
 }
+
+#[test]
+fn degenerate_chains_are_dropped_not_panicked_on() {
+    let m = Machine::default();
+    let z = P3::origin();
+    let chains = vec![
+        Chain {
+            id: 1,
+            ..Default::default()
+        },
+        Chain {
+            id: 2,
+            closed: true,
+            segments: vec![Segment::Line { start: z, end: z }],
+            ..Default::default()
+        },
+        Chain {
+            id: 3,
+            segments: vec![Segment::Line {
+                start: z,
+                end: P3::new(1.0, 0.0, 0.0),
+            }],
+            ..Default::default()
+        },
+    ];
+    for side in [Side::On, Side::Outside, Side::Inside, Side::Left] {
+        let job = contour(
+            &chains,
+            &m,
+            &ContourOptions {
+                side,
+                distance: 0.01,
+                ..Default::default()
+            },
+        );
+        let a = audit(&job.records, &m, P3::origin());
+        check_physics(&a, &m);
+        assert_eq!(a.cut_length.keys().copied().collect::<Vec<_>>(), vec![3], "{side:?}");
+    }
+}
