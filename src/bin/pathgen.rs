@@ -651,6 +651,9 @@ fn contour_cmd(a: ContourArgs) -> Result<(), CliError> {
 
 fn finish_pattern(paths: Vec<Tagged>, m: &Machine, out: &GenOutput, what: &str) -> Result<(), CliError> {
     let (records, notes) = plan_paths(&paths, m, None);
+    if records.is_empty() {
+        eprintln!("pathgen: warning: {what}: nothing to cut with these sizes");
+    }
     let mut seen = std::collections::BTreeSet::new();
     let warnings: Vec<Warning> = notes
         .iter()

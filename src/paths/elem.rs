@@ -147,7 +147,7 @@ fn planar_tangent(a: &Arc3, p: &P3) -> Option<V3> {
     let (i, j, _) = a.plane.axes();
     let (ri, rj) = (p[i] - a.center[i], p[j] - a.center[j]);
     let n = ri.hypot(rj);
-    if !(n > 0.0) {
+    if n.is_nan() || n <= 0.0 {
         return None;
     }
     let (ti, tj) = if a.ccw { (-rj / n, ri / n) } else { (rj / n, -ri / n) };
