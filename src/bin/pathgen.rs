@@ -62,6 +62,21 @@ enum Command {
     Cone(Box<ConeArgs>),
     /// Fit tangent-continuous arcs (biarcs) to points or a polyline.
     Arcfit(Box<ArcfitArgs>),
+    /// Check a laser toolpath against the machine: speed, acceleration,
+    /// shutter timing; prints a JSON report, exit 1 when a limit is broken.
+    Audit(Box<AuditArgs>),
+}
+
+#[derive(ClapArgs)]
+struct AuditArgs {
+    /// Toolpath or G-code to check ('-' for stdin).
+    file: Option<PathBuf>,
+    /// Printing precision of the input (mm): radii and switch points may be
+    /// off by this much (1e-4 for 4-decimal G-code, 1e-9 for toolpaths).
+    #[arg(long, default_value_t = 1e-4)]
+    precision: f64,
+    #[command(flatten)]
+    machine: MachineArgs,
 }
 
 const PATTERN_EXAMPLES: &str = "\
@@ -461,6 +476,7 @@ fn main() -> ExitCode {
         Command::Zigzag(a) => zigzag_cmd(*a),
         Command::Cone(a) => cone_cmd(*a),
         Command::Arcfit(a) => arcfit_cmd(*a),
+        Command::Audit(a) => audit_cmd(*a),
     })
 }
 
@@ -826,4 +842,58 @@ fn arcfit_cmd(a: ArcfitArgs) -> Result<(), CliError> {
         eprintln!("pathgen: warning: arcfit: deviation {dev} mm exceeds the tolerance {tol} mm");
     }
     out.commit()
+}
+
+fn audit_cmd(a: AuditArgs) -> Result<(), CliError> {
+    let m = a.machine.machine()?;
+    let input = cli::open_input(a.file.as_deref())?;
+    let source = ToolpathSource::open(input, &ReadOptions::default())?;
+    let unit = source.header.feed_unit;
+    let mut records = Vec::new();
+    for r in source {
+        let mut r = r?;
+        // Audit in mm/s whatever the program's feed unit.
+        if let Record::Move(mv) = &mut r {
+            mv.feed = mv.feed.map(|f| unit.convert(f, FeedUnit::MmPerS));
+        }
+        records.push(r);
+    }
+    let au = microcam::paths::audit::audit(&records, &m, P3::origin());
+    let (short, total) = microcam::paths::audit::short_blocks(&records, &m, P3::origin());
+    // Radii within the printing precision of V²/a pass; G-code carries no
+    // roles, so exposure is checked only when cut runs are marked.
+    let r_min = m.feed * m.feed / au.max_accel_off_cut;
+    let roles = au.cut_runs.values().sum::<usize>() > 0;
+    let exposure_ok = !roles || au.exposure_error <= 4.0 * a.precision;
+    let ok = au.off_feed_moves == 0
+        && au.corners_at_speed == 0
+        && au.beam_on_rapids == 0
+        && r_min >= m.min_radius() - a.precision
+        && exposure_ok;
+    let exposure = if roles { au.exposure_error } else { f64::NAN };
+    let num = |x: f64| {
+        if x.is_finite() {
+            format!("{x:.9}")
+        } else {
+            "null".into()
+        }
+    };
+    println!(
+        "{{\"schema\":\"microcam.pathgen-audit/1\",\"ok\":{ok},\"feed_moves\":{total},\"off_feed_moves\":{},\"corners_at_speed\":{},\"beam_on_rapids\":{},\"max_accel_off_cut_mm_s2\":{},\"max_accel_cut_mm_s2\":{},\"accel_limit_mm_s2\":{},\"exposure_error_mm\":{},\"blocks_shorter_than_ta\":{short},\"cut_runs\":{}}}",
+        au.off_feed_moves,
+        au.corners_at_speed,
+        au.beam_on_rapids,
+        num(au.max_accel_off_cut),
+        num(au.max_accel_cut),
+        num(m.accel()),
+        num(exposure),
+        au.cut_runs.values().sum::<usize>()
+    );
+    if ok {
+        Ok(())
+    } else {
+        Err(CliError::failure(
+            "the toolpath breaks the machine's limits (see the report)",
+        ))
+    }
 }
