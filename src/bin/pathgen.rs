@@ -11,7 +11,7 @@ use microcam::geometry::{P3, Plane};
 use microcam::model::chain::{Chain, ChainsHeader, Segment};
 use microcam::model::toolpath::{FeedUnit, Header, Record};
 use microcam::paths::arcfit;
-use microcam::paths::contour::{ContourOptions, Direction, OrderMode, Warning, contour};
+use microcam::paths::contour::{ContourOptions, Direction, OrderMode, Warning, contour, contour_streamed};
 use microcam::paths::elem::Elem;
 use microcam::paths::input::read_chains;
 use microcam::paths::machine::Machine;
@@ -565,8 +565,7 @@ fn warn_all(warnings: &[Warning]) {
 
 /// Write generated records as a toolpath or, with `--gcode`, as G-code
 /// through the same writer as `emit`; the SVG preview goes beside.
-fn write_generated(records: &[Record], o: &GenOutput, source: Option<String>, m: &Machine) -> Result<(), CliError> {
-    let (short, total) = microcam::paths::audit::short_blocks(records, m, P3::origin());
+fn short_note(short: usize, total: usize, m: &Machine) {
     if short > 0 {
         eprintln!(
             "pathgen: note: {short} of {total} feed moves are shorter than V·TA ({:.4} mm); a PMAC not in \
@@ -574,37 +573,73 @@ fn write_generated(records: &[Record], o: &GenOutput, source: Option<String>, m:
             m.feed * m.ta_ms / 1000.0
         );
     }
+}
+
+/// Write generated records as a toolpath or, with `--gcode`, as G-code
+/// through the same writer as `emit`; the SVG preview goes beside.
+fn write_generated(records: &[Record], o: &GenOutput, source: Option<String>, m: &Machine) -> Result<(), CliError> {
+    let (short, total) = microcam::paths::audit::short_blocks(records, m, P3::origin());
+    short_note(short, total, m);
     if let Some(path) = &o.svg {
         let mut svg = Output::new(Some(path));
         microcam::paths::svg::write_svg(&mut svg, records, m).map_err(CliError::from)?;
         svg.commit()?;
     }
     let mut out = Output::new(o.output.as_deref());
+    write_records(records.iter().cloned(), o, source, &mut out)?;
+    out.commit()
+}
+
+/// The one place generated records become output bytes.
+fn write_records(
+    records: impl Iterator<Item = Record>,
+    o: &GenOutput,
+    source: Option<String>,
+    out: &mut Output,
+) -> Result<(), CliError> {
     match &o.gcode {
         Some(d) => {
             let dialect: Dialect = d.parse().map_err(CliError::input)?;
             let opts = write_options(dialect, &o.writer);
             let name = source.unwrap_or_else(|| "<generated>".into());
-            write_gcode(
-                records.iter().cloned().map(Ok::<_, CliError>),
-                FeedUnit::MmPerS,
-                opts,
-                &name,
-                &mut out,
-            )?;
+            write_gcode(records.map(Ok::<_, CliError>), FeedUnit::MmPerS, opts, &name, out)
         }
         None => {
-            let mut w = ToolpathWriter::new(&mut out);
+            let mut w = ToolpathWriter::new(out);
             w.header(&Header {
                 feed_unit: FeedUnit::MmPerS,
                 source,
             })?;
             for r in records {
-                w.record(r)?;
+                w.record(&r)?;
             }
             w.finish()?;
+            Ok(())
         }
     }
+}
+
+/// Write records handed over in chunks by `produce` on a second thread, so
+/// formatting overlaps planning. Output is byte-identical to
+/// [`write_generated`] (same writer, same records, same order).
+fn write_streamed(
+    o: &GenOutput,
+    source: Option<String>,
+    produce: impl FnOnce(&mut dyn FnMut(Vec<Record>) -> bool),
+) -> Result<(), CliError> {
+    let mut out = Output::new(o.output.as_deref());
+    let (tx, rx) = std::sync::mpsc::sync_channel::<Vec<Record>>(2);
+    let written = std::thread::scope(|s| {
+        let out = &mut out;
+        let writer = s.spawn(move || write_records(rx.into_iter().flatten(), o, source, out));
+        // A failed writer drops the receiver; stop planning then.
+        produce(&mut |chunk| tx.send(chunk).is_ok());
+        drop(tx);
+        writer
+            .join()
+            .unwrap_or_else(|_| Err(CliError::failure("the writer thread panicked")))
+    });
+    written?;
     out.commit()
 }
 
@@ -648,18 +683,29 @@ fn contour_cmd(a: ContourArgs) -> Result<(), CliError> {
     let (header, chains) = read_chains(input.reader).map_err(|e| CliError::in_file(&name, e))?;
     let source = header.source.or(Some(name.clone()));
     let t1 = std::time::Instant::now();
-    let job = contour(&chains, &m, &o);
-    drop(chains);
-    let t2 = std::time::Instant::now();
-    warn_all(&job.warnings);
-    write_generated(&job.records, &a.out, source, &m)?;
+    if a.out.svg.is_some() {
+        // The preview needs the whole job.
+        let job = contour(&chains, &m, &o);
+        warn_all(&job.warnings);
+        return write_generated(&job.records, &a.out, source, &m);
+    }
+    let (mut short, mut total) = (0, 0);
+    let mut warnings = Vec::new();
+    write_streamed(&a.out, source, |sink| {
+        warnings = contour_streamed(&chains, &m, &o, |chunk| {
+            let (s, t) = microcam::paths::audit::short_blocks(&chunk, &m, P3::origin());
+            short += s;
+            total += t;
+            sink(chunk)
+        });
+    })?;
+    warn_all(&warnings);
+    short_note(short, total, &m);
     if timing {
-        let t3 = std::time::Instant::now();
         eprintln!(
-            "pathgen: timing: read {:.3} s, plan {:.3} s, write {:.3} s",
+            "pathgen: timing: read {:.3} s, plan and write {:.3} s",
             (t1 - t0).as_secs_f64(),
-            (t2 - t1).as_secs_f64(),
-            (t3 - t2).as_secs_f64()
+            t1.elapsed().as_secs_f64()
         );
     }
     Ok(())

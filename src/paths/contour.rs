@@ -211,6 +211,22 @@ fn nesting(chains: &[Chain]) -> Vec<(usize, usize)> {
 
 /// Plan a whole contour job.
 pub fn contour(chains: &[Chain], m: &Machine, o: &ContourOptions) -> Job {
+    let (items, plan, warnings) = prepare(chains, m, o);
+    let mut job = Job {
+        records: Vec::new(),
+        warnings,
+    };
+    job.warnings
+        .extend(plan_in_chunks(&items, &plan, m, usize::MAX, |recs| {
+            job.records.extend(recs);
+            true
+        }));
+    job
+}
+
+/// Offsets, nesting and order: the paths to plan, as (item, shift) in
+/// cutting order, and the warnings so far.
+fn prepare(chains: &[Chain], m: &Machine, o: &ContourOptions) -> (Vec<Item>, Vec<(usize, V3)>, Vec<Warning>) {
     let nest = nesting(chains);
     let per_chain: Vec<(Vec<Vec<Elem>>, Option<Warning>)> = chains
         .par_iter()
@@ -251,10 +267,10 @@ pub fn contour(chains: &[Chain], m: &Machine, o: &ContourOptions) -> Job {
             (paths, warn)
         })
         .collect();
-    let mut job = Job::default();
+    let mut warnings = Vec::new();
     let mut items: Vec<Item> = Vec::new();
     for (i, (paths, warn)) in per_chain.into_iter().enumerate() {
-        job.warnings.extend(warn);
+        warnings.extend(warn);
         for path in paths {
             items.push(Item {
                 chain: chains[i].id,
@@ -277,32 +293,51 @@ pub fn contour(chains: &[Chain], m: &Machine, o: &ContourOptions) -> Job {
             }
         }
     }
-    let planned: Vec<(Vec<Record>, Vec<Note>)> = plan
-        .par_iter()
-        .map(|&(it, d)| {
-            let path: Vec<Elem> = items[it].path.iter().map(|e| e.translated(d)).collect();
-            let mut notes = Vec::new();
-            let pieces = plan_path(&path, m, &mut notes);
-            let mut recs = Vec::with_capacity(pieces.len() + 1);
-            to_records(&pieces, m.feed, Some(items[it].chain), &mut recs);
-            (recs, notes)
-        })
-        .collect();
-    let total: usize = planned.iter().map(|p| p.0.len()).sum();
-    job.records.reserve(total);
-    for ((recs, notes), &(it, _)) in planned.into_iter().zip(&plan) {
-        job.records.extend(recs);
-        for n in notes {
-            job.warnings.push(Warning {
-                chain: items[it].chain,
-                message: n.to_string(),
-            });
+    (items, plan, warnings)
+}
+
+/// Plan `plan` (item, shift) in chunks of `chunk` paths, each chunk on
+/// every core, handing each chunk's moves to `sink` in order (so a writer
+/// can format one chunk while the next is planned). `sink` returns false
+/// to stop early. Returns the warnings, one per chain and kind.
+fn plan_in_chunks(
+    items: &[Item],
+    plan: &[(usize, V3)],
+    m: &Machine,
+    chunk: usize,
+    mut sink: impl FnMut(Vec<Record>) -> bool,
+) -> Vec<Warning> {
+    let mut warnings = Vec::new();
+    for part in plan.chunks(chunk.max(1)) {
+        let planned: Vec<(Vec<Record>, Vec<Note>)> = part
+            .par_iter()
+            .map(|&(it, d)| {
+                let path: Vec<Elem> = items[it].path.iter().map(|e| e.translated(d)).collect();
+                let mut notes = Vec::new();
+                let pieces = plan_path(&path, m, &mut notes);
+                let mut recs = Vec::with_capacity(pieces.len() + 1);
+                to_records(&pieces, m.feed, Some(items[it].chain), &mut recs);
+                (recs, notes)
+            })
+            .collect();
+        let mut recs = Vec::with_capacity(planned.iter().map(|p| p.0.len()).sum());
+        for ((r, notes), &(it, _)) in planned.into_iter().zip(part) {
+            recs.extend(r);
+            for n in notes {
+                warnings.push(Warning {
+                    chain: items[it].chain,
+                    message: n.to_string(),
+                });
+            }
+        }
+        if !sink(recs) {
+            break;
         }
     }
     // One warning per chain and kind is enough, however many copies and
     // tight arcs (the first, in cutting order, stands for the rest).
     let mut seen = std::collections::HashSet::new();
-    job.warnings.retain(|w| {
+    warnings.retain(|w| {
         let kind = if w.message.contains("tighter than V²/a") {
             ""
         } else {
@@ -310,7 +345,23 @@ pub fn contour(chains: &[Chain], m: &Machine, o: &ContourOptions) -> Job {
         };
         seen.insert((w.chain, kind.to_string()))
     });
-    job
+    warnings
+}
+
+/// Plan a contour job chunk by chunk: like [`contour`], but each chunk of
+/// moves goes to `sink` as soon as it is planned, so the caller can write
+/// while the next chunk is planned and never holds the whole job.
+pub fn contour_streamed(
+    chains: &[Chain],
+    m: &Machine,
+    o: &ContourOptions,
+    sink: impl FnMut(Vec<Record>) -> bool,
+) -> Vec<Warning> {
+    let (items, plan, mut warnings) = prepare(chains, m, o);
+    // About 64k moves per chunk for 100-segment chains: big enough to keep
+    // both cores busy, small enough that writing overlaps planning.
+    warnings.extend(plan_in_chunks(&items, &plan, m, 512, sink));
+    warnings
 }
 
 /// Items in cutting order: clusters (an outer chain with all it contains)
