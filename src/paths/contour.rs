@@ -213,7 +213,7 @@ fn nesting(chains: &[Chain]) -> Vec<(usize, usize)> {
 pub fn contour(chains: &[Chain], m: &Machine, o: &ContourOptions) -> Job {
     let (items, plan, warnings) = prepare(chains, m, o);
     let mut job = Job {
-        records: Vec::new(),
+        records: vec![super::plan::ramps_record(m)],
         warnings,
     };
     job.warnings
@@ -358,6 +358,10 @@ pub fn contour_streamed(
     sink: impl FnMut(Vec<Record>) -> bool,
 ) -> Vec<Warning> {
     let (items, plan, mut warnings) = prepare(chains, m, o);
+    let mut sink = sink;
+    if !sink(vec![super::plan::ramps_record(m)]) {
+        return warnings;
+    }
     // About 64k moves per chunk for 100-segment chains: big enough to keep
     // both cores busy, small enough that writing overlaps planning.
     warnings.extend(plan_in_chunks(&items, &plan, m, 512, sink));

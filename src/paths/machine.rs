@@ -108,14 +108,20 @@ impl Machine {
         self.feed * self.feed / self.accel()
     }
 
-    /// Distance to reach V from rest (trapezoid: ½·V·TA).
-    pub fn accel_distance(&self) -> f64 {
-        0.5 * self.feed * self.ramp_s(self.ta_ms)
+    /// The TA written into programs: a Turbo PMAC has one TA for speeding
+    /// up and slowing down, so the slower of TA and TD is used for both.
+    pub fn program_ta_ms(&self) -> f64 {
+        self.ta_ms.max(self.td_ms)
     }
 
-    /// Distance to stop from V (½·V·TD).
+    /// Distance to reach V from rest (trapezoid: ½·V·TA, with the program's TA).
+    pub fn accel_distance(&self) -> f64 {
+        0.5 * self.feed * self.ramp_s(self.program_ta_ms())
+    }
+
+    /// Distance to stop from V (½·V·TD, with the program's TA).
     pub fn decel_distance(&self) -> f64 {
-        0.5 * self.feed * self.ramp_s(self.td_ms)
+        0.5 * self.feed * self.ramp_s(self.program_ta_ms())
     }
 
     /// Distance travelled at V between the open command and fully open.

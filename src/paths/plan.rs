@@ -262,11 +262,22 @@ pub fn to_records(pieces: &[Piece], feed: f64, chain: Option<u64>, out: &mut Vec
     }
 }
 
+/// The program's TA/TS, first in every generated job: the lead-in and
+/// lead-out lengths assume these ramps, so the controller must not run
+/// with whatever Isx87/Isx88 it happens to hold.
+pub fn ramps_record(m: &Machine) -> Record {
+    Record::Accel {
+        ta_ms: Some(m.program_ta_ms()),
+        ts_ms: Some(m.ts_ms),
+        block: None,
+    }
+}
+
 /// Plan several tagged paths in order, each with its own leads and shutter
 /// timing, joined by rapids. Pattern generators use this.
 pub fn plan_paths(paths: &[Vec<(Elem, Role)>], m: &Machine, chain: Option<u64>) -> (Vec<Record>, Vec<Note>) {
     let mut notes = Vec::new();
-    let mut recs = Vec::new();
+    let mut recs = vec![ramps_record(m)];
     for p in paths {
         let pieces = plan_tagged(p, m, &mut notes);
         to_records(&pieces, m.feed, chain, &mut recs);
