@@ -7,6 +7,8 @@
 //! - [`model`]: chains and toolpaths in memory.
 //! - [`formats`]: the JSON Lines pipe formats, streaming.
 //! - [`gcode`]: ISO and PMAC G-code, read and written.
+//! - [`paths`]: constant-velocity laser toolpaths from chains (contour,
+//!   patterns, corner loops, cut order, shutter timing).
 //! - [`sim`]: what a program does on the machine: time, beam and material removal.
 //! - [`preview`]: SVG previews of toolpaths.
 //! - [`pmac`]: Turbo PMAC protocol, client, emulator, splitting and upload.
@@ -17,6 +19,7 @@ pub mod formats;
 pub mod gcode;
 pub mod geometry;
 pub mod model;
+pub mod paths;
 pub mod pmac;
 pub mod preview;
 pub mod sim;

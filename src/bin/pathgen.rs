@@ -2,8 +2,22 @@
 
 use clap::{Args as ClapArgs, Parser, Subcommand};
 use microcam::cli::{self, CliError, Output};
+use microcam::formats::chains::ChainsWriter;
+use microcam::formats::toolpath::ToolpathWriter;
 use microcam::gcode::writer::{GcodeWriter, WriteError, WriteOptions};
 use microcam::gcode::{Dialect, ReadOptions};
+use microcam::geometry::P2;
+use microcam::geometry::{P3, Plane};
+use microcam::model::chain::{Chain, ChainsHeader, Segment};
+use microcam::model::toolpath::{FeedUnit, Header, Record};
+use microcam::paths::arcfit;
+use microcam::paths::contour::{ContourOptions, Direction, OrderMode, Warning, contour, contour_streamed};
+use microcam::paths::elem::Elem;
+use microcam::paths::input::read_chains;
+use microcam::paths::machine::Machine;
+use microcam::paths::offset::Side;
+use microcam::paths::patterns;
+use microcam::paths::plan::{Tagged, all_cut, plan_paths};
 use microcam::source::ToolpathSource;
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -31,6 +45,367 @@ enum Command {
     /// Write a toolpath as G-code (PMAC motion program or ISO).
     #[command(after_help = EXAMPLES)]
     Emit(EmitArgs),
+    /// Cut chains: offset, order, lead in/out, loop corners, time the shutter.
+    #[command(after_help = CONTOUR_EXAMPLES)]
+    Contour(Box<ContourArgs>),
+    /// A helix (holes): radius, pitch per turn, whole turns.
+    #[command(after_help = PATTERN_EXAMPLES)]
+    Helix(Box<HelixArgs>),
+    /// A square or Archimedean spiral, inward or outward.
+    #[command(after_help = PATTERN_EXAMPLES)]
+    Spiral(Box<SpiralArgs>),
+    /// Zigzag hatching along X or Y in plane XY or XZ.
+    #[command(after_help = PATTERN_EXAMPLES)]
+    Zigzag(Box<ZigzagArgs>),
+    /// A cone: spirals on Z levels, diameters per seed 000 eqs. 6.4-6.6.
+    #[command(after_help = PATTERN_EXAMPLES)]
+    Cone(Box<ConeArgs>),
+    /// Fit tangent-continuous arcs (biarcs) to points or a polyline.
+    Arcfit(Box<ArcfitArgs>),
+    /// Check a laser toolpath against the machine: speed, acceleration,
+    /// shutter timing; prints a JSON report, exit 1 when a limit is broken.
+    Audit(Box<AuditArgs>),
+}
+
+#[derive(ClapArgs)]
+struct AuditArgs {
+    /// Toolpath or G-code to check ('-' for stdin).
+    file: Option<PathBuf>,
+    /// Printing precision of the input (mm): radii and switch points may be
+    /// off by this much (1e-4 for 4-decimal G-code, 1e-9 for toolpaths).
+    #[arg(long, default_value_t = 1e-4)]
+    precision: f64,
+    #[command(flatten)]
+    machine: MachineArgs,
+}
+
+const PATTERN_EXAMPLES: &str = "\
+Examples:
+  pathgen helix --center 1,1 --radius 0.3 --pitch -0.01 --turns 5 --gcode pmac
+  pathgen spiral --kind archimedean --radius 0.5 --step 0.01 --inward
+  pathgen spiral --kind square --size 1 --step 0.02 --svg sq.svg
+  pathgen zigzag --length 2 --width 1 --step 0.01 --along y --plane xz
+  pathgen cone --d1 1 --d2 0.4 --height 0.3 --levels 10 --step 0.01
+
+Output is microcam.toolpath/1 (feeds in mm/s) or G-code with --gcode; every
+move runs at --feed with the beam switched per the shutter timing.";
+
+#[derive(ClapArgs)]
+struct HelixArgs {
+    /// Centre X,Y.
+    #[arg(long, value_parser = parse_pair_f64, default_value = "0,0", allow_hyphen_values = true)]
+    center: (f64, f64),
+    /// Start height (mm).
+    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+    z: f64,
+    /// Radius (mm).
+    #[arg(long)]
+    radius: f64,
+    /// Rise per turn (mm; negative goes down).
+    #[arg(long, allow_hyphen_values = true)]
+    pitch: f64,
+    /// Whole turns.
+    #[arg(long, default_value_t = 1)]
+    turns: u32,
+    /// Clockwise instead of counter-clockwise.
+    #[arg(long)]
+    cw: bool,
+    #[command(flatten)]
+    machine: MachineArgs,
+    #[command(flatten)]
+    out: GenOutput,
+}
+
+#[derive(ClapArgs)]
+struct SpiralArgs {
+    /// square or archimedean.
+    #[arg(long, value_parser = ["square", "archimedean"], default_value = "archimedean")]
+    kind: String,
+    /// Centre X,Y.
+    #[arg(long, value_parser = parse_pair_f64, default_value = "0,0", allow_hyphen_values = true)]
+    center: (f64, f64),
+    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+    z: f64,
+    /// Distance between passes (mm).
+    #[arg(long)]
+    step: f64,
+    /// Square: side of the square (mm).
+    #[arg(long)]
+    size: Option<f64>,
+    /// Archimedean: outer radius (mm), closed by a full circle there.
+    #[arg(long)]
+    radius: Option<f64>,
+    /// Archimedean: radius where the spiral starts (a in r = a + b·θ; default: step).
+    #[arg(long)]
+    inner: Option<f64>,
+    /// Run from the outside in.
+    #[arg(long)]
+    inward: bool,
+    /// Archimedean: largest deviation of the arcs from the spiral (mm).
+    #[arg(long, default_value_t = 1e-5)]
+    tolerance: f64,
+    #[command(flatten)]
+    machine: MachineArgs,
+    #[command(flatten)]
+    out: GenOutput,
+}
+
+#[derive(ClapArgs)]
+struct ZigzagArgs {
+    /// Corner X,Y,Z where the first line starts.
+    #[arg(long, value_parser = parse_triple_f64, default_value = "0,0,0", allow_hyphen_values = true)]
+    origin: (f64, f64, f64),
+    /// Plane of the hatching.
+    #[arg(long, value_parser = ["xy", "xz"], default_value = "xy")]
+    plane: String,
+    /// Cut lines along this axis (the plane's other axis steps).
+    #[arg(long, value_parser = ["x", "y", "z"], default_value = "x")]
+    along: String,
+    /// Length of each line (mm).
+    #[arg(long)]
+    length: f64,
+    /// Extent across the lines (mm).
+    #[arg(long)]
+    width: f64,
+    /// Distance between lines (mm).
+    #[arg(long)]
+    step: f64,
+    /// Smallest turnaround radius (mm); never below V²/a.
+    #[arg(long, default_value_t = 0.0)]
+    corner_radius: f64,
+    #[command(flatten)]
+    machine: MachineArgs,
+    #[command(flatten)]
+    out: GenOutput,
+}
+
+#[derive(ClapArgs)]
+struct ConeArgs {
+    /// Centre X,Y.
+    #[arg(long, value_parser = parse_pair_f64, default_value = "0,0", allow_hyphen_values = true)]
+    center: (f64, f64),
+    /// Surface height (mm); passes go down from here.
+    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+    z: f64,
+    /// Diameter at the surface (mm).
+    #[arg(long)]
+    d1: f64,
+    /// Diameter at depth --height (mm).
+    #[arg(long)]
+    d2: f64,
+    /// Depth of the cone (mm).
+    #[arg(long)]
+    height: f64,
+    /// Number of Z levels.
+    #[arg(long, default_value_t = 10)]
+    levels: u32,
+    /// Distance between spiral passes (mm; default the beam diameter).
+    #[arg(long)]
+    step: Option<f64>,
+    /// Beam spot diameter (mm): each section is filled to its edge minus the radius.
+    #[arg(long, default_value_t = 0.01)]
+    beam_diameter: f64,
+    #[arg(long, default_value_t = 1e-5)]
+    tolerance: f64,
+    #[command(flatten)]
+    machine: MachineArgs,
+    #[command(flatten)]
+    out: GenOutput,
+}
+
+#[derive(ClapArgs)]
+struct ArcfitArgs {
+    /// Points, one 'x y' (or 'x,y') per line, '#' comments; '-' for stdin.
+    file: Option<PathBuf>,
+    /// Largest deviation from the polyline (mm).
+    #[arg(long, default_value_t = 0.001)]
+    tolerance: f64,
+    /// Print a JSON report (blocks, deviation) instead of chains.
+    #[arg(long)]
+    report: bool,
+    /// The input is a polyline to stay within (both ways), not samples of
+    /// a smooth curve (the default: only the points must be within).
+    #[arg(long)]
+    polyline: bool,
+    /// Write output here instead of stdout.
+    #[arg(short, long)]
+    output: Option<PathBuf>,
+}
+
+fn parse_triple_f64(s: &str) -> Result<(f64, f64, f64), String> {
+    let v: Vec<f64> = s
+        .split(',')
+        .map(|t| t.trim().parse::<f64>().ok().filter(|v| v.is_finite()))
+        .collect::<Option<_>>()
+        .ok_or_else(|| format!("expected X,Y,Z, got '{s}'"))?;
+    match v[..] {
+        [x, y, z] => Ok((x, y, z)),
+        _ => Err(format!("expected X,Y,Z, got '{s}'")),
+    }
+}
+
+fn positive(name: &str, v: f64) -> Result<f64, CliError> {
+    if v.is_finite() && v > 0.0 {
+        Ok(v)
+    } else {
+        Err(CliError::input(format!("--{name} must be positive, got {v}")))
+    }
+}
+
+const CONTOUR_EXAMPLES: &str = "\
+Examples:
+  pathgen contour part.chains > part.jsonl                 cut on the lines
+  pathgen contour --side outside --beam-diameter 0.01 part.chains --gcode pmac > part.pmc
+  pathgen contour --side inside --offset 0.02 --levels 5 --level-step -0.005 part.chains
+  pathgen contour --array 3,2 --pitch 5,5 --svg part.svg part.chains
+
+Input is microcam.chains/1 ('-' or no FILE reads stdin); output is
+microcam.toolpath/1 (feeds in mm/s) or G-code with --gcode. Warnings
+(vanished offsets, cuts shorter than the minimum exposure, arcs tighter than
+V^2/a) go to stderr. Exit status: 0 ok, 1 failure, 2 bad usage or bad input.";
+
+/// The stage and shutter (defaults: seed 000's laser stage, Fig. 6-40).
+#[derive(ClapArgs)]
+struct MachineArgs {
+    /// Feed V while the beam is on (mm/s).
+    #[arg(long, default_value_t = 2.0)]
+    feed: f64,
+    /// Acceleration time TA (ms).
+    #[arg(long, default_value_t = 100.0)]
+    ta: f64,
+    /// Deceleration time TD (ms).
+    #[arg(long, default_value_t = 100.0)]
+    td: f64,
+    /// S-curve time TS (ms).
+    #[arg(long, default_value_t = 0.0)]
+    ts: f64,
+    /// Acceleration (mm/s^2): sets TA = TD = V/a instead.
+    #[arg(long)]
+    accel: Option<f64>,
+    /// Shutter delay before opening starts (ms).
+    #[arg(long, default_value_t = 3.0)]
+    open_delay: f64,
+    /// Shutter transfer time to fully open (ms).
+    #[arg(long, default_value_t = 9.0)]
+    open_transfer: f64,
+    /// Shutter delay before closing starts (ms).
+    #[arg(long, default_value_t = 3.0)]
+    close_delay: f64,
+    /// Shutter transfer time to fully closed (ms).
+    #[arg(long, default_value_t = 14.0)]
+    close_transfer: f64,
+    /// Minimum exposure (ms); shorter cuts are reported.
+    #[arg(long, default_value_t = 15.0)]
+    min_exposure: f64,
+    /// Corners turning less than this (degrees) are tangent: no loop.
+    #[arg(long, default_value_t = 0.5)]
+    tangent_tol: f64,
+}
+
+impl MachineArgs {
+    fn machine(&self) -> Result<Machine, CliError> {
+        let mut m = Machine {
+            feed: self.feed,
+            ta_ms: self.ta,
+            td_ms: self.td,
+            ts_ms: self.ts,
+            open_delay_ms: self.open_delay,
+            open_transfer_ms: self.open_transfer,
+            close_delay_ms: self.close_delay,
+            close_transfer_ms: self.close_transfer,
+            min_exposure_ms: self.min_exposure,
+            tangent_tol_deg: self.tangent_tol,
+        };
+        if let Some(a) = self.accel {
+            if !(a.is_finite() && a > 0.0) {
+                return Err(CliError::input(format!("--accel must be positive, got {a}")));
+            }
+            m = m.with_accel(a);
+        }
+        m.validate().map_err(|e| CliError::input(e.to_string()))?;
+        Ok(m)
+    }
+}
+
+/// Where generated moves go.
+#[derive(ClapArgs)]
+struct GenOutput {
+    /// Write G-code of this dialect instead of a toolpath.
+    #[arg(long, value_parser = ["iso", "pmac"])]
+    gcode: Option<String>,
+    #[command(flatten)]
+    writer: WriterArgs,
+    /// Also write an SVG preview here.
+    #[arg(long, value_name = "FILE")]
+    svg: Option<PathBuf>,
+    /// Write output here instead of stdout.
+    #[arg(short, long)]
+    output: Option<PathBuf>,
+}
+
+#[derive(ClapArgs)]
+struct ContourArgs {
+    /// Chains to cut ('-' for stdin).
+    file: Option<PathBuf>,
+    /// Where the beam centre runs: on the chain, inside/outside closed
+    /// chains, or left/right of travel.
+    #[arg(long, value_parser = ["on", "inside", "outside", "left", "right"], default_value = "on")]
+    side: String,
+    /// Beam spot diameter (mm); the default offset is its radius.
+    #[arg(long, default_value_t = 0.01)]
+    beam_diameter: f64,
+    /// Offset distance (mm) instead of the beam radius.
+    #[arg(long)]
+    offset: Option<f64>,
+    /// Passes per chain.
+    #[arg(long, default_value_t = 1)]
+    levels: u32,
+    /// Z step between passes (mm; negative goes down).
+    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+    level_step: f64,
+    /// Copies of the job in X and Y: NX,NY.
+    #[arg(long, value_parser = parse_pair_u32, default_value = "1,1")]
+    array: (u32, u32),
+    /// Pitch of the copies: DX,DY (mm).
+    #[arg(long, value_parser = parse_pair_f64, default_value = "0,0", allow_hyphen_values = true)]
+    pitch: (f64, f64),
+    /// Start closed paths at the vertex nearest X,Y (default: where drawn).
+    #[arg(long, value_parser = parse_pair_f64, allow_hyphen_values = true)]
+    start_near: Option<(f64, f64)>,
+    /// Travel sense of closed paths.
+    #[arg(long, value_parser = ["keep", "ccw", "cw"], default_value = "keep")]
+    direction: String,
+    /// Chain order: input, nearest (the seed's), optimized (nearest + 2-opt/Or-opt).
+    #[arg(long, value_parser = ["input", "nearest", "optimized"], default_value = "optimized")]
+    order: String,
+    #[command(flatten)]
+    machine: MachineArgs,
+    #[command(flatten)]
+    out: GenOutput,
+}
+
+fn parse_pair_f64(s: &str) -> Result<(f64, f64), String> {
+    let (a, b) = s.split_once(',').ok_or_else(|| format!("expected X,Y, got '{s}'"))?;
+    let p = |t: &str| {
+        t.trim()
+            .parse::<f64>()
+            .ok()
+            .filter(|v| v.is_finite())
+            .ok_or_else(|| format!("'{t}' is not a finite number"))
+    };
+    Ok((p(a)?, p(b)?))
+}
+
+fn parse_pair_u32(s: &str) -> Result<(u32, u32), String> {
+    let (a, b) = s.split_once(',').ok_or_else(|| format!("expected NX,NY, got '{s}'"))?;
+    let p = |t: &str| {
+        t.trim()
+            .parse::<u32>()
+            .ok()
+            .filter(|&v| v >= 1)
+            .ok_or_else(|| format!("'{t}' is not a count >= 1"))
+    };
+    Ok((p(a)?, p(b)?))
 }
 
 #[derive(ClapArgs)]
@@ -40,6 +415,18 @@ struct EmitArgs {
     /// Output dialect.
     #[arg(long, value_parser = ["iso", "pmac"], default_value = "pmac")]
     dialect: String,
+    #[command(flatten)]
+    writer: WriterArgs,
+    /// Write output here instead of stdout.
+    #[arg(short, long)]
+    output: Option<PathBuf>,
+}
+
+/// How G-code is written: shared by `emit` and every generator's `--gcode`,
+/// so a generated program is byte-identical to generating a toolpath and
+/// piping it through `pathgen emit`.
+#[derive(ClapArgs)]
+struct WriterArgs {
     /// Decimal places of coordinates and feeds (0-9).
     #[arg(long, value_parser = clap::value_parser!(u8).range(0..=9))]
     decimals: Option<u8>,
@@ -77,20 +464,23 @@ struct EmitArgs {
     /// Comment each change of source chain and role.
     #[arg(long)]
     comments: bool,
-    /// Write output here instead of stdout.
-    #[arg(short, long)]
-    output: Option<PathBuf>,
 }
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
     cli::run("pathgen", || match cli.command {
         Command::Emit(a) => emit(a),
+        Command::Contour(a) => contour_cmd(*a),
+        Command::Helix(a) => helix_cmd(*a),
+        Command::Spiral(a) => spiral_cmd(*a),
+        Command::Zigzag(a) => zigzag_cmd(*a),
+        Command::Cone(a) => cone_cmd(*a),
+        Command::Arcfit(a) => arcfit_cmd(*a),
+        Command::Audit(a) => audit_cmd(*a),
     })
 }
 
-fn emit(a: EmitArgs) -> Result<(), CliError> {
-    let dialect: Dialect = a.dialect.parse().map_err(CliError::input)?;
+fn write_options(dialect: Dialect, a: &WriterArgs) -> WriteOptions {
     let mut opts = WriteOptions::for_dialect(dialect);
     if let Some(d) = a.decimals {
         opts.decimals = d;
@@ -103,7 +493,7 @@ fn emit(a: EmitArgs) -> Result<(), CliError> {
     opts.repeat_motion = a.repeat_motion;
     opts.comments = a.comments;
     if !a.header.is_empty() {
-        opts.header = Some(a.header);
+        opts.header = Some(a.header.clone());
     } else if dialect == Dialect::Pmac && a.program != 1 {
         let mut h = opts.default_header();
         if let Some(first) = h.first_mut() {
@@ -112,25 +502,444 @@ fn emit(a: EmitArgs) -> Result<(), CliError> {
         opts.header = Some(h);
     }
     if !a.trailer.is_empty() {
-        opts.trailer = Some(a.trailer);
+        opts.trailer = Some(a.trailer.clone());
     }
+    opts
+}
+
+/// Write records as G-code: the one code path of `emit` and `--gcode`.
+fn write_gcode<E>(
+    records: impl Iterator<Item = Result<Record, E>>,
+    feed_unit: FeedUnit,
+    opts: WriteOptions,
+    name: &str,
+    out: &mut Output,
+) -> Result<(), CliError>
+where
+    CliError: From<E>,
+{
+    let mut w = GcodeWriter::new(out, opts, feed_unit);
+    let bad = |e: WriteError| match e {
+        WriteError::Io(e) => <CliError as From<std::io::Error>>::from(e),
+        e => CliError::input(format!("{name}: {e}")),
+    };
+    for rec in records {
+        w.record(&rec?).map_err(bad)?;
+    }
+    w.finish().map_err(bad)?;
+    Ok(())
+}
+
+fn emit(a: EmitArgs) -> Result<(), CliError> {
+    let dialect: Dialect = a.dialect.parse().map_err(CliError::input)?;
+    let opts = write_options(dialect, &a.writer);
     let read = ReadOptions {
         shutter_var: opts.shutter_var.clone(),
-        line_counter_var: a.line_counter.to_ascii_uppercase(),
+        line_counter_var: a.writer.line_counter.to_ascii_uppercase(),
         ..Default::default()
     };
     let input = cli::open_input(a.file.as_deref())?;
     let source = ToolpathSource::open(input, &read)?;
     let name = source.name().to_string();
+    let feed_unit = source.header.feed_unit;
     let mut out = Output::new(a.output.as_deref());
-    let mut w = GcodeWriter::new(&mut out, opts, source.header.feed_unit);
-    let bad = |e: WriteError| match e {
-        WriteError::Io(e) => CliError::from(e),
-        e => CliError::input(format!("{name}: {e}")),
-    };
-    for rec in source {
-        w.record(&rec?).map_err(bad)?;
-    }
-    w.finish().map_err(bad)?;
+    write_gcode(source, feed_unit, opts, &name, &mut out)?;
     out.commit()
+}
+
+/// Warnings beyond this many are counted, not printed: a drawing with
+/// thousands of tight fillets should not bury the rest of stderr.
+const MAX_WARNINGS: usize = 20;
+
+fn warn_all(warnings: &[Warning]) {
+    for w in warnings.iter().take(MAX_WARNINGS) {
+        eprintln!("pathgen: warning: chain {}: {}", w.chain, w.message);
+    }
+    if warnings.len() > MAX_WARNINGS {
+        eprintln!(
+            "pathgen: warning: {} more warnings not shown",
+            warnings.len() - MAX_WARNINGS
+        );
+    }
+}
+
+/// Write generated records as a toolpath or, with `--gcode`, as G-code
+/// through the same writer as `emit`; the SVG preview goes beside.
+fn short_note(short: usize, total: usize, m: &Machine) {
+    if short > 0 {
+        eprintln!(
+            "pathgen: note: {short} of {total} feed moves are shorter than V·TA ({:.4} mm); a PMAC not in \
+             segmentation mode stretches them to TA and slows down there",
+            m.feed * m.ta_ms / 1000.0
+        );
+    }
+}
+
+/// Write generated records as a toolpath or, with `--gcode`, as G-code
+/// through the same writer as `emit`; the SVG preview goes beside.
+fn write_generated(records: &[Record], o: &GenOutput, source: Option<String>, m: &Machine) -> Result<(), CliError> {
+    let (short, total) = microcam::paths::audit::short_blocks(records, m, P3::origin());
+    short_note(short, total, m);
+    if let Some(path) = &o.svg {
+        let mut svg = Output::new(Some(path));
+        microcam::paths::svg::write_svg(&mut svg, records, m).map_err(CliError::from)?;
+        svg.commit()?;
+    }
+    let mut out = Output::new(o.output.as_deref());
+    write_records(records.iter().cloned(), o, source, &mut out)?;
+    out.commit()
+}
+
+/// The one place generated records become output bytes.
+fn write_records(
+    records: impl Iterator<Item = Record>,
+    o: &GenOutput,
+    source: Option<String>,
+    out: &mut Output,
+) -> Result<(), CliError> {
+    match &o.gcode {
+        Some(d) => {
+            let dialect: Dialect = d.parse().map_err(CliError::input)?;
+            let opts = write_options(dialect, &o.writer);
+            let name = source.unwrap_or_else(|| "<generated>".into());
+            write_gcode(records.map(Ok::<_, CliError>), FeedUnit::MmPerS, opts, &name, out)
+        }
+        None => {
+            let mut w = ToolpathWriter::new(out);
+            w.header(&Header {
+                feed_unit: FeedUnit::MmPerS,
+                source,
+            })?;
+            for r in records {
+                w.record(&r)?;
+            }
+            w.finish()?;
+            Ok(())
+        }
+    }
+}
+
+/// Write records handed over in chunks by `produce` on a second thread, so
+/// formatting overlaps planning. Output is byte-identical to
+/// [`write_generated`] (same writer, same records, same order).
+fn write_streamed(
+    o: &GenOutput,
+    source: Option<String>,
+    produce: impl FnOnce(&mut dyn FnMut(Vec<Record>) -> bool),
+) -> Result<(), CliError> {
+    let mut out = Output::new(o.output.as_deref());
+    let (tx, rx) = std::sync::mpsc::sync_channel::<Vec<Record>>(2);
+    let written = std::thread::scope(|s| {
+        let out = &mut out;
+        let writer = s.spawn(move || write_records(rx.into_iter().flatten(), o, source, out));
+        // A failed writer drops the receiver; stop planning then.
+        produce(&mut |chunk| tx.send(chunk).is_ok());
+        drop(tx);
+        writer
+            .join()
+            .unwrap_or_else(|_| Err(CliError::failure("the writer thread panicked")))
+    });
+    written?;
+    out.commit()
+}
+
+fn contour_cmd(a: ContourArgs) -> Result<(), CliError> {
+    let m = a.machine.machine()?;
+    let side = match a.side.as_str() {
+        "inside" => Side::Inside,
+        "outside" => Side::Outside,
+        "left" => Side::Left,
+        "right" => Side::Right,
+        _ => Side::On,
+    };
+    let distance = a.offset.unwrap_or(0.5 * a.beam_diameter);
+    if !(distance.is_finite() && distance >= 0.0) {
+        return Err(CliError::input(format!("offset must be >= 0, got {distance}")));
+    }
+    let o = ContourOptions {
+        side,
+        distance,
+        levels: a.levels.max(1),
+        level_step: a.level_step,
+        array: a.array,
+        pitch: a.pitch,
+        start_near: a.start_near.map(|(x, y)| P2::new(x, y)),
+        direction: match a.direction.as_str() {
+            "ccw" => Direction::Ccw,
+            "cw" => Direction::Cw,
+            _ => Direction::Keep,
+        },
+        order: match a.order.as_str() {
+            "input" => OrderMode::Input,
+            "nearest" => OrderMode::Nearest,
+            _ => OrderMode::Optimized,
+        },
+        origin: P2::origin(),
+    };
+    let input = cli::open_input(a.file.as_deref())?;
+    let name = input.name.clone();
+    let timing = std::env::var_os("PATHGEN_TIMING").is_some();
+    let t0 = std::time::Instant::now();
+    let (header, chains) = read_chains(input.reader).map_err(|e| CliError::in_file(&name, e))?;
+    let source = header.source.or(Some(name.clone()));
+    let t1 = std::time::Instant::now();
+    if a.out.svg.is_some() {
+        // The preview needs the whole job.
+        let job = contour(&chains, &m, &o);
+        warn_all(&job.warnings);
+        return write_generated(&job.records, &a.out, source, &m);
+    }
+    let (mut short, mut total) = (0, 0);
+    let mut warnings = Vec::new();
+    write_streamed(&a.out, source, |sink| {
+        warnings = contour_streamed(&chains, &m, &o, |chunk| {
+            let (s, t) = microcam::paths::audit::short_blocks(&chunk, &m, P3::origin());
+            short += s;
+            total += t;
+            sink(chunk)
+        });
+    })?;
+    warn_all(&warnings);
+    short_note(short, total, &m);
+    if timing {
+        eprintln!(
+            "pathgen: timing: read {:.3} s, plan and write {:.3} s",
+            (t1 - t0).as_secs_f64(),
+            t1.elapsed().as_secs_f64()
+        );
+    }
+    Ok(())
+}
+
+fn finish_pattern(paths: Vec<Tagged>, m: &Machine, out: &GenOutput, what: &str) -> Result<(), CliError> {
+    let (records, notes) = plan_paths(&paths, m, None);
+    if records.is_empty() {
+        eprintln!("pathgen: warning: {what}: nothing to cut with these sizes");
+    }
+    let mut seen = std::collections::BTreeSet::new();
+    let warnings: Vec<Warning> = notes
+        .iter()
+        .map(|n| n.to_string())
+        .filter(|s| seen.insert(s.clone()))
+        .map(|message| Warning { chain: 0, message })
+        .collect();
+    for w in warnings.iter().take(MAX_WARNINGS) {
+        eprintln!("pathgen: warning: {what}: {}", w.message);
+    }
+    write_generated(&records, out, Some(what.to_string()), m)
+}
+
+fn helix_cmd(a: HelixArgs) -> Result<(), CliError> {
+    let m = a.machine.machine()?;
+    let r = positive("radius", a.radius)?;
+    if !a.pitch.is_finite() {
+        return Err(CliError::input("--pitch must be finite"));
+    }
+    let c = P3::new(a.center.0, a.center.1, a.z);
+    let path = patterns::helix(c, r, a.pitch, a.turns.max(1), !a.cw);
+    finish_pattern(vec![all_cut(path)], &m, &a.out, "helix")
+}
+
+fn spiral_cmd(a: SpiralArgs) -> Result<(), CliError> {
+    let m = a.machine.machine()?;
+    let step = positive("step", a.step)?;
+    let c = P3::new(a.center.0, a.center.1, a.z);
+    let path = if a.kind == "square" {
+        let size = positive(
+            "size",
+            a.size.ok_or_else(|| CliError::input("square spiral needs --size"))?,
+        )?;
+        patterns::square_spiral(c, step, size, a.inward)
+    } else {
+        let r = positive(
+            "radius",
+            a.radius
+                .ok_or_else(|| CliError::input("archimedean spiral needs --radius"))?,
+        )?;
+        let inner = a.inner.unwrap_or(step);
+        if !(inner.is_finite() && inner >= 0.0 && inner < r) {
+            return Err(CliError::input(format!("--inner must be in [0, radius), got {inner}")));
+        }
+        patterns::archimedean(c, inner, step, r, a.inward, positive("tolerance", a.tolerance)?)
+    };
+    finish_pattern(vec![all_cut(path)], &m, &a.out, "spiral")
+}
+
+fn zigzag_cmd(a: ZigzagArgs) -> Result<(), CliError> {
+    let m = a.machine.machine()?;
+    let (plane, along_second) = match (a.plane.as_str(), a.along.as_str()) {
+        ("xy", "x") => (Plane::Xy, false),
+        ("xy", "y") => (Plane::Xy, true),
+        // Plane XZ's axes are (Z, X): lines along X are its second axis.
+        ("xz", "x") => (Plane::Xz, true),
+        ("xz", "z") => (Plane::Xz, false),
+        (p, d) => return Err(CliError::input(format!("--along {d} is not in plane {p}"))),
+    };
+    let o = P3::new(a.origin.0, a.origin.1, a.origin.2);
+    let z = patterns::Zigzag {
+        origin: o,
+        plane,
+        along_second,
+        length: positive("length", a.length)?,
+        width: a.width.max(0.0),
+        step: positive("step", a.step)?,
+        corner_radius: a.corner_radius.max(0.0),
+    };
+    let path = patterns::zigzag(&z, &m);
+    finish_pattern(vec![path], &m, &a.out, "zigzag")
+}
+
+fn cone_cmd(a: ConeArgs) -> Result<(), CliError> {
+    let m = a.machine.machine()?;
+    let h = positive("height", a.height)?;
+    let (d1, d2) = (positive("d1", a.d1)?, positive("d2", a.d2)?);
+    let step = positive("step", a.step.unwrap_or(a.beam_diameter))?;
+    let tol = positive("tolerance", a.tolerance)?;
+    let mut paths = Vec::new();
+    for (z, d) in patterns::cone_levels(a.z, d1, d2, h, a.levels) {
+        let r = 0.5 * d - 0.5 * a.beam_diameter;
+        if r <= step {
+            eprintln!("pathgen: warning: cone: section at z={z} (diameter {d}) is narrower than the beam; skipped");
+            continue;
+        }
+        let c = P3::new(a.center.0, a.center.1, z);
+        paths.push(all_cut(patterns::archimedean(c, step, step, r, false, tol)));
+    }
+    finish_pattern(paths, &m, &a.out, "cone")
+}
+
+fn arcfit_cmd(a: ArcfitArgs) -> Result<(), CliError> {
+    let tol = positive("tolerance", a.tolerance)?;
+    let mut input = cli::open_input(a.file.as_deref())?;
+    let name = input.name.clone();
+    let text = cli::read_to_string(&mut input)?;
+    let mut pts = Vec::new();
+    for (i, line) in text.lines().enumerate() {
+        let line = line.split('#').next().unwrap_or("").trim();
+        if line.is_empty() {
+            continue;
+        }
+        let v: Vec<f64> = line
+            .split(|c: char| c == ',' || c.is_whitespace())
+            .filter(|t| !t.is_empty())
+            .map(|t| t.parse::<f64>().ok().filter(|v| v.is_finite()))
+            .collect::<Option<_>>()
+            .ok_or_else(|| CliError::input(format!("{name}:{}: expected numbers 'x y'", i + 1)))?;
+        if v.len() < 2 {
+            return Err(CliError::input(format!("{name}:{}: expected 'x y'", i + 1)));
+        }
+        pts.push(P2::new(v[0], v[1]));
+    }
+    if pts.len() < 2 {
+        return Err(CliError::input(format!("{name}: need at least two points")));
+    }
+    let fit = arcfit::fit_points(&pts, tol, 0.0, a.polyline);
+    if fit.is_empty() {
+        return Err(CliError::input(format!("{name}: need at least two distinct points")));
+    }
+    // Dense check: 256 samples per piece against the polyline, and every
+    // point against the fit.
+    let dev_poly = arcfit::max_deviation(&fit, &pts, 256);
+    let dev_pts = arcfit::point_deviation(&fit, &pts);
+    let dev = if a.polyline { dev_poly } else { dev_pts };
+    let mut out = Output::new(a.output.as_deref());
+    use std::io::Write;
+    if a.report {
+        let arcs = fit.iter().filter(|e| matches!(e, Elem::Arc(_))).count();
+        writeln!(
+            out,
+            "{{\"schema\":\"microcam.arcfit-report/1\",\"points\":{},\"polyline_blocks\":{},\"biarc_blocks\":{},\"arcs\":{},\"lines\":{},\"tolerance_mm\":{},\"max_point_deviation_mm\":{:.9},\"max_polyline_deviation_mm\":{:.9}}}",
+            pts.len(),
+            pts.len() - 1,
+            fit.len(),
+            arcs,
+            fit.len() - arcs,
+            tol,
+            dev_pts,
+            dev_poly
+        )?;
+    } else {
+        let segments = fit
+            .iter()
+            .map(|e| match e {
+                Elem::Line(l) => Segment::Line {
+                    start: l.start,
+                    end: l.end,
+                },
+                Elem::Arc(x) => Segment::Arc {
+                    start: x.start,
+                    end: x.end,
+                    center: x.center,
+                    ccw: x.ccw,
+                },
+            })
+            .collect();
+        let mut w = ChainsWriter::new(&mut out);
+        w.header(&ChainsHeader { source: Some(name) })?;
+        w.chain(&Chain {
+            id: 1,
+            closed: false,
+            segments,
+            ..Default::default()
+        })?;
+        w.finish()?;
+    }
+    if dev > tol {
+        eprintln!("pathgen: warning: arcfit: deviation {dev} mm exceeds the tolerance {tol} mm");
+    }
+    out.commit()
+}
+
+fn audit_cmd(a: AuditArgs) -> Result<(), CliError> {
+    let m = a.machine.machine()?;
+    let input = cli::open_input(a.file.as_deref())?;
+    let source = ToolpathSource::open(input, &ReadOptions::default())?;
+    let unit = source.header.feed_unit;
+    let mut records = Vec::new();
+    for r in source {
+        let mut r = r?;
+        // Audit in mm/s whatever the program's feed unit.
+        if let Record::Move(mv) = &mut r {
+            mv.feed = mv.feed.map(|f| unit.convert(f, FeedUnit::MmPerS));
+        }
+        records.push(r);
+    }
+    let au = microcam::paths::audit::audit(&records, &m, P3::origin());
+    let (short, total) = microcam::paths::audit::short_blocks(&records, &m, P3::origin());
+    // Radii within the printing precision of V²/a pass; G-code carries no
+    // roles, so exposure is checked only when cut runs are marked.
+    let r_min = m.feed * m.feed / au.max_accel_off_cut;
+    let roles = au.cut_runs.values().sum::<usize>() > 0;
+    let exposure_ok = !roles || au.exposure_error <= 4.0 * a.precision;
+    let ok = au.off_feed_moves == 0
+        && au.corners_at_speed == 0
+        && au.beam_on_rapids == 0
+        && r_min >= m.min_radius() - a.precision
+        && exposure_ok;
+    let exposure = if roles { au.exposure_error } else { f64::NAN };
+    let num = |x: f64| {
+        if x.is_finite() {
+            format!("{x:.9}")
+        } else {
+            "null".into()
+        }
+    };
+    println!(
+        "{{\"schema\":\"microcam.pathgen-audit/1\",\"ok\":{ok},\"feed_moves\":{total},\"off_feed_moves\":{},\"corners_at_speed\":{},\"beam_on_rapids\":{},\"max_accel_off_cut_mm_s2\":{},\"max_accel_cut_mm_s2\":{},\"accel_limit_mm_s2\":{},\"exposure_error_mm\":{},\"blocks_shorter_than_ta\":{short},\"cut_runs\":{}}}",
+        au.off_feed_moves,
+        au.corners_at_speed,
+        au.beam_on_rapids,
+        num(au.max_accel_off_cut),
+        num(au.max_accel_cut),
+        num(m.accel()),
+        num(exposure),
+        au.cut_runs.values().sum::<usize>()
+    );
+    if ok {
+        Ok(())
+    } else {
+        Err(CliError::failure(
+            "the toolpath breaks the machine's limits (see the report)",
+        ))
+    }
 }

@@ -1,0 +1,347 @@
+//! Shortest paths of bounded curvature between two poses (Dubins, 1957):
+//! the optimum is one of six words of at most three pieces, turns of the
+//! minimum radius (L left, R right) and a straight (S). A corner loop at
+//! constant speed V under acceleration a is exactly this problem with radius
+//! V²/a, from the corner with the incoming heading back to the corner with
+//! the outgoing heading.
+
+use super::elem::{Elem, MIN_PIECE};
+use crate::geometry::arc::Arc3;
+use crate::geometry::{P2, P3, Plane, V2};
+use std::f64::consts::TAU;
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Word {
+    Lsl,
+    Rsr,
+    Lsr,
+    Rsl,
+    Rlr,
+    Lrl,
+}
+
+impl Word {
+    pub const ALL: [Word; 6] = [Word::Lsl, Word::Rsr, Word::Lsr, Word::Rsl, Word::Rlr, Word::Lrl];
+
+    /// The three piece types: 'L', 'S' or 'R'.
+    pub fn letters(self) -> [u8; 3] {
+        match self {
+            Word::Lsl => *b"LSL",
+            Word::Rsr => *b"RSR",
+            Word::Lsr => *b"LSR",
+            Word::Rsl => *b"RSL",
+            Word::Rlr => *b"RLR",
+            Word::Lrl => *b"LRL",
+        }
+    }
+}
+
+/// A Dubins path: the word and its three piece lengths in units of the
+/// radius (angles in radians for turns).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Dubins {
+    pub word: Word,
+    pub params: [f64; 3],
+    pub radius: f64,
+}
+
+impl Dubins {
+    pub fn length(&self) -> f64 {
+        self.radius * (self.params[0] + self.params[1] + self.params[2])
+    }
+}
+
+fn m2pi(a: f64) -> f64 {
+    a.rem_euclid(TAU)
+}
+
+/// Piece lengths (normalised) of one word, `None` when the word has no
+/// solution. Standard closed forms in the frame where the goal lies on +x
+/// at distance `d` (in radii), `a`/`b` the start/goal headings in that frame.
+fn word_params(w: Word, d: f64, a: f64, b: f64) -> Option<[f64; 3]> {
+    let (sa, ca, sb, cb) = (a.sin(), a.cos(), b.sin(), b.cos());
+    let cab = (a - b).cos();
+    match w {
+        Word::Lsl => {
+            let p2 = 2.0 + d * d - 2.0 * cab + 2.0 * d * (sa - sb);
+            if p2 < 0.0 {
+                return None;
+            }
+            let t1 = (cb - ca).atan2(d + sa - sb);
+            Some([m2pi(-a + t1), p2.sqrt(), m2pi(b - t1)])
+        }
+        Word::Rsr => {
+            let p2 = 2.0 + d * d - 2.0 * cab + 2.0 * d * (sb - sa);
+            if p2 < 0.0 {
+                return None;
+            }
+            let t1 = (ca - cb).atan2(d - sa + sb);
+            Some([m2pi(a - t1), p2.sqrt(), m2pi(-b + t1)])
+        }
+        Word::Lsr => {
+            let p2 = -2.0 + d * d + 2.0 * cab + 2.0 * d * (sa + sb);
+            if p2 < 0.0 {
+                return None;
+            }
+            let p = p2.sqrt();
+            let t2 = (-ca - cb).atan2(d + sa + sb) - (-2.0f64).atan2(p);
+            Some([m2pi(-a + t2), p, m2pi(-m2pi(b) + t2)])
+        }
+        Word::Rsl => {
+            let p2 = -2.0 + d * d + 2.0 * cab - 2.0 * d * (sa + sb);
+            if p2 < 0.0 {
+                return None;
+            }
+            let p = p2.sqrt();
+            let t2 = (ca + cb).atan2(d - sa - sb) - 2.0f64.atan2(p);
+            Some([m2pi(a - t2), p, m2pi(b - t2)])
+        }
+        Word::Rlr => {
+            let tmp = (6.0 - d * d + 2.0 * cab + 2.0 * d * (sa - sb)) / 8.0;
+            if tmp.abs() > 1.0 {
+                return None;
+            }
+            let p = m2pi(TAU - tmp.acos());
+            let t = m2pi(a - (ca - cb).atan2(d - sa + sb) + p / 2.0);
+            Some([t, p, m2pi(a - b - t + p)])
+        }
+        Word::Lrl => {
+            let tmp = (6.0 - d * d + 2.0 * cab + 2.0 * d * (sb - sa)) / 8.0;
+            if tmp.abs() > 1.0 {
+                return None;
+            }
+            let p = m2pi(TAU - tmp.acos());
+            let t = m2pi(-a - (ca - cb).atan2(d + sa - sb) + p / 2.0);
+            Some([t, p, m2pi(m2pi(b) - a - t + p)])
+        }
+    }
+}
+
+/// The shortest path of radius `r` from `p0` heading `h0` to `p1` heading
+/// `h1` (headings in radians). Ties go to the earlier word, so the answer is
+/// deterministic.
+pub fn shortest(p0: P2, h0: f64, p1: P2, h1: f64, r: f64) -> Option<Dubins> {
+    if !(r.is_finite() && r > 0.0) {
+        return None;
+    }
+    let v = (p1 - p0) / r;
+    let d = v.norm();
+    let theta = if d > 1e-12 { m2pi(v.y.atan2(v.x)) } else { 0.0 };
+    let a = m2pi(h0 - theta);
+    let b = m2pi(h1 - theta);
+    let mut best: Option<Dubins> = None;
+    for w in Word::ALL {
+        if let Some(params) = word_params(w, d, a, b) {
+            let cand = Dubins {
+                word: w,
+                params,
+                radius: r,
+            };
+            if best.is_none_or(|b| cand.length() < b.length() - 1e-12) {
+                best = Some(cand);
+            }
+        }
+    }
+    best
+}
+
+/// Walk a Dubins path from `p0`/`h0` and return its pieces in `plane` at the
+/// normal coordinate `nz`. The last point is snapped to `goal`, so chained
+/// pieces meet exactly.
+pub fn to_elems(dp: &Dubins, p0: P2, h0: f64, goal: P2, plane: Plane, nz: f64) -> Vec<Elem> {
+    let r = dp.radius;
+    let mut pos = p0;
+    let mut h = h0;
+    let mut out = Vec::with_capacity(3);
+    let lift = |q: &P2| plane.lift(q, nz);
+    for (i, &c) in dp.word.letters().iter().enumerate() {
+        let amount = dp.params[i];
+        let len = amount * r;
+        let (next, nh) = match c {
+            b'S' => (pos + V2::new(h.cos(), h.sin()) * len, h),
+            b'L' => {
+                let ctr = pos + V2::new(-h.sin(), h.cos()) * r;
+                let nh = h + amount;
+                (ctr + V2::new(nh.sin(), -nh.cos()) * r, nh)
+            }
+            _ => {
+                let ctr = pos + V2::new(h.sin(), -h.cos()) * r;
+                let nh = h - amount;
+                (ctr + V2::new(-nh.sin(), nh.cos()) * r, nh)
+            }
+        };
+        let next = if i == 2 { goal } else { next };
+        if len > MIN_PIECE {
+            let (a, b) = (lift(&pos), lift(&next));
+            match c {
+                b'S' => out.push(Elem::line(a, b)),
+                b'L' | b'R' => {
+                    let left = c == b'L';
+                    let ctr = if left {
+                        pos + V2::new(-h.sin(), h.cos()) * r
+                    } else {
+                        pos + V2::new(h.sin(), -h.cos()) * r
+                    };
+                    // A turn of (nearly) a full circle has start == end; Arc3
+                    // reads that as the full turn, which is what it is.
+                    if let Some(arc) = Arc3::new(lift(&ctr), a, b, left, plane, 0) {
+                        out.push(Elem::Arc(arc));
+                    }
+                }
+                _ => unreachable!("Dubins words hold only L, S and R"),
+            }
+        }
+        pos = next;
+        h = nh;
+    }
+    out
+}
+
+/// A beam-off corner loop of radius `r` at `corner`: leaves along the
+/// incoming direction `din`, returns through the corner along `dout`, and is
+/// at least `min_len` long (so the shutter has time to close and reopen).
+pub fn corner_loop(corner: P3, din: V2, dout: V2, r: f64, min_len: f64, plane: Plane) -> Option<Vec<Elem>> {
+    connect(corner, din, corner, dout, r, min_len, plane)
+}
+
+/// The shortest path of radius `r` in `plane` from `from` heading `din` to
+/// `to` heading `dout`, at least `min_len` long. When the shortest is
+/// shorter, both ends are extended straight along their headings by the
+/// least amount that makes it long enough: curvature stays at the limit
+/// and only straight travel is added. `to` must share `from`'s normal
+/// coordinate.
+pub fn connect(from: P3, din: V2, to: P3, dout: V2, r: f64, min_len: f64, plane: Plane) -> Option<Vec<Elem>> {
+    let a2 = plane.project(&from);
+    let b2 = plane.project(&to);
+    let nz = plane.normal_coord(&from);
+    let (h0, h1) = (din.y.atan2(din.x), dout.y.atan2(dout.x));
+    let (u0, u1) = (V2::new(h0.cos(), h0.sin()), V2::new(h1.cos(), h1.sin()));
+    let total = |e: f64| -> Option<(f64, Dubins)> {
+        let dp = shortest(a2 + u0 * e, h0, b2 - u1 * e, h1, r)?;
+        Some((2.0 * e + dp.length(), dp))
+    };
+    let (len0, _) = total(0.0)?;
+    let mut e = 0.0;
+    if len0 < min_len {
+        // 2e alone reaches min_len at e = min_len/2; bisect for the least e.
+        let (mut lo, mut hi) = (0.0, 0.5 * min_len);
+        for _ in 0..60 {
+            let mid = 0.5 * (lo + hi);
+            if total(mid)?.0 >= min_len { hi = mid } else { lo = mid }
+        }
+        e = hi;
+    }
+    let (_, dp) = total(e)?;
+    let ext = e > MIN_PIECE;
+    let (s2, g2) = if ext { (a2 + u0 * e, b2 - u1 * e) } else { (a2, b2) };
+    let mut out = Vec::with_capacity(5);
+    if ext {
+        out.push(Elem::line(from, plane.lift(&s2, nz)));
+    }
+    let mut mid = to_elems(&dp, s2, h0, g2, plane, nz);
+    if !ext {
+        // Snap the ends exactly onto the given points.
+        if let Some(first) = mid.first_mut() {
+            set_start(first, from);
+        }
+        if let Some(last) = mid.last_mut() {
+            set_end(last, to);
+        }
+    }
+    out.append(&mut mid);
+    if ext {
+        out.push(Elem::line(plane.lift(&g2, nz), to));
+    }
+    Some(out)
+}
+
+fn set_start(e: &mut Elem, p: P3) {
+    match e {
+        Elem::Line(l) => l.start = p,
+        Elem::Arc(a) => a.start = p,
+    }
+}
+
+fn set_end(e: &mut Elem, p: P3) {
+    match e {
+        Elem::Line(l) => l.end = p,
+        Elem::Arc(a) => a.end = p,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    fn end_pose(dp: &Dubins, p0: P2, h0: f64) -> (P2, f64) {
+        // Integrate analytically instead of trusting to_elems' snapping.
+        let mut pos = p0;
+        let mut h = h0;
+        let r = dp.radius;
+        for (i, &c) in dp.word.letters().iter().enumerate() {
+            let a = dp.params[i];
+            match c {
+                b'S' => pos += V2::new(h.cos(), h.sin()) * a * r,
+                b'L' => {
+                    let ctr = pos + V2::new(-h.sin(), h.cos()) * r;
+                    h += a;
+                    pos = ctr + V2::new(h.sin(), -h.cos()) * r;
+                }
+                _ => {
+                    let ctr = pos + V2::new(h.sin(), -h.cos()) * r;
+                    h -= a;
+                    pos = ctr + V2::new(-h.sin(), h.cos()) * r;
+                }
+            }
+        }
+        (pos, h)
+    }
+
+    proptest! {
+        #[test]
+        fn reaches_the_goal_pose(x in -3.0..3.0f64, y in -3.0..3.0f64, h0 in 0.0..TAU, h1 in 0.0..TAU, r in 0.1..2.0f64) {
+            let p0 = P2::new(0.5, -0.2);
+            let p1 = P2::new(x, y);
+            let dp = shortest(p0, h0, p1, h1, r).expect("a Dubins path always exists");
+            let (pe, he) = end_pose(&dp, p0, h0);
+            prop_assert!((pe - p1).norm() < 1e-8 * (1.0 + r), "{dp:?} ends at {pe:?}");
+            prop_assert!(m2pi(he - h1).min(TAU - m2pi(he - h1)) < 1e-8);
+            // No word is shorter than the straight-line distance.
+            prop_assert!(dp.length() >= (p1 - p0).norm() - 1e-9);
+        }
+
+        #[test]
+        fn corner_loops_close_with_bounded_curvature(turn in 0.02..3.1f64, left in any::<bool>(), min_len in 0.0..5.0f64) {
+            let corner = P3::new(1.0, 2.0, 0.5);
+            let hin = 0.3f64;
+            let hout = if left { hin + turn } else { hin - turn };
+            let r = 0.2;
+            let els = corner_loop(corner, V2::new(hin.cos(), hin.sin()), V2::new(hout.cos(), hout.sin()), r, min_len, Plane::Xy).unwrap();
+            prop_assert_eq!(els.first().unwrap().start(), corner);
+            prop_assert!((els.last().unwrap().end() - corner).norm() < 1e-9);
+            let d0 = els[0].dir_start();
+            prop_assert!((d0.x - hin.cos()).abs() < 1e-9 && (d0.y - hin.sin()).abs() < 1e-9);
+            let d1 = els.last().unwrap().dir_end();
+            prop_assert!((d1.x - hout.cos()).abs() < 1e-6 && (d1.y - hout.sin()).abs() < 1e-6, "{d1:?} vs {hout}");
+            for w in els.windows(2) {
+                prop_assert!((w[0].end() - w[1].start()).norm() < 1e-9);
+                prop_assert!(w[0].dir_end().dot(&w[1].dir_start()) > 1.0 - 1e-9, "loop not tangent-continuous");
+            }
+            for e in &els {
+                prop_assert!(e.curvature_radius() >= r - 1e-9);
+            }
+            let len: f64 = els.iter().map(Elem::length).sum();
+            prop_assert!(len >= min_len - 1e-9);
+        }
+    }
+
+    #[test]
+    fn a_reversal_is_the_teardrop() {
+        // Heading +x in, -x out through the same point: the teardrop RLR
+        // of 60° + 300° + 60°, 7π/3 radii long.
+        let dp = shortest(P2::origin(), 0.0, P2::origin(), std::f64::consts::PI, 1.0).unwrap();
+        assert_eq!(dp.word, Word::Rlr);
+        assert!((dp.length() - 7.0 * std::f64::consts::PI / 3.0).abs() < 1e-9);
+    }
+}

@@ -1,0 +1,206 @@
+//! The machine and beam facts every laser strategy is planned against.
+//!
+//! Defaults are the laser stage of seed 000 (SPEC.md "Machine facts"): a
+//! Geo Brick LV with the shutter on `M33`, whose timing (Fig. 6-40) is 3 ms
+//! delay + 9 ms transfer to open, 3 ms delay + 14 ms transfer to close
+//! (29 ms window), 15 ms minimum exposure.
+
+use thiserror::Error;
+
+/// Why a set of machine parameters cannot be planned with.
+#[derive(Debug, Error, PartialEq)]
+pub enum MachineError {
+    #[error("{0} must be a positive finite number, got {1}")]
+    NotPositive(&'static str, f64),
+    #[error("{0} must be a finite number >= 0, got {1}")]
+    Negative(&'static str, f64),
+}
+
+/// Stage and shutter parameters. Times in ms (as PMAC TA/TS are given),
+/// lengths in mm, speeds in mm/s.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Machine {
+    /// Constant feed V while the beam is on (mm/s).
+    pub feed: f64,
+    /// Acceleration time TA (ms): 0 -> V takes this long.
+    pub ta_ms: f64,
+    /// Deceleration time TD (ms).
+    pub td_ms: f64,
+    /// S-curve time TS (ms). PMAC stretches the ramp to 2·TS when TA < 2·TS.
+    pub ts_ms: f64,
+    /// Shutter: delay after the command before it starts to open (ms).
+    pub open_delay_ms: f64,
+    /// Shutter: transfer time from starting to open to fully open (ms).
+    pub open_transfer_ms: f64,
+    /// Shutter: delay after the command before it starts to close (ms).
+    pub close_delay_ms: f64,
+    /// Shutter: transfer time from starting to close to fully closed (ms).
+    pub close_transfer_ms: f64,
+    /// Shortest exposure the shutter makes reliably (ms); shorter cuts are reported.
+    pub min_exposure_ms: f64,
+    /// Two segments meeting at less than this angle (degrees) are tangent:
+    /// no corner loop.
+    pub tangent_tol_deg: f64,
+}
+
+impl Default for Machine {
+    fn default() -> Self {
+        Machine {
+            feed: 2.0,
+            ta_ms: 100.0,
+            td_ms: 100.0,
+            ts_ms: 0.0,
+            open_delay_ms: 3.0,
+            open_transfer_ms: 9.0,
+            close_delay_ms: 3.0,
+            close_transfer_ms: 14.0,
+            min_exposure_ms: 15.0,
+            tangent_tol_deg: 0.5,
+        }
+    }
+}
+
+impl Machine {
+    /// Check every figure; planning with NaN or zero feed would loop or divide by zero.
+    pub fn validate(&self) -> Result<(), MachineError> {
+        for (name, v) in [("feed", self.feed), ("TA", self.ta_ms), ("TD", self.td_ms)] {
+            if !(v.is_finite() && v > 0.0) {
+                return Err(MachineError::NotPositive(name, v));
+            }
+        }
+        for (name, v) in [
+            ("TS", self.ts_ms),
+            ("shutter open delay", self.open_delay_ms),
+            ("shutter open transfer", self.open_transfer_ms),
+            ("shutter close delay", self.close_delay_ms),
+            ("shutter close transfer", self.close_transfer_ms),
+            ("minimum exposure", self.min_exposure_ms),
+            ("tangency tolerance", self.tangent_tol_deg),
+        ] {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(MachineError::Negative(name, v));
+            }
+        }
+        Ok(())
+    }
+
+    /// Set TA = TD from an acceleration (mm/s²): the time to reach V at it.
+    pub fn with_accel(mut self, a: f64) -> Self {
+        self.ta_ms = 1000.0 * self.feed / a;
+        self.td_ms = self.ta_ms;
+        self
+    }
+
+    /// Effective ramp time (s) for `t_ms`: PMAC runs a ramp of 2·TS when TA < 2·TS.
+    fn ramp_s(&self, t_ms: f64) -> f64 {
+        t_ms.max(2.0 * self.ts_ms) / 1000.0
+    }
+
+    /// The stage's acceleration limit (mm/s²): V over the slower ramp. With
+    /// an S-curve the peak is higher than this mean; we plan with the mean
+    /// because that is what TA/TD promise the user.
+    pub fn accel(&self) -> f64 {
+        self.feed / self.ramp_s(self.ta_ms).max(self.ramp_s(self.td_ms))
+    }
+
+    /// Smallest radius a move at V may have: R = V²/a.
+    pub fn min_radius(&self) -> f64 {
+        self.feed * self.feed / self.accel()
+    }
+
+    /// The TA written into programs: a Turbo PMAC has one TA for speeding
+    /// up and slowing down, so the slower of TA and TD is used for both.
+    pub fn program_ta_ms(&self) -> f64 {
+        self.ta_ms.max(self.td_ms)
+    }
+
+    /// Distance to reach V from rest (trapezoid: ½·V·TA, with the program's TA).
+    pub fn accel_distance(&self) -> f64 {
+        0.5 * self.feed * self.ramp_s(self.program_ta_ms())
+    }
+
+    /// Distance to stop from V (½·V·TD, with the program's TA).
+    pub fn decel_distance(&self) -> f64 {
+        0.5 * self.feed * self.ramp_s(self.program_ta_ms())
+    }
+
+    /// Distance travelled at V between the open command and fully open.
+    pub fn open_lead(&self) -> f64 {
+        self.feed * (self.open_delay_ms + self.open_transfer_ms) / 1000.0
+    }
+
+    /// Distance travelled at V between the close command and the shutter
+    /// starting to close.
+    pub fn close_lead(&self) -> f64 {
+        self.feed * self.close_delay_ms / 1000.0
+    }
+
+    /// Distance travelled at V while the shutter closes.
+    pub fn close_travel(&self) -> f64 {
+        self.feed * self.close_transfer_ms / 1000.0
+    }
+
+    /// Shortest beam-off stretch (mm at V) that lets the shutter close and
+    /// reopen: the 29 ms window of Fig. 6-40.
+    pub fn shutter_window(&self) -> f64 {
+        self.feed * (self.open_delay_ms + self.open_transfer_ms + self.close_delay_ms + self.close_transfer_ms) / 1000.0
+    }
+
+    /// Lead-in length: reach V, then travel at V while the shutter opens.
+    pub fn lead_in(&self) -> f64 {
+        self.accel_distance() + self.open_lead()
+    }
+
+    /// Lead-out length: stay at V while the shutter closes, then stop.
+    pub fn lead_out(&self) -> f64 {
+        self.close_lead().max(0.0) + self.close_travel() + self.decel_distance()
+    }
+
+    /// Shortest cut the shutter exposes reliably (mm).
+    pub fn min_cut(&self) -> f64 {
+        self.feed * self.min_exposure_ms / 1000.0
+    }
+
+    /// Cosine of the tangency tolerance.
+    pub fn tangent_cos(&self) -> f64 {
+        self.tangent_tol_deg.to_radians().cos()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn defaults_follow_the_seed_shutter() {
+        let m = Machine::default();
+        m.validate().unwrap();
+        // 29 ms window at 2 mm/s.
+        assert!((m.shutter_window() - 0.058).abs() < 1e-12);
+        // a = 2 / 0.1 = 20 mm/s², R = 4 / 20 = 0.2 mm.
+        assert!((m.accel() - 20.0).abs() < 1e-12);
+        assert!((m.min_radius() - 0.2).abs() < 1e-12);
+        assert!((m.lead_in() - (0.1 + 0.024)).abs() < 1e-12);
+        assert!((m.lead_out() - (0.006 + 0.028 + 0.1)).abs() < 1e-12);
+    }
+
+    #[test]
+    fn s_curve_stretches_the_ramp_and_accel_sets_ta() {
+        let m = Machine {
+            ts_ms: 80.0,
+            ..Machine::default()
+        };
+        assert!((m.accel_distance() - 0.5 * 2.0 * 0.16).abs() < 1e-12);
+        let m = Machine::default().with_accel(100.0);
+        assert!((m.ta_ms - 20.0).abs() < 1e-12);
+        assert!((m.min_radius() - 0.04).abs() < 1e-12);
+        assert!(
+            Machine {
+                feed: f64::NAN,
+                ..Machine::default()
+            }
+            .validate()
+            .is_err()
+        );
+    }
+}

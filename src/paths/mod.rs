@@ -1,0 +1,22 @@
+//! Laser toolpath strategies (seed 000 §6.1.3): constant-velocity,
+//! shutter-exact paths from chains and from parametric patterns.
+//!
+//! - [`machine`]: the stage and shutter facts planning obeys.
+//! - [`elem`]: exact path pieces that can be split and joined.
+//! - [`dubins`]: minimum-radius corner loops.
+
+pub mod arcfit;
+pub mod audit;
+pub mod contour;
+pub mod dubins;
+pub mod elem;
+pub mod input;
+pub mod machine;
+pub mod offset;
+pub mod order;
+pub mod patterns;
+pub mod plan;
+pub mod svg;
+
+#[cfg(test)]
+mod physics_tests;

@@ -1,0 +1,292 @@
+//! Exact offsets of chains (lines and arcs) through cavalier_contours, which
+//! offsets arc polylines exactly and trims self-intersections and loops that
+//! collapse.
+
+use super::elem::Elem;
+use crate::geometry::P3;
+use crate::geometry::arc::Arc3;
+use crate::geometry::bulge::arc_from_bulge;
+use crate::model::chain::{Chain, Segment};
+use cavalier_contours::polyline::{PlineSource, PlineSourceMut, Polyline};
+
+/// Which side of a chain the beam centre runs on.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Side {
+    /// On the chain itself.
+    On,
+    /// Inside a closed chain (open chains are cut on the line).
+    Inside,
+    /// Outside a closed chain (open chains are cut on the line).
+    Outside,
+    /// Left of the direction of travel.
+    Left,
+    /// Right of the direction of travel.
+    Right,
+}
+
+/// The chain's segments as path pieces.
+pub fn chain_elems(c: &Chain) -> Vec<Elem> {
+    c.segments
+        .iter()
+        .filter_map(|s| match *s {
+            Segment::Line { start, end } => ((end - start).norm() > 0.0).then(|| Elem::line(start, end)),
+            Segment::Arc {
+                start,
+                end,
+                center,
+                ccw,
+            } => Arc3::new(center, start, end, ccw, crate::geometry::Plane::Xy, 0).map(Elem::Arc),
+        })
+        .collect()
+}
+
+/// The chain as a cavalier polyline (XY; z is carried separately). A full
+/// circle becomes two half arcs because one bulge cannot say a full turn.
+pub fn to_polyline(c: &Chain) -> Polyline<f64> {
+    let mut pl = Polyline::new();
+    for s in &c.segments {
+        match *s {
+            Segment::Line { start, .. } => pl.add(start.x, start.y, 0.0),
+            Segment::Arc {
+                start,
+                end,
+                center,
+                ccw,
+            } => {
+                let Some(arc) = Arc3::new(center, start, end, ccw, crate::geometry::Plane::Xy, 0) else {
+                    continue;
+                };
+                let sweep = arc.sweep();
+                if sweep.abs() > std::f64::consts::PI {
+                    // More than a half turn: two halves, so no bulge exceeds 1
+                    // (a full circle has no single bulge at all).
+                    let mid = arc.point_at(0.5);
+                    let b = (sweep / 8.0).tan();
+                    pl.add(start.x, start.y, b);
+                    pl.add(mid.x, mid.y, b);
+                } else {
+                    pl.add(start.x, start.y, (sweep / 4.0).tan());
+                }
+            }
+        }
+    }
+    if c.closed {
+        pl.set_is_closed(true);
+    } else if let Some(last) = c.segments.last() {
+        let e = last.end();
+        pl.add(e.x, e.y, 0.0);
+    }
+    pl
+}
+
+/// Polyline back to path pieces at height `z`.
+pub fn from_polyline(pl: &Polyline<f64>, z: f64) -> Vec<Elem> {
+    let n = pl.vertex_count();
+    let segs = if pl.is_closed() { n } else { n.saturating_sub(1) };
+    let mut out = Vec::with_capacity(segs);
+    for i in 0..segs {
+        let v = pl.at(i);
+        let w = pl.at((i + 1) % n);
+        let a = P3::new(v.x, v.y, z);
+        let b = P3::new(w.x, w.y, z);
+        if (b - a).norm() <= 1e-9 {
+            continue;
+        }
+        if v.bulge.abs() < 1e-12 {
+            out.push(Elem::line(a, b));
+        } else if let Some(arc) = arc_from_bulge(&a, &b, v.bulge) {
+            out.push(Elem::Arc(arc));
+        } else {
+            out.push(Elem::line(a, b));
+        }
+    }
+    // Snap joints exactly: each piece starts where the previous ended.
+    for i in 1..out.len() {
+        let e = out[i - 1].end();
+        set_start(&mut out[i], e);
+    }
+    out
+}
+
+fn set_start(e: &mut Elem, p: P3) {
+    match e {
+        Elem::Line(l) => l.start = p,
+        Elem::Arc(a) => a.start = p,
+    }
+}
+
+/// Signed area of a closed polyline (positive counter-clockwise).
+pub fn signed_area(pl: &Polyline<f64>) -> f64 {
+    if pl.is_closed() { pl.area() } else { 0.0 }
+}
+
+/// The offset paths of a chain at `dist` on `side`. Several paths when the
+/// offset splits a shape; none when it vanishes (the caller warns).
+pub fn offset_chain(c: &Chain, side: Side, dist: f64) -> Vec<Vec<Elem>> {
+    let z = c.segments.first().map(|s| s.start().z).unwrap_or(0.0);
+    let pl = to_polyline(c);
+    let area = signed_area(&pl);
+    // cavalier offsets positive to the left of travel.
+    let signed = match side {
+        Side::On => 0.0,
+        Side::Left => dist,
+        Side::Right => -dist,
+        Side::Inside if c.closed => dist * area.signum(),
+        Side::Outside if c.closed => -dist * area.signum(),
+        Side::Inside | Side::Outside => 0.0,
+    };
+    if signed == 0.0 || dist == 0.0 {
+        return vec![chain_elems(c)];
+    }
+    let vertices: Vec<P3> = c.segments.iter().map(|s| s.start()).collect();
+    pl.parallel_offset(signed)
+        .iter()
+        .map(|p| miter_joins(from_polyline(p, z), &vertices, dist))
+        .filter(|p| !p.is_empty())
+        .collect()
+}
+
+/// Largest join sweep (radians) turned into one miter point; sharper
+/// corners get a bevel, since a miter's length grows as 1/cos(sweep/2).
+const MAX_MITER_SWEEP: f64 = 150.0 * std::f64::consts::PI / 180.0;
+
+/// An offset rounds every convex corner with an arc of radius `dist`
+/// about the source vertex. At V that arc asks V²/dist of the stage — at
+/// a 5 µm beam radius hundreds of times its limit — and dwells the beam on
+/// the corner. Replace each such join by the straight extensions of its
+/// neighbours meeting at a miter point (a bevel for very sharp corners):
+/// the corner then becomes a real corner, and planning loops it with the
+/// beam off at constant speed.
+fn miter_joins(path: Vec<Elem>, vertices: &[P3], dist: f64) -> Vec<Elem> {
+    let is_join = |e: &Elem| match e {
+        Elem::Arc(a) => {
+            (a.radius() - dist).abs() <= 1e-9 * (1.0 + dist)
+                && vertices
+                    .iter()
+                    .any(|v| (v.xy() - a.center.xy()).norm() <= 1e-9 * (1.0 + dist))
+        }
+        Elem::Line(_) => false,
+    };
+    let mut out = Vec::with_capacity(path.len() + 4);
+    for e in &path {
+        let Elem::Arc(arc) = e else {
+            out.push(*e);
+            continue;
+        };
+        if !is_join(e) {
+            out.push(*e);
+            continue;
+        }
+        let (a, b) = (arc.start, arc.end);
+        let (ta, tb) = (e.dir_start(), e.dir_end());
+        let sweep = arc.sweep().abs();
+        if sweep <= MAX_MITER_SWEEP {
+            // Lines a + s·ta and b - u·tb meet at s = u = dist·tan(sweep/2).
+            let s = dist * (0.5 * sweep).tan();
+            let m = a + ta * s;
+            out.push(Elem::line(a, m));
+            out.push(Elem::line(m, b));
+        } else {
+            let (p, q) = (a + ta * dist, b - tb * dist);
+            out.push(Elem::line(a, p));
+            out.push(Elem::line(p, q));
+            out.push(Elem::line(q, b));
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn square(cw: bool) -> Chain {
+        let p = [(0.0, 0.0), (2.0, 0.0), (2.0, 2.0), (0.0, 2.0)];
+        let mut pts: Vec<P3> = p.iter().map(|&(x, y)| P3::new(x, y, 0.0)).collect();
+        if cw {
+            pts.reverse();
+        }
+        let segments = (0..4)
+            .map(|i| Segment::Line {
+                start: pts[i],
+                end: pts[(i + 1) % 4],
+            })
+            .collect();
+        Chain {
+            id: 1,
+            closed: true,
+            segments,
+            ..Default::default()
+        }
+    }
+
+    /// Distance from `p` to the nearest point of a square [0,2]² boundary.
+    fn dist_to_square(p: &P3) -> f64 {
+        let dx = (p.x - p.x.clamp(0.0, 2.0)).abs();
+        let dy = (p.y - p.y.clamp(0.0, 2.0)).abs();
+        if dx > 0.0 || dy > 0.0 {
+            dx.hypot(dy)
+        } else {
+            p.x.min(2.0 - p.x).min(p.y).min(2.0 - p.y)
+        }
+    }
+
+    #[test]
+    fn square_offsets_keep_their_distance_both_orientations() {
+        for cw in [false, true] {
+            for (side, d) in [(Side::Outside, 0.3), (Side::Inside, 0.3)] {
+                let paths = offset_chain(&square(cw), side, d);
+                assert_eq!(paths.len(), 1);
+                for e in &paths[0] {
+                    for k in 0..=20 {
+                        let p = e.point_at_length(e.length() * k as f64 / 20.0);
+                        // Along the sides the distance is d; at a miter it
+                        // grows to d·√2 at the corner point.
+                        let dd = dist_to_square(&p);
+                        let on_side = (dd - d).abs() < 1e-9;
+                        let in_miter = side == Side::Outside && dd > d && dd <= d * 2f64.sqrt() + 1e-9;
+                        assert!(on_side || in_miter, "{side:?} cw={cw} at {p:?}: {dd}");
+                        let inside = p.x > 0.0 && p.x < 2.0 && p.y > 0.0 && p.y < 2.0;
+                        assert_eq!(inside, side == Side::Inside);
+                    }
+                }
+                // Outside corners are mitred: 4 corners at distance d·√2.
+                if side == Side::Outside {
+                    let corners = paths[0]
+                        .iter()
+                        .filter(|e| (dist_to_square(&e.end()) - d * 2f64.sqrt()).abs() < 1e-9);
+                    assert_eq!(corners.count(), 4);
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn an_inside_offset_larger_than_the_shape_vanishes() {
+        assert!(offset_chain(&square(false), Side::Inside, 1.2).is_empty());
+    }
+
+    #[test]
+    fn a_full_circle_offsets_to_a_circle() {
+        let c = Chain {
+            id: 2,
+            closed: true,
+            segments: vec![Segment::Arc {
+                start: P3::new(1.0, 0.0, 0.5),
+                end: P3::new(1.0, 0.0, 0.5),
+                center: P3::origin(),
+                ccw: false,
+            }],
+            ..Default::default()
+        };
+        let paths = offset_chain(&c, Side::Outside, 0.25);
+        assert_eq!(paths.len(), 1);
+        let len: f64 = paths[0].iter().map(Elem::length).sum();
+        assert!((len - std::f64::consts::TAU * 1.25).abs() < 1e-9);
+        for e in &paths[0] {
+            let p = e.point_at_length(0.3 * e.length());
+            assert!((p.coords.xy().norm() - 1.25).abs() < 1e-9);
+            assert_eq!(p.z, 0.5);
+        }
+    }
+}

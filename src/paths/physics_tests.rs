@@ -1,0 +1,376 @@
+//! Physics of generated drawings, checked on the output moves with
+//! [`super::audit`]: constant speed, acceleration within the limit
+//! everywhere off the drawing, the shutter fully open exactly over the
+//! cuts, every chain cut once per pass, offsets at the right distance.
+
+use super::audit::{Audit, audit};
+use super::contour::{ContourOptions, contour};
+use super::elem::Elem;
+use super::machine::Machine;
+use super::offset::{Side, chain_elems};
+use crate::formats::chains::ChainsReader;
+use crate::geometry::{P3, V3};
+use crate::model::chain::{Chain, Segment};
+use crate::model::toolpath::{MotionKind, Record, Role};
+
+fn plate() -> Vec<Chain> {
+    let text = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/testdata/chains/plate.chains")).unwrap();
+    ChainsReader::new(text.as_bytes())
+        .unwrap()
+        .collect::<Result<_, _>>()
+        .unwrap()
+}
+
+/// Random closed polygons (sharp and shallow corners, some arcs) and open
+/// polylines, from a fixed xorshift seed.
+pub(crate) fn random_drawing(n: usize, seed: u64) -> Vec<Chain> {
+    let mut s = seed.max(1);
+    let mut r = move || {
+        s ^= s << 13;
+        s ^= s >> 7;
+        s ^= s << 17;
+        (s >> 11) as f64 / (1u64 << 53) as f64
+    };
+    let mut out = Vec::with_capacity(n);
+    for id in 0..n {
+        let c = P3::new(100.0 * r(), 100.0 * r(), 0.0);
+        let k = 3 + (r() * 6.0) as usize;
+        let rad = 0.5 + 2.0 * r();
+        // A star-shaped polygon: sorted angles, random radii.
+        let mut angs: Vec<f64> = (0..k).map(|_| r() * std::f64::consts::TAU).collect();
+        angs.sort_by(f64::total_cmp);
+        let pts: Vec<P3> = angs
+            .iter()
+            .map(|&a| c + V3::new(a.cos(), a.sin(), 0.0) * rad * (0.5 + 0.5 * r()))
+            .collect();
+        let closed = id % 5 != 4;
+        let m = if closed { k } else { k - 1 };
+        let segments = (0..m)
+            .map(|i| {
+                let (a, b) = (pts[i], pts[(i + 1) % k]);
+                if i % 3 == 1 {
+                    // A shallow arc bulging outwards: centre left of the
+                    // chord (the polygon runs counter-clockwise).
+                    let d = b - a;
+                    let ctr = nalgebra::center(&a, &b) + V3::new(-d.y, d.x, 0.0) * 0.4;
+                    Segment::Arc {
+                        start: a,
+                        end: b,
+                        center: ctr,
+                        ccw: true,
+                    }
+                } else {
+                    Segment::Line { start: a, end: b }
+                }
+            })
+            .collect();
+        out.push(Chain {
+            id: id as u64 + 1,
+            closed,
+            segments,
+            ..Default::default()
+        });
+    }
+    out
+}
+
+fn check_physics(a: &Audit, m: &Machine) {
+    assert_eq!(a.off_feed_moves, 0, "every feed move at V");
+    assert_eq!(a.corners_at_speed, 0, "no corner taken at speed");
+    assert!(
+        a.max_accel_off_cut <= m.accel() * (1.0 + 1e-9),
+        "loops and leads ask {} > {} mm/s²",
+        a.max_accel_off_cut,
+        m.accel()
+    );
+    assert_eq!(a.beam_on_rapids, 0);
+    assert!(
+        a.exposure_error < 1e-6,
+        "shutter open off the cuts by {} mm",
+        a.exposure_error
+    );
+    assert!(
+        a.min_run_before_open >= m.accel_distance() - 1e-9,
+        "shutter commanded after only {} mm of lead-in",
+        a.min_run_before_open
+    );
+}
+
+fn offset_length(c: &Chain, side: Side, d: f64) -> f64 {
+    super::offset::offset_chain(c, side, d)
+        .iter()
+        .map(|p| p.iter().map(Elem::length).sum::<f64>())
+        .sum()
+}
+
+#[test]
+fn plate_outside_two_levels_two_copies() {
+    let m = Machine::default();
+    let chains = plate();
+    let o = ContourOptions {
+        side: Side::Outside,
+        distance: 0.005,
+        levels: 2,
+        level_step: -0.01,
+        array: (2, 1),
+        pitch: (10.0, 0.0),
+        ..Default::default()
+    };
+    let job = contour(&chains, &m, &o);
+    let a = audit(&job.records, &m, P3::origin());
+    check_physics(&a, &m);
+    // Every chain is cut once per pass: 4 passes of each (holes swap to inside).
+    for c in &chains {
+        let hole = c.id == 2 || c.id == 3;
+        let side = match (c.closed, hole) {
+            (false, _) => Side::On,
+            (true, true) => Side::Inside,
+            (true, false) => Side::Outside,
+        };
+        let want = 4.0 * offset_length(c, side, 0.005);
+        let got = a.cut_length[&c.id];
+        assert!((got - want).abs() < 1e-9, "chain {}: cut {got} mm, want {want}", c.id);
+        let lead_ins = job
+            .records
+            .iter()
+            .filter_map(Record::motion)
+            .filter(|mv| mv.chain == Some(c.id) && mv.role == Some(Role::LeadIn) && !mv.beam)
+            .count();
+        assert_eq!(lead_ins, 4, "chain {}", c.id);
+    }
+    // Holes before the contour around them, in every copy and level.
+    let seq: Vec<u64> = job
+        .records
+        .iter()
+        .filter_map(Record::motion)
+        .filter(|mv| mv.kind == MotionKind::Rapid)
+        .filter_map(|mv| mv.chain)
+        .collect();
+    for pass in seq.chunks(4) {
+        let at = |id: u64| pass.iter().position(|&x| x == id).unwrap();
+        assert!(at(2) < at(1) && at(3) < at(1), "{pass:?}");
+    }
+    // Levels step down in Z.
+    let zs: std::collections::BTreeSet<i64> = job
+        .records
+        .iter()
+        .filter_map(Record::motion)
+        .map(|mv| (mv.to.z * 1e6).round() as i64)
+        .collect();
+    assert_eq!(zs.into_iter().collect::<Vec<_>>(), vec![-10_000, 0]);
+}
+
+/// Distance from `p` to the nearest point of chain `c`.
+fn dist_to_chain(p: &P3, c: &Chain) -> f64 {
+    chain_elems(c)
+        .iter()
+        .map(|e| match e {
+            Elem::Line(l) => l.distance(p),
+            Elem::Arc(a) => a.distance(p).unwrap_or(f64::INFINITY),
+        })
+        .fold(f64::INFINITY, f64::min)
+}
+
+#[test]
+fn cuts_run_at_the_offset_distance() {
+    let m = Machine::default();
+    let chains = plate();
+    for (side, d) in [(Side::Outside, 0.005), (Side::Inside, 0.05), (Side::On, 0.0)] {
+        let job = contour(
+            &chains,
+            &m,
+            &ContourOptions {
+                side,
+                distance: d,
+                ..Default::default()
+            },
+        );
+        let mut pos = P3::origin();
+        let (mut exact, mut total) = (0.0, 0.0);
+        for mv in job.records.iter().filter_map(Record::motion) {
+            if mv.role == Some(Role::Cut) {
+                let c = chains.iter().find(|c| Some(c.id) == mv.chain).unwrap();
+                let e = match mv.kind {
+                    MotionKind::Arc(ad) => {
+                        Elem::Arc(crate::geometry::arc::Arc3::new(ad.center, pos, mv.to, ad.ccw, ad.plane, 0).unwrap())
+                    }
+                    _ => Elem::line(pos, mv.to),
+                };
+                // Weighted by length: miter pieces are short.
+                for k in 0..=10 {
+                    let p = e.point_at_length(e.length() * k as f64 / 10.0);
+                    let dd = dist_to_chain(&p, c);
+                    // On the offset: exactly d. Open chains are cut on the line.
+                    let want = if c.closed { d } else { 0.0 };
+                    // Mitred corners reach out to d / cos(75°) at most.
+                    assert!(dd >= want - 1e-9 && dd <= want * 3.87 + 1e-9, "{side:?}: {p:?} at {dd}");
+                    total += e.length();
+                    if (dd - want).abs() < 1e-9 {
+                        exact += e.length();
+                    }
+                }
+            }
+            pos = mv.to;
+        }
+        assert!(
+            exact >= 0.95 * total,
+            "{side:?}: {exact}/{total} of the cut length at the offset"
+        );
+    }
+}
+
+#[test]
+fn random_drawings_obey_the_machine() {
+    for (seed, m) in [
+        (3u64, Machine::default()),
+        (11, Machine::default().with_accel(500.0)),
+        (
+            17,
+            Machine {
+                feed: 5.0,
+                ts_ms: 60.0,
+                ..Machine::default()
+            },
+        ),
+    ] {
+        let chains = random_drawing(60, seed);
+        for side in [Side::On, Side::Outside, Side::Inside] {
+            let job = contour(
+                &chains,
+                &m,
+                &ContourOptions {
+                    side,
+                    distance: 0.02,
+                    ..Default::default()
+                },
+            );
+            let a = audit(&job.records, &m, P3::origin());
+            check_physics(&a, &m);
+            for c in &chains {
+                let want = offset_length(c, if c.closed { side } else { Side::On }, 0.02);
+                let got = a.cut_length.get(&c.id).copied().unwrap_or(0.0);
+                assert!(
+                    (got - want).abs() < 1e-9,
+                    "seed {seed} {side:?} chain {}: {got} vs {want}",
+                    c.id
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn planning_is_deterministic() {
+    let m = Machine::default();
+    let chains = random_drawing(200, 5);
+    let o = ContourOptions {
+        side: Side::Outside,
+        distance: 0.01,
+        ..Default::default()
+    };
+    assert_eq!(contour(&chains, &m, &o).records, contour(&chains, &m, &o).records);
+}
+
+#[test]
+fn patterns_obey_the_machine() {
+    use super::patterns::*;
+    use super::plan::{all_cut, plan_paths};
+    use crate::geometry::Plane;
+    let m = Machine::default().with_accel(200.0);
+    let c = P3::new(1.0, 1.0, 0.0);
+    let zz = |plane, along_second, width, step, corner_radius| Zigzag {
+        origin: c,
+        plane,
+        along_second,
+        length: 1.0,
+        width,
+        step,
+        corner_radius,
+    };
+    let cases: Vec<(&str, Vec<super::plan::Tagged>)> = vec![
+        ("helix", vec![all_cut(helix(c, 0.3, -0.01, 4, true))]),
+        ("square", vec![all_cut(square_spiral(c, 0.05, 0.5, false))]),
+        ("square in", vec![all_cut(square_spiral(c, 0.05, 0.5, true))]),
+        (
+            "archimedean",
+            vec![all_cut(archimedean(c, 0.1, 0.02, 0.4, false, 1e-5))],
+        ),
+        (
+            "archimedean in",
+            vec![all_cut(archimedean(c, 0.1, 0.02, 0.4, true, 1e-5))],
+        ),
+        ("zigzag xy", vec![zigzag(&zz(Plane::Xy, false, 0.3, 0.02, 0.0), &m)]),
+        ("zigzag xz", vec![zigzag(&zz(Plane::Xz, true, 0.1, 0.01, 0.05), &m)]),
+        (
+            "cone",
+            cone_levels(0.0, 1.0, 0.4, 0.3, 3)
+                .into_iter()
+                .map(|(z, d)| all_cut(archimedean(P3::new(1.0, 1.0, z), 0.02, 0.02, 0.5 * d, false, 1e-5)))
+                .collect(),
+        ),
+    ];
+    for (name, paths) in cases {
+        let want: f64 = paths
+            .iter()
+            .flatten()
+            .filter(|p| p.1 == Role::Cut)
+            .map(|p| p.0.length())
+            .sum();
+        let (recs, _notes) = plan_paths(&paths, &m, Some(7));
+        let a = audit(&recs, &m, P3::origin());
+        assert_eq!(a.off_feed_moves, 0, "{name}");
+        assert_eq!(a.corners_at_speed, 0, "{name}");
+        assert!(
+            a.max_accel_off_cut <= m.accel() * (1.0 + 1e-9),
+            "{name}: {}",
+            a.max_accel_off_cut
+        );
+        assert!(a.exposure_error < 1e-6, "{name}: {}", a.exposure_error);
+        assert!((a.cut_length[&7] - want).abs() < 1e-9, "{name}");
+        // Roles on every move.
+        assert!(
+            recs.iter().filter_map(Record::motion).all(|mv| mv.role.is_some()),
+            "{name}"
+        );
+    }
+}
+
+#[test]
+fn degenerate_chains_are_dropped_not_panicked_on() {
+    let m = Machine::default();
+    let z = P3::origin();
+    let chains = vec![
+        Chain {
+            id: 1,
+            ..Default::default()
+        },
+        Chain {
+            id: 2,
+            closed: true,
+            segments: vec![Segment::Line { start: z, end: z }],
+            ..Default::default()
+        },
+        Chain {
+            id: 3,
+            segments: vec![Segment::Line {
+                start: z,
+                end: P3::new(1.0, 0.0, 0.0),
+            }],
+            ..Default::default()
+        },
+    ];
+    for side in [Side::On, Side::Outside, Side::Inside, Side::Left] {
+        let job = contour(
+            &chains,
+            &m,
+            &ContourOptions {
+                side,
+                distance: 0.01,
+                ..Default::default()
+            },
+        );
+        let a = audit(&job.records, &m, P3::origin());
+        check_physics(&a, &m);
+        assert_eq!(a.cut_length.keys().copied().collect::<Vec<_>>(), vec![3], "{side:?}");
+    }
+}
