@@ -5,7 +5,7 @@
 CARGO ?= cargo
 BIN   := target/release
 
-.PHONY: all build test unit golden update-golden conformance checks fig3-20 removal-check lint demo bench fuzz-smoke clean
+.PHONY: bench-order all build test unit golden update-golden conformance checks fig3-20 removal-check lint demo bench fuzz-smoke clean
 
 all: build
 
@@ -57,6 +57,14 @@ bench: build
 	python3 -c "import manifold3d" 2>/dev/null || python3 -m pip install -q manifold3d
 	scripts/bench/removal --gsim $(BIN)/gsim
 	scripts/bench/upload
+	scripts/bench/pathgen
+	scripts/bench/loops
+	scripts/bench/order --no-solver
+
+# Cut order against an independent TSP solver (LKH via elkai, installed into
+# a private venv; the solver itself takes minutes).
+bench-order: build
+	scripts/bench/order
 
 fuzz-smoke:
 	scripts/fuzz-smoke
