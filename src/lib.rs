@@ -7,9 +7,11 @@
 //! - [`model`]: chains and toolpaths in memory.
 //! - [`formats`]: the JSON Lines pipe formats, streaming.
 //! - [`gcode`]: ISO and PMAC G-code, read and written.
+//! - [`dxf`]: DXF import and chain detection.
 //! - [`cli`]: conventions shared by every binary.
 
 pub mod cli;
+pub mod dxf;
 pub mod formats;
 pub mod gcode;
 pub mod geometry;

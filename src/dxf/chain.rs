@@ -1,0 +1,809 @@
+//! Chain detection: from loose lines and arcs to ordered, oriented chains.
+//!
+//! Near-linear throughout: end points are clustered with a spatial hash
+//! (cells of the join tolerance, 3x3 neighbourhood), collinear overlaps are
+//! found through a hash of (direction, offset), duplicates through the pair
+//! of end nodes, and nesting through a grid over the closed chains' boxes.
+//! The seed's method compares every pair of segments; this one never does.
+//!
+//! Every change to the drawing is counted in [`Report`] and noted on the
+//! chain it touched (`repairs`).
+
+use crate::geometry::{P3, V3};
+use crate::model::chain::{Chain, Segment};
+use std::collections::HashMap;
+use std::hash::{BuildHasherDefault, Hasher};
+
+/// What chaining changed, for the stderr summary.
+#[derive(Debug, Default, Clone, PartialEq)]
+pub struct Report {
+    pub zero_length: u64,
+    pub duplicates: u64,
+    pub overlaps: u64,
+    pub gaps_closed: u64,
+    pub max_gap: f64,
+    pub reversed: u64,
+    pub non_finite: u64,
+    pub open: u64,
+    pub closed: u64,
+}
+
+/// Gaps below this are float round-off in the file, not drawing errors:
+/// they are closed silently (the chains format prints to 1e-9 mm).
+const REPORT_GAP: f64 = 1e-6;
+
+/// A fast, deterministic hasher for integer keys (FxHash). The std SipHash
+/// is built against hostile keys; here it would be a third of the run time.
+#[derive(Default)]
+struct Fx(u64);
+
+impl Hasher for Fx {
+    fn finish(&self) -> u64 {
+        self.0
+    }
+    fn write(&mut self, bytes: &[u8]) {
+        for b in bytes {
+            self.write_u64(*b as u64);
+        }
+    }
+    fn write_u64(&mut self, i: u64) {
+        self.0 = (self.0.rotate_left(5) ^ i).wrapping_mul(0x51_7c_c1_b7_27_22_0a_95);
+    }
+    fn write_i64(&mut self, i: i64) {
+        self.write_u64(i as u64);
+    }
+    fn write_u32(&mut self, i: u32) {
+        self.write_u64(i as u64);
+    }
+    fn write_usize(&mut self, i: usize) {
+        self.write_u64(i as u64);
+    }
+}
+
+type FxMap<K, V> = HashMap<K, V, BuildHasherDefault<Fx>>;
+
+fn cell_of(p: &P3, size: f64) -> (i64, i64) {
+    ((p.x / size).floor() as i64, (p.y / size).floor() as i64)
+}
+
+fn finite(s: &Segment) -> bool {
+    let ok = |p: &P3| p.iter().all(|x| x.is_finite());
+    match s {
+        Segment::Line { start, end } => ok(start) && ok(end),
+        Segment::Arc { start, end, center, .. } => ok(start) && ok(end) && ok(center),
+    }
+}
+
+/// Signed sweep of an arc (radians, positive counter-clockwise); a full
+/// circle when start == end.
+pub fn arc_sweep(start: &P3, end: &P3, center: &P3, ccw: bool) -> f64 {
+    let tau = std::f64::consts::TAU;
+    let a0 = (start.y - center.y).atan2(start.x - center.x);
+    let a1 = (end.y - center.y).atan2(end.x - center.x);
+    let mut s = if ccw { (a1 - a0).rem_euclid(tau) } else { -(a0 - a1).rem_euclid(tau) };
+    if start == end || s == 0.0 {
+        s = if ccw { tau } else { -tau };
+    }
+    s
+}
+
+pub fn seg_len(s: &Segment) -> f64 {
+    match s {
+        Segment::Line { start, end } => (end - start).norm(),
+        Segment::Arc {
+            start,
+            end,
+            center,
+            ccw,
+        } => (start - center).xy().norm() * arc_sweep(start, end, center, *ccw).abs(),
+    }
+}
+
+fn midpoint(s: &Segment) -> P3 {
+    match *s {
+        Segment::Line { start, end } => P3::from((start.coords + end.coords) * 0.5),
+        Segment::Arc {
+            start,
+            end,
+            center,
+            ccw,
+        } => {
+            let r = (start - center).xy().norm();
+            let a = (start.y - center.y).atan2(start.x - center.x) + 0.5 * arc_sweep(&start, &end, &center, ccw);
+            P3::new(center.x + r * a.cos(), center.y + r * a.sin(), start.z)
+        }
+    }
+}
+
+pub fn reversed(s: &Segment) -> Segment {
+    match *s {
+        Segment::Line { start, end } => Segment::Line { start: end, end: start },
+        Segment::Arc {
+            start,
+            end,
+            center,
+            ccw,
+        } => Segment::Arc {
+            start: end,
+            end: start,
+            center,
+            ccw: !ccw,
+        },
+    }
+}
+
+/// Points along a segment (start included, end excluded), for area and
+/// containment tests.
+fn polyline_into(s: &Segment, out: &mut Vec<P3>) {
+    match *s {
+        Segment::Line { start, .. } => out.push(start),
+        Segment::Arc {
+            start,
+            end,
+            center,
+            ccw,
+        } => {
+            let sw = arc_sweep(&start, &end, &center, ccw);
+            let n = ((sw.abs() / (std::f64::consts::PI / 32.0)).ceil() as usize).clamp(2, 256);
+            let r = (start - center).xy().norm();
+            let a0 = (start.y - center.y).atan2(start.x - center.x);
+            out.push(start);
+            for i in 1..n {
+                let a = a0 + sw * i as f64 / n as f64;
+                out.push(P3::new(center.x + r * a.cos(), center.y + r * a.sin(), start.z));
+            }
+        }
+    }
+}
+
+/// Exact signed area enclosed by a closed chain (positive = counter-clockwise).
+pub fn signed_area(segs: &[Segment]) -> f64 {
+    let mut a = 0.0;
+    for s in segs {
+        let (p, q) = (s.start(), s.end());
+        a += 0.5 * (p.x * q.y - q.x * p.y);
+        if let Segment::Arc {
+            start,
+            end,
+            center,
+            ccw,
+        } = s
+        {
+            let r2 = (start - center).xy().norm_squared();
+            let sw = arc_sweep(start, end, center, *ccw);
+            a += 0.5 * r2 * (sw - sw.sin());
+        }
+    }
+    a
+}
+
+fn inside(poly: &[P3], p: &P3) -> bool {
+    let mut c = false;
+    let n = poly.len();
+    for i in 0..n {
+        let a = &poly[i];
+        let b = &poly[(i + 1) % n];
+        if (a.y > p.y) != (b.y > p.y) {
+            let x = a.x + (p.y - a.y) / (b.y - a.y) * (b.x - a.x);
+            if x > p.x {
+                c = !c;
+            }
+        }
+    }
+    c
+}
+
+struct Work {
+    seg: Segment,
+    alive: bool,
+    notes: Vec<String>,
+    order: usize,
+}
+
+/// Join `segments` (each with a layer index into `layers`) into chains
+/// within `tol`, and attach POINT entities as per-layer point chains.
+pub fn build(segments: Vec<(Segment, u32)>, points: &[(P3, u32)], layers: &[String], tol: f64) -> (Vec<Chain>, Report) {
+    let tol = if tol.is_finite() { tol.max(0.0) } else { 0.0 };
+    let mut report = Report::default();
+    let mut by_layer: Vec<Vec<Work>> = (0..layers.len()).map(|_| Vec::new()).collect();
+    for (order, (seg, l)) in segments.into_iter().enumerate() {
+        if !finite(&seg) {
+            report.non_finite += 1;
+            continue;
+        }
+        if let Some(v) = by_layer.get_mut(l as usize) {
+            v.push(Work {
+                seg,
+                alive: true,
+                notes: Vec::new(),
+                order,
+            });
+        }
+    }
+    let mut chains: Vec<(usize, Chain)> = Vec::new();
+    for (l, work) in by_layer.into_iter().enumerate() {
+        chain_layer(work, &layers[l], tol, &mut report, &mut chains);
+    }
+    orient(&mut chains, tol, &mut report);
+    chains.sort_by_key(|(order, _)| *order);
+    let mut out: Vec<Chain> = chains.into_iter().map(|(_, c)| c).collect();
+    for (l, name) in layers.iter().enumerate() {
+        let pts: Vec<P3> = points.iter().filter(|(_, pl)| *pl as usize == l).map(|(p, _)| *p).collect();
+        if !pts.is_empty() {
+            out.push(Chain {
+                layer: Some(name.clone()),
+                points: pts,
+                ..Default::default()
+            });
+        }
+    }
+    for (i, c) in out.iter_mut().enumerate() {
+        c.id = i as u64 + 1;
+        if !c.segments.is_empty() {
+            if c.closed {
+                report.closed += 1;
+            } else {
+                report.open += 1;
+            }
+        }
+    }
+    (out, report)
+}
+
+fn chain_layer(mut w: Vec<Work>, layer: &str, tol: f64, report: &mut Report, out: &mut Vec<(usize, Chain)>) {
+    // 1. Zero-length pieces.
+    for x in w.iter_mut() {
+        let r = match x.seg {
+            Segment::Arc { start, center, .. } => (start - center).xy().norm(),
+            _ => f64::INFINITY,
+        };
+        if seg_len(&x.seg) <= tol || r <= tol {
+            x.alive = false;
+            report.zero_length += 1;
+        }
+    }
+    merge_collinear(&mut w, tol, report);
+
+    // 2. End points to nodes.
+    let cell = tol.max(1e-9);
+    let mut grid: FxMap<(i64, i64), Vec<u32>> = FxMap::default();
+    let mut reps: Vec<P3> = Vec::new();
+    let mut gaps: Vec<f64> = Vec::new();
+    let mut ends: Vec<(u32, u32)> = vec![(u32::MAX, u32::MAX); w.len()];
+    let node_of = |p: &P3, grid: &mut FxMap<(i64, i64), Vec<u32>>, reps: &mut Vec<P3>, gaps: &mut Vec<f64>| {
+        let (cx, cy) = cell_of(p, cell);
+        let mut best: Option<u32> = None;
+        for dx in -1..=1 {
+            for dy in -1..=1 {
+                if let Some(ids) = grid.get(&(cx + dx, cy + dy)) {
+                    for &id in ids {
+                        if (reps[id as usize] - p).norm() <= tol && best.is_none_or(|b| id < b) {
+                            best = Some(id);
+                        }
+                    }
+                }
+            }
+        }
+        match best {
+            Some(id) => {
+                let g = (reps[id as usize] - p).norm();
+                if g > gaps[id as usize] {
+                    gaps[id as usize] = g;
+                }
+                id
+            }
+            None => {
+                let id = reps.len() as u32;
+                reps.push(*p);
+                gaps.push(0.0);
+                grid.entry((cx, cy)).or_default().push(id);
+                id
+            }
+        }
+    };
+    for (i, x) in w.iter().enumerate() {
+        if !x.alive {
+            continue;
+        }
+        let a = node_of(&x.seg.start(), &mut grid, &mut reps, &mut gaps);
+        let b = node_of(&x.seg.end(), &mut grid, &mut reps, &mut gaps);
+        ends[i] = (a, b);
+    }
+    drop(grid);
+
+    // 3. Duplicates between the same pair of nodes.
+    let mut pairs: FxMap<(u32, u32), Vec<usize>> = FxMap::default();
+    for i in 0..w.len() {
+        if !w[i].alive {
+            continue;
+        }
+        let (a, b) = ends[i];
+        if a == b && matches!(w[i].seg, Segment::Line { .. }) {
+            // Both ends in one node: shorter than the tolerance across.
+            w[i].alive = false;
+            report.zero_length += 1;
+            continue;
+        }
+        let key = (a.min(b), a.max(b));
+        let list = pairs.entry(key).or_default();
+        let mut dup_of = None;
+        for &j in list.iter() {
+            let same = match (&w[i].seg, &w[j].seg) {
+                (Segment::Line { .. }, Segment::Line { .. }) => true,
+                (Segment::Arc { center: c1, .. }, Segment::Arc { center: c2, .. }) => {
+                    (c1 - c2).norm() <= tol && (midpoint(&w[i].seg) - midpoint(&w[j].seg)).norm() <= tol
+                }
+                _ => false,
+            };
+            if same {
+                dup_of = Some(j);
+                break;
+            }
+        }
+        match dup_of {
+            Some(j) => {
+                w[i].alive = false;
+                report.duplicates += 1;
+                let p = midpoint(&w[i].seg);
+                w[j].notes.push(format!("duplicate removed at [{}, {}]", fmt_num(p.x), fmt_num(p.y)));
+            }
+            None => list.push(i),
+        }
+    }
+    drop(pairs);
+
+    // 4. Walk the graph: open chains from nodes of degree != 2, then cycles.
+    let n_nodes = reps.len();
+    let mut start_idx = vec![0u32; n_nodes + 1];
+    for (i, x) in w.iter().enumerate() {
+        if x.alive {
+            start_idx[ends[i].0 as usize + 1] += 1;
+            start_idx[ends[i].1 as usize + 1] += 1;
+        }
+    }
+    for k in 0..n_nodes {
+        start_idx[k + 1] += start_idx[k];
+    }
+    let mut adj = vec![0u32; start_idx[n_nodes] as usize];
+    let mut fill = start_idx.clone();
+    for (i, x) in w.iter().enumerate() {
+        if x.alive {
+            for n in [ends[i].0, ends[i].1] {
+                adj[fill[n as usize] as usize] = i as u32;
+                fill[n as usize] += 1;
+            }
+        }
+    }
+    let degree = |n: u32| start_idx[n as usize + 1] - start_idx[n as usize];
+    let mut used = vec![false; w.len()];
+    let walk = |first_node: u32, first: usize, used: &mut Vec<bool>| -> (Vec<(usize, bool)>, u32) {
+        let mut run = Vec::new();
+        let mut cur = first_node;
+        let mut s = first;
+        loop {
+            used[s] = true;
+            let (a, b) = ends[s];
+            let fwd = a == cur;
+            let next = if fwd { b } else { a };
+            run.push((s, fwd));
+            cur = next;
+            if cur == first_node || degree(cur) != 2 {
+                break;
+            }
+            let lo = start_idx[cur as usize] as usize;
+            let hi = start_idx[cur as usize + 1] as usize;
+            match adj[lo..hi].iter().find(|&&t| !used[t as usize]) {
+                Some(&t) => s = t as usize,
+                None => break,
+            }
+        }
+        (run, cur)
+    };
+    let mut runs: Vec<(Vec<(usize, bool)>, u32, u32)> = Vec::new();
+    for n in 0..n_nodes as u32 {
+        if degree(n) == 2 {
+            continue;
+        }
+        let lo = start_idx[n as usize] as usize;
+        let hi = start_idx[n as usize + 1] as usize;
+        for k in lo..hi {
+            let s = adj[k] as usize;
+            if !used[s] {
+                let (run, last) = walk(n, s, &mut used);
+                runs.push((run, n, last));
+            }
+        }
+    }
+    for i in 0..w.len() {
+        if w[i].alive && !used[i] {
+            let (run, last) = walk(ends[i].0, i, &mut used);
+            runs.push((run, ends[i].0, last));
+        }
+    }
+
+    // 5. Snap ends onto their nodes and make chains.
+    for (run, first, last) in runs {
+        let mut c = Chain {
+            layer: Some(layer.to_string()),
+            closed: first == last,
+            ..Default::default()
+        };
+        let mut order = usize::MAX;
+        let mut gap_nodes: Vec<u32> = Vec::new();
+        for &(i, fwd) in &run {
+            order = order.min(w[i].order);
+            let (a, b) = ends[i];
+            let (na, nb) = if fwd { (a, b) } else { (b, a) };
+            let seg = if fwd { w[i].seg } else { reversed(&w[i].seg) };
+            c.segments.push(snap(&seg, reps[na as usize], reps[nb as usize]));
+            c.repairs.append(&mut w[i].notes);
+            for n in [na, nb] {
+                if gaps[n as usize] > REPORT_GAP && !gap_nodes.contains(&n) {
+                    gap_nodes.push(n);
+                }
+            }
+        }
+        for n in gap_nodes {
+            let g = gaps[n as usize];
+            let p = reps[n as usize];
+            report.gaps_closed += 1;
+            report.max_gap = report.max_gap.max(g);
+            c.repairs
+                .push(format!("gap of {} mm closed at [{}, {}]", fmt_num(g), fmt_num(p.x), fmt_num(p.y)));
+        }
+        out.push((order, c));
+    }
+}
+
+/// Short, stable number text for repair notes.
+fn fmt_num(x: f64) -> String {
+    let s = format!("{:.6}", x);
+    let s = s.trim_end_matches('0').trim_end_matches('.');
+    if s == "-0" { "0".into() } else { s.into() }
+}
+
+/// Move a segment's ends to `a` and `b`; an arc's centre moves onto the
+/// new ends' bisector so that both ends stay on one circle.
+fn snap(s: &Segment, a: P3, b: P3) -> Segment {
+    match *s {
+        Segment::Line { .. } => Segment::Line { start: a, end: b },
+        Segment::Arc {
+            start, center, ccw, ..
+        } => {
+            let center = if a == b {
+                center + (a - start)
+            } else {
+                let m = P3::from((a.coords + b.coords) * 0.5);
+                let d = b - a;
+                let n = V3::new(-d.y, d.x, 0.0).normalize();
+                let mut c = m + n * (center - m).dot(&n);
+                c.z = a.z;
+                c
+            };
+            Segment::Arc {
+                start: a,
+                end: b,
+                center,
+                ccw,
+            }
+        }
+    }
+}
+
+/// Merge lines lying on one another: exact and near duplicates and partial
+/// overlaps become one line spanning their union.
+fn merge_collinear(w: &mut [Work], tol: f64, report: &mut Report) {
+    const ANGLE_BUCKET: f64 = 1e-4;
+    let off_bucket = (2.0 * tol).max(1e-9);
+    let mut buckets: FxMap<(i64, i64), Vec<usize>> = FxMap::default();
+    for i in 0..w.len() {
+        let Segment::Line { start: a, end: b } = w[i].seg else {
+            continue;
+        };
+        if !w[i].alive {
+            continue;
+        }
+        let len = (b - a).xy().norm();
+        let mut d = (b - a).xy() / len;
+        if d.y < 0.0 || (d.y == 0.0 && d.x < 0.0) {
+            d = -d;
+        }
+        let ang = d.y.atan2(d.x);
+        let off = d.x * a.y - d.y * a.x;
+        let n_ang = (std::f64::consts::PI / ANGLE_BUCKET).ceil() as i64;
+        let ai = ((ang / ANGLE_BUCKET).floor() as i64).clamp(0, n_ang - 1);
+        let key = (ai, (off / off_bucket).floor() as i64);
+        let mut merged = false;
+        'search: for da in -1..=1 {
+            // Directions are folded into [0, pi): a line just below pi is a
+            // neighbour of one just above 0, with its offset's sign flipped.
+            let raw = ai + da;
+            let (a_key, o) = if (0..n_ang).contains(&raw) {
+                (raw, off)
+            } else {
+                (raw.rem_euclid(n_ang), -off)
+            };
+            let o_key = (o / off_bucket).floor() as i64;
+            for dofs in -1..=1 {
+                let k = (a_key, o_key + dofs);
+                let Some(list) = buckets.get(&k) else { continue };
+                for &j in list {
+                    if let Some((start, end, dup)) = overlap(&w[j].seg, a, b, tol) {
+                        w[j].seg = Segment::Line { start, end };
+                        w[i].alive = false;
+                        let note = if dup {
+                            report.duplicates += 1;
+                            "duplicate removed"
+                        } else {
+                            report.overlaps += 1;
+                            "collinear overlap merged"
+                        };
+                        let m = P3::from((a.coords + b.coords) * 0.5);
+                        w[j].notes.push(format!("{note} at [{}, {}]", fmt_num(m.x), fmt_num(m.y)));
+                        merged = true;
+                        break 'search;
+                    }
+                }
+            }
+        }
+        if !merged {
+            buckets.entry(key).or_default().push(i);
+        }
+    }
+}
+
+/// If line `a`-`b` lies along `kept` (within `tol`, same z) and overlaps it
+/// by more than `tol`, the union's ends (in `kept`'s direction) and whether
+/// `a`-`b` was a duplicate (same ends within `tol`).
+fn overlap(kept: &Segment, a: P3, b: P3, tol: f64) -> Option<(P3, P3, bool)> {
+    let Segment::Line { start: p, end: q } = *kept else {
+        return None;
+    };
+    if (p.z - a.z).abs() > tol || (q.z - b.z).abs() > tol && (q.z - a.z).abs() > tol {
+        return None;
+    }
+    let len = (q - p).xy().norm();
+    let d = (q - p).xy() / len;
+    let dist = |x: &P3| (d.x * (x.y - p.y) - d.y * (x.x - p.x)).abs();
+    if dist(&a) > tol || dist(&b) > tol {
+        return None;
+    }
+    let proj = |x: &P3| d.x * (x.x - p.x) + d.y * (x.y - p.y);
+    let (sa, sb) = (proj(&a), proj(&b));
+    let (lo, hi) = (sa.min(sb), sa.max(sb));
+    if hi.min(len) - lo.max(0.0) <= tol {
+        return None;
+    }
+    let dup = ((a - p).norm() <= tol && (b - q).norm() <= tol) || ((a - q).norm() <= tol && (b - p).norm() <= tol);
+    let start = if lo < -tol {
+        if sa < sb { a } else { b }
+    } else {
+        p
+    };
+    let end = if hi > len + tol {
+        if sa > sb { a } else { b }
+    } else {
+        q
+    };
+    Some((start, end, dup))
+}
+
+/// Orient closed chains by nesting depth: even depth (outer contours)
+/// counter-clockwise, odd depth (holes) clockwise.
+fn orient(chains: &mut [(usize, Chain)], tol: f64, report: &mut Report) {
+    struct Info {
+        idx: usize,
+        poly: Vec<P3>,
+        lo: (f64, f64),
+        hi: (f64, f64),
+        area: f64,
+        probe: P3,
+    }
+    let mut infos: Vec<Info> = Vec::new();
+    for (idx, (_, c)) in chains.iter().enumerate() {
+        if !c.closed || c.segments.is_empty() {
+            continue;
+        }
+        let mut poly = Vec::new();
+        for s in &c.segments {
+            polyline_into(s, &mut poly);
+        }
+        let mut lo = (f64::INFINITY, f64::INFINITY);
+        let mut hi = (f64::NEG_INFINITY, f64::NEG_INFINITY);
+        for p in &poly {
+            lo = (lo.0.min(p.x), lo.1.min(p.y));
+            hi = (hi.0.max(p.x), hi.1.max(p.y));
+        }
+        infos.push(Info {
+            idx,
+            poly,
+            lo,
+            hi,
+            area: signed_area(&c.segments),
+            probe: midpoint(&c.segments[0]),
+        });
+    }
+    if infos.is_empty() {
+        return;
+    }
+    // A grid over the boxes: each chain is listed in the cells its box
+    // covers (or in `big` when that would be too many cells).
+    let total: f64 = infos.iter().map(|i| (i.hi.0 - i.lo.0).max(tol) * (i.hi.1 - i.lo.1).max(tol)).sum();
+    let size = (total / infos.len() as f64).sqrt().max(1e-9);
+    let mut grid: FxMap<(i64, i64), Vec<u32>> = FxMap::default();
+    let mut big: Vec<u32> = Vec::new();
+    for (k, i) in infos.iter().enumerate() {
+        let (x0, y0) = ((i.lo.0 / size).floor() as i64, (i.lo.1 / size).floor() as i64);
+        let (x1, y1) = ((i.hi.0 / size).floor() as i64, (i.hi.1 / size).floor() as i64);
+        if (x1 - x0 + 1).saturating_mul(y1 - y0 + 1) > 256 {
+            big.push(k as u32);
+            continue;
+        }
+        for x in x0..=x1 {
+            for y in y0..=y1 {
+                grid.entry((x, y)).or_default().push(k as u32);
+            }
+        }
+    }
+    let empty = Vec::new();
+    for k in 0..infos.len() {
+        let me = &infos[k];
+        let p = me.probe;
+        let cell = ((p.x / size).floor() as i64, (p.y / size).floor() as i64);
+        let mut depth = 0;
+        for &j in grid.get(&cell).unwrap_or(&empty).iter().chain(big.iter()) {
+            let o = &infos[j as usize];
+            if j as usize == k
+                || o.area.abs() <= me.area.abs()
+                || o.lo.0 > me.lo.0 + tol
+                || o.lo.1 > me.lo.1 + tol
+                || o.hi.0 < me.hi.0 - tol
+                || o.hi.1 < me.hi.1 - tol
+            {
+                continue;
+            }
+            if inside(&o.poly, &p) {
+                depth += 1;
+            }
+        }
+        let want_ccw = depth % 2 == 0;
+        if me.area != 0.0 && (me.area > 0.0) != want_ccw {
+            let c = &mut chains[me.idx].1;
+            c.segments.reverse();
+            for s in c.segments.iter_mut() {
+                *s = reversed(s);
+            }
+            report.reversed += 1;
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn line(x0: f64, y0: f64, x1: f64, y1: f64) -> (Segment, u32) {
+        (
+            Segment::Line {
+                start: P3::new(x0, y0, 0.0),
+                end: P3::new(x1, y1, 0.0),
+            },
+            0,
+        )
+    }
+
+    fn square(x: f64, y: f64, s: f64, cw: bool) -> Vec<(Segment, u32)> {
+        let mut v = vec![
+            line(x, y, x + s, y),
+            line(x + s, y, x + s, y + s),
+            line(x + s, y + s, x, y + s),
+            line(x, y + s, x, y),
+        ];
+        if cw {
+            v = v.into_iter().rev().map(|(s, l)| (reversed(&s), l)).collect();
+        }
+        v
+    }
+
+    fn layers() -> Vec<String> {
+        vec!["0".into()]
+    }
+
+    #[test]
+    fn shuffled_square_with_gaps_closes() {
+        let segs = vec![
+            line(10.0, 0.0, 10.0, 10.0),
+            line(0.0, 0.0, 10.0005, 0.0),
+            line(0.0, 10.0, 0.0, 0.0),
+            line(10.0, 10.0, 0.0, 10.0),
+        ];
+        let (c, r) = build(segs, &[], &layers(), 0.001);
+        assert_eq!(c.len(), 1);
+        assert!(c[0].closed);
+        assert_eq!(c[0].segments.len(), 4);
+        assert_eq!(r.gaps_closed, 1);
+        assert!(signed_area(&c[0].segments) > 0.0);
+        for w in c[0].segments.windows(2) {
+            assert_eq!(w[0].end(), w[1].start());
+        }
+        assert_eq!(c[0].segments[3].end(), c[0].segments[0].start());
+    }
+
+    #[test]
+    fn hole_is_clockwise_outer_counter_clockwise() {
+        let mut segs = square(0.0, 0.0, 10.0, true);
+        segs.extend(square(2.0, 2.0, 2.0, false));
+        segs.extend(square(2.5, 2.5, 1.0, false));
+        let (c, r) = build(segs, &[], &layers(), 0.001);
+        assert_eq!(c.len(), 3);
+        assert!(signed_area(&c[0].segments) > 0.0);
+        assert!(signed_area(&c[1].segments) < 0.0);
+        assert!(signed_area(&c[2].segments) > 0.0, "island in a hole");
+        assert_eq!(r.reversed, 2);
+    }
+
+    #[test]
+    fn duplicates_and_overlaps_merge() {
+        let segs = vec![
+            line(0.0, 0.0, 10.0, 0.0),
+            line(10.0, 0.0, 0.0, 0.0),
+            line(0.0, 0.0005, 10.0, 0.0),
+            line(5.0, 0.0, 15.0, 0.0),
+        ];
+        let (c, r) = build(segs, &[], &layers(), 0.001);
+        assert_eq!(r.duplicates, 2);
+        assert_eq!(r.overlaps, 1);
+        assert_eq!(c.len(), 1);
+        assert_eq!(c[0].segments.len(), 1);
+        assert!((seg_len(&c[0].segments[0]) - 15.0).abs() < 1e-9);
+        assert_eq!(c[0].repairs.len(), 3);
+    }
+
+    #[test]
+    fn touching_collinear_lines_stay_two_pieces() {
+        let (c, r) = build(vec![line(0.0, 0.0, 5.0, 0.0), line(5.0, 0.0, 10.0, 0.0)], &[], &layers(), 0.001);
+        assert_eq!(r.overlaps + r.duplicates, 0);
+        assert_eq!(c[0].segments.len(), 2);
+        assert!(!c[0].closed);
+    }
+
+    #[test]
+    fn zero_length_and_branches() {
+        let segs = vec![
+            line(0.0, 0.0, 0.0, 0.0),
+            line(0.0, 0.0, 1.0, 0.0),
+            line(1.0, 0.0, 2.0, 0.0),
+            line(1.0, 0.0, 1.0, 1.0),
+        ];
+        let (c, r) = build(segs, &[], &layers(), 0.001);
+        assert_eq!(r.zero_length, 1);
+        assert_eq!(c.len(), 3, "a T junction: three open chains");
+    }
+
+    #[test]
+    fn snapped_arc_keeps_equal_radii() {
+        let arc = Segment::Arc {
+            start: P3::new(1.0, 0.0, 0.0),
+            end: P3::new(0.0, 1.0, 0.0),
+            center: P3::origin(),
+            ccw: true,
+        };
+        let s = snap(&arc, P3::new(1.0004, 0.0, 0.0), P3::new(0.0, 0.9997, 0.0));
+        let Segment::Arc { start, end, center, .. } = s else { panic!() };
+        assert!(((start - center).norm() - (end - center).norm()).abs() < 1e-12);
+    }
+
+    #[test]
+    fn full_circle_area() {
+        let c = Segment::Arc {
+            start: P3::new(2.0, 0.0, 0.0),
+            end: P3::new(2.0, 0.0, 0.0),
+            center: P3::origin(),
+            ccw: false,
+        };
+        assert!((signed_area(&[c]) + 4.0 * std::f64::consts::PI).abs() < 1e-12);
+        let (ch, _) = build(vec![(c, 0)], &[], &layers(), 0.001);
+        assert!(ch[0].closed);
+        assert!(signed_area(&ch[0].segments) > 0.0);
+    }
+}
