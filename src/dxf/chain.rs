@@ -504,6 +504,10 @@ fn merge_collinear(w: &mut [Work], tol: f64, report: &mut Report) {
             continue;
         }
         let len = (b - a).xy().norm();
+        // Only lines in a plane of constant z can lie on one another here.
+        if len <= tol || (b.z - a.z).abs() > tol {
+            continue;
+        }
         let mut d = (b - a).xy() / len;
         if d.y < 0.0 || (d.y == 0.0 && d.x < 0.0) {
             d = -d;
@@ -559,7 +563,7 @@ fn overlap(kept: &Segment, a: P3, b: P3, tol: f64) -> Option<(P3, P3, bool)> {
     let Segment::Line { start: p, end: q } = *kept else {
         return None;
     };
-    if (p.z - a.z).abs() > tol || (q.z - b.z).abs() > tol && (q.z - a.z).abs() > tol {
+    if (p.z - a.z).abs() > tol || (q.z - p.z).abs() > tol || (b.z - a.z).abs() > tol {
         return None;
     }
     let len = (q - p).xy().norm();

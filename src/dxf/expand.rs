@@ -322,7 +322,9 @@ impl Expander<'_> {
             // hair off, and consecutive pieces must share ends.
             let before = sink.segments.len();
             self.conic(t, &c, r, a0, sweep, lid, sink);
-            if let Some((Segment::Arc { start, end, .. }, _)) = sink.segments.get_mut(before) {
+            if sink.segments.len() == before + 1
+                && let Some((Segment::Arc { start, end, .. }, _)) = sink.segments.get_mut(before)
+            {
                 *start = t.apply(&p0);
                 *end = t.apply(&p1);
             }
