@@ -492,66 +492,103 @@ fn snap(s: &Segment, a: P3, b: P3) -> Segment {
 
 /// Merge lines lying on one another: exact and near duplicates and partial
 /// overlaps become one line spanning their union.
+///
+/// Lines are grouped by (direction, offset from the origin) buckets; each
+/// group, together with its neighbouring buckets (a line a hair across a
+/// bucket boundary), is swept in order along its direction, comparing each
+/// line only with the lines whose span it reaches. Rows of equal lines (a
+/// grid of parts) therefore cost n log n, not n squared.
 fn merge_collinear(w: &mut [Work], tol: f64, report: &mut Report) {
     const ANGLE_BUCKET: f64 = 1e-4;
     let off_bucket = (2.0 * tol).max(1e-9);
-    let mut buckets: FxMap<(i64, i64), Vec<usize>> = FxMap::default();
+    let n_ang = (std::f64::consts::PI / ANGLE_BUCKET).ceil() as i64;
+    let mut groups: FxMap<(i64, i64), Vec<usize>> = FxMap::default();
+    let mut order: Vec<(i64, i64)> = Vec::new();
     for i in 0..w.len() {
         let Segment::Line { start: a, end: b } = w[i].seg else {
             continue;
         };
-        if !w[i].alive {
-            continue;
-        }
         let len = (b - a).xy().norm();
         // Only lines in a plane of constant z can lie on one another here.
-        if len <= tol || (b.z - a.z).abs() > tol {
+        if !w[i].alive || len <= tol || (b.z - a.z).abs() > tol {
             continue;
         }
         let mut d = (b - a).xy() / len;
         if d.y < 0.0 || (d.y == 0.0 && d.x < 0.0) {
             d = -d;
         }
-        let ang = d.y.atan2(d.x);
+        let ai = ((d.y.atan2(d.x) / ANGLE_BUCKET).floor() as i64).clamp(0, n_ang - 1);
         let off = d.x * a.y - d.y * a.x;
-        let n_ang = (std::f64::consts::PI / ANGLE_BUCKET).ceil() as i64;
-        let ai = ((ang / ANGLE_BUCKET).floor() as i64).clamp(0, n_ang - 1);
         let key = (ai, (off / off_bucket).floor() as i64);
-        let mut merged = false;
-        'search: for da in -1..=1 {
+        let g = groups.entry(key).or_default();
+        if g.is_empty() {
+            order.push(key);
+        }
+        g.push(i);
+    }
+    let mut cand: Vec<usize> = Vec::new();
+    let mut active: Vec<usize> = Vec::new();
+    for key in order {
+        cand.clear();
+        for da in -1..=1 {
             // Directions are folded into [0, pi): a line just below pi is a
             // neighbour of one just above 0, with its offset's sign flipped.
-            let raw = ai + da;
-            let (a_key, o) = if (0..n_ang).contains(&raw) {
-                (raw, off)
-            } else {
-                (raw.rem_euclid(n_ang), -off)
-            };
-            let o_key = (o / off_bucket).floor() as i64;
+            let raw = key.0 + da;
+            let wrapped = !(0..n_ang).contains(&raw);
+            let a_key = raw.rem_euclid(n_ang);
             for dofs in -1..=1 {
-                let k = (a_key, o_key + dofs);
-                let Some(list) = buckets.get(&k) else { continue };
-                for &j in list {
-                    if let Some((start, end, dup)) = overlap(&w[j].seg, a, b, tol) {
-                        w[j].seg = Segment::Line { start, end };
-                        w[i].alive = false;
-                        let note = if dup {
-                            report.duplicates += 1;
-                            "duplicate removed"
-                        } else {
-                            report.overlaps += 1;
-                            "collinear overlap merged"
-                        };
-                        let m = P3::from((a.coords + b.coords) * 0.5);
-                        w[j].notes.push(format!("{note} at [{}, {}]", fmt_num(m.x), fmt_num(m.y)));
-                        merged = true;
-                        break 'search;
-                    }
+                let o_key = if wrapped { -key.1 - 1 + dofs } else { key.1 + dofs };
+                if let Some(g) = groups.get(&(a_key, o_key)) {
+                    cand.extend(g.iter().copied().filter(|&i| w[i].alive));
                 }
             }
         }
-        if !merged {
-            buckets.entry(key).or_default().push(i);
+        if cand.len() < 2 {
+            continue;
+        }
+        let Segment::Line { start: p, end: q } = w[groups[&key][0]].seg else {
+            continue;
+        };
+        let d = (q - p).xy().normalize();
+        let span = |s: &Segment| {
+            let (a, b) = (s.start(), s.end());
+            let (x, y) = (d.x * a.x + d.y * a.y, d.x * b.x + d.y * b.y);
+            (x.min(y), x.max(y))
+        };
+        cand.sort_by(|&i, &j| span(&w[i].seg).0.total_cmp(&span(&w[j].seg).0).then(i.cmp(&j)));
+        cand.dedup();
+        active.clear();
+        for &i in cand.iter() {
+            if !w[i].alive {
+                continue;
+            }
+            let (lo, _) = span(&w[i].seg);
+            active.retain(|&k| w[k].alive && span(&w[k].seg).1 >= lo - tol);
+            let Segment::Line { start: a, end: b } = w[i].seg else {
+                continue;
+            };
+            let mut merged = false;
+            for &k in active.iter() {
+                if let Some((start, end, dup)) = overlap(&w[k].seg, a, b, tol) {
+                    w[k].seg = Segment::Line { start, end };
+                    w[k].order = w[k].order.min(w[i].order);
+                    w[i].alive = false;
+                    let note = if dup {
+                        report.duplicates += 1;
+                        "duplicate removed"
+                    } else {
+                        report.overlaps += 1;
+                        "collinear overlap merged"
+                    };
+                    let m = P3::from((a.coords + b.coords) * 0.5);
+                    w[k].notes.push(format!("{note} at [{}, {}]", fmt_num(m.x), fmt_num(m.y)));
+                    merged = true;
+                    break;
+                }
+            }
+            if !merged {
+                active.push(i);
+            }
         }
     }
 }

@@ -113,7 +113,7 @@ pub fn render(chains: &[Chain]) -> String {
             let _ = writeln!(o, "<circle cx=\"{}\" cy=\"{}\" r=\"{}\" fill=\"{colour}\"/>", n(p.x), n(p.y), n(dot));
             if let Some(t) = tangent_at_start(first).try_normalize(1e-300) {
                 let len = crate::dxf::chain::seg_len(first);
-                let a = arrow.min(len * 0.5);
+                let a = arrow.min(len * 0.3);
                 let tip = p + t * a;
                 let side = V3::new(-t.y, t.x, 0.0) * a * 0.35;
                 let (l, r) = (p + side, p - side);
