@@ -132,28 +132,85 @@ pub fn reversed(s: &Segment) -> Segment {
     }
 }
 
-/// Points along a segment (start included, end excluded), for area and
-/// containment tests.
-fn polyline_into(s: &Segment, out: &mut Vec<P3>) {
-    match *s {
-        Segment::Line { start, .. } => out.push(start),
-        Segment::Arc {
-            start,
-            end,
-            center,
-            ccw,
-        } => {
-            let sw = arc_sweep(&start, &end, &center, ccw);
-            let n = ((sw.abs() / (std::f64::consts::PI / 32.0)).ceil() as usize).clamp(2, 256);
-            let r = (start - center).xy().norm();
-            let a0 = (start.y - center.y).atan2(start.x - center.x);
-            out.push(start);
-            for i in 1..n {
-                let a = a0 + sw * i as f64 / n as f64;
-                out.push(P3::new(center.x + r * a.cos(), center.y + r * a.sin(), start.z));
+/// Whether angle `t` lies on the arc from `start` (inclusive) sweeping
+/// `sweep` radians (signed).
+fn on_sweep(a0: f64, sweep: f64, t: f64) -> bool {
+    let tau = std::f64::consts::TAU;
+    let off = if sweep >= 0.0 { (t - a0).rem_euclid(tau) } else { (a0 - t).rem_euclid(tau) };
+    off <= sweep.abs()
+}
+
+/// The XY box of a segment, arcs included exactly (their axis extremes).
+fn seg_box(s: &Segment, lo: &mut (f64, f64), hi: &mut (f64, f64)) {
+    let mut grow = |x: f64, y: f64| {
+        *lo = (lo.0.min(x), lo.1.min(y));
+        *hi = (hi.0.max(x), hi.1.max(y));
+    };
+    let (p, q) = (s.start(), s.end());
+    grow(p.x, p.y);
+    grow(q.x, q.y);
+    if let Segment::Arc {
+        start,
+        end,
+        center,
+        ccw,
+    } = s
+    {
+        let r = (start - center).xy().norm();
+        let a0 = (start.y - center.y).atan2(start.x - center.x);
+        let sw = arc_sweep(start, end, center, *ccw);
+        for k in 0..4 {
+            let t = k as f64 * std::f64::consts::FRAC_PI_2;
+            if on_sweep(a0, sw, t) {
+                grow(center.x + r * t.cos(), center.y + r * t.sin());
             }
         }
     }
+}
+
+/// Point in a closed chain: the parity of crossings of the ray from `p`
+/// towards +X, with lines and arcs exactly (no tessellation, so memory
+/// does not grow with arc counts).
+fn inside(segs: &[Segment], p: &P3) -> bool {
+    let mut c = false;
+    for s in segs {
+        match *s {
+            Segment::Line { start: a, end: b } => {
+                if (a.y > p.y) != (b.y > p.y) {
+                    let x = a.x + (p.y - a.y) / (b.y - a.y) * (b.x - a.x);
+                    if x > p.x {
+                        c = !c;
+                    }
+                }
+            }
+            Segment::Arc {
+                start,
+                end,
+                center,
+                ccw,
+            } => {
+                let r = (start - center).xy().norm();
+                let dy = p.y - center.y;
+                if dy.abs() >= r {
+                    continue;
+                }
+                let dx = (r * r - dy * dy).sqrt();
+                let a0 = (start.y - center.y).atan2(start.x - center.x);
+                let sw = arc_sweep(&start, &end, &center, ccw);
+                for x in [center.x - dx, center.x + dx] {
+                    if x > p.x && on_sweep(a0, sw, dy.atan2(x - center.x)) {
+                        // Half-open at the arc's end, so a crossing exactly
+                        // at a shared vertex counts once.
+                        let at_end = (P3::new(x, p.y, end.z) - end).xy().norm() <= 1e-12 * r.max(1.0);
+                        if !at_end {
+                            c = !c;
+                        }
+                    }
+                }
+            }
+        }
+    }
+    c
 }
 
 /// Exact signed area enclosed by a closed chain (positive = counter-clockwise).
@@ -175,22 +232,6 @@ pub fn signed_area(segs: &[Segment]) -> f64 {
         }
     }
     a
-}
-
-fn inside(poly: &[P3], p: &P3) -> bool {
-    let mut c = false;
-    let n = poly.len();
-    for i in 0..n {
-        let a = &poly[i];
-        let b = &poly[(i + 1) % n];
-        if (a.y > p.y) != (b.y > p.y) {
-            let x = a.x + (p.y - a.y) / (b.y - a.y) * (b.x - a.x);
-            if x > p.x {
-                c = !c;
-            }
-        }
-    }
-    c
 }
 
 struct Work {
@@ -634,7 +675,6 @@ fn overlap(kept: &Segment, a: P3, b: P3, tol: f64) -> Option<(P3, P3, bool)> {
 fn orient(chains: &mut [(usize, Chain)], tol: f64, report: &mut Report) {
     struct Info {
         idx: usize,
-        poly: Vec<P3>,
         lo: (f64, f64),
         hi: (f64, f64),
         area: f64,
@@ -645,19 +685,13 @@ fn orient(chains: &mut [(usize, Chain)], tol: f64, report: &mut Report) {
         if !c.closed || c.segments.is_empty() {
             continue;
         }
-        let mut poly = Vec::new();
-        for s in &c.segments {
-            polyline_into(s, &mut poly);
-        }
         let mut lo = (f64::INFINITY, f64::INFINITY);
         let mut hi = (f64::NEG_INFINITY, f64::NEG_INFINITY);
-        for p in &poly {
-            lo = (lo.0.min(p.x), lo.1.min(p.y));
-            hi = (hi.0.max(p.x), hi.1.max(p.y));
+        for s in &c.segments {
+            seg_box(s, &mut lo, &mut hi);
         }
         infos.push(Info {
             idx,
-            poly,
             lo,
             hi,
             area: signed_area(&c.segments),
@@ -687,6 +721,7 @@ fn orient(chains: &mut [(usize, Chain)], tol: f64, report: &mut Report) {
         }
     }
     let empty = Vec::new();
+    let mut flip: Vec<usize> = Vec::new();
     for k in 0..infos.len() {
         let me = &infos[k];
         let p = me.probe;
@@ -703,19 +738,22 @@ fn orient(chains: &mut [(usize, Chain)], tol: f64, report: &mut Report) {
             {
                 continue;
             }
-            if inside(&o.poly, &p) {
+            if inside(&chains[o.idx].1.segments, &p) {
                 depth += 1;
             }
         }
         let want_ccw = depth % 2 == 0;
         if me.area != 0.0 && (me.area > 0.0) != want_ccw {
-            let c = &mut chains[me.idx].1;
-            c.segments.reverse();
-            for s in c.segments.iter_mut() {
-                *s = reversed(s);
-            }
-            report.reversed += 1;
+            flip.push(me.idx);
         }
+    }
+    for idx in flip {
+        let c = &mut chains[idx].1;
+        c.segments.reverse();
+        for s in c.segments.iter_mut() {
+            *s = reversed(s);
+        }
+        report.reversed += 1;
     }
 }
 
