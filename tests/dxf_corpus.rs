@@ -25,6 +25,7 @@ fn convert(name: &str, opts: &ImportOptions) -> Result<Run, String> {
     let mut imp = dxf::import(Box::new(BufReader::new(f)), opts).map_err(|e| e.to_string())?;
     let segs = std::mem::take(&mut imp.sink.segments);
     let (chains, report) = chain::build(segs, &imp.sink.points, &imp.sink.layers, 0.001);
+    let chains: Vec<Chain> = chains.iter().collect();
     let mut w = ChainsWriter::new(Vec::new());
     w.header(&ChainsHeader {
         source: Some(name.into()),

@@ -150,20 +150,20 @@ fn run(args: Args) -> Result<(), CliError> {
     let mut out = Output::new(args.output.as_deref());
     let mut w = ChainsWriter::new(&mut out);
     w.header(&ChainsHeader { source: Some(name.clone()) })?;
-    for c in &chains {
-        w.chain(c)?;
+    for c in chains.iter() {
+        w.chain(&c)?;
     }
     w.finish()?;
     let svg_out = match &args.svg {
         Some(p) => {
             let mut o = Output::new(Some(p));
-            o.write_all(svg::render(&chains).as_bytes())?;
+            o.write_all(svg::render(chains.iter()).as_bytes())?;
             Some(o)
         }
         None => None,
     };
     if !args.quiet || imp.unit_source == microcam::dxf::UnitSource::Assumed {
-        let point_chains = chains.iter().filter(|c| c.segments.is_empty()).count();
+        let point_chains = chains.point_chains();
         for line in summary::lines(&imp, &report, args.arc_tol, point_chains) {
             if !args.quiet || line.starts_with("warning") {
                 eprintln!("dxf2chains: {name}: {line}");

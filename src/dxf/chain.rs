@@ -62,10 +62,6 @@ impl Hasher for Fx {
 
 type FxMap<K, V> = HashMap<K, V, BuildHasherDefault<Fx>>;
 
-fn cell_of(p: &P3, size: f64) -> (i64, i64) {
-    ((p.x / size).floor() as i64, (p.y / size).floor() as i64)
-}
-
 fn finite(s: &Segment) -> bool {
     let ok = |p: &P3| p.iter().all(|x| x.is_finite());
     match s {
@@ -234,95 +230,192 @@ pub fn signed_area(segs: &[Segment]) -> f64 {
     a
 }
 
+/// One piece being chained: the same size as the `(Segment, u32)` it is
+/// made from, so the conversion reuses the input's memory.
 struct Work {
     seg: Segment,
+    order: u32,
     alive: bool,
-    notes: Vec<String>,
-    order: usize,
+}
+
+/// Repair notes by piece (few pieces have any).
+type Notes = FxMap<usize, Vec<String>>;
+
+/// One chain in [`Chains`]: a run of `segs`.
+#[derive(Debug, Clone, Copy)]
+struct Item {
+    start: u32,
+    len: u32,
+    order: u32,
+    layer: u32,
+    closed: bool,
+}
+
+/// All chains of a drawing, stored flat: one array of segments and a small
+/// record per chain, so a million chains cost no million allocations.
+/// [`Chains::iter`] hands them out one at a time in output order.
+#[derive(Debug, Default)]
+pub struct Chains {
+    segs: Vec<Segment>,
+    items: Vec<Item>,
+    repairs: FxMap<u32, Vec<String>>,
+    layers: Vec<String>,
+    /// POINT entities by layer: one chain each, after the others.
+    points: Vec<(u32, Vec<P3>)>,
+}
+
+impl Chains {
+    /// Number of chains, point chains included.
+    pub fn len(&self) -> usize {
+        self.items.len() + self.points.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// How many chains carry only POINT entities.
+    pub fn point_chains(&self) -> usize {
+        self.points.len()
+    }
+
+    /// The chains in output order with ids from 1.
+    pub fn iter(&self) -> impl Iterator<Item = Chain> + Clone + '_ {
+        let segs = self.items.iter().enumerate().map(|(k, it)| Chain {
+            id: k as u64 + 1,
+            layer: self.layers.get(it.layer as usize).cloned(),
+            closed: it.closed,
+            segments: self.segs[it.start as usize..(it.start + it.len) as usize].to_vec(),
+            points: Vec::new(),
+            repairs: self.repairs.get(&(k as u32)).cloned().unwrap_or_default(),
+        });
+        let n = self.items.len();
+        let pts = self.points.iter().enumerate().map(move |(k, (l, p))| Chain {
+            id: (n + k) as u64 + 1,
+            layer: self.layers.get(*l as usize).cloned(),
+            points: p.clone(),
+            ..Default::default()
+        });
+        segs.chain(pts)
+    }
 }
 
 /// Join `segments` (each with a layer index into `layers`) into chains
 /// within `tol`, and attach POINT entities as per-layer point chains.
-pub fn build(segments: Vec<(Segment, u32)>, points: &[(P3, u32)], layers: &[String], tol: f64) -> (Vec<Chain>, Report) {
+pub fn build(segments: Vec<(Segment, u32)>, points: &[(P3, u32)], layers: &[String], tol: f64) -> (Chains, Report) {
     let tol = if tol.is_finite() { tol.max(0.0) } else { 0.0 };
     let mut report = Report::default();
-    let mut by_layer: Vec<Vec<Work>> = (0..layers.len()).map(|_| Vec::new()).collect();
-    for (order, (seg, l)) in segments.into_iter().enumerate() {
-        if !finite(&seg) {
+    let layer_of: Vec<u32> = segments.iter().map(|(_, l)| *l).collect();
+    // In place (same size and alignment): no second copy of the drawing.
+    let mut work: Vec<Work> = segments
+        .into_iter()
+        .enumerate()
+        .map(|(i, (seg, _))| Work {
+            seg,
+            order: i as u32,
+            alive: true,
+        })
+        .collect();
+    for x in work.iter_mut() {
+        if !finite(&x.seg) {
+            x.alive = false;
             report.non_finite += 1;
-            continue;
-        }
-        if let Some(v) = by_layer.get_mut(l as usize) {
-            v.push(Work {
-                seg,
-                alive: true,
-                notes: Vec::new(),
-                order,
-            });
         }
     }
-    let mut chains: Vec<(usize, Chain)> = Vec::new();
-    for (l, work) in by_layer.into_iter().enumerate() {
-        chain_layer(work, &layers[l], tol, &mut report, &mut chains);
+    if !layer_of.is_sorted() {
+        work.sort_unstable_by_key(|x| (layer_of[x.order as usize], x.order));
     }
-    orient(&mut chains, tol, &mut report);
-    chains.sort_by_key(|(order, _)| *order);
-    let mut out: Vec<Chain> = chains.into_iter().map(|(_, c)| c).collect();
-    for (l, name) in layers.iter().enumerate() {
+    let mut out = Chains {
+        layers: layers.to_vec(),
+        ..Default::default()
+    };
+    // Exactly what can survive: growth by doubling would leave up to half
+    // of this array's memory unused at the peak.
+    out.segs.reserve_exact(work.iter().filter(|x| x.alive).count());
+    let mut repairs: Vec<(u32, Vec<String>)> = Vec::new();
+    let mut from = 0;
+    while from < work.len() {
+        let l = layer_of[work[from].order as usize];
+        let to = from + work[from..].partition_point(|x| layer_of[x.order as usize] == l);
+        chain_layer(&mut work[from..to], l, tol, &mut report, &mut out, &mut repairs);
+        from = to;
+    }
+    drop(work);
+    drop(layer_of);
+    orient(&mut out, tol, &mut report);
+    // Output order: by each chain's first piece in the drawing.
+    let mut perm: Vec<u32> = (0..out.items.len() as u32).collect();
+    perm.sort_unstable_by_key(|&k| out.items[k as usize].order);
+    let mut rank = vec![0u32; perm.len()];
+    for (pos, &k) in perm.iter().enumerate() {
+        rank[k as usize] = pos as u32;
+    }
+    out.items = perm.iter().map(|&k| out.items[k as usize]).collect();
+    out.repairs = repairs.into_iter().map(|(k, v)| (rank[k as usize], v)).collect();
+    for (l, _) in layers.iter().enumerate() {
         let pts: Vec<P3> = points.iter().filter(|(_, pl)| *pl as usize == l).map(|(p, _)| *p).collect();
         if !pts.is_empty() {
-            out.push(Chain {
-                layer: Some(name.clone()),
-                points: pts,
-                ..Default::default()
-            });
+            out.points.push((l as u32, pts));
         }
     }
-    for (i, c) in out.iter_mut().enumerate() {
-        c.id = i as u64 + 1;
-        if !c.segments.is_empty() {
-            if c.closed {
-                report.closed += 1;
-            } else {
-                report.open += 1;
-            }
+    for it in &out.items {
+        if it.closed {
+            report.closed += 1;
+        } else {
+            report.open += 1;
         }
     }
     (out, report)
 }
 
-fn chain_layer(mut w: Vec<Work>, layer: &str, tol: f64, report: &mut Report, out: &mut Vec<(usize, Chain)>) {
+fn chain_layer(
+    w: &mut [Work],
+    layer: u32,
+    tol: f64,
+    report: &mut Report,
+    out: &mut Chains,
+    repairs_out: &mut Vec<(u32, Vec<String>)>,
+) {
+    let mut notes = Notes::default();
     // 1. Zero-length pieces.
     for x in w.iter_mut() {
         let r = match x.seg {
             Segment::Arc { start, center, .. } => (start - center).xy().norm(),
             _ => f64::INFINITY,
         };
-        if seg_len(&x.seg) <= tol || r <= tol {
+        if x.alive && (seg_len(&x.seg) <= tol || r <= tol) {
             x.alive = false;
             report.zero_length += 1;
         }
     }
-    merge_collinear(&mut w, tol, report);
+    merge_collinear(w, &mut notes, tol, report);
 
-    // 2. End points to nodes.
-    let cell = tol.max(1e-9);
-    let mut grid: FxMap<(i64, i64), Vec<u32>> = FxMap::default();
+    // 2. End points to nodes. Cells are twice the tolerance wide, so every
+    // node within the tolerance of a point is in the 2x2 block of cells
+    // nearest to it. Each cell keeps its first node; the others follow
+    // through `next` (no allocation per cell).
+    let cell = (2.0 * tol).max(1e-9);
+    let mut grid: FxMap<(i64, i64), u32> = FxMap::default();
+    grid.reserve(w.len());
+    let mut next: Vec<u32> = Vec::new();
     let mut reps: Vec<P3> = Vec::new();
     let mut gaps: Vec<f64> = Vec::new();
     let mut ends: Vec<(u32, u32)> = vec![(u32::MAX, u32::MAX); w.len()];
-    let node_of = |p: &P3, grid: &mut FxMap<(i64, i64), Vec<u32>>, reps: &mut Vec<P3>, gaps: &mut Vec<f64>| {
-        let (cx, cy) = cell_of(p, cell);
+    const NONE: u32 = u32::MAX;
+    let mut node_of = |p: &P3| {
+        let fx = p.x / cell;
+        let fy = p.y / cell;
+        let (cx, cy) = (fx.floor() as i64, fy.floor() as i64);
+        let sx = if fx - fx.floor() < 0.5 { -1 } else { 1 };
+        let sy = if fy - fy.floor() < 0.5 { -1 } else { 1 };
         let mut best: Option<u32> = None;
-        for dx in -1..=1 {
-            for dy in -1..=1 {
-                if let Some(ids) = grid.get(&(cx + dx, cy + dy)) {
-                    for &id in ids {
-                        if (reps[id as usize] - p).norm() <= tol && best.is_none_or(|b| id < b) {
-                            best = Some(id);
-                        }
-                    }
+        for (dx, dy) in [(0, 0), (sx, 0), (0, sy), (sx, sy)] {
+            let mut id = grid.get(&(cx + dx, cy + dy)).copied().unwrap_or(NONE);
+            while id != NONE {
+                if (reps[id as usize] - p).norm() <= tol && best.is_none_or(|b| id < b) {
+                    best = Some(id);
                 }
+                id = next[id as usize];
             }
         }
         match best {
@@ -337,7 +430,9 @@ fn chain_layer(mut w: Vec<Work>, layer: &str, tol: f64, report: &mut Report, out
                 let id = reps.len() as u32;
                 reps.push(*p);
                 gaps.push(0.0);
-                grid.entry((cx, cy)).or_default().push(id);
+                let head = grid.entry((cx, cy)).or_insert(NONE);
+                next.push(*head);
+                *head = id;
                 id
             }
         }
@@ -346,14 +441,19 @@ fn chain_layer(mut w: Vec<Work>, layer: &str, tol: f64, report: &mut Report, out
         if !x.alive {
             continue;
         }
-        let a = node_of(&x.seg.start(), &mut grid, &mut reps, &mut gaps);
-        let b = node_of(&x.seg.end(), &mut grid, &mut reps, &mut gaps);
+        let a = node_of(&x.seg.start());
+        let b = node_of(&x.seg.end());
         ends[i] = (a, b);
     }
     drop(grid);
+    drop(next);
 
     // 3. Duplicates between the same pair of nodes.
-    let mut pairs: FxMap<(u32, u32), Vec<usize>> = FxMap::default();
+    // Pieces between one pair of nodes: the first in `pairs`, the rest
+    // through `same_next`.
+    let mut pairs: FxMap<(u32, u32), u32> = FxMap::default();
+    pairs.reserve(w.len());
+    let mut same_next: Vec<u32> = vec![NONE; w.len()];
     for i in 0..w.len() {
         if !w[i].alive {
             continue;
@@ -366,9 +466,10 @@ fn chain_layer(mut w: Vec<Work>, layer: &str, tol: f64, report: &mut Report, out
             continue;
         }
         let key = (a.min(b), a.max(b));
-        let list = pairs.entry(key).or_default();
+        let head = pairs.entry(key).or_insert(NONE);
         let mut dup_of = None;
-        for &j in list.iter() {
+        let mut j = *head as usize;
+        while j != NONE as usize {
             let same = match (&w[i].seg, &w[j].seg) {
                 (Segment::Line { .. }, Segment::Line { .. }) => true,
                 (Segment::Arc { center: c1, .. }, Segment::Arc { center: c2, .. }) => {
@@ -380,18 +481,26 @@ fn chain_layer(mut w: Vec<Work>, layer: &str, tol: f64, report: &mut Report, out
                 dup_of = Some(j);
                 break;
             }
+            j = same_next[j] as usize;
         }
         match dup_of {
             Some(j) => {
                 w[i].alive = false;
                 report.duplicates += 1;
                 let p = midpoint(&w[i].seg);
-                w[j].notes.push(format!("duplicate removed at [{}, {}]", fmt_num(p.x), fmt_num(p.y)));
+                notes
+                    .entry(j)
+                    .or_default()
+                    .push(format!("duplicate removed at [{}, {}]", fmt_num(p.x), fmt_num(p.y)));
             }
-            None => list.push(i),
+            None => {
+                same_next[i] = *head;
+                *head = i as u32;
+            }
         }
     }
     drop(pairs);
+    drop(same_next);
 
     // 4. Walk the graph: open chains from nodes of degree != 2, then cycles.
     let n_nodes = reps.len();
@@ -464,20 +573,19 @@ fn chain_layer(mut w: Vec<Work>, layer: &str, tol: f64, report: &mut Report, out
 
     // 5. Snap ends onto their nodes and make chains.
     for (run, first, last) in runs {
-        let mut c = Chain {
-            layer: Some(layer.to_string()),
-            closed: first == last,
-            ..Default::default()
-        };
-        let mut order = usize::MAX;
+        let start = out.segs.len() as u32;
+        let mut repairs: Vec<String> = Vec::new();
+        let mut order = u32::MAX;
         let mut gap_nodes: Vec<u32> = Vec::new();
         for &(i, fwd) in &run {
             order = order.min(w[i].order);
             let (a, b) = ends[i];
             let (na, nb) = if fwd { (a, b) } else { (b, a) };
             let seg = if fwd { w[i].seg } else { reversed(&w[i].seg) };
-            c.segments.push(snap(&seg, reps[na as usize], reps[nb as usize]));
-            c.repairs.append(&mut w[i].notes);
+            out.segs.push(snap(&seg, reps[na as usize], reps[nb as usize]));
+            if let Some(mut v) = notes.remove(&i) {
+                repairs.append(&mut v);
+            }
             for n in [na, nb] {
                 if gaps[n as usize] > REPORT_GAP && !gap_nodes.contains(&n) {
                     gap_nodes.push(n);
@@ -489,10 +597,18 @@ fn chain_layer(mut w: Vec<Work>, layer: &str, tol: f64, report: &mut Report, out
             let p = reps[n as usize];
             report.gaps_closed += 1;
             report.max_gap = report.max_gap.max(g);
-            c.repairs
-                .push(format!("gap of {} mm closed at [{}, {}]", fmt_num(g), fmt_num(p.x), fmt_num(p.y)));
+            repairs.push(format!("gap of {} mm closed at [{}, {}]", fmt_num(g), fmt_num(p.x), fmt_num(p.y)));
         }
-        out.push((order, c));
+        if !repairs.is_empty() {
+            repairs_out.push((out.items.len() as u32, repairs));
+        }
+        out.items.push(Item {
+            start,
+            len: out.segs.len() as u32 - start,
+            order,
+            layer,
+            closed: first == last,
+        });
     }
 }
 
@@ -539,7 +655,7 @@ fn snap(s: &Segment, a: P3, b: P3) -> Segment {
 /// bucket boundary), is swept in order along its direction, comparing each
 /// line only with the lines whose span it reaches. Rows of equal lines (a
 /// grid of parts) therefore cost n log n, not n squared.
-fn merge_collinear(w: &mut [Work], tol: f64, report: &mut Report) {
+fn merge_collinear(w: &mut [Work], notes: &mut Notes, tol: f64, report: &mut Report) {
     const ANGLE_BUCKET: f64 = 1e-4;
     let off_bucket = (2.0 * tol).max(1e-9);
     let n_ang = (std::f64::consts::PI / ANGLE_BUCKET).ceil() as i64;
@@ -622,7 +738,10 @@ fn merge_collinear(w: &mut [Work], tol: f64, report: &mut Report) {
                         "collinear overlap merged"
                     };
                     let m = P3::from((a.coords + b.coords) * 0.5);
-                    w[k].notes.push(format!("{note} at [{}, {}]", fmt_num(m.x), fmt_num(m.y)));
+                    notes
+                        .entry(k)
+                        .or_default()
+                        .push(format!("{note} at [{}, {}]", fmt_num(m.x), fmt_num(m.y)));
                     merged = true;
                     break;
                 }
@@ -672,7 +791,7 @@ fn overlap(kept: &Segment, a: P3, b: P3, tol: f64) -> Option<(P3, P3, bool)> {
 
 /// Orient closed chains by nesting depth: even depth (outer contours)
 /// counter-clockwise, odd depth (holes) clockwise.
-fn orient(chains: &mut [(usize, Chain)], tol: f64, report: &mut Report) {
+fn orient(chains: &mut Chains, tol: f64, report: &mut Report) {
     struct Info {
         idx: usize,
         lo: (f64, f64),
@@ -681,21 +800,22 @@ fn orient(chains: &mut [(usize, Chain)], tol: f64, report: &mut Report) {
         probe: P3,
     }
     let mut infos: Vec<Info> = Vec::new();
-    for (idx, (_, c)) in chains.iter().enumerate() {
-        if !c.closed || c.segments.is_empty() {
+    for (idx, it) in chains.items.iter().enumerate() {
+        let segs = &chains.segs[it.start as usize..(it.start + it.len) as usize];
+        if !it.closed || segs.is_empty() {
             continue;
         }
         let mut lo = (f64::INFINITY, f64::INFINITY);
         let mut hi = (f64::NEG_INFINITY, f64::NEG_INFINITY);
-        for s in &c.segments {
+        for s in segs {
             seg_box(s, &mut lo, &mut hi);
         }
         infos.push(Info {
             idx,
             lo,
             hi,
-            area: signed_area(&c.segments),
-            probe: midpoint(&c.segments[0]),
+            area: signed_area(segs),
+            probe: midpoint(&segs[0]),
         });
     }
     if infos.is_empty() {
@@ -738,7 +858,8 @@ fn orient(chains: &mut [(usize, Chain)], tol: f64, report: &mut Report) {
             {
                 continue;
             }
-            if inside(&chains[o.idx].1.segments, &p) {
+            let it = chains.items[o.idx];
+            if inside(&chains.segs[it.start as usize..(it.start + it.len) as usize], &p) {
                 depth += 1;
             }
         }
@@ -748,9 +869,10 @@ fn orient(chains: &mut [(usize, Chain)], tol: f64, report: &mut Report) {
         }
     }
     for idx in flip {
-        let c = &mut chains[idx].1;
-        c.segments.reverse();
-        for s in c.segments.iter_mut() {
+        let it = chains.items[idx];
+        let segs = &mut chains.segs[it.start as usize..(it.start + it.len) as usize];
+        segs.reverse();
+        for s in segs.iter_mut() {
             *s = reversed(s);
         }
         report.reversed += 1;
@@ -784,6 +906,11 @@ mod tests {
         v
     }
 
+    fn build_vec(s: Vec<(Segment, u32)>, p: &[(P3, u32)], l: &[String], tol: f64) -> (Vec<Chain>, Report) {
+        let (c, r) = build(s, p, l, tol);
+        (c.iter().collect(), r)
+    }
+
     fn layers() -> Vec<String> {
         vec!["0".into()]
     }
@@ -796,7 +923,7 @@ mod tests {
             line(0.0, 10.0, 0.0, 0.0),
             line(10.0, 10.0, 0.0, 10.0),
         ];
-        let (c, r) = build(segs, &[], &layers(), 0.001);
+        let (c, r) = build_vec(segs, &[], &layers(), 0.001);
         assert_eq!(c.len(), 1);
         assert!(c[0].closed);
         assert_eq!(c[0].segments.len(), 4);
@@ -813,7 +940,7 @@ mod tests {
         let mut segs = square(0.0, 0.0, 10.0, true);
         segs.extend(square(2.0, 2.0, 2.0, false));
         segs.extend(square(2.5, 2.5, 1.0, false));
-        let (c, r) = build(segs, &[], &layers(), 0.001);
+        let (c, r) = build_vec(segs, &[], &layers(), 0.001);
         assert_eq!(c.len(), 3);
         assert!(signed_area(&c[0].segments) > 0.0);
         assert!(signed_area(&c[1].segments) < 0.0);
@@ -829,7 +956,7 @@ mod tests {
             line(0.0, 0.0005, 10.0, 0.0),
             line(5.0, 0.0, 15.0, 0.0),
         ];
-        let (c, r) = build(segs, &[], &layers(), 0.001);
+        let (c, r) = build_vec(segs, &[], &layers(), 0.001);
         assert_eq!(r.duplicates, 2);
         assert_eq!(r.overlaps, 1);
         assert_eq!(c.len(), 1);
@@ -840,7 +967,7 @@ mod tests {
 
     #[test]
     fn touching_collinear_lines_stay_two_pieces() {
-        let (c, r) = build(vec![line(0.0, 0.0, 5.0, 0.0), line(5.0, 0.0, 10.0, 0.0)], &[], &layers(), 0.001);
+        let (c, r) = build_vec(vec![line(0.0, 0.0, 5.0, 0.0), line(5.0, 0.0, 10.0, 0.0)], &[], &layers(), 0.001);
         assert_eq!(r.overlaps + r.duplicates, 0);
         assert_eq!(c[0].segments.len(), 2);
         assert!(!c[0].closed);
@@ -854,7 +981,7 @@ mod tests {
             line(1.0, 0.0, 2.0, 0.0),
             line(1.0, 0.0, 1.0, 1.0),
         ];
-        let (c, r) = build(segs, &[], &layers(), 0.001);
+        let (c, r) = build_vec(segs, &[], &layers(), 0.001);
         assert_eq!(r.zero_length, 1);
         assert_eq!(c.len(), 3, "a T junction: three open chains");
     }
@@ -881,7 +1008,7 @@ mod tests {
             ccw: false,
         };
         assert!((signed_area(&[c]) + 4.0 * std::f64::consts::PI).abs() < 1e-12);
-        let (ch, _) = build(vec![(c, 0)], &[], &layers(), 0.001);
+        let (ch, _) = build_vec(vec![(c, 0)], &[], &layers(), 0.001);
         assert!(ch[0].closed);
         assert!(signed_area(&ch[0].segments) > 0.0);
     }

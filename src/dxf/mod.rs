@@ -206,6 +206,9 @@ pub fn import(input: Box<dyn BufRead>, opts: &ImportOptions) -> Result<Import, D
             x.entity(e, t, None, 0, &mut sink);
         }
     }
+    // Give back the growth slack of the geometry array before chaining
+    // starts allocating (a shrink of a large block is a remap, not a copy).
+    sink.segments.shrink_to_fit();
     let (unit_mm, unit_source) = unit_of(opts, insunits);
     Ok(Import {
         sink,

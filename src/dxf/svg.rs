@@ -29,14 +29,14 @@ fn tangent_at_start(s: &Segment) -> V3 {
 }
 
 /// The whole preview as SVG text.
-pub fn render(chains: &[Chain]) -> String {
+pub fn render(chains: impl Iterator<Item = Chain> + Clone) -> String {
     let mut lo = (f64::INFINITY, f64::INFINITY);
     let mut hi = (f64::NEG_INFINITY, f64::NEG_INFINITY);
     let mut grow = |p: &P3, r: f64| {
         lo = (lo.0.min(p.x - r), lo.1.min(p.y - r));
         hi = (hi.0.max(p.x + r), hi.1.max(p.y + r));
     };
-    for c in chains {
+    for c in chains.clone() {
         for s in &c.segments {
             grow(&s.start(), 0.0);
             grow(&s.end(), 0.0);
@@ -154,7 +154,7 @@ mod tests {
             }],
             ..Default::default()
         };
-        let s = render(&[c]);
+        let s = render([c].into_iter());
         assert!(s.contains(CLOSED));
         assert_eq!(s.matches(" A1 1 0 0 1 ").count(), 2);
         assert!(s.ends_with("</svg>\n"));
