@@ -67,7 +67,10 @@ fn every_corpus_file_converts_or_fails_cleanly() {
         match convert(&name, &ImportOptions::default()) {
             Err(e) => {
                 assert!(expect_error, "{name}: {e}");
-                assert!(e.starts_with("line ") || e.starts_with("byte "), "{name}: error not located: {e}");
+                assert!(
+                    e.starts_with("line ") || e.starts_with("byte "),
+                    "{name}: error not located: {e}"
+                );
             }
             Ok(r) => {
                 assert!(!expect_error, "{name} should fail");
@@ -104,8 +107,13 @@ fn stir_mirrored_arcs_land_where_autocad_draws_them() {
         .iter()
         .find(|c| c.segments.len() == 1 && radius(&c.segments[0]).is_some_and(|x| (x - 26.8).abs() < 1e-6))
         .expect("the central circle");
-    let Segment::Arc { center, .. } = hole.segments[0] else { unreachable!() };
-    assert!((center.x - 3.489655).abs() < 1e-9 && (center.y + 0.846101).abs() < 1e-9, "{center:?}");
+    let Segment::Arc { center, .. } = hole.segments[0] else {
+        unreachable!()
+    };
+    assert!(
+        (center.x - 3.489655).abs() < 1e-9 && (center.y + 0.846101).abs() < 1e-9,
+        "{center:?}"
+    );
     // Every arc of the outline ends on its neighbours: no chain is open,
     // which would not be so if the mirrored arcs were placed unmirrored.
 }
@@ -143,10 +151,18 @@ fn inch_file_scales_by_25_4() {
 
 #[test]
 fn splines_and_ellipses_come_out_as_arcs() {
-    for name in ["Inkspace_dxf_export_kreis_splines.dxf", "ellipse-reverse.dxf", "camotics.dxf", "Wiele.DXF"] {
+    for name in [
+        "Inkspace_dxf_export_kreis_splines.dxf",
+        "ellipse-reverse.dxf",
+        "camotics.dxf",
+        "Wiele.DXF",
+    ] {
         let r = run(name);
         assert!(r.imp.sink.curves > 0, "{name}");
-        assert!(r.imp.sink.curve_pieces < r.imp.sink.curve_chords, "{name}: no blocks saved");
+        assert!(
+            r.imp.sink.curve_pieces < r.imp.sink.curve_chords,
+            "{name}: no blocks saved"
+        );
         let arcs = r
             .chains
             .iter()

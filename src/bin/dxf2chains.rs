@@ -122,17 +122,19 @@ fn transforms(a: &Args) -> Result<Transforms, String> {
 fn run(args: Args) -> Result<(), CliError> {
     for (name, v) in [("--tol", args.tol), ("--arc-tol", args.arc_tol)] {
         if !(v.is_finite() && v >= 0.0) {
-            return Err(CliError::input(format!("{name}: must be a non-negative number, got {v}")));
+            return Err(CliError::input(format!(
+                "{name}: must be a non-negative number, got {v}"
+            )));
         }
     }
     let t = transforms(&args).map_err(CliError::input)?;
-    let units_mm = match &args.units {
-        None => None,
-        Some(u) => Some(
-            units::named_mm(u)
-                .ok_or_else(|| CliError::input(format!("--units: unknown unit '{u}' (mm, cm, m, inch, ft, um, mil)")))?,
-        ),
-    };
+    let units_mm =
+        match &args.units {
+            None => None,
+            Some(u) => Some(units::named_mm(u).ok_or_else(|| {
+                CliError::input(format!("--units: unknown unit '{u}' (mm, cm, m, inch, ft, um, mil)"))
+            })?),
+        };
     let opts = ImportOptions {
         arc_tol: args.arc_tol,
         layers: args.layers.clone(),
@@ -145,11 +147,18 @@ fn run(args: Args) -> Result<(), CliError> {
         microcam::dxf::reader::DxfError::Io(io) => CliError::input(format!("{name}: {io}")),
         e => CliError::in_file(&name, e),
     })?;
-    let (chains, report) = chain::build(std::mem::take(&mut imp.sink.segments), &imp.sink.points, &imp.sink.layers, args.tol);
+    let (chains, report) = chain::build(
+        std::mem::take(&mut imp.sink.segments),
+        &imp.sink.points,
+        &imp.sink.layers,
+        args.tol,
+    );
 
     let mut out = Output::new(args.output.as_deref());
     let mut w = ChainsWriter::new(&mut out);
-    w.header(&ChainsHeader { source: Some(name.clone()) })?;
+    w.header(&ChainsHeader {
+        source: Some(name.clone()),
+    })?;
     for c in chains.iter() {
         w.chain(&c)?;
     }

@@ -76,7 +76,11 @@ pub fn arc_sweep(start: &P3, end: &P3, center: &P3, ccw: bool) -> f64 {
     let tau = std::f64::consts::TAU;
     let a0 = (start.y - center.y).atan2(start.x - center.x);
     let a1 = (end.y - center.y).atan2(end.x - center.x);
-    let mut s = if ccw { (a1 - a0).rem_euclid(tau) } else { -(a0 - a1).rem_euclid(tau) };
+    let mut s = if ccw {
+        (a1 - a0).rem_euclid(tau)
+    } else {
+        -(a0 - a1).rem_euclid(tau)
+    };
     if start == end || s == 0.0 {
         s = if ccw { tau } else { -tau };
     }
@@ -132,7 +136,11 @@ pub fn reversed(s: &Segment) -> Segment {
 /// `sweep` radians (signed).
 fn on_sweep(a0: f64, sweep: f64, t: f64) -> bool {
     let tau = std::f64::consts::TAU;
-    let off = if sweep >= 0.0 { (t - a0).rem_euclid(tau) } else { (a0 - t).rem_euclid(tau) };
+    let off = if sweep >= 0.0 {
+        (t - a0).rem_euclid(tau)
+    } else {
+        (a0 - t).rem_euclid(tau)
+    };
     off <= sweep.abs()
 }
 
@@ -353,7 +361,11 @@ pub fn build(segments: Vec<(Segment, u32)>, points: &[(P3, u32)], layers: &[Stri
     out.items = perm.iter().map(|&k| out.items[k as usize]).collect();
     out.repairs = repairs.into_iter().map(|(k, v)| (rank[k as usize], v)).collect();
     for (l, _) in layers.iter().enumerate() {
-        let pts: Vec<P3> = points.iter().filter(|(_, pl)| *pl as usize == l).map(|(p, _)| *p).collect();
+        let pts: Vec<P3> = points
+            .iter()
+            .filter(|(_, pl)| *pl as usize == l)
+            .map(|(p, _)| *p)
+            .collect();
         if !pts.is_empty() {
             out.points.push((l as u32, pts));
         }
@@ -395,7 +407,11 @@ fn chain_layer(
     // nearest to it. Each cell keeps its first node; the others follow
     // through `next` (no allocation per cell).
     let cell = (2.0 * tol).max(1e-9);
-    let mut grid: FxMap<(i64, i64), u32> = FxMap::default();
+    // Cell coordinates packed into one word: cells 2^32 apart share a key,
+    // which only adds candidates (the distance test is exact) and halves
+    // the table.
+    let ckey = |x: i64, y: i64| ((x as u32 as u64) << 32) | (y as u32 as u64);
+    let mut grid: FxMap<u64, u32> = FxMap::default();
     grid.reserve(w.len());
     let mut next: Vec<u32> = Vec::new();
     let mut reps: Vec<P3> = Vec::new();
@@ -410,7 +426,7 @@ fn chain_layer(
         let sy = if fy - fy.floor() < 0.5 { -1 } else { 1 };
         let mut best: Option<u32> = None;
         for (dx, dy) in [(0, 0), (sx, 0), (0, sy), (sx, sy)] {
-            let mut id = grid.get(&(cx + dx, cy + dy)).copied().unwrap_or(NONE);
+            let mut id = grid.get(&ckey(cx + dx, cy + dy)).copied().unwrap_or(NONE);
             while id != NONE {
                 if (reps[id as usize] - p).norm() <= tol && best.is_none_or(|b| id < b) {
                     best = Some(id);
@@ -430,7 +446,7 @@ fn chain_layer(
                 let id = reps.len() as u32;
                 reps.push(*p);
                 gaps.push(0.0);
-                let head = grid.entry((cx, cy)).or_insert(NONE);
+                let head = grid.entry(ckey(cx, cy)).or_insert(NONE);
                 next.push(*head);
                 *head = id;
                 id
@@ -524,10 +540,13 @@ fn chain_layer(
             }
         }
     }
+    drop(fill);
     let degree = |n: u32| start_idx[n as usize + 1] - start_idx[n as usize];
     let mut used = vec![false; w.len()];
-    let walk = |first_node: u32, first: usize, used: &mut Vec<bool>| -> (Vec<(usize, bool)>, u32) {
-        let mut run = Vec::new();
+    // Each walk fills `run` (reused) and is turned into a chain at once:
+    // no list of all runs is ever held.
+    let walk = |first_node: u32, first: usize, used: &mut Vec<bool>, run: &mut Vec<(usize, bool)>| -> u32 {
+        run.clear();
         let mut cur = first_node;
         let mut s = first;
         loop {
@@ -547,37 +566,15 @@ fn chain_layer(
                 None => break,
             }
         }
-        (run, cur)
+        cur
     };
-    let mut runs: Vec<(Vec<(usize, bool)>, u32, u32)> = Vec::new();
-    for n in 0..n_nodes as u32 {
-        if degree(n) == 2 {
-            continue;
-        }
-        let lo = start_idx[n as usize] as usize;
-        let hi = start_idx[n as usize + 1] as usize;
-        for k in lo..hi {
-            let s = adj[k] as usize;
-            if !used[s] {
-                let (run, last) = walk(n, s, &mut used);
-                runs.push((run, n, last));
-            }
-        }
-    }
-    for i in 0..w.len() {
-        if w[i].alive && !used[i] {
-            let (run, last) = walk(ends[i].0, i, &mut used);
-            runs.push((run, ends[i].0, last));
-        }
-    }
-
-    // 5. Snap ends onto their nodes and make chains.
-    for (run, first, last) in runs {
+    let mut run: Vec<(usize, bool)> = Vec::new();
+    let mut emit = |run: &[(usize, bool)], first: u32, last: u32| {
         let start = out.segs.len() as u32;
         let mut repairs: Vec<String> = Vec::new();
         let mut order = u32::MAX;
         let mut gap_nodes: Vec<u32> = Vec::new();
-        for &(i, fwd) in &run {
+        for &(i, fwd) in run {
             order = order.min(w[i].order);
             let (a, b) = ends[i];
             let (na, nb) = if fwd { (a, b) } else { (b, a) };
@@ -597,7 +594,12 @@ fn chain_layer(
             let p = reps[n as usize];
             report.gaps_closed += 1;
             report.max_gap = report.max_gap.max(g);
-            repairs.push(format!("gap of {} mm closed at [{}, {}]", fmt_num(g), fmt_num(p.x), fmt_num(p.y)));
+            repairs.push(format!(
+                "gap of {} mm closed at [{}, {}]",
+                fmt_num(g),
+                fmt_num(p.x),
+                fmt_num(p.y)
+            ));
         }
         if !repairs.is_empty() {
             repairs_out.push((out.items.len() as u32, repairs));
@@ -609,6 +611,26 @@ fn chain_layer(
             layer,
             closed: first == last,
         });
+    };
+    for n in 0..n_nodes as u32 {
+        if degree(n) == 2 {
+            continue;
+        }
+        let lo = start_idx[n as usize] as usize;
+        let hi = start_idx[n as usize + 1] as usize;
+        for &s in &adj[lo..hi] {
+            let s = s as usize;
+            if !used[s] {
+                let last = walk(n, s, &mut used, &mut run);
+                emit(&run, n, last);
+            }
+        }
+    }
+    for (i, x) in w.iter().enumerate() {
+        if x.alive && !used[i] {
+            let last = walk(ends[i].0, i, &mut used, &mut run);
+            emit(&run, ends[i].0, last);
+        }
     }
 }
 
@@ -624,9 +646,7 @@ fn fmt_num(x: f64) -> String {
 fn snap(s: &Segment, a: P3, b: P3) -> Segment {
     match *s {
         Segment::Line { .. } => Segment::Line { start: a, end: b },
-        Segment::Arc {
-            start, center, ccw, ..
-        } => {
+        Segment::Arc { start, center, ccw, .. } => {
             let center = if a == b {
                 center + (a - start)
             } else {
@@ -659,15 +679,16 @@ fn merge_collinear(w: &mut [Work], notes: &mut Notes, tol: f64, report: &mut Rep
     const ANGLE_BUCKET: f64 = 1e-4;
     let off_bucket = (2.0 * tol).max(1e-9);
     let n_ang = (std::f64::consts::PI / ANGLE_BUCKET).ceil() as i64;
-    let mut groups: FxMap<(i64, i64), Vec<usize>> = FxMap::default();
-    let mut order: Vec<(i64, i64)> = Vec::new();
-    for i in 0..w.len() {
-        let Segment::Line { start: a, end: b } = w[i].seg else {
+    // (bucket, line) sorted: each bucket is a contiguous range, found by
+    // binary search; no table of vectors.
+    let mut keyed: Vec<((i64, i64), u32)> = Vec::new();
+    for (i, x) in w.iter().enumerate() {
+        let Segment::Line { start: a, end: b } = x.seg else {
             continue;
         };
         let len = (b - a).xy().norm();
         // Only lines in a plane of constant z can lie on one another here.
-        if !w[i].alive || len <= tol || (b.z - a.z).abs() > tol {
+        if !x.alive || len <= tol || (b.z - a.z).abs() > tol {
             continue;
         }
         let mut d = (b - a).xy() / len;
@@ -676,16 +697,20 @@ fn merge_collinear(w: &mut [Work], notes: &mut Notes, tol: f64, report: &mut Rep
         }
         let ai = ((d.y.atan2(d.x) / ANGLE_BUCKET).floor() as i64).clamp(0, n_ang - 1);
         let off = d.x * a.y - d.y * a.x;
-        let key = (ai, (off / off_bucket).floor() as i64);
-        let g = groups.entry(key).or_default();
-        if g.is_empty() {
-            order.push(key);
-        }
-        g.push(i);
+        keyed.push(((ai, (off / off_bucket).floor() as i64), i as u32));
     }
+    keyed.sort_unstable();
+    let range_of = |k: (i64, i64)| {
+        let lo = keyed.partition_point(|e| e.0 < k);
+        lo..lo + keyed[lo..].partition_point(|e| e.0 == k)
+    };
     let mut cand: Vec<usize> = Vec::new();
     let mut active: Vec<usize> = Vec::new();
-    for key in order {
+    let mut g = 0;
+    while g < keyed.len() {
+        let key = keyed[g].0;
+        let first = keyed[g].1 as usize;
+        g += keyed[g..].partition_point(|e| e.0 == key);
         cand.clear();
         for da in -1..=1 {
             // Directions are folded into [0, pi): a line just below pi is a
@@ -695,15 +720,18 @@ fn merge_collinear(w: &mut [Work], notes: &mut Notes, tol: f64, report: &mut Rep
             let a_key = raw.rem_euclid(n_ang);
             for dofs in -1..=1 {
                 let o_key = if wrapped { -key.1 - 1 + dofs } else { key.1 + dofs };
-                if let Some(g) = groups.get(&(a_key, o_key)) {
-                    cand.extend(g.iter().copied().filter(|&i| w[i].alive));
-                }
+                cand.extend(
+                    keyed[range_of((a_key, o_key))]
+                        .iter()
+                        .map(|e| e.1 as usize)
+                        .filter(|&i| w[i].alive),
+                );
             }
         }
         if cand.len() < 2 {
             continue;
         }
-        let Segment::Line { start: p, end: q } = w[groups[&key][0]].seg else {
+        let Segment::Line { start: p, end: q } = w[first].seg else {
             continue;
         };
         let d = (q - p).xy().normalize();
@@ -776,16 +804,8 @@ fn overlap(kept: &Segment, a: P3, b: P3, tol: f64) -> Option<(P3, P3, bool)> {
         return None;
     }
     let dup = ((a - p).norm() <= tol && (b - q).norm() <= tol) || ((a - q).norm() <= tol && (b - p).norm() <= tol);
-    let start = if lo < -tol {
-        if sa < sb { a } else { b }
-    } else {
-        p
-    };
-    let end = if hi > len + tol {
-        if sa > sb { a } else { b }
-    } else {
-        q
-    };
+    let start = if lo < -tol { if sa < sb { a } else { b } } else { p };
+    let end = if hi > len + tol { if sa > sb { a } else { b } } else { q };
     Some((start, end, dup))
 }
 
@@ -823,7 +843,10 @@ fn orient(chains: &mut Chains, tol: f64, report: &mut Report) {
     }
     // A grid over the boxes: each chain is listed in the cells its box
     // covers (or in `big` when that would be too many cells).
-    let total: f64 = infos.iter().map(|i| (i.hi.0 - i.lo.0).max(tol) * (i.hi.1 - i.lo.1).max(tol)).sum();
+    let total: f64 = infos
+        .iter()
+        .map(|i| (i.hi.0 - i.lo.0).max(tol) * (i.hi.1 - i.lo.1).max(tol))
+        .sum();
     let size = (total / infos.len() as f64).sqrt().max(1e-9);
     let mut grid: FxMap<(i64, i64), Vec<u32>> = FxMap::default();
     let mut big: Vec<u32> = Vec::new();
@@ -967,7 +990,12 @@ mod tests {
 
     #[test]
     fn touching_collinear_lines_stay_two_pieces() {
-        let (c, r) = build_vec(vec![line(0.0, 0.0, 5.0, 0.0), line(5.0, 0.0, 10.0, 0.0)], &[], &layers(), 0.001);
+        let (c, r) = build_vec(
+            vec![line(0.0, 0.0, 5.0, 0.0), line(5.0, 0.0, 10.0, 0.0)],
+            &[],
+            &layers(),
+            0.001,
+        );
         assert_eq!(r.overlaps + r.duplicates, 0);
         assert_eq!(c[0].segments.len(), 2);
         assert!(!c[0].closed);
@@ -995,7 +1023,9 @@ mod tests {
             ccw: true,
         };
         let s = snap(&arc, P3::new(1.0004, 0.0, 0.0), P3::new(0.0, 0.9997, 0.0));
-        let Segment::Arc { start, end, center, .. } = s else { panic!() };
+        let Segment::Arc { start, end, center, .. } = s else {
+            panic!()
+        };
         assert!(((start - center).norm() - (end - center).norm()).abs() < 1e-12);
     }
 

@@ -155,7 +155,10 @@ impl Curve for FitPoints {
         let t2 = t * t;
         let t3 = t2 * t;
         P3::from(
-            (p1 * 2.0 + (p2 - p0) * t + (p0 * 2.0 - p1 * 5.0 + p2 * 4.0 - p3) * t2 + (p1 * 3.0 - p0 - p2 * 3.0 + p3) * t3)
+            (p1 * 2.0
+                + (p2 - p0) * t
+                + (p0 * 2.0 - p1 * 5.0 + p2 * 4.0 - p3) * t2
+                + (p1 * 3.0 - p0 - p2 * 3.0 + p3) * t3)
                 * 0.5,
         )
     }
@@ -332,7 +335,11 @@ pub fn distance(s: &Segment, q: &P3) -> f64 {
             let d = V3::new(end.x - start.x, end.y - start.y, 0.0);
             let w = V3::new(q.x - start.x, q.y - start.y, 0.0);
             let l2 = d.norm_squared();
-            let t = if l2 > 0.0 { (w.dot(&d) / l2).clamp(0.0, 1.0) } else { 0.0 };
+            let t = if l2 > 0.0 {
+                (w.dot(&d) / l2).clamp(0.0, 1.0)
+            } else {
+                0.0
+            };
             (w - d * t).norm()
         }
         Segment::Arc {
@@ -345,9 +352,17 @@ pub fn distance(s: &Segment, q: &P3) -> f64 {
             let r = ((start.x - center.x).powi(2) + (start.y - center.y).powi(2)).sqrt();
             let (a0, a1, aq) = (ang(&start), ang(&end), ang(q));
             let tau = std::f64::consts::TAU;
-            let sweep = if ccw { (a1 - a0).rem_euclid(tau) } else { (a0 - a1).rem_euclid(tau) };
+            let sweep = if ccw {
+                (a1 - a0).rem_euclid(tau)
+            } else {
+                (a0 - a1).rem_euclid(tau)
+            };
             let sweep = if sweep == 0.0 { tau } else { sweep };
-            let off = if ccw { (aq - a0).rem_euclid(tau) } else { (a0 - aq).rem_euclid(tau) };
+            let off = if ccw {
+                (aq - a0).rem_euclid(tau)
+            } else {
+                (a0 - aq).rem_euclid(tau)
+            };
             if off <= sweep {
                 (((q.x - center.x).powi(2) + (q.y - center.y).powi(2)).sqrt() - r).abs()
             } else {
@@ -390,7 +405,8 @@ mod tests {
                 }
             }
         };
-        segs.windows(2).all(|w| (dir(&w[0], true) - dir(&w[1], false)).norm() < 1e-3)
+        segs.windows(2)
+            .all(|w| (dir(&w[0], true) - dir(&w[1], false)).norm() < 1e-3)
     }
 
     #[test]
@@ -448,7 +464,13 @@ mod tests {
 
     #[test]
     fn bad_knots_fall_back_to_clamped_uniform() {
-        let n = Nurbs::new(3, vec![1.0, 0.0], (0..5).map(|i| P3::new(i as f64, 0.0, 0.0)).collect(), vec![]).unwrap();
+        let n = Nurbs::new(
+            3,
+            vec![1.0, 0.0],
+            (0..5).map(|i| P3::new(i as f64, 0.0, 0.0)).collect(),
+            vec![],
+        )
+        .unwrap();
         assert_eq!(n.point(0.0), P3::new(0.0, 0.0, 0.0));
         assert_eq!(n.point(1.0), P3::new(4.0, 0.0, 0.0));
     }

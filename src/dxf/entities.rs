@@ -151,7 +151,7 @@ fn set_coord(points: &mut [P3], axis: usize, v: f64) {
 /// next `0` tag.
 fn read_tags(r: &mut Reader, s: &mut Scratch) -> Result<(), DxfError> {
     s.clear();
-    while let Some(code) = r.next()? {
+    while let Some(code) = r.next_tag()? {
         match code {
             0 => {
                 r.unread();
@@ -253,7 +253,11 @@ pub fn read_entity(kind: &str, r: &mut Reader, s: &mut Scratch) -> Result<Read, 
         },
         "POLYLINE" => return read_polyline(r, s, pos),
         "ELLIPSE" => {
-            let major = s.p11.first().map(|p| p.coords).ok_or_else(|| bad("no major axis (group 11)"))?;
+            let major = s
+                .p11
+                .first()
+                .map(|p| p.coords)
+                .ok_or_else(|| bad("no major axis (group 11)"))?;
             let ratio = s.f40.first().copied().ok_or_else(|| bad("no axis ratio (group 40)"))?;
             Shape::Ellipse {
                 c: first(&s.p10),
@@ -324,7 +328,7 @@ fn read_polyline(r: &mut Reader, s: &mut Scratch, pos: Pos) -> Result<Read, DxfE
     let mut verts2 = Vec::new();
     let mut verts3 = Vec::new();
     loop {
-        match r.next()? {
+        match r.next_tag()? {
             None => return Err(DxfError::at(pos, "POLYLINE: file ends before SEQEND")),
             Some(0) => {}
             Some(_) => unreachable_tag(r)?,
@@ -380,7 +384,10 @@ fn read_polyline(r: &mut Reader, s: &mut Scratch, pos: Pos) -> Result<Read, DxfE
 /// After an entity's tags the next tag is always a `0`; anything else
 /// means `read_tags` stopped early, which it never does.
 fn unreachable_tag(r: &Reader) -> Result<(), DxfError> {
-    Err(DxfError::at(r.pos, format!("unexpected group code {} between entities", r.code)))
+    Err(DxfError::at(
+        r.pos,
+        format!("unexpected group code {} between entities", r.code),
+    ))
 }
 
 #[cfg(test)]
@@ -390,7 +397,7 @@ mod tests {
 
     fn read(text: &str) -> Read {
         let mut r = Reader::new(Box::new(Cursor::new(text.as_bytes().to_vec()))).unwrap();
-        assert_eq!(r.next().unwrap(), Some(0));
+        assert_eq!(r.next_tag().unwrap(), Some(0));
         let kind = r.text().to_string();
         read_entity(&kind, &mut r, &mut Scratch::default()).unwrap()
     }
@@ -400,31 +407,41 @@ mod tests {
         let t = "0\nLWPOLYLINE\n8\nCUT\n90\n3\n70\n1\n10\n0\n20\n0\n10\n1\n20\n0\n42\n0.5\n10\n1\n20\n1\n0\nEOF\n";
         let Read::Entity(e) = read(t) else { panic!() };
         assert_eq!(e.layer, "CUT");
-        let Shape::Poly2 { verts, closed, .. } = e.shape else { panic!() };
+        let Shape::Poly2 { verts, closed, .. } = e.shape else {
+            panic!()
+        };
         assert!(closed);
         assert_eq!(verts, vec![(0.0, 0.0, 0.0), (1.0, 0.0, 0.5), (1.0, 1.0, 0.0)]);
     }
 
     #[test]
     fn polyline_reads_vertices_to_seqend() {
-        let t = "0\nPOLYLINE\n66\n1\n70\n1\n0\nVERTEX\n10\n0\n20\n0\n42\n1\n0\nVERTEX\n10\n2\n20\n0\n0\nSEQEND\n0\nEOF\n";
+        let t =
+            "0\nPOLYLINE\n66\n1\n70\n1\n0\nVERTEX\n10\n0\n20\n0\n42\n1\n0\nVERTEX\n10\n2\n20\n0\n0\nSEQEND\n0\nEOF\n";
         let Read::Entity(e) = read(t) else { panic!() };
-        let Shape::Poly2 { verts, closed, .. } = e.shape else { panic!() };
+        let Shape::Poly2 { verts, closed, .. } = e.shape else {
+            panic!()
+        };
         assert!(closed);
         assert_eq!(verts, vec![(0.0, 0.0, 1.0), (2.0, 0.0, 0.0)]);
     }
 
     #[test]
     fn unknown_types_are_skipped_by_name() {
-        let Read::Skipped(k) = read("0\nMTEXT\n1\nhello\n0\nEOF\n") else { panic!() };
+        let Read::Skipped(k) = read("0\nMTEXT\n1\nhello\n0\nEOF\n") else {
+            panic!()
+        };
         assert_eq!(k, "MTEXT");
     }
 
     #[test]
     fn arc_without_radius_is_an_error() {
         let mut r = Reader::new(Box::new(Cursor::new(b"0\nARC\n10\n0\n0\nEOF\n".to_vec()))).unwrap();
-        r.next().unwrap();
-        let e = read_entity("ARC", &mut r, &mut Scratch::default()).err().unwrap().to_string();
+        r.next_tag().unwrap();
+        let e = read_entity("ARC", &mut r, &mut Scratch::default())
+            .err()
+            .unwrap()
+            .to_string();
         assert!(e.contains("line 1") && e.contains("radius"), "{e}");
     }
 }

@@ -79,7 +79,9 @@ impl Expander<'_> {
             return;
         }
         if sink.segments.len() > MAX_SEGMENTS {
-            sink.warn(format!("more than {MAX_SEGMENTS} segments: the rest of the drawing was left out"));
+            sink.warn(format!(
+                "more than {MAX_SEGMENTS} segments: the rest of the drawing was left out"
+            ));
             return;
         }
         let lid = sink.layer_id(layer);
@@ -101,12 +103,12 @@ impl Expander<'_> {
                 if sweep == 0.0 {
                     sweep = TAU;
                 }
-                self.conic(&t, c, *r, a0r, sweep, lid, sink);
+                self.conic(&t, c, *r, (a0r, sweep), lid, sink);
                 "ARC"
             }
             Shape::Circle { c, r, ext } => {
                 let t = t.then_after(&Affine::ocs(*ext));
-                self.conic(&t, c, *r, 0.0, TAU, lid, sink);
+                self.conic(&t, c, *r, (0.0, TAU), lid, sink);
                 "CIRCLE"
             }
             Shape::Poly2 {
@@ -211,15 +213,18 @@ impl Expander<'_> {
             .then_after(&Affine::ocs(ins.ext))
             .then_after(&Affine::translate(ins.p.coords))
             .then_after(&Affine::rotate_z(ins.rotation_deg.to_radians()));
-        let scale_base = Affine::scale(ins.scale.x, ins.scale.y, ins.scale.z)
-            .then_after(&Affine::translate(-block.base.coords));
+        let scale_base =
+            Affine::scale(ins.scale.x, ins.scale.y, ins.scale.z).then_after(&Affine::translate(-block.base.coords));
         for row in 0..ins.rows {
             for col in 0..ins.cols {
                 // Array spacing is in the rotated insert frame, not scaled.
                 let offset = V3::new(col as f64 * ins.col_spacing, row as f64 * ins.row_spacing, 0.0);
                 let m = place.then_after(&Affine::translate(offset)).then_after(&scale_base);
                 if !m.is_finite() {
-                    sink.warn(format!("INSERT of '{}' with a non-finite transform left out", ins.block));
+                    sink.warn(format!(
+                        "INSERT of '{}' with a non-finite transform left out",
+                        ins.block
+                    ));
                     return;
                 }
                 for e in &block.entities {
@@ -229,7 +234,9 @@ impl Expander<'_> {
         }
     }
 
-    fn conic(&self, t: &Affine, c: &P3, r: f64, a0: f64, sweep: f64, lid: u32, sink: &mut Sink) {
+    /// `span` is (start angle, signed sweep) in radians.
+    fn conic(&self, t: &Affine, c: &P3, r: f64, span: (f64, f64), lid: u32, sink: &mut Sink) {
+        let (a0, sweep) = span;
         if !(r.is_finite() && r > 0.0) {
             // A point-sized circle or arc: let chaining count it as dropped.
             let p = t.apply(c);
@@ -256,7 +263,13 @@ impl Expander<'_> {
         let cross = ux * vy - uy * vx;
         let circular = lu > 0.0 && (lu - lv).abs() <= 1e-12 * lu && (ux * vx + uy * vy).abs() <= 1e-12 * lu * lu;
         if circular {
-            let at = |a: f64| P3::new(k.c.x + ux * a.cos() + vx * a.sin(), k.c.y + uy * a.cos() + vy * a.sin(), k.c.z);
+            let at = |a: f64| {
+                P3::new(
+                    k.c.x + ux * a.cos() + vx * a.sin(),
+                    k.c.y + uy * a.cos() + vy * a.sin(),
+                    k.c.z,
+                )
+            };
             let start = at(k.t0);
             let full = k.sweep >= TAU - 1e-12;
             let end = if full { start } else { at(k.t0 + k.sweep) };
@@ -321,7 +334,7 @@ impl Expander<'_> {
             // Snap the ends to the vertices exactly: the arc maths is a
             // hair off, and consecutive pieces must share ends.
             let before = sink.segments.len();
-            self.conic(t, &c, r, a0, sweep, lid, sink);
+            self.conic(t, &c, r, (a0, sweep), lid, sink);
             if sink.segments.len() == before + 1
                 && let Some((Segment::Arc { start, end, .. }, _)) = sink.segments.get_mut(before)
             {
@@ -366,7 +379,18 @@ mod tests {
             ext: V3::new(0.0, 0.0, -1.0),
         });
         let s = expand(&e, &HashMap::new());
-        let (Segment::Arc { start, end, center, ccw }, _) = s.segments[0] else { panic!() };
+        let (
+            Segment::Arc {
+                start,
+                end,
+                center,
+                ccw,
+            },
+            _,
+        ) = s.segments[0]
+        else {
+            panic!()
+        };
         assert_eq!(center, P3::new(-10.0, 0.0, 0.0));
         assert!((start - P3::new(-11.0, 0.0, 0.0)).norm() < 1e-12);
         assert!((end - P3::new(-10.0, 1.0, 0.0)).norm() < 1e-12);
@@ -382,7 +406,9 @@ mod tests {
             ext: V3::z(),
         });
         let s = expand(&e, &HashMap::new());
-        let (Segment::Arc { center, ccw, .. }, _) = s.segments[0] else { panic!() };
+        let (Segment::Arc { center, ccw, .. }, _) = s.segments[0] else {
+            panic!()
+        };
         assert!((center - P3::new(1.0, 0.0, 0.0)).norm() < 1e-12);
         assert!(ccw);
     }
@@ -414,11 +440,15 @@ mod tests {
         let s = expand(&ins, &blocks);
         assert_eq!(s.segments.len(), 2);
         // Base (1,0) -> origin; (2,0) -> (1,0) -> scaled (-2,0) -> rotated (0,-2) -> (10,-2).
-        let (Segment::Line { start, end }, _) = s.segments[0] else { panic!() };
+        let (Segment::Line { start, end }, _) = s.segments[0] else {
+            panic!()
+        };
         assert!((start - P3::new(10.0, 0.0, 0.0)).norm() < 1e-12);
         assert!((end - P3::new(10.0, -2.0, 0.0)).norm() < 1e-12);
         // Second column 5 along the rotated X axis: +5 in Y.
-        let (Segment::Line { start, .. }, _) = s.segments[1] else { panic!() };
+        let (Segment::Line { start, .. }, _) = s.segments[1] else {
+            panic!()
+        };
         assert!((start - P3::new(10.0, 5.0, 0.0)).norm() < 1e-12);
     }
 

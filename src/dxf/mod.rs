@@ -107,12 +107,12 @@ pub fn import(input: Box<dyn BufRead>, opts: &ImportOptions) -> Result<Import, D
     let mut seen_anything = false;
     let mut saw_eof = false;
 
-    while let Some(code) = r.next()? {
+    while let Some(code) = r.next_tag()? {
         seen_anything = true;
         if code == 9 && section == Section::Header {
             let var = r.text().trim().to_string();
             if var == "$INSUNITS" || var == "$ACADVER" {
-                match r.next()? {
+                match r.next_tag()? {
                     Some(70) if var == "$INSUNITS" => insunits = Some(r.int()),
                     Some(1) if var == "$ACADVER" => version = Some(r.text().trim().to_string()),
                     Some(_) => r.unread(),
@@ -127,7 +127,7 @@ pub fn import(input: Box<dyn BufRead>, opts: &ImportOptions) -> Result<Import, D
         let tag = r.text().trim().to_string();
         match tag.as_str() {
             "SECTION" => {
-                section = match r.next()? {
+                section = match r.next_tag()? {
                     Some(2) => match r.text().trim() {
                         "HEADER" => Section::Header,
                         "BLOCKS" => Section::Blocks,
@@ -249,7 +249,7 @@ fn read_block(
     let start = r.pos;
     let mut name = String::new();
     let mut base = crate::geometry::P3::origin();
-    while let Some(code) = r.next()? {
+    while let Some(code) = r.next_tag()? {
         match code {
             0 => {
                 r.unread();
@@ -267,16 +267,26 @@ fn read_block(
         entities: Vec::new(),
     };
     loop {
-        match r.next()? {
-            None => return Err(DxfError::at(start, format!("BLOCK '{name}' has no ENDBLK: truncated file?"))),
+        match r.next_tag()? {
+            None => {
+                return Err(DxfError::at(
+                    start,
+                    format!("BLOCK '{name}' has no ENDBLK: truncated file?"),
+                ));
+            }
             Some(0) => {}
-            Some(c) => return Err(DxfError::at(r.pos, format!("unexpected group code {c} in BLOCK '{name}'"))),
+            Some(c) => {
+                return Err(DxfError::at(
+                    r.pos,
+                    format!("unexpected group code {c} in BLOCK '{name}'"),
+                ));
+            }
         }
         let tag = r.text().trim().to_string();
         match tag.as_str() {
             "ENDBLK" => {
                 // Its own tags (handle, layer) mean nothing to us.
-                while let Some(c) = r.next()? {
+                while let Some(c) = r.next_tag()? {
                     if c == 0 {
                         r.unread();
                         break;
@@ -285,7 +295,10 @@ fn read_block(
                 break;
             }
             "ENDSEC" | "EOF" => {
-                return Err(DxfError::at(r.pos, format!("BLOCK '{name}' ends with {tag} instead of ENDBLK")));
+                return Err(DxfError::at(
+                    r.pos,
+                    format!("BLOCK '{name}' ends with {tag} instead of ENDBLK"),
+                ));
             }
             _ => match entities::read_entity(&tag, r, scratch)? {
                 Read::Skipped(k) => *skipped.entry(k).or_default() += 1,

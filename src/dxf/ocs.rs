@@ -118,7 +118,11 @@ mod tests {
 
     #[test]
     fn ocs_axes_are_orthonormal_right_handed() {
-        for n in [V3::new(1.0, 2.0, 3.0), V3::new(0.001, 0.0, -1.0), V3::new(1.0, 0.0, 0.0)] {
+        for n in [
+            V3::new(1.0, 2.0, 3.0),
+            V3::new(0.001, 0.0, -1.0),
+            V3::new(1.0, 0.0, 0.0),
+        ] {
             let (x, y, z) = ocs_axes(n);
             assert!((x.cross(&y) - z).norm() < 1e-12);
             assert!(x.dot(&y).abs() < 1e-12);

@@ -99,10 +99,12 @@ enum Mode {
     Ascii,
     /// R12 binary files write group codes as one byte (255 escapes to a
     /// 16-bit code); later versions always use two bytes.
-    Binary { wide_codes: bool },
+    Binary {
+        wide_codes: bool,
+    },
 }
 
-/// The tokenizer. After [`Reader::next`] returns `Some(code)`, the value is
+/// The tokenizer. After [`Reader::next_tag`] returns `Some(code)`, the value is
 /// available through [`Reader::float`], [`Reader::int`] or [`Reader::text`]
 /// according to the code's kind.
 pub struct Reader {
@@ -155,13 +157,13 @@ impl Reader {
         matches!(self.mode, Mode::Binary { .. })
     }
 
-    /// Push the current tag back so the next [`Reader::next`] returns it again.
+    /// Push the current tag back so the next [`Reader::next_tag`] returns it again.
     pub fn unread(&mut self) {
         self.peeked = true;
     }
 
     /// The next tag's group code, or `None` at the end of the input.
-    pub fn next(&mut self) -> Result<Option<i32>, DxfError> {
+    pub fn next_tag(&mut self) -> Result<Option<i32>, DxfError> {
         if self.peeked {
             self.peeked = false;
             return Ok(Some(self.code));
@@ -210,15 +212,11 @@ impl Reader {
     fn next_ascii(&mut self) -> Result<Option<i32>, DxfError> {
         // Blank lines where a group code belongs are tolerated only at the
         // very end of the file (many writers add a trailing newline).
-        loop {
-            if !self.read_line()? {
-                return Ok(None);
-            }
-            if !self.buf.iter().all(|b| b.is_ascii_whitespace()) {
-                break;
-            }
+        if !self.read_line()? {
+            return Ok(None);
+        }
+        if self.buf.iter().all(|b| b.is_ascii_whitespace()) {
             let line = self.count;
-            // Look ahead: anything but more blank lines is a real error.
             loop {
                 if !self.read_line()? {
                     return Ok(None);
@@ -366,7 +364,10 @@ impl Reader {
                 }
                 self.buf.pop();
                 if self.buf.len() > 65_536 {
-                    return Err(DxfError::at(Pos::Byte(start), "string value longer than 64 KiB: corrupt file?"));
+                    return Err(DxfError::at(
+                        Pos::Byte(start),
+                        "string value longer than 64 KiB: corrupt file?",
+                    ));
                 }
                 self.text.clear();
                 self.text.push_str(&String::from_utf8_lossy(&self.buf));
@@ -433,20 +434,20 @@ mod tests {
     #[test]
     fn ascii_tags_and_numbers() {
         let mut r = reader(b"  0\r\nSECTION\r\n 10\r\n1.5\r\n 70\r\n     3\r\n");
-        assert_eq!(r.next().unwrap(), Some(0));
+        assert_eq!(r.next_tag().unwrap(), Some(0));
         assert_eq!(r.text(), "SECTION");
-        assert_eq!(r.next().unwrap(), Some(10));
+        assert_eq!(r.next_tag().unwrap(), Some(10));
         assert_eq!(r.float(), 1.5);
-        assert_eq!(r.next().unwrap(), Some(70));
+        assert_eq!(r.next_tag().unwrap(), Some(70));
         assert_eq!(r.int(), 3);
-        assert_eq!(r.next().unwrap(), None);
+        assert_eq!(r.next_tag().unwrap(), None);
     }
 
     #[test]
     fn decimal_comma_is_located() {
         let mut r = reader(b"0\nSECTION\n10\n-6,5\n");
-        r.next().unwrap();
-        let e = r.next().unwrap_err().to_string();
+        r.next_tag().unwrap();
+        let e = r.next_tag().unwrap_err().to_string();
         assert!(e.starts_with("line 4:"), "{e}");
         assert!(e.contains("decimal comma"), "{e}");
     }
@@ -454,16 +455,16 @@ mod tests {
     #[test]
     fn truncated_after_code() {
         let mut r = reader(b"0\nSECTION\n10\n");
-        r.next().unwrap();
-        let e = r.next().unwrap_err().to_string();
+        r.next_tag().unwrap();
+        let e = r.next_tag().unwrap_err().to_string();
         assert!(e.contains("line 3") && e.contains("truncated"), "{e}");
     }
 
     #[test]
     fn garbage_code() {
         let mut r = reader(b"0\nSECTION\nhello\nx\n");
-        r.next().unwrap();
-        let e = r.next().unwrap_err().to_string();
+        r.next_tag().unwrap();
+        let e = r.next_tag().unwrap_err().to_string();
         assert!(e.contains("line 3") && e.contains("group code"), "{e}");
     }
 
@@ -477,13 +478,13 @@ mod tests {
         b.extend_from_slice(&7i16.to_le_bytes());
         let mut r = reader(&b);
         assert!(r.is_binary());
-        assert_eq!(r.next().unwrap(), Some(0));
+        assert_eq!(r.next_tag().unwrap(), Some(0));
         assert_eq!(r.text(), "SECTION");
-        assert_eq!(r.next().unwrap(), Some(10));
+        assert_eq!(r.next_tag().unwrap(), Some(10));
         assert_eq!(r.float(), 2.5);
-        assert_eq!(r.next().unwrap(), Some(70));
+        assert_eq!(r.next_tag().unwrap(), Some(70));
         assert_eq!(r.int(), 7);
-        assert_eq!(r.next().unwrap(), None);
+        assert_eq!(r.next_tag().unwrap(), None);
     }
 
     #[test]
@@ -494,8 +495,8 @@ mod tests {
         b.extend_from_slice(&10i16.to_le_bytes());
         b.extend_from_slice(&[1, 2, 3]);
         let mut r = reader(&b);
-        assert_eq!(r.next().unwrap(), Some(0));
-        let e = r.next().unwrap_err().to_string();
+        assert_eq!(r.next_tag().unwrap(), Some(0));
+        let e = r.next_tag().unwrap_err().to_string();
         assert!(e.contains("byte") && e.contains("truncated"), "{e}");
     }
 }

@@ -69,7 +69,11 @@ pub fn lines(imp: &Import, rep: &Report, arc_tol: f64, point_chains: usize) -> V
     ));
     let mut r = Vec::new();
     if rep.gaps_closed > 0 {
-        r.push(format!("{} gaps closed (largest {} mm)", rep.gaps_closed, num(rep.max_gap)));
+        r.push(format!(
+            "{} gaps closed (largest {} mm)",
+            rep.gaps_closed,
+            num(rep.max_gap)
+        ));
     }
     if rep.duplicates > 0 {
         r.push(format!("{} duplicates removed", rep.duplicates));

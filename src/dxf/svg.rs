@@ -110,7 +110,13 @@ pub fn render(chains: impl Iterator<Item = Chain> + Clone) -> String {
                 c.id
             );
             let p = first.start();
-            let _ = writeln!(o, "<circle cx=\"{}\" cy=\"{}\" r=\"{}\" fill=\"{colour}\"/>", n(p.x), n(p.y), n(dot));
+            let _ = writeln!(
+                o,
+                "<circle cx=\"{}\" cy=\"{}\" r=\"{}\" fill=\"{colour}\"/>",
+                n(p.x),
+                n(p.y),
+                n(dot)
+            );
             if let Some(t) = tangent_at_start(first).try_normalize(1e-300) {
                 let len = crate::dxf::chain::seg_len(first);
                 let a = arrow.min(len * 0.3);
@@ -130,7 +136,13 @@ pub fn render(chains: impl Iterator<Item = Chain> + Clone) -> String {
             }
         }
         for p in &c.points {
-            let _ = writeln!(o, "<circle cx=\"{}\" cy=\"{}\" r=\"{}\" fill=\"{POINT}\"/>", n(p.x), n(p.y), n(dot));
+            let _ = writeln!(
+                o,
+                "<circle cx=\"{}\" cy=\"{}\" r=\"{}\" fill=\"{POINT}\"/>",
+                n(p.x),
+                n(p.y),
+                n(dot)
+            );
         }
     }
     o.push_str("</g>\n</svg>\n");

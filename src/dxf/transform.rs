@@ -79,10 +79,16 @@ impl Transforms {
 pub fn parse_numbers(s: &str, n: usize, what: &str) -> Result<Vec<f64>, String> {
     let v: Vec<f64> = s
         .split(',')
-        .map(|t| t.trim().parse::<f64>().map_err(|_| format!("{what}: '{t}' is not a number")))
+        .map(|t| {
+            t.trim()
+                .parse::<f64>()
+                .map_err(|_| format!("{what}: '{t}' is not a number"))
+        })
         .collect::<Result<_, _>>()?;
     if v.len() != n || v.iter().any(|x| !x.is_finite()) {
-        return Err(format!("{what}: expected {n} finite numbers separated by commas, got '{s}'"));
+        return Err(format!(
+            "{what}: expected {n} finite numbers separated by commas, got '{s}'"
+        ));
     }
     Ok(v)
 }
@@ -92,7 +98,9 @@ pub fn count(x: f64, what: &str) -> Result<u32, String> {
     if x.fract() == 0.0 && (1.0..=10_000.0).contains(&x) {
         Ok(x as u32)
     } else {
-        Err(format!("{what}: copy counts must be whole numbers from 1 to 10000, got {x}"))
+        Err(format!(
+            "{what}: copy counts must be whole numbers from 1 to 10000, got {x}"
+        ))
     }
 }
 
