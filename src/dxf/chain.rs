@@ -249,7 +249,8 @@ struct Work {
 /// Repair notes by piece (few pieces have any).
 type Notes = FxMap<usize, Vec<String>>;
 
-/// One chain in [`Chains`]: a run of `segs`.
+/// One chain in [`Chains`]: a run of `seq`, reversed on output when
+/// orientation asks for it.
 #[derive(Debug, Clone, Copy)]
 struct Item {
     start: u32,
@@ -257,14 +258,18 @@ struct Item {
     order: u32,
     layer: u32,
     closed: bool,
+    reversed: bool,
 }
 
-/// All chains of a drawing, stored flat: one array of segments and a small
-/// record per chain, so a million chains cost no million allocations.
-/// [`Chains::iter`] hands them out one at a time in output order.
-#[derive(Debug, Default)]
+/// All chains of a drawing, stored flat: the snapped pieces stay where
+/// they were read (`work`), `seq` lists them in chain order, and a small
+/// record per chain says which run of `seq` it is. No second copy of the
+/// geometry and no allocation per chain; [`Chains::iter`] hands the chains
+/// out one at a time in output order.
+#[derive(Default)]
 pub struct Chains {
-    segs: Vec<Segment>,
+    work: Vec<Work>,
+    seq: Vec<u32>,
     items: Vec<Item>,
     repairs: FxMap<u32, Vec<String>>,
     layers: Vec<String>,
@@ -287,13 +292,28 @@ impl Chains {
         self.points.len()
     }
 
+    /// The segments of one chain, in travel order, into `buf`.
+    fn segments_into(&self, it: &Item, buf: &mut Vec<Segment>) {
+        buf.clear();
+        let run = &self.seq[it.start as usize..(it.start + it.len) as usize];
+        if it.reversed {
+            buf.extend(run.iter().rev().map(|&k| reversed(&self.work[k as usize].seg)));
+        } else {
+            buf.extend(run.iter().map(|&k| self.work[k as usize].seg));
+        }
+    }
+
     /// The chains in output order with ids from 1.
     pub fn iter(&self) -> impl Iterator<Item = Chain> + Clone + '_ {
         let segs = self.items.iter().enumerate().map(|(k, it)| Chain {
             id: k as u64 + 1,
             layer: self.layers.get(it.layer as usize).cloned(),
             closed: it.closed,
-            segments: self.segs[it.start as usize..(it.start + it.len) as usize].to_vec(),
+            segments: {
+                let mut v = Vec::with_capacity(it.len as usize);
+                self.segments_into(it, &mut v);
+                v
+            },
             points: Vec::new(),
             repairs: self.repairs.get(&(k as u32)).cloned().unwrap_or_default(),
         });
@@ -339,17 +359,25 @@ pub fn build(segments: Vec<(Segment, u32)>, points: &[(P3, u32)], layers: &[Stri
     };
     // Exactly what can survive: growth by doubling would leave up to half
     // of this array's memory unused at the peak.
-    out.segs.reserve_exact(work.iter().filter(|x| x.alive).count());
+    out.seq.reserve_exact(work.iter().filter(|x| x.alive).count());
     let mut repairs: Vec<(u32, Vec<String>)> = Vec::new();
     let mut from = 0;
     while from < work.len() {
         let l = layer_of[work[from].order as usize];
         let to = from + work[from..].partition_point(|x| layer_of[x.order as usize] == l);
-        chain_layer(&mut work[from..to], l, tol, &mut report, &mut out, &mut repairs);
+        chain_layer(
+            &mut work[from..to],
+            from as u32,
+            l,
+            tol,
+            &mut report,
+            &mut out,
+            &mut repairs,
+        );
         from = to;
     }
-    drop(work);
     drop(layer_of);
+    out.work = work;
     orient(&mut out, tol, &mut report);
     // Output order: by each chain's first piece in the drawing.
     let mut perm: Vec<u32> = (0..out.items.len() as u32).collect();
@@ -382,6 +410,7 @@ pub fn build(segments: Vec<(Segment, u32)>, points: &[(P3, u32)], layers: &[Stri
 
 fn chain_layer(
     w: &mut [Work],
+    base: u32,
     layer: u32,
     tol: f64,
     report: &mut Report,
@@ -569,8 +598,9 @@ fn chain_layer(
         cur
     };
     let mut run: Vec<(usize, bool)> = Vec::new();
+    let alive: Vec<bool> = w.iter().map(|x| x.alive).collect();
     let mut emit = |run: &[(usize, bool)], first: u32, last: u32| {
-        let start = out.segs.len() as u32;
+        let start = out.seq.len() as u32;
         let mut repairs: Vec<String> = Vec::new();
         let mut order = u32::MAX;
         let mut gap_nodes: Vec<u32> = Vec::new();
@@ -579,7 +609,9 @@ fn chain_layer(
             let (a, b) = ends[i];
             let (na, nb) = if fwd { (a, b) } else { (b, a) };
             let seg = if fwd { w[i].seg } else { reversed(&w[i].seg) };
-            out.segs.push(snap(&seg, reps[na as usize], reps[nb as usize]));
+            // Snapped in place, turned to the direction of travel.
+            w[i].seg = snap(&seg, reps[na as usize], reps[nb as usize]);
+            out.seq.push(base + i as u32);
             if let Some(mut v) = notes.remove(&i) {
                 repairs.append(&mut v);
             }
@@ -606,10 +638,11 @@ fn chain_layer(
         }
         out.items.push(Item {
             start,
-            len: out.segs.len() as u32 - start,
+            len: out.seq.len() as u32 - start,
             order,
             layer,
             closed: first == last,
+            reversed: false,
         });
     };
     for n in 0..n_nodes as u32 {
@@ -626,8 +659,8 @@ fn chain_layer(
             }
         }
     }
-    for (i, x) in w.iter().enumerate() {
-        if x.alive && !used[i] {
+    for (i, &a) in alive.iter().enumerate() {
+        if a && !used[i] {
             let last = walk(ends[i].0, i, &mut used, &mut run);
             emit(&run, ends[i].0, last);
         }
@@ -820,11 +853,13 @@ fn orient(chains: &mut Chains, tol: f64, report: &mut Report) {
         probe: P3,
     }
     let mut infos: Vec<Info> = Vec::new();
+    let mut buf: Vec<Segment> = Vec::new();
     for (idx, it) in chains.items.iter().enumerate() {
-        let segs = &chains.segs[it.start as usize..(it.start + it.len) as usize];
-        if !it.closed || segs.is_empty() {
+        if !it.closed || it.len == 0 {
             continue;
         }
+        chains.segments_into(it, &mut buf);
+        let segs = &buf[..];
         let mut lo = (f64::INFINITY, f64::INFINITY);
         let mut hi = (f64::NEG_INFINITY, f64::NEG_INFINITY);
         for s in segs {
@@ -848,7 +883,11 @@ fn orient(chains: &mut Chains, tol: f64, report: &mut Report) {
         .map(|i| (i.hi.0 - i.lo.0).max(tol) * (i.hi.1 - i.lo.1).max(tol))
         .sum();
     let size = (total / infos.len() as f64).sqrt().max(1e-9);
-    let mut grid: FxMap<(i64, i64), Vec<u32>> = FxMap::default();
+    // (cell, chain) pairs sorted by cell: a cell's chains are a contiguous
+    // range found by binary search (a table of vectors would cost more than
+    // the chains themselves).
+    let ckey = |x: i64, y: i64| ((x as u32 as u64) << 32) | (y as u32 as u64);
+    let mut grid: Vec<(u64, u32)> = Vec::new();
     let mut big: Vec<u32> = Vec::new();
     for (k, i) in infos.iter().enumerate() {
         let (x0, y0) = ((i.lo.0 / size).floor() as i64, (i.lo.1 / size).floor() as i64);
@@ -859,18 +898,20 @@ fn orient(chains: &mut Chains, tol: f64, report: &mut Report) {
         }
         for x in x0..=x1 {
             for y in y0..=y1 {
-                grid.entry((x, y)).or_default().push(k as u32);
+                grid.push((ckey(x, y), k as u32));
             }
         }
     }
-    let empty = Vec::new();
+    grid.sort_unstable();
     let mut flip: Vec<usize> = Vec::new();
     for k in 0..infos.len() {
         let me = &infos[k];
         let p = me.probe;
-        let cell = ((p.x / size).floor() as i64, (p.y / size).floor() as i64);
+        let cell = ckey((p.x / size).floor() as i64, (p.y / size).floor() as i64);
+        let lo = grid.partition_point(|e| e.0 < cell);
+        let hi = lo + grid[lo..].partition_point(|e| e.0 == cell);
         let mut depth = 0;
-        for &j in grid.get(&cell).unwrap_or(&empty).iter().chain(big.iter()) {
+        for j in grid[lo..hi].iter().map(|e| e.1).chain(big.iter().copied()) {
             let o = &infos[j as usize];
             if j as usize == k
                 || o.area.abs() <= me.area.abs()
@@ -881,8 +922,8 @@ fn orient(chains: &mut Chains, tol: f64, report: &mut Report) {
             {
                 continue;
             }
-            let it = chains.items[o.idx];
-            if inside(&chains.segs[it.start as usize..(it.start + it.len) as usize], &p) {
+            chains.segments_into(&chains.items[o.idx], &mut buf);
+            if inside(&buf, &p) {
                 depth += 1;
             }
         }
@@ -892,12 +933,7 @@ fn orient(chains: &mut Chains, tol: f64, report: &mut Report) {
         }
     }
     for idx in flip {
-        let it = chains.items[idx];
-        let segs = &mut chains.segs[it.start as usize..(it.start + it.len) as usize];
-        segs.reverse();
-        for s in segs.iter_mut() {
-            *s = reversed(s);
-        }
+        chains.items[idx].reversed = true;
         report.reversed += 1;
     }
 }
