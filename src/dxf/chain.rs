@@ -733,10 +733,16 @@ fn merge_collinear(w: &mut [Work], notes: &mut Notes, tol: f64, report: &mut Rep
         keyed.push(((ai, (off / off_bucket).floor() as i64), i as u32));
     }
     keyed.sort_unstable();
-    let range_of = |k: (i64, i64)| {
-        let lo = keyed.partition_point(|e| e.0 < k);
-        lo..lo + keyed[lo..].partition_point(|e| e.0 == k)
-    };
+    // Where each bucket's range starts and ends: one hash probe per
+    // neighbour instead of a binary search over all lines.
+    let mut ranges: FxMap<(i64, i64), (u32, u32)> = FxMap::default();
+    let mut g = 0;
+    while g < keyed.len() {
+        let end = g + keyed[g..].partition_point(|e| e.0 == keyed[g].0);
+        ranges.insert(keyed[g].0, (g as u32, end as u32));
+        g = end;
+    }
+    let range_of = |k: (i64, i64)| ranges.get(&k).map_or(0..0, |&(a, b)| a as usize..b as usize);
     let mut cand: Vec<usize> = Vec::new();
     let mut active: Vec<usize> = Vec::new();
     let mut g = 0;
@@ -903,13 +909,28 @@ fn orient(chains: &mut Chains, tol: f64, report: &mut Report) {
         }
     }
     grid.sort_unstable();
+    // Probes sorted by cell too, so the grid is walked once, in order.
+    let mut probes: Vec<(u64, u32)> = infos
+        .iter()
+        .enumerate()
+        .map(|(k, i)| {
+            (
+                ckey((i.probe.x / size).floor() as i64, (i.probe.y / size).floor() as i64),
+                k as u32,
+            )
+        })
+        .collect();
+    probes.sort_unstable();
     let mut flip: Vec<usize> = Vec::new();
-    for k in 0..infos.len() {
+    let mut lo = 0;
+    for &(cell, k) in &probes {
+        let k = k as usize;
         let me = &infos[k];
         let p = me.probe;
-        let cell = ckey((p.x / size).floor() as i64, (p.y / size).floor() as i64);
-        let lo = grid.partition_point(|e| e.0 < cell);
-        let hi = lo + grid[lo..].partition_point(|e| e.0 == cell);
+        while lo < grid.len() && grid[lo].0 < cell {
+            lo += 1;
+        }
+        let hi = lo + grid[lo..].iter().take_while(|e| e.0 == cell).count();
         let mut depth = 0;
         for j in grid[lo..hi].iter().map(|e| e.1).chain(big.iter().copied()) {
             let o = &infos[j as usize];
@@ -932,6 +953,7 @@ fn orient(chains: &mut Chains, tol: f64, report: &mut Report) {
             flip.push(me.idx);
         }
     }
+    flip.sort_unstable();
     for idx in flip {
         chains.items[idx].reversed = true;
         report.reversed += 1;
