@@ -140,6 +140,7 @@ fn run(args: Args) -> Result<(), CliError> {
         layers: args.layers.clone(),
         units_mm,
         copies: if t.is_identity() { Vec::new() } else { t.copies() },
+        ..Default::default()
     };
     let input = cli::open_input(args.file.as_deref())?;
     let name = input.name.clone();

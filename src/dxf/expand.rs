@@ -33,6 +33,9 @@ pub struct Sink {
     pub curves: u64,
     pub curve_pieces: u64,
     pub curve_chords: u64,
+    /// The drawing expanded past `max_segments`: the result is incomplete
+    /// and must not be used.
+    pub overflow: bool,
 }
 
 /// How to expand: tolerance and layer filter.
@@ -41,11 +44,14 @@ pub struct Expander<'a> {
     pub arc_tol: f64,
     /// Empty: every layer.
     pub layers: &'a [String],
+    /// Stop (and set [`Sink::overflow`]) past this many segments.
+    pub max_segments: usize,
 }
 
 const MAX_NESTING: usize = 64;
 /// A guard against block bombs (arrays of arrays of arrays...).
-const MAX_SEGMENTS: usize = 200_000_000;
+/// The default guard: about 2 GB of geometry.
+pub const MAX_SEGMENTS: usize = 20_000_000;
 
 impl Sink {
     fn layer_id(&mut self, name: &str) -> u32 {
@@ -78,10 +84,8 @@ impl Expander<'_> {
         if !self.layers.is_empty() && !self.layers.iter().any(|l| l == layer) {
             return;
         }
-        if sink.segments.len() > MAX_SEGMENTS {
-            sink.warn(format!(
-                "more than {MAX_SEGMENTS} segments: the rest of the drawing was left out"
-            ));
+        if sink.segments.len() > self.max_segments {
+            sink.overflow = true;
             return;
         }
         let lid = sink.layer_id(layer);
@@ -219,6 +223,11 @@ impl Expander<'_> {
             for col in 0..ins.cols {
                 // Array spacing is in the rotated insert frame, not scaled.
                 let offset = V3::new(col as f64 * ins.col_spacing, row as f64 * ins.row_spacing, 0.0);
+                if sink.segments.len() > self.max_segments {
+                    // Stop at every level at once, not copy by copy.
+                    sink.overflow = true;
+                    return;
+                }
                 let m = place.then_after(&Affine::translate(offset)).then_after(&scale_base);
                 if !m.is_finite() {
                     sink.warn(format!(
@@ -363,6 +372,7 @@ mod tests {
             blocks,
             arc_tol: 0.001,
             layers: &[],
+            max_segments: MAX_SEGMENTS,
         };
         let mut sink = Sink::default();
         x.entity(e, &Affine::identity(), None, 0, &mut sink);

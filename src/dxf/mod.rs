@@ -46,6 +46,9 @@ pub struct ImportOptions {
     /// User transforms (in mm), one per copy of the drawing; empty means
     /// one untransformed copy.
     pub copies: Vec<Affine>,
+    /// Give up when the drawing expands to more segments than this (block
+    /// bombs: arrays of inserts of arrays...).
+    pub max_segments: usize,
 }
 
 impl Default for ImportOptions {
@@ -55,6 +58,7 @@ impl Default for ImportOptions {
             layers: Vec::new(),
             units_mm: None,
             copies: Vec::new(),
+            max_segments: expand::MAX_SEGMENTS,
         }
     }
 }
@@ -178,9 +182,13 @@ pub fn import(input: Box<dyn BufRead>, opts: &ImportOptions) -> Result<Import, D
                             blocks: &blocks,
                             arc_tol: opts.arc_tol,
                             layers: &opts.layers,
+                            max_segments: opts.max_segments,
                         };
                         for t in top.iter() {
                             x.entity(&e, t, None, 0, &mut sink);
+                        }
+                        if sink.overflow {
+                            return Err(overflow(e.pos, opts.max_segments));
                         }
                     }
                 }
@@ -200,10 +208,14 @@ pub fn import(input: Box<dyn BufRead>, opts: &ImportOptions) -> Result<Import, D
         blocks: &blocks,
         arc_tol: opts.arc_tol,
         layers: &opts.layers,
+        max_segments: opts.max_segments,
     };
     for e in &pending {
         for t in &top {
             x.entity(e, t, None, 0, &mut sink);
+        }
+        if sink.overflow {
+            return Err(overflow(e.pos, opts.max_segments));
         }
     }
     // Give back the growth slack of the geometry array before chaining
@@ -218,6 +230,13 @@ pub fn import(input: Box<dyn BufRead>, opts: &ImportOptions) -> Result<Import, D
         version,
         binary,
     })
+}
+
+fn overflow(pos: reader::Pos, max: usize) -> DxfError {
+    DxfError::at(
+        pos,
+        format!("this entity expands the drawing past {max} segments (blocks inserted in arrays of arrays?)"),
+    )
 }
 
 fn unit_of(opts: &ImportOptions, insunits: Option<i64>) -> (f64, UnitSource) {
@@ -359,6 +378,20 @@ mod tests {
         let imp = run(t, &o).unwrap();
         assert_eq!(imp.sink.segments.len(), 1);
         assert_eq!(imp.sink.layers, vec!["B".to_string()]);
+    }
+
+    #[test]
+    fn block_bombs_stop_with_a_located_error() {
+        let t = "0\nSECTION\n2\nBLOCKS\n0\nBLOCK\n2\nA\n0\nLINE\n10\n0\n20\n0\n11\n1\n21\n0\n0\nENDBLK\n\
+                 0\nBLOCK\n2\nB\n0\nINSERT\n2\nA\n70\n1000\n71\n1000\n44\n2\n45\n2\n0\nENDBLK\n0\nENDSEC\n\
+                 0\nSECTION\n2\nENTITIES\n0\nLINE\n10\n0\n20\n0\n11\n1\n21\n0\n\
+                 0\nINSERT\n2\nB\n70\n100\n71\n100\n44\n3000\n45\n3000\n0\nENDSEC\n0\nEOF\n";
+        let o = ImportOptions {
+            max_segments: 10_000,
+            ..Default::default()
+        };
+        let e = run(t, &o).unwrap_err().to_string();
+        assert!(e.starts_with("line 55:") && e.contains("10000 segments"), "{e}");
     }
 
     #[test]
