@@ -35,6 +35,8 @@ pub enum Shape {
         closed: bool,
         elevation: f64,
         ext: V3,
+        /// Read from an LWPOLYLINE (for the summary's counts).
+        lw: bool,
     },
     /// 3-D POLYLINE: world vertices, straight segments.
     Poly3 {
@@ -250,6 +252,7 @@ pub fn read_entity(kind: &str, r: &mut Reader, s: &mut Scratch) -> Result<Read, 
             closed: s.i70 & 1 != 0,
             elevation: s.f38,
             ext: s.ext,
+            lw: true,
         },
         "POLYLINE" => return read_polyline(r, s, pos),
         "ELLIPSE" => {
@@ -376,6 +379,7 @@ fn read_polyline(r: &mut Reader, s: &mut Scratch, pos: Pos) -> Result<Read, DxfE
             closed,
             elevation,
             ext,
+            lw: false,
         }
     };
     Ok(Read::Entity(Entity { layer, shape, pos }))

@@ -120,10 +120,11 @@ impl Expander<'_> {
                 closed,
                 elevation,
                 ext,
+                lw,
             } => {
                 let t = t.then_after(&Affine::ocs(*ext));
                 self.poly2(&t, verts, *closed, *elevation, lid, sink);
-                "POLYLINE"
+                if *lw { "LWPOLYLINE" } else { "POLYLINE" }
             }
             Shape::Poly3 { verts, closed } => {
                 let n = verts.len();
@@ -414,6 +415,7 @@ mod tests {
             closed: false,
             elevation: 0.0,
             ext: V3::z(),
+            lw: true,
         });
         let s = expand(&e, &HashMap::new());
         let (Segment::Arc { center, ccw, .. }, _) = s.segments[0] else {
