@@ -72,7 +72,13 @@ pub fn render(chains: impl Iterator<Item = Chain> + Clone) -> String {
         "<!-- microcam dxf2chains preview: closed chains {CLOSED}, open chains {OPEN}, points {POINT}; dot = start, arrow = direction -->"
     );
     // Y up, as in the drawing.
-    let _ = writeln!(o, "<g transform=\"scale(1,-1)\" fill=\"none\" stroke-width=\"1\">");
+    // Stroke width in drawing units (a fixed fraction of the drawing), not
+    // `vector-effect`, which not every renderer knows.
+    let _ = writeln!(
+        o,
+        "<g transform=\"scale(1,-1)\" fill=\"none\" stroke-width=\"{}\">",
+        n(diag / 1500.0)
+    );
     for c in chains {
         let colour = if c.closed { CLOSED } else { OPEN };
         if let Some(first) = c.segments.first() {
@@ -106,7 +112,7 @@ pub fn render(chains: impl Iterator<Item = Chain> + Clone) -> String {
             }
             let _ = writeln!(
                 o,
-                "<path id=\"chain{}\" d=\"{d}\" stroke=\"{colour}\" vector-effect=\"non-scaling-stroke\"/>",
+                "<path id=\"chain{}\" d=\"{d}\" stroke=\"{colour}\"/>",
                 c.id
             );
             let p = first.start();
