@@ -110,11 +110,7 @@ pub fn render(chains: impl Iterator<Item = Chain> + Clone) -> String {
                     }
                 }
             }
-            let _ = writeln!(
-                o,
-                "<path id=\"chain{}\" d=\"{d}\" stroke=\"{colour}\"/>",
-                c.id
-            );
+            let _ = writeln!(o, "<path id=\"chain{}\" d=\"{d}\" stroke=\"{colour}\"/>", c.id);
             let p = first.start();
             let _ = writeln!(
                 o,
