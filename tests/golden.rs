@@ -34,10 +34,7 @@ fn golden_outputs_match() {
         .filter(|p| p.extension().is_some_and(|x| x == "tsv"))
         .collect();
     tsvs.sort();
-    let cases: String = tsvs
-        .iter()
-        .map(|p| std::fs::read_to_string(p).expect("read .tsv"))
-        .collect();
+    let cases: String = tsvs.iter().map(|p| std::fs::read_to_string(p).expect("read .tsv")).collect();
     let update = std::env::var_os("UPDATE_GOLDEN").is_some_and(|v| v != "0");
     let path = format!("{}:{}", bin_dir().display(), std::env::var("PATH").unwrap_or_default());
     let mut failures = Vec::new();
