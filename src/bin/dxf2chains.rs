@@ -172,12 +172,10 @@ fn run(args: Args) -> Result<(), CliError> {
         }
         None => None,
     };
-    if !args.quiet || imp.unit_source == microcam::dxf::UnitSource::Assumed {
-        let point_chains = chains.point_chains();
-        for line in summary::lines(&imp, &report, args.arc_tol, point_chains) {
-            if !args.quiet || line.starts_with("warning") {
-                eprintln!("dxf2chains: {name}: {line}");
-            }
+    // Warnings appear even with --quiet.
+    for line in summary::lines(&imp, &report, args.arc_tol, chains.point_chains(), &args.layers) {
+        if !args.quiet || line.starts_with("warning") {
+            eprintln!("dxf2chains: {name}: {line}");
         }
     }
     if let Some(o) = svg_out {

@@ -14,7 +14,9 @@ fn num(x: f64) -> String {
 }
 
 /// Lines for stderr, without the tool prefix.
-pub fn lines(imp: &Import, rep: &Report, arc_tol: f64, point_chains: usize) -> Vec<String> {
+/// `requested` are the `--layer` names: one that brought no geometry is
+/// most often a typo, so it is named.
+pub fn lines(imp: &Import, rep: &Report, arc_tol: f64, point_chains: usize, requested: &[String]) -> Vec<String> {
     let mut out = Vec::new();
     let kind = if imp.binary { "binary" } else { "ASCII" };
     let ver = imp.version.as_deref().unwrap_or("no version");
@@ -38,6 +40,11 @@ pub fn lines(imp: &Import, rep: &Report, arc_tol: f64, point_chains: usize) -> V
             "skipped (not cuttable geometry) {}",
             counts(imp.skipped.iter().map(|(k, v)| (k.as_str(), *v)))
         ));
+    }
+    for l in requested {
+        if !s.layers.contains(l) {
+            out.push(format!("warning: --layer '{l}': no geometry on a layer of that name"));
+        }
     }
     for (w, n) in &s.warnings {
         out.push(if *n > 1 {
