@@ -7,6 +7,7 @@
 //! - [`model`]: chains and toolpaths in memory.
 //! - [`formats`]: the JSON Lines pipe formats, streaming.
 //! - [`gcode`]: ISO and PMAC G-code, read and written.
+//! - [`dxf`]: DXF import and chain detection.
 //! - [`paths`]: constant-velocity laser toolpaths from chains (contour,
 //!   patterns, corner loops, cut order, shutter timing).
 //! - [`sim`]: what a program does on the machine: time, beam and material removal.
@@ -15,6 +16,7 @@
 //! - [`cli`]: conventions shared by every binary.
 
 pub mod cli;
+pub mod dxf;
 pub mod formats;
 pub mod gcode;
 pub mod geometry;

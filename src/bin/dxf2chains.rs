@@ -1,0 +1,185 @@
+//! dxf2chains: a DXF drawing to oriented chains of exact lines and arcs
+//! (microcam.chains/1 JSON Lines).
+
+use clap::Parser;
+use microcam::cli::{self, CliError, Output};
+use microcam::dxf::transform::{Mirror, Transforms, count, parse_numbers};
+use microcam::dxf::{ImportOptions, chain, import, summary, svg, units};
+use microcam::formats::chains::ChainsWriter;
+use microcam::model::chain::ChainsHeader;
+use std::io::Write;
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+const EXAMPLES: &str = "\
+Examples:
+  dxf2chains part.dxf > part.chains                 chains in mm on stdout
+  dxf2chains --layer CUT --layer HOLES part.dxf     only these layers
+  dxf2chains --units inch old.dxf                   the file's unit, when $INSUNITS is missing or wrong
+  dxf2chains --svg preview.svg part.dxf > /dev/null look before cutting
+  dxf2chains --rotate 90 --translate 5,5 --array 3,2,12,12 part.dxf
+  dxf2chains --polar 6,60,0,0 blade.dxf             six copies, 60 degrees apart, about (0,0)
+  dxf2chains part.dxf | pathgen contour --outside 0.005 ...
+
+Splines and ellipses become tangent-continuous arcs within --arc-tol. Ends
+within --tol are joined; closed outer contours run counter-clockwise, holes
+clockwise (by nesting depth). Duplicates, collinear overlaps, zero-length
+pieces and gaps are repaired and every repair is listed on the chain
+('repairs') and summed up on stderr, with what was skipped (TEXT, HATCH...).
+Transforms apply in the order scale, mirror, rotate, translate, then the
+array and polar copies. '-' or no FILE reads stdin (ASCII or binary DXF).
+Exit status: 0 ok, 1 failure, 2 bad usage or bad input (the message names
+the file and line, or byte offset for binary DXF).";
+
+/// Turn a DXF drawing into chains of lines and arcs.
+#[derive(Parser)]
+#[command(name = "dxf2chains", version, about, after_help = EXAMPLES)]
+struct Args {
+    /// DXF file to read ('-' for stdin).
+    file: Option<PathBuf>,
+    /// Join tolerance, mm: ends closer than this are one point.
+    #[arg(long, default_value_t = 0.001)]
+    tol: f64,
+    /// Fitting tolerance for splines and ellipses, mm.
+    #[arg(long, default_value_t = 0.001)]
+    arc_tol: f64,
+    /// Keep only this layer (repeatable).
+    #[arg(long = "layer", value_name = "NAME")]
+    layers: Vec<String>,
+    /// Drawing unit, overriding $INSUNITS: mm, cm, m, inch, ft, um, mil.
+    #[arg(long)]
+    units: Option<String>,
+    /// Move by DX,DY (mm).
+    #[arg(long, value_name = "DX,DY", allow_hyphen_values = true)]
+    translate: Option<String>,
+    /// Rotate about the origin, degrees counter-clockwise.
+    #[arg(long, value_name = "DEG", allow_hyphen_values = true)]
+    rotate: Option<f64>,
+    /// Scale about the origin.
+    #[arg(long, value_name = "S", allow_hyphen_values = true)]
+    scale: Option<f64>,
+    /// Mirror: 'x' negates X (about the Y axis), 'y' negates Y.
+    #[arg(long, value_parser = ["x", "y"])]
+    mirror: Option<String>,
+    /// Linear pattern: NX by NY copies, DX and DY apart (mm).
+    #[arg(long, value_name = "NX,NY,DX,DY", allow_hyphen_values = true)]
+    array: Option<String>,
+    /// Polar pattern: N copies, ANGLE degrees apart, about (CX,CY).
+    #[arg(long, value_name = "N,ANGLE,CX,CY", allow_hyphen_values = true)]
+    polar: Option<String>,
+    /// Also write an SVG preview here.
+    #[arg(long, value_name = "FILE")]
+    svg: Option<PathBuf>,
+    /// No summary on stderr (warnings and errors still appear).
+    #[arg(short, long)]
+    quiet: bool,
+    /// Write chains here instead of stdout.
+    #[arg(short, long)]
+    output: Option<PathBuf>,
+}
+
+fn main() -> ExitCode {
+    let args = Args::parse();
+    cli::run("dxf2chains", || run(args))
+}
+
+fn transforms(a: &Args) -> Result<Transforms, String> {
+    let mut t = Transforms {
+        rotate_deg: a.rotate,
+        scale: a.scale,
+        ..Default::default()
+    };
+    if let Some(s) = &a.translate {
+        let v = parse_numbers(s, 2, "--translate")?;
+        t.translate = Some((v[0], v[1]));
+    }
+    if let Some(s) = a.scale
+        && !(s.is_finite() && s != 0.0)
+    {
+        return Err(format!("--scale: must be a non-zero number, got {s}"));
+    }
+    if let Some(r) = a.rotate
+        && !r.is_finite()
+    {
+        return Err("--rotate: must be a finite number".into());
+    }
+    t.mirror = match a.mirror.as_deref() {
+        Some("x") => Some(Mirror::X),
+        Some("y") => Some(Mirror::Y),
+        _ => None,
+    };
+    if let Some(s) = &a.array {
+        let v = parse_numbers(s, 4, "--array")?;
+        t.array = Some((count(v[0], "--array")?, count(v[1], "--array")?, v[2], v[3]));
+    }
+    if let Some(s) = &a.polar {
+        let v = parse_numbers(s, 4, "--polar")?;
+        t.polar = Some((count(v[0], "--polar")?, v[1], v[2], v[3]));
+    }
+    Ok(t)
+}
+
+fn run(args: Args) -> Result<(), CliError> {
+    for (name, v) in [("--tol", args.tol), ("--arc-tol", args.arc_tol)] {
+        if !(v.is_finite() && v >= 0.0) {
+            return Err(CliError::input(format!(
+                "{name}: must be a non-negative number, got {v}"
+            )));
+        }
+    }
+    let t = transforms(&args).map_err(CliError::input)?;
+    let units_mm =
+        match &args.units {
+            None => None,
+            Some(u) => Some(units::named_mm(u).ok_or_else(|| {
+                CliError::input(format!("--units: unknown unit '{u}' (mm, cm, m, inch, ft, um, mil)"))
+            })?),
+        };
+    let opts = ImportOptions {
+        arc_tol: args.arc_tol,
+        layers: args.layers.clone(),
+        units_mm,
+        copies: if t.is_identity() { Vec::new() } else { t.copies() },
+        ..Default::default()
+    };
+    let input = cli::open_input(args.file.as_deref())?;
+    let name = input.name.clone();
+    let mut imp = import(input.reader, &opts).map_err(|e| match e {
+        microcam::dxf::reader::DxfError::Io(io) => CliError::input(format!("{name}: {io}")),
+        e => CliError::in_file(&name, e),
+    })?;
+    let (chains, report) = chain::build(
+        std::mem::take(&mut imp.sink.segments),
+        &imp.sink.points,
+        &imp.sink.layers,
+        args.tol,
+    );
+
+    let mut out = Output::new(args.output.as_deref());
+    let mut w = ChainsWriter::new(&mut out);
+    w.header(&ChainsHeader {
+        source: Some(name.clone()),
+    })?;
+    for c in chains.iter() {
+        w.chain(&c)?;
+    }
+    w.finish()?;
+    let svg_out = match &args.svg {
+        Some(p) => {
+            let mut o = Output::new(Some(p));
+            o.write_all(svg::render(chains.iter()).as_bytes())?;
+            Some(o)
+        }
+        None => None,
+    };
+    // Warnings appear even with --quiet.
+    for line in summary::lines(&imp, &report, args.arc_tol, chains.point_chains(), &args.layers) {
+        if !args.quiet || line.starts_with("warning") {
+            eprintln!("dxf2chains: {name}: {line}");
+        }
+    }
+    if let Some(o) = svg_out {
+        o.commit()?;
+    }
+    out.commit()
+}

@@ -1,0 +1,477 @@
+//! Free-form curves (ellipses, splines) as tangent-continuous arcs.
+//!
+//! A biarc is two circular arcs meeting with a common tangent that join two
+//! points with given tangents. Fitting a curve with biarcs, splitting where
+//! the fit is off by more than the tolerance, gives a chain whose tangent is
+//! continuous wherever the curve's is: the stage keeps its speed, and there
+//! are far fewer blocks than a polyline at the same tolerance (seed 000
+//! §6.1.4). The deviation is measured by sampling each piece's interval of
+//! the curve densely and taking the distance to the fitted arcs.
+
+use crate::geometry::{P3, V3};
+use crate::model::chain::Segment;
+
+/// A parametric curve in the XY plane (z is carried from the start).
+pub trait Curve {
+    fn point(&self, t: f64) -> P3;
+    /// Parameter values where the curve may have a corner or where fitting
+    /// should start a fresh piece, including both ends, increasing.
+    fn breaks(&self) -> Vec<f64>;
+}
+
+/// `c + u cos t + v sin t`, `t` from `t0` to `t0 + sweep`: an elliptical arc
+/// with any pair of conjugate semi-diameters, which is what an ellipse (or a
+/// circle) becomes under any affine map.
+pub struct Conic {
+    pub c: P3,
+    pub u: V3,
+    pub v: V3,
+    pub t0: f64,
+    pub sweep: f64,
+}
+
+impl Curve for Conic {
+    fn point(&self, s: f64) -> P3 {
+        let t = self.t0 + s * self.sweep;
+        self.c + self.u * t.cos() + self.v * t.sin()
+    }
+
+    fn breaks(&self) -> Vec<f64> {
+        // Quarter turns keep each piece's tangent turn small enough that a
+        // single biarc is a sensible first guess.
+        let n = ((self.sweep.abs() / std::f64::consts::FRAC_PI_2).ceil() as usize).clamp(1, 64);
+        (0..=n).map(|i| i as f64 / n as f64).collect()
+    }
+}
+
+/// A (possibly rational) B-spline of any degree.
+pub struct Nurbs {
+    pub degree: usize,
+    pub knots: Vec<f64>,
+    pub ctrl: Vec<P3>,
+    pub weights: Vec<f64>,
+}
+
+impl Nurbs {
+    /// A spline from DXF data, with defaults for what writers leave out:
+    /// clamped uniform knots when the knot vector does not fit, unit weights
+    /// when the weights do not. `None` when there is nothing to draw.
+    pub fn new(degree: usize, knots: Vec<f64>, ctrl: Vec<P3>, weights: Vec<f64>) -> Option<Nurbs> {
+        let n = ctrl.len();
+        if n < 2 {
+            return None;
+        }
+        let p = degree.clamp(1, n - 1);
+        let knots_ok = knots.len() == n + p + 1
+            && knots.windows(2).all(|w| w[1] >= w[0])
+            && knots.iter().all(|k| k.is_finite())
+            && knots[n] > knots[p];
+        let knots = if knots_ok {
+            knots
+        } else {
+            let inner = n - p;
+            (0..n + p + 1)
+                .map(|i| (i.saturating_sub(p)).min(inner) as f64 / inner as f64)
+                .collect()
+        };
+        let weights = if weights.len() == n && weights.iter().all(|w| w.is_finite() && *w > 0.0) {
+            weights
+        } else {
+            vec![1.0; n]
+        };
+        Some(Nurbs {
+            degree: p,
+            knots,
+            ctrl,
+            weights,
+        })
+    }
+
+    fn domain(&self) -> (f64, f64) {
+        (self.knots[self.degree], self.knots[self.ctrl.len()])
+    }
+}
+
+impl Curve for Nurbs {
+    fn point(&self, s: f64) -> P3 {
+        let (lo, hi) = self.domain();
+        let u = lo + s.clamp(0.0, 1.0) * (hi - lo);
+        let p = self.degree;
+        let n = self.ctrl.len();
+        // The knot span holding u (the last non-empty one at the end).
+        let mut k = p;
+        while k + 1 < n && self.knots[k + 1] <= u {
+            k += 1;
+        }
+        // de Boor in homogeneous coordinates.
+        let mut d: Vec<(V3, f64)> = (0..=p)
+            .map(|j| {
+                let i = k + j - p;
+                let w = self.weights[i];
+                (self.ctrl[i].coords * w, w)
+            })
+            .collect();
+        for r in 1..=p {
+            for j in (r..=p).rev() {
+                let i = k + j - p;
+                let den = self.knots[i + p + 1 - r] - self.knots[i];
+                let a = if den > 0.0 { (u - self.knots[i]) / den } else { 0.0 };
+                d[j] = (d[j - 1].0 * (1.0 - a) + d[j].0 * a, d[j - 1].1 * (1.0 - a) + d[j].1 * a);
+            }
+        }
+        let (v, w) = d[p];
+        P3::from(v / w)
+    }
+
+    fn breaks(&self) -> Vec<f64> {
+        let (lo, hi) = self.domain();
+        let mut b: Vec<f64> = vec![0.0];
+        for &k in &self.knots[self.degree + 1..self.ctrl.len()] {
+            let s = (k - lo) / (hi - lo);
+            if s > *b.last().unwrap_or(&0.0) + 1e-12 && s < 1.0 - 1e-12 {
+                b.push(s);
+            }
+        }
+        b.push(1.0);
+        b
+    }
+}
+
+/// A smooth interpolant (Catmull-Rom) through fit points, for splines that
+/// carry fit points but no control points.
+pub struct FitPoints {
+    pub pts: Vec<P3>,
+}
+
+impl Curve for FitPoints {
+    fn point(&self, s: f64) -> P3 {
+        let n = self.pts.len();
+        let x = s.clamp(0.0, 1.0) * (n - 1) as f64;
+        let i = (x.floor() as usize).min(n - 2);
+        let t = x - i as f64;
+        let p = |j: isize| self.pts[j.clamp(0, n as isize - 1) as usize].coords;
+        let i = i as isize;
+        let (p0, p1, p2, p3) = (p(i - 1), p(i), p(i + 1), p(i + 2));
+        let t2 = t * t;
+        let t3 = t2 * t;
+        P3::from(
+            (p1 * 2.0
+                + (p2 - p0) * t
+                + (p0 * 2.0 - p1 * 5.0 + p2 * 4.0 - p3) * t2
+                + (p1 * 3.0 - p0 - p2 * 3.0 + p3) * t3)
+                * 0.5,
+        )
+    }
+
+    fn breaks(&self) -> Vec<f64> {
+        let n = self.pts.len() - 1;
+        (0..=n).map(|i| i as f64 / n as f64).collect()
+    }
+}
+
+/// The outcome of fitting one curve.
+#[derive(Debug, Default, Clone, Copy, PartialEq)]
+pub struct FitStats {
+    /// Segments (arcs and the odd line) emitted.
+    pub pieces: u64,
+    /// Lines a polyline would need at the same tolerance.
+    pub chords: u64,
+}
+
+const SAMPLES: usize = 16;
+const MAX_DEPTH: u32 = 30;
+
+/// Fit `curve` with biarcs within `tol`, appending segments (all at the
+/// start's z) to `out`.
+pub fn fit_biarcs(curve: &dyn Curve, tol: f64, out: &mut Vec<Segment>) -> FitStats {
+    let tol = tol.max(1e-9);
+    let z = curve.point(0.0).z;
+    let before = out.len();
+    let mut chords = 0u64;
+    for w in curve.breaks().windows(2) {
+        fit_interval(curve, w[0], w[1], tol, z, 0, out);
+        chords += count_chords(curve, w[0], w[1], tol, 0);
+    }
+    FitStats {
+        pieces: (out.len() - before) as u64,
+        chords,
+    }
+}
+
+fn xy(p: P3, z: f64) -> P3 {
+    P3::new(p.x, p.y, z)
+}
+
+fn unit_xy(v: V3) -> Option<V3> {
+    V3::new(v.x, v.y, 0.0).try_normalize(1e-300)
+}
+
+fn tangents(curve: &dyn Curve, t0: f64, t1: f64) -> (Option<V3>, Option<V3>) {
+    // Second-order one-sided differences: the tangent error is O(h^2), so a
+    // circle given as a spline fits with arcs on the circle itself.
+    let h = (t1 - t0) * 1e-4;
+    let d = |t: f64, h: f64| {
+        let p0 = curve.point(t).coords;
+        let p1 = curve.point(t + h).coords;
+        let p2 = curve.point(t + 2.0 * h).coords;
+        (p1 * 4.0 - p0 * 3.0 - p2) * h.signum()
+    };
+    (unit_xy(d(t0, h)), unit_xy(d(t1, -h)))
+}
+
+fn fit_interval(curve: &dyn Curve, t0: f64, t1: f64, tol: f64, z: f64, depth: u32, out: &mut Vec<Segment>) {
+    let p0 = xy(curve.point(t0), z);
+    let p1 = xy(curve.point(t1), z);
+    if let (Some(d0), Some(d1)) = tangents(curve, t0, t1)
+        && let Some(pieces) = biarc(p0, d0, p1, d1)
+    {
+        let err = (1..SAMPLES)
+            .map(|k| {
+                let q = xy(curve.point(t0 + (t1 - t0) * k as f64 / SAMPLES as f64), z);
+                pieces.iter().map(|s| distance(s, &q)).fold(f64::INFINITY, f64::min)
+            })
+            .fold(0.0, f64::max);
+        if err <= tol {
+            out.extend(pieces.into_iter().filter(|s| s.start() != s.end()));
+            return;
+        }
+    }
+    if depth >= MAX_DEPTH || (p1 - p0).norm() <= tol * 1e-3 {
+        if p0 != p1 {
+            out.push(Segment::Line { start: p0, end: p1 });
+        }
+        return;
+    }
+    let tm = 0.5 * (t0 + t1);
+    fit_interval(curve, t0, tm, tol, z, depth + 1, out);
+    fit_interval(curve, tm, t1, tol, z, depth + 1, out);
+}
+
+fn count_chords(curve: &dyn Curve, t0: f64, t1: f64, tol: f64, depth: u32) -> u64 {
+    let a = curve.point(t0);
+    let b = curve.point(t1);
+    let line = Segment::Line {
+        start: xy(a, 0.0),
+        end: xy(b, 0.0),
+    };
+    let err = (1..SAMPLES)
+        .map(|k| distance(&line, &xy(curve.point(t0 + (t1 - t0) * k as f64 / SAMPLES as f64), 0.0)))
+        .fold(0.0, f64::max);
+    if err <= tol || depth >= MAX_DEPTH {
+        return 1;
+    }
+    let tm = 0.5 * (t0 + t1);
+    count_chords(curve, t0, tm, tol, depth + 1) + count_chords(curve, tm, t1, tol, depth + 1)
+}
+
+/// The arc from `a`, leaving along unit tangent `t`, to `b` (a line when
+/// `b` lies straight ahead).
+fn arc_from_tangent(a: P3, t: V3, b: P3) -> Segment {
+    let c = b - a;
+    let n = V3::new(-t.y, t.x, 0.0);
+    let den = 2.0 * n.dot(&c);
+    let cc = c.norm_squared();
+    if den.abs() <= 1e-12 * cc.sqrt() || cc / den.abs() > 1e7 * cc.sqrt() {
+        return Segment::Line { start: a, end: b };
+    }
+    let r = cc / den;
+    Segment::Arc {
+        start: a,
+        end: b,
+        center: a + n * r,
+        ccw: r > 0.0,
+    }
+}
+
+/// Two tangent-continuous arcs from `p0` (tangent `t0`) to `p1` (tangent
+/// `t1`), with equal tangent lengths. `None` when no such biarc exists.
+pub fn biarc(p0: P3, t0: V3, p1: P3, t1: V3) -> Option<[Segment; 2]> {
+    let v = p1 - p0;
+    let vv = v.norm_squared();
+    if vv == 0.0 {
+        return None;
+    }
+    let t = t0 + t1;
+    let vt = v.dot(&t);
+    let denom = 2.0 * (1.0 - t0.dot(&t1));
+    let d = if denom < 1e-12 {
+        if vt <= 0.0 {
+            return None;
+        }
+        vv / (2.0 * vt)
+    } else {
+        (-vt + (vt * vt + denom * vv).sqrt()) / denom
+    };
+    if !(d.is_finite() && d > 0.0) {
+        return None;
+    }
+    let j = P3::from((p0.coords + t0 * d + p1.coords - t1 * d) * 0.5);
+    let first = arc_from_tangent(p0, t0, j);
+    let second = reverse(arc_from_tangent(p1, -t1, j));
+    Some([first, second])
+}
+
+fn reverse(s: Segment) -> Segment {
+    match s {
+        Segment::Line { start, end } => Segment::Line { start: end, end: start },
+        Segment::Arc {
+            start,
+            end,
+            center,
+            ccw,
+        } => Segment::Arc {
+            start: end,
+            end: start,
+            center,
+            ccw: !ccw,
+        },
+    }
+}
+
+/// Distance in XY from `q` to a segment.
+pub fn distance(s: &Segment, q: &P3) -> f64 {
+    match *s {
+        Segment::Line { start, end } => {
+            let d = V3::new(end.x - start.x, end.y - start.y, 0.0);
+            let w = V3::new(q.x - start.x, q.y - start.y, 0.0);
+            let l2 = d.norm_squared();
+            let t = if l2 > 0.0 {
+                (w.dot(&d) / l2).clamp(0.0, 1.0)
+            } else {
+                0.0
+            };
+            (w - d * t).norm()
+        }
+        Segment::Arc {
+            start,
+            end,
+            center,
+            ccw,
+        } => {
+            let ang = |p: &P3| (p.y - center.y).atan2(p.x - center.x);
+            let r = ((start.x - center.x).powi(2) + (start.y - center.y).powi(2)).sqrt();
+            let (a0, a1, aq) = (ang(&start), ang(&end), ang(q));
+            let tau = std::f64::consts::TAU;
+            let sweep = if ccw {
+                (a1 - a0).rem_euclid(tau)
+            } else {
+                (a0 - a1).rem_euclid(tau)
+            };
+            let sweep = if sweep == 0.0 { tau } else { sweep };
+            let off = if ccw {
+                (aq - a0).rem_euclid(tau)
+            } else {
+                (a0 - aq).rem_euclid(tau)
+            };
+            if off <= sweep {
+                (((q.x - center.x).powi(2) + (q.y - center.y).powi(2)).sqrt() - r).abs()
+            } else {
+                let d0 = ((q.x - start.x).powi(2) + (q.y - start.y).powi(2)).sqrt();
+                let d1 = ((q.x - end.x).powi(2) + (q.y - end.y).powi(2)).sqrt();
+                d0.min(d1)
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::f64::consts::TAU;
+
+    fn max_dev(curve: &dyn Curve, segs: &[Segment]) -> f64 {
+        (0..=4000)
+            .map(|i| {
+                let q = curve.point(i as f64 / 4000.0);
+                segs.iter().map(|s| distance(s, &q)).fold(f64::INFINITY, f64::min)
+            })
+            .fold(0.0, f64::max)
+    }
+
+    fn tangent_continuous(segs: &[Segment]) -> bool {
+        let dir = |s: &Segment, at_end: bool| -> V3 {
+            match *s {
+                Segment::Line { start, end } => (end - start).normalize(),
+                Segment::Arc {
+                    start,
+                    end,
+                    center,
+                    ccw,
+                } => {
+                    let p = if at_end { end } else { start };
+                    let r = p - center;
+                    let t = V3::new(-r.y, r.x, 0.0).normalize();
+                    if ccw { t } else { -t }
+                }
+            }
+        };
+        segs.windows(2)
+            .all(|w| (dir(&w[0], true) - dir(&w[1], false)).norm() < 1e-3)
+    }
+
+    #[test]
+    fn ellipse_within_tolerance_and_smooth() {
+        let e = Conic {
+            c: P3::new(1.0, 2.0, 0.0),
+            u: V3::new(10.0, 0.0, 0.0),
+            v: V3::new(0.0, 4.0, 0.0),
+            t0: 0.0,
+            sweep: TAU,
+        };
+        let mut out = Vec::new();
+        let st = fit_biarcs(&e, 0.001, &mut out);
+        assert!(max_dev(&e, &out) <= 0.0011, "{}", max_dev(&e, &out));
+        assert!(tangent_continuous(&out));
+        assert!(st.pieces < st.chords / 2, "{st:?}");
+        // Ends meet exactly.
+        assert_eq!(out.first().unwrap().start(), e.point(0.0));
+        for w in out.windows(2) {
+            assert!((w[0].end() - w[1].start()).norm() < 1e-12);
+        }
+    }
+
+    #[test]
+    fn circle_as_spline_gives_few_arcs() {
+        // A rational quadratic quarter circle is exactly a circle.
+        let s = std::f64::consts::FRAC_1_SQRT_2;
+        let n = Nurbs::new(
+            2,
+            vec![0.0, 0.0, 0.0, 1.0, 1.0, 1.0],
+            vec![P3::new(5.0, 0.0, 0.0), P3::new(5.0, 5.0, 0.0), P3::new(0.0, 5.0, 0.0)],
+            vec![1.0, s, 1.0],
+        )
+        .unwrap();
+        assert!((n.point(0.5).coords.norm() - 5.0).abs() < 1e-12);
+        let mut out = Vec::new();
+        let st = fit_biarcs(&n, 1e-6, &mut out);
+        assert!(st.pieces <= 2, "{st:?}");
+        assert!(max_dev(&n, &out) < 1e-6);
+    }
+
+    #[test]
+    fn cubic_spline_with_corner_knot() {
+        let n = Nurbs::new(
+            3,
+            vec![0.0, 0.0, 0.0, 0.0, 1.0, 1.0, 1.0, 2.0, 2.0, 2.0, 2.0],
+            (0..7).map(|i| P3::new(i as f64, ((i * 7) % 5) as f64, 0.0)).collect(),
+            vec![],
+        )
+        .unwrap();
+        let mut out = Vec::new();
+        fit_biarcs(&n, 0.001, &mut out);
+        assert!(max_dev(&n, &out) <= 0.0011);
+    }
+
+    #[test]
+    fn bad_knots_fall_back_to_clamped_uniform() {
+        let n = Nurbs::new(
+            3,
+            vec![1.0, 0.0],
+            (0..5).map(|i| P3::new(i as f64, 0.0, 0.0)).collect(),
+            vec![],
+        )
+        .unwrap();
+        assert_eq!(n.point(0.0), P3::new(0.0, 0.0, 0.0));
+        assert_eq!(n.point(1.0), P3::new(4.0, 0.0, 0.0));
+    }
+}

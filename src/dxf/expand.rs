@@ -1,0 +1,492 @@
+//! Placing entities in the world: OCS, block insertion (nested, scaled,
+//! mirrored, arrayed), units and user transforms, all as one affine map per
+//! entity; curves leave here as exact lines and arcs.
+
+use super::curves::{Conic, Curve, FitPoints, Nurbs, fit_biarcs};
+use super::entities::{Entity, Insert, Shape};
+use super::ocs::Affine;
+use crate::geometry::{P3, V3};
+use crate::model::chain::Segment;
+use std::collections::{BTreeMap, HashMap};
+use std::f64::consts::TAU;
+
+/// A block definition.
+#[derive(Debug, Default)]
+pub struct Block {
+    pub base: P3,
+    pub entities: Vec<Entity>,
+}
+
+/// Where expanded geometry goes, with what was counted on the way.
+#[derive(Debug, Default)]
+pub struct Sink {
+    /// Segments with the index of their layer in `layers`.
+    pub segments: Vec<(Segment, u32)>,
+    pub points: Vec<(P3, u32)>,
+    pub layers: Vec<String>,
+    layer_ids: HashMap<String, u32>,
+    /// Entities turned into geometry, by type.
+    pub used: BTreeMap<&'static str, u64>,
+    /// Warnings, by text, with counts.
+    pub warnings: BTreeMap<String, u64>,
+    /// Splines and ellipses fitted, arcs emitted, chords a polyline needs.
+    pub curves: u64,
+    pub curve_pieces: u64,
+    pub curve_chords: u64,
+    /// The drawing expanded past `max_segments`: the result is incomplete
+    /// and must not be used.
+    pub overflow: bool,
+}
+
+/// How to expand: tolerance and layer filter.
+pub struct Expander<'a> {
+    pub blocks: &'a HashMap<String, Block>,
+    pub arc_tol: f64,
+    /// Empty: every layer.
+    pub layers: &'a [String],
+    /// Stop (and set [`Sink::overflow`]) past this many segments.
+    pub max_segments: usize,
+}
+
+const MAX_NESTING: usize = 64;
+/// A guard against block bombs (arrays of arrays of arrays...).
+/// The default guard: about 2 GB of geometry.
+pub const MAX_SEGMENTS: usize = 20_000_000;
+
+impl Sink {
+    fn layer_id(&mut self, name: &str) -> u32 {
+        if let Some(&i) = self.layer_ids.get(name) {
+            return i;
+        }
+        let i = self.layers.len() as u32;
+        self.layers.push(name.to_string());
+        self.layer_ids.insert(name.to_string(), i);
+        i
+    }
+
+    fn warn(&mut self, w: String) {
+        *self.warnings.entry(w).or_default() += 1;
+    }
+}
+
+impl Expander<'_> {
+    /// Expand one entity under transform `t`; `inherit` is the layer that
+    /// replaces "0" inside blocks.
+    pub fn entity(&self, e: &Entity, t: &Affine, inherit: Option<&str>, depth: usize, sink: &mut Sink) {
+        let layer = match inherit {
+            Some(l) if e.layer == "0" => l,
+            _ => e.layer.as_str(),
+        };
+        if let Shape::Insert(ins) = &e.shape {
+            self.insert(ins, t, layer, depth, sink);
+            return;
+        }
+        if !self.layers.is_empty() && !self.layers.iter().any(|l| l == layer) {
+            return;
+        }
+        if sink.segments.len() > self.max_segments {
+            sink.overflow = true;
+            return;
+        }
+        let lid = sink.layer_id(layer);
+        let name = match &e.shape {
+            Shape::Line { a, b } => {
+                sink.segments.push((
+                    Segment::Line {
+                        start: t.apply(a),
+                        end: t.apply(b),
+                    },
+                    lid,
+                ));
+                "LINE"
+            }
+            Shape::Arc { c, r, a0, a1, ext } => {
+                let t = t.then_after(&Affine::ocs(*ext));
+                let a0r = a0.to_radians();
+                let mut sweep = (a1 - a0).to_radians().rem_euclid(TAU);
+                if sweep == 0.0 {
+                    sweep = TAU;
+                }
+                self.conic(&t, c, *r, (a0r, sweep), lid, sink);
+                "ARC"
+            }
+            Shape::Circle { c, r, ext } => {
+                let t = t.then_after(&Affine::ocs(*ext));
+                self.conic(&t, c, *r, (0.0, TAU), lid, sink);
+                "CIRCLE"
+            }
+            Shape::Poly2 {
+                verts,
+                closed,
+                elevation,
+                ext,
+                lw,
+            } => {
+                let t = t.then_after(&Affine::ocs(*ext));
+                self.poly2(&t, verts, *closed, *elevation, lid, sink);
+                if *lw { "LWPOLYLINE" } else { "POLYLINE" }
+            }
+            Shape::Poly3 { verts, closed } => {
+                let n = verts.len();
+                let pairs = if *closed && n > 2 { n } else { n.saturating_sub(1) };
+                for i in 0..pairs {
+                    sink.segments.push((
+                        Segment::Line {
+                            start: t.apply(&verts[i]),
+                            end: t.apply(&verts[(i + 1) % n]),
+                        },
+                        lid,
+                    ));
+                }
+                "POLYLINE"
+            }
+            Shape::Ellipse {
+                c,
+                major,
+                ratio,
+                t0,
+                t1,
+                ext,
+            } => {
+                let n = ext.try_normalize(1e-12).unwrap_or(V3::z());
+                let minor = n.cross(major) * *ratio;
+                let mut sweep = (t1 - t0).rem_euclid(TAU);
+                if sweep < 1e-12 {
+                    sweep = TAU;
+                }
+                let conic = Conic {
+                    c: t.apply(c),
+                    u: t.apply_vec(major),
+                    v: t.apply_vec(&minor),
+                    t0: *t0,
+                    sweep,
+                };
+                self.place_conic(conic, lid, sink);
+                "ELLIPSE"
+            }
+            Shape::Spline {
+                degree,
+                knots,
+                ctrl,
+                weights,
+                fit,
+                ..
+            } => {
+                let ctrl_w: Vec<P3> = ctrl.iter().map(|p| t.apply(p)).collect();
+                let curve: Option<Box<dyn Curve>> = if ctrl_w.len() >= 2 {
+                    Nurbs::new(*degree, knots.clone(), ctrl_w, weights.clone()).map(|n| Box::new(n) as Box<dyn Curve>)
+                } else if fit.len() >= 2 {
+                    Some(Box::new(FitPoints {
+                        pts: fit.iter().map(|p| t.apply(p)).collect(),
+                    }))
+                } else {
+                    None
+                };
+                match curve {
+                    Some(c) => self.fit(c.as_ref(), lid, sink),
+                    None => sink.warn("SPLINE with fewer than two points left out".into()),
+                }
+                "SPLINE"
+            }
+            Shape::Point { p } => {
+                sink.points.push((t.apply(p), lid));
+                "POINT"
+            }
+            Shape::Insert(_) => "INSERT",
+        };
+        if depth == 0 {
+            *sink.used.entry(name).or_default() += 1;
+        }
+    }
+
+    fn insert(&self, ins: &Insert, t: &Affine, layer: &str, depth: usize, sink: &mut Sink) {
+        if depth == 0 {
+            *sink.used.entry("INSERT").or_default() += 1;
+        }
+        let Some(block) = self.blocks.get(&ins.block) else {
+            sink.warn(format!("INSERT of undefined block '{}' left out", ins.block));
+            return;
+        };
+        if depth >= MAX_NESTING {
+            sink.warn(format!(
+                "blocks nested deeper than {MAX_NESTING} (a block that inserts itself?): '{}' left out",
+                ins.block
+            ));
+            return;
+        }
+        let place = t
+            .then_after(&Affine::ocs(ins.ext))
+            .then_after(&Affine::translate(ins.p.coords))
+            .then_after(&Affine::rotate_z(ins.rotation_deg.to_radians()));
+        let scale_base =
+            Affine::scale(ins.scale.x, ins.scale.y, ins.scale.z).then_after(&Affine::translate(-block.base.coords));
+        for row in 0..ins.rows {
+            for col in 0..ins.cols {
+                // Array spacing is in the rotated insert frame, not scaled.
+                let offset = V3::new(col as f64 * ins.col_spacing, row as f64 * ins.row_spacing, 0.0);
+                if sink.segments.len() > self.max_segments {
+                    // Stop at every level at once, not copy by copy.
+                    sink.overflow = true;
+                    return;
+                }
+                let m = place.then_after(&Affine::translate(offset)).then_after(&scale_base);
+                if !m.is_finite() {
+                    sink.warn(format!(
+                        "INSERT of '{}' with a non-finite transform left out",
+                        ins.block
+                    ));
+                    return;
+                }
+                for e in &block.entities {
+                    self.entity(e, &m, Some(layer), depth + 1, sink);
+                }
+            }
+        }
+    }
+
+    /// `span` is (start angle, signed sweep) in radians.
+    fn conic(&self, t: &Affine, c: &P3, r: f64, span: (f64, f64), lid: u32, sink: &mut Sink) {
+        let (a0, sweep) = span;
+        if !(r.is_finite() && r > 0.0) {
+            // A point-sized circle or arc: let chaining count it as dropped.
+            let p = t.apply(c);
+            sink.segments.push((Segment::Line { start: p, end: p }, lid));
+            return;
+        }
+        let conic = Conic {
+            c: t.apply(c),
+            u: t.apply_vec(&V3::new(r, 0.0, 0.0)),
+            v: t.apply_vec(&V3::new(0.0, r, 0.0)),
+            t0: a0,
+            sweep,
+        };
+        self.place_conic(conic, lid, sink);
+    }
+
+    /// An elliptical arc in the world: an exact arc when its XY shadow is a
+    /// circle (the usual case: arcs under rotation, uniform scale,
+    /// mirroring), else biarcs.
+    fn place_conic(&self, k: Conic, lid: u32, sink: &mut Sink) {
+        let (ux, uy, vx, vy) = (k.u.x, k.u.y, k.v.x, k.v.y);
+        let lu = ux.hypot(uy);
+        let lv = vx.hypot(vy);
+        let cross = ux * vy - uy * vx;
+        let circular = lu > 0.0 && (lu - lv).abs() <= 1e-12 * lu && (ux * vx + uy * vy).abs() <= 1e-12 * lu * lu;
+        if circular {
+            let at = |a: f64| {
+                P3::new(
+                    k.c.x + ux * a.cos() + vx * a.sin(),
+                    k.c.y + uy * a.cos() + vy * a.sin(),
+                    k.c.z,
+                )
+            };
+            let start = at(k.t0);
+            let full = k.sweep >= TAU - 1e-12;
+            let end = if full { start } else { at(k.t0 + k.sweep) };
+            sink.segments.push((
+                Segment::Arc {
+                    start,
+                    end,
+                    center: P3::new(k.c.x, k.c.y, k.c.z),
+                    ccw: (k.sweep > 0.0) == (cross > 0.0),
+                },
+                lid,
+            ));
+            return;
+        }
+        if cross.abs() <= 1e-12 * (lu * lv).max(1e-300) {
+            // Seen edge-on: the shadow is a straight line, traced back and forth.
+            sink.warn("arc or ellipse seen edge-on (extrusion in the XY plane) drawn as its chord".into());
+            let a = k.point(0.0);
+            let b = k.point(1.0);
+            sink.segments.push((Segment::Line { start: a, end: b }, lid));
+            return;
+        }
+        self.fit(&k, lid, sink);
+    }
+
+    fn fit(&self, c: &dyn Curve, lid: u32, sink: &mut Sink) {
+        let mut segs = Vec::new();
+        let st = fit_biarcs(c, self.arc_tol, &mut segs);
+        sink.curves += 1;
+        sink.curve_pieces += st.pieces;
+        sink.curve_chords += st.chords;
+        sink.segments.extend(segs.into_iter().map(|s| (s, lid)));
+    }
+
+    fn poly2(&self, t: &Affine, verts: &[(f64, f64, f64)], closed: bool, z: f64, lid: u32, sink: &mut Sink) {
+        let n = verts.len();
+        let pairs = if closed && n > 1 { n } else { n.saturating_sub(1) };
+        for i in 0..pairs {
+            let (x0, y0, b) = verts[i];
+            let (x1, y1, _) = verts[(i + 1) % n];
+            let p0 = P3::new(x0, y0, z);
+            let p1 = P3::new(x1, y1, z);
+            if b == 0.0 || p0 == p1 {
+                sink.segments.push((
+                    Segment::Line {
+                        start: t.apply(&p0),
+                        end: t.apply(&p1),
+                    },
+                    lid,
+                ));
+                continue;
+            }
+            // Bulge = tan(sweep / 4), positive counter-clockwise.
+            let sweep = 4.0 * b.atan();
+            let d = p1 - p0;
+            let chord = d.xy().norm();
+            let r = chord / (2.0 * (sweep / 2.0).sin().abs());
+            let m = P3::from((p0.coords + p1.coords) * 0.5);
+            let left = V3::new(-d.y, d.x, 0.0) / chord;
+            let c = m + left * (chord / 2.0) * ((1.0 - b * b) / (2.0 * b));
+            let a0 = (p0.y - c.y).atan2(p0.x - c.x);
+            // Snap the ends to the vertices exactly: the arc maths is a
+            // hair off, and consecutive pieces must share ends.
+            let before = sink.segments.len();
+            self.conic(t, &c, r, (a0, sweep), lid, sink);
+            if sink.segments.len() == before + 1
+                && let Some((Segment::Arc { start, end, .. }, _)) = sink.segments.get_mut(before)
+            {
+                *start = t.apply(&p0);
+                *end = t.apply(&p1);
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::dxf::reader::Pos;
+
+    fn ent(shape: Shape) -> Entity {
+        Entity {
+            layer: "0".into(),
+            shape,
+            pos: Pos::Line(1),
+        }
+    }
+
+    fn expand(e: &Entity, blocks: &HashMap<String, Block>) -> Sink {
+        let x = Expander {
+            blocks,
+            arc_tol: 0.001,
+            layers: &[],
+            max_segments: MAX_SEGMENTS,
+        };
+        let mut sink = Sink::default();
+        x.entity(e, &Affine::identity(), None, 0, &mut sink);
+        sink
+    }
+
+    #[test]
+    fn mirrored_ocs_arc_turns_clockwise() {
+        let e = ent(Shape::Arc {
+            c: P3::new(10.0, 0.0, 0.0),
+            r: 1.0,
+            a0: 0.0,
+            a1: 90.0,
+            ext: V3::new(0.0, 0.0, -1.0),
+        });
+        let s = expand(&e, &HashMap::new());
+        let (
+            Segment::Arc {
+                start,
+                end,
+                center,
+                ccw,
+            },
+            _,
+        ) = s.segments[0]
+        else {
+            panic!()
+        };
+        assert_eq!(center, P3::new(-10.0, 0.0, 0.0));
+        assert!((start - P3::new(-11.0, 0.0, 0.0)).norm() < 1e-12);
+        assert!((end - P3::new(-10.0, 1.0, 0.0)).norm() < 1e-12);
+        assert!(!ccw);
+    }
+
+    #[test]
+    fn bulge_semicircle() {
+        let e = ent(Shape::Poly2 {
+            verts: vec![(0.0, 0.0, 1.0), (2.0, 0.0, 0.0)],
+            closed: false,
+            elevation: 0.0,
+            ext: V3::z(),
+            lw: true,
+        });
+        let s = expand(&e, &HashMap::new());
+        let (Segment::Arc { center, ccw, .. }, _) = s.segments[0] else {
+            panic!()
+        };
+        assert!((center - P3::new(1.0, 0.0, 0.0)).norm() < 1e-12);
+        assert!(ccw);
+    }
+
+    #[test]
+    fn nested_mirrored_array_insert() {
+        let mut blocks = HashMap::new();
+        blocks.insert(
+            "B".to_string(),
+            Block {
+                base: P3::new(1.0, 0.0, 0.0),
+                entities: vec![ent(Shape::Line {
+                    a: P3::new(1.0, 0.0, 0.0),
+                    b: P3::new(2.0, 0.0, 0.0),
+                })],
+            },
+        );
+        let ins = ent(Shape::Insert(Box::new(Insert {
+            block: "B".into(),
+            p: P3::new(10.0, 0.0, 0.0),
+            scale: V3::new(-2.0, 1.0, 1.0),
+            rotation_deg: 90.0,
+            cols: 2,
+            rows: 1,
+            col_spacing: 5.0,
+            row_spacing: 0.0,
+            ext: V3::z(),
+        })));
+        let s = expand(&ins, &blocks);
+        assert_eq!(s.segments.len(), 2);
+        // Base (1,0) -> origin; (2,0) -> (1,0) -> scaled (-2,0) -> rotated (0,-2) -> (10,-2).
+        let (Segment::Line { start, end }, _) = s.segments[0] else {
+            panic!()
+        };
+        assert!((start - P3::new(10.0, 0.0, 0.0)).norm() < 1e-12);
+        assert!((end - P3::new(10.0, -2.0, 0.0)).norm() < 1e-12);
+        // Second column 5 along the rotated X axis: +5 in Y.
+        let (Segment::Line { start, .. }, _) = s.segments[1] else {
+            panic!()
+        };
+        assert!((start - P3::new(10.0, 5.0, 0.0)).norm() < 1e-12);
+    }
+
+    #[test]
+    fn self_inserting_block_is_stopped() {
+        let mut blocks = HashMap::new();
+        let me = ent(Shape::Insert(Box::new(Insert {
+            block: "A".into(),
+            p: P3::origin(),
+            scale: V3::new(1.0, 1.0, 1.0),
+            rotation_deg: 0.0,
+            cols: 1,
+            rows: 1,
+            col_spacing: 0.0,
+            row_spacing: 0.0,
+            ext: V3::z(),
+        })));
+        blocks.insert(
+            "A".to_string(),
+            Block {
+                base: P3::origin(),
+                entities: vec![me.clone()],
+            },
+        );
+        let s = expand(&me, &blocks);
+        assert!(s.segments.is_empty());
+        assert_eq!(s.warnings.len(), 1);
+    }
+}

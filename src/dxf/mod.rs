@@ -1,0 +1,404 @@
+//! DXF import: from an ASCII or binary DXF file (R12 and older to current)
+//! to exact lines and arcs in millimetres, ready for chaining.
+//!
+//! - [`reader`]: the streaming group-code tokenizer (ASCII and binary).
+//! - [`entities`]: one entity's tags to a typed [`entities::Shape`].
+//! - [`ocs`]: affine maps and the Object Coordinate System.
+//! - [`expand`]: blocks, inserts, units and transforms applied; curves fitted.
+//! - [`curves`]: ellipses and splines as biarcs within a tolerance.
+//! - [`units`]: `$INSUNITS` and unit names.
+//! - [`chain`]: joining segments into oriented, repaired chains.
+//! - [`svg`]: a preview of the chains.
+//! - [`transform`]: the user's move / rotate / scale / mirror / patterns.
+//! - [`summary`]: the stderr report.
+//!
+//! The file is read once, front to back; ENTITIES are expanded as they are
+//! read, so memory holds the block definitions and the output geometry but
+//! never the whole file. See docs/dxf.md.
+
+pub mod chain;
+pub mod curves;
+pub mod entities;
+pub mod expand;
+pub mod ocs;
+pub mod reader;
+pub mod summary;
+pub mod svg;
+pub mod transform;
+pub mod units;
+
+use entities::{Entity, Read, Scratch, Shape};
+use expand::{Block, Expander, Sink};
+use ocs::Affine;
+use reader::{DxfError, Reader};
+use std::collections::{BTreeMap, HashMap};
+use std::io::BufRead;
+
+/// What to import and how.
+#[derive(Debug, Clone)]
+pub struct ImportOptions {
+    /// Fitting tolerance for splines and ellipses (mm).
+    pub arc_tol: f64,
+    /// Layers to keep; empty keeps all.
+    pub layers: Vec<String>,
+    /// Millimetres per drawing unit, overriding `$INSUNITS`.
+    pub units_mm: Option<f64>,
+    /// User transforms (in mm), one per copy of the drawing; empty means
+    /// one untransformed copy.
+    pub copies: Vec<Affine>,
+    /// Give up when the drawing expands to more segments than this (block
+    /// bombs: arrays of inserts of arrays...).
+    pub max_segments: usize,
+}
+
+impl Default for ImportOptions {
+    fn default() -> Self {
+        ImportOptions {
+            arc_tol: 0.001,
+            layers: Vec::new(),
+            units_mm: None,
+            copies: Vec::new(),
+            max_segments: expand::MAX_SEGMENTS,
+        }
+    }
+}
+
+/// Where the unit scale came from.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum UnitSource {
+    /// `$INSUNITS` with this code.
+    Header(i64),
+    /// `--units`.
+    Option,
+    /// Neither: millimetres assumed.
+    Assumed,
+}
+
+/// The drawing as geometry, with what was counted on the way.
+#[derive(Debug)]
+pub struct Import {
+    pub sink: Sink,
+    /// Entity types not turned into geometry, with counts.
+    pub skipped: BTreeMap<String, u64>,
+    pub unit_mm: f64,
+    pub unit_source: UnitSource,
+    pub version: Option<String>,
+    pub binary: bool,
+}
+
+#[derive(PartialEq)]
+enum Section {
+    None,
+    Header,
+    Blocks,
+    Entities,
+    Other,
+}
+
+/// Read a whole DXF file.
+pub fn import(input: Box<dyn BufRead>, opts: &ImportOptions) -> Result<Import, DxfError> {
+    let mut r = Reader::new(input)?;
+    let binary = r.is_binary();
+    let mut blocks: HashMap<String, Block> = HashMap::new();
+    let mut skipped: BTreeMap<String, u64> = BTreeMap::new();
+    let mut pending: Vec<Entity> = Vec::new();
+    let mut sink = Sink::default();
+    let mut scratch = Scratch::default();
+    let mut section = Section::None;
+    let mut insunits: Option<i64> = None;
+    let mut version: Option<String> = None;
+    let mut tops: Option<Vec<Affine>> = None;
+    let mut seen_anything = false;
+    let mut saw_eof = false;
+
+    while let Some(code) = r.next_tag()? {
+        seen_anything = true;
+        if code == 9 && section == Section::Header {
+            let var = r.text().trim().to_string();
+            if var == "$INSUNITS" || var == "$ACADVER" {
+                match r.next_tag()? {
+                    Some(70) if var == "$INSUNITS" => insunits = Some(r.int()),
+                    Some(1) if var == "$ACADVER" => version = Some(r.text().trim().to_string()),
+                    Some(_) => r.unread(),
+                    None => break,
+                }
+            }
+            continue;
+        }
+        if code != 0 {
+            continue;
+        }
+        let tag = r.text().trim().to_string();
+        match tag.as_str() {
+            "SECTION" => {
+                section = match r.next_tag()? {
+                    Some(2) => match r.text().trim() {
+                        "HEADER" => Section::Header,
+                        "BLOCKS" => Section::Blocks,
+                        "ENTITIES" => Section::Entities,
+                        _ => Section::Other,
+                    },
+                    Some(c) => {
+                        return Err(DxfError::at(
+                            r.pos,
+                            format!("SECTION must be followed by group code 2 (its name), found {c}"),
+                        ));
+                    }
+                    None => return Err(DxfError::at(r.pos, "file ends after SECTION: truncated file?")),
+                };
+                continue;
+            }
+            "ENDSEC" => {
+                section = Section::None;
+                continue;
+            }
+            "EOF" => {
+                saw_eof = true;
+                break;
+            }
+            _ => {}
+        }
+        match section {
+            Section::Blocks if tag == "BLOCK" => {
+                let (name, block) = read_block(&mut r, &mut scratch, &mut skipped)?;
+                blocks.insert(name, block);
+            }
+            // Entities outside any section: some minimal writers omit the
+            // SECTION lines altogether.
+            Section::Entities | Section::None => {
+                let top = tops.get_or_insert_with(|| top_transforms(opts, insunits));
+                match entities::read_entity(&tag, &mut r, &mut scratch)? {
+                    Read::Skipped(k) => *skipped.entry(k).or_default() += 1,
+                    Read::Entity(mut e) => {
+                        if let Shape::Insert(ins) = &mut e.shape {
+                            ins.block = ins.block.to_uppercase();
+                            if !blocks.contains_key(&ins.block) {
+                                // BLOCKS after ENTITIES (non-standard): place later.
+                                pending.push(e);
+                                continue;
+                            }
+                        }
+                        let x = Expander {
+                            blocks: &blocks,
+                            arc_tol: opts.arc_tol,
+                            layers: &opts.layers,
+                            max_segments: opts.max_segments,
+                        };
+                        for t in top.iter() {
+                            x.entity(&e, t, None, 0, &mut sink);
+                        }
+                        if sink.overflow {
+                            return Err(overflow(e.pos, opts.max_segments));
+                        }
+                    }
+                }
+            }
+            _ => {}
+        }
+    }
+    if !seen_anything {
+        return Err(DxfError::at(reader::Pos::Line(1), "empty input: not a DXF file"));
+    }
+    if !saw_eof {
+        // Every writer ends with 0/EOF; its absence means the file was cut.
+        return Err(DxfError::at(r.pos, "file ends without the EOF marker: truncated file?"));
+    }
+    let top = tops.unwrap_or_else(|| top_transforms(opts, insunits));
+    let x = Expander {
+        blocks: &blocks,
+        arc_tol: opts.arc_tol,
+        layers: &opts.layers,
+        max_segments: opts.max_segments,
+    };
+    for e in &pending {
+        for t in &top {
+            x.entity(e, t, None, 0, &mut sink);
+        }
+        if sink.overflow {
+            return Err(overflow(e.pos, opts.max_segments));
+        }
+    }
+    // Give back the growth slack of the geometry array before chaining
+    // starts allocating (a shrink of a large block is a remap, not a copy).
+    sink.segments.shrink_to_fit();
+    let (unit_mm, unit_source) = unit_of(opts, insunits);
+    Ok(Import {
+        sink,
+        skipped,
+        unit_mm,
+        unit_source,
+        version,
+        binary,
+    })
+}
+
+fn overflow(pos: reader::Pos, max: usize) -> DxfError {
+    DxfError::at(
+        pos,
+        format!("this entity expands the drawing past {max} segments (blocks inserted in arrays of arrays?)"),
+    )
+}
+
+fn unit_of(opts: &ImportOptions, insunits: Option<i64>) -> (f64, UnitSource) {
+    if let Some(u) = opts.units_mm {
+        return (u, UnitSource::Option);
+    }
+    match insunits.and_then(|c| units::insunits_mm(c).map(|mm| (mm, c))) {
+        Some((mm, c)) => (mm, UnitSource::Header(c)),
+        None => (1.0, UnitSource::Assumed),
+    }
+}
+
+fn top_transforms(opts: &ImportOptions, insunits: Option<i64>) -> Vec<Affine> {
+    let (mm, _) = unit_of(opts, insunits);
+    let unit = Affine::scale(mm, mm, mm);
+    if opts.copies.is_empty() {
+        vec![unit]
+    } else {
+        opts.copies.iter().map(|c| c.then_after(&unit)).collect()
+    }
+}
+
+/// A BLOCK definition up to ENDBLK.
+fn read_block(
+    r: &mut Reader,
+    scratch: &mut Scratch,
+    skipped: &mut BTreeMap<String, u64>,
+) -> Result<(String, Block), DxfError> {
+    let start = r.pos;
+    let mut name = String::new();
+    let mut base = crate::geometry::P3::origin();
+    while let Some(code) = r.next_tag()? {
+        match code {
+            0 => {
+                r.unread();
+                break;
+            }
+            2 => name = r.text().trim().to_uppercase(),
+            10 => base.x = r.float(),
+            20 => base.y = r.float(),
+            30 => base.z = r.float(),
+            _ => {}
+        }
+    }
+    let mut block = Block {
+        base,
+        entities: Vec::new(),
+    };
+    loop {
+        match r.next_tag()? {
+            None => {
+                return Err(DxfError::at(
+                    start,
+                    format!("BLOCK '{name}' has no ENDBLK: truncated file?"),
+                ));
+            }
+            Some(0) => {}
+            Some(c) => {
+                return Err(DxfError::at(
+                    r.pos,
+                    format!("unexpected group code {c} in BLOCK '{name}'"),
+                ));
+            }
+        }
+        let tag = r.text().trim().to_string();
+        match tag.as_str() {
+            "ENDBLK" => {
+                // Its own tags (handle, layer) mean nothing to us.
+                while let Some(c) = r.next_tag()? {
+                    if c == 0 {
+                        r.unread();
+                        break;
+                    }
+                }
+                break;
+            }
+            "ENDSEC" | "EOF" => {
+                return Err(DxfError::at(
+                    r.pos,
+                    format!("BLOCK '{name}' ends with {tag} instead of ENDBLK"),
+                ));
+            }
+            _ => match entities::read_entity(&tag, r, scratch)? {
+                Read::Skipped(k) => *skipped.entry(k).or_default() += 1,
+                Read::Entity(mut e) => {
+                    if let Shape::Insert(ins) = &mut e.shape {
+                        ins.block = ins.block.to_uppercase();
+                    }
+                    block.entities.push(e);
+                }
+            },
+        }
+    }
+    Ok((name, block))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::io::Cursor;
+
+    fn run(text: &str, opts: &ImportOptions) -> Result<Import, DxfError> {
+        import(Box::new(Cursor::new(text.as_bytes().to_vec())), opts)
+    }
+
+    #[test]
+    fn inch_header_scales_and_blocks_insert() {
+        let t = "0\nSECTION\n2\nHEADER\n9\n$INSUNITS\n70\n1\n0\nENDSEC\n\
+                 0\nSECTION\n2\nBLOCKS\n0\nBLOCK\n2\nb1\n10\n0\n20\n0\n0\nLINE\n10\n0\n20\n0\n11\n1\n21\n0\n0\nENDBLK\n0\nENDSEC\n\
+                 0\nSECTION\n2\nENTITIES\n0\nINSERT\n2\nB1\n10\n1\n20\n0\n0\nTEXT\n1\nhi\n0\nENDSEC\n0\nEOF\n";
+        let imp = run(t, &ImportOptions::default()).unwrap();
+        assert_eq!(imp.unit_source, UnitSource::Header(1));
+        assert_eq!(imp.sink.segments.len(), 1);
+        let (s, _) = imp.sink.segments[0];
+        assert!((s.end().x - 50.8).abs() < 1e-12);
+        assert_eq!(imp.skipped.get("TEXT"), Some(&1));
+    }
+
+    #[test]
+    fn units_option_wins_and_missing_header_is_assumed() {
+        let t = "0\nSECTION\n2\nENTITIES\n0\nLINE\n10\n0\n20\n0\n11\n1\n21\n0\n0\nENDSEC\n0\nEOF\n";
+        let imp = run(t, &ImportOptions::default()).unwrap();
+        assert_eq!(imp.unit_source, UnitSource::Assumed);
+        let o = ImportOptions {
+            units_mm: Some(10.0),
+            ..Default::default()
+        };
+        let imp = run(t, &o).unwrap();
+        assert_eq!(imp.sink.segments[0].0.end().x, 10.0);
+    }
+
+    #[test]
+    fn layer_filter() {
+        let t = "0\nSECTION\n2\nENTITIES\n0\nLINE\n8\nA\n10\n0\n20\n0\n11\n1\n21\n0\n0\nLINE\n8\nB\n10\n0\n20\n0\n11\n1\n21\n0\n0\nENDSEC\n0\nEOF\n";
+        let o = ImportOptions {
+            layers: vec!["B".into()],
+            ..Default::default()
+        };
+        let imp = run(t, &o).unwrap();
+        assert_eq!(imp.sink.segments.len(), 1);
+        assert_eq!(imp.sink.layers, vec!["B".to_string()]);
+    }
+
+    #[test]
+    fn block_bombs_stop_with_a_located_error() {
+        let t = "0\nSECTION\n2\nBLOCKS\n0\nBLOCK\n2\nA\n0\nLINE\n10\n0\n20\n0\n11\n1\n21\n0\n0\nENDBLK\n\
+                 0\nBLOCK\n2\nB\n0\nINSERT\n2\nA\n70\n1000\n71\n1000\n44\n2\n45\n2\n0\nENDBLK\n0\nENDSEC\n\
+                 0\nSECTION\n2\nENTITIES\n0\nLINE\n10\n0\n20\n0\n11\n1\n21\n0\n\
+                 0\nINSERT\n2\nB\n70\n100\n71\n100\n44\n3000\n45\n3000\n0\nENDSEC\n0\nEOF\n";
+        let o = ImportOptions {
+            max_segments: 10_000,
+            ..Default::default()
+        };
+        let e = run(t, &o).unwrap_err().to_string();
+        assert!(e.starts_with("line 55:") && e.contains("10000 segments"), "{e}");
+    }
+
+    #[test]
+    fn truncated_block_and_empty_input() {
+        let t = "0\nSECTION\n2\nBLOCKS\n0\nBLOCK\n2\nX\n0\nLINE\n10\n0\n";
+        let e = run(t, &ImportOptions::default()).unwrap_err().to_string();
+        assert!(e.contains("line"), "{e}");
+        assert!(run("", &ImportOptions::default()).is_err());
+    }
+}

@@ -1,0 +1,502 @@
+//! Group-code tokenizer for ASCII and binary DXF.
+//!
+//! A DXF file is a flat sequence of (group code, value) pairs; everything
+//! above this layer is a state machine over them. The tokenizer streams from
+//! a `BufRead` (one line or one binary tag at a time), so memory does not
+//! grow with the file, and it parses every value eagerly by the type its
+//! group code implies: a malformed number is reported at the exact line (or
+//! byte offset, for binary files) where it sits, not later where it is used.
+
+use std::fmt;
+use std::io::{BufRead, BufReader, Cursor, Read};
+use thiserror::Error;
+
+/// Where a tag sits in the input: ASCII files are addressed by line, binary
+/// files by byte offset.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Pos {
+    Line(u64),
+    Byte(u64),
+}
+
+impl fmt::Display for Pos {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Pos::Line(l) => write!(f, "line {l}"),
+            Pos::Byte(b) => write!(f, "byte {b}"),
+        }
+    }
+}
+
+/// A DXF reading error, located.
+#[derive(Debug, Error)]
+pub enum DxfError {
+    #[error("{pos}: {msg}")]
+    Syntax { pos: Pos, msg: String },
+    #[error("read error: {0}")]
+    Io(#[from] std::io::Error),
+}
+
+impl DxfError {
+    pub fn at(pos: Pos, msg: impl Into<String>) -> Self {
+        DxfError::Syntax { pos, msg: msg.into() }
+    }
+}
+
+/// The value type a group code carries (DXF reference, "Group code value
+/// types").
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Kind {
+    Str,
+    Float,
+    Int16,
+    Int32,
+    Int64,
+    Bool,
+    Binary,
+}
+
+pub fn kind_of(code: i32) -> Kind {
+    match code {
+        0..=9 => Kind::Str,
+        10..=59 => Kind::Float,
+        60..=79 => Kind::Int16,
+        90..=99 => Kind::Int32,
+        100..=109 => Kind::Str,
+        110..=149 => Kind::Float,
+        160..=169 => Kind::Int64,
+        170..=179 => Kind::Int16,
+        210..=239 => Kind::Float,
+        270..=289 => Kind::Int16,
+        290..=299 => Kind::Bool,
+        300..=309 => Kind::Str,
+        310..=319 => Kind::Binary,
+        320..=369 => Kind::Str,
+        370..=389 => Kind::Int16,
+        390..=399 => Kind::Str,
+        400..=409 => Kind::Int16,
+        410..=419 => Kind::Str,
+        420..=429 => Kind::Int32,
+        430..=439 => Kind::Str,
+        440..=459 => Kind::Int32,
+        460..=469 => Kind::Float,
+        470..=481 => Kind::Str,
+        999 => Kind::Str,
+        1000..=1003 => Kind::Str,
+        1004 => Kind::Binary,
+        1005..=1009 => Kind::Str,
+        1010..=1059 => Kind::Float,
+        1060..=1070 => Kind::Int16,
+        1071 => Kind::Int32,
+        // Unknown codes: keep the text; nothing downstream reads them.
+        _ => Kind::Str,
+    }
+}
+
+const BINARY_SENTINEL: &[u8; 22] = b"AutoCAD Binary DXF\r\n\x1a\0";
+
+enum Mode {
+    Ascii,
+    /// R12 binary files write group codes as one byte (255 escapes to a
+    /// 16-bit code); later versions always use two bytes.
+    Binary {
+        wide_codes: bool,
+    },
+}
+
+/// The tokenizer. After [`Reader::next_tag`] returns `Some(code)`, the value is
+/// available through [`Reader::float`], [`Reader::int`] or [`Reader::text`]
+/// according to the code's kind.
+pub struct Reader {
+    input: Box<dyn BufRead>,
+    mode: Mode,
+    /// ASCII: lines consumed so far. Binary: bytes consumed so far.
+    count: u64,
+    buf: Vec<u8>,
+    pub code: i32,
+    pub pos: Pos,
+    float: f64,
+    int: i64,
+    text: String,
+    peeked: bool,
+}
+
+impl Reader {
+    /// Sniff binary vs ASCII from the first bytes, then stream.
+    pub fn new(mut input: Box<dyn BufRead>) -> Result<Reader, DxfError> {
+        let mut head = Vec::with_capacity(24);
+        (&mut input).take(24).read_to_end(&mut head)?;
+        let (mode, rest): (Mode, Vec<u8>) = if head.len() >= 22 && &head[..22] == BINARY_SENTINEL {
+            // The first tag is (0, "SECTION"): in the one-byte form the byte
+            // after the code 0 is 'S', in the two-byte form it is 0.
+            let wide = head.get(23) == Some(&0);
+            (Mode::Binary { wide_codes: wide }, head[22..].to_vec())
+        } else {
+            (Mode::Ascii, head)
+        };
+        let count = match mode {
+            Mode::Ascii => 0,
+            Mode::Binary { .. } => 22,
+        };
+        let chained: Box<dyn BufRead> = Box::new(BufReader::with_capacity(1 << 16, Cursor::new(rest).chain(input)));
+        Ok(Reader {
+            input: chained,
+            mode,
+            count,
+            buf: Vec::with_capacity(256),
+            code: 0,
+            pos: Pos::Line(0),
+            float: 0.0,
+            int: 0,
+            text: String::new(),
+            peeked: false,
+        })
+    }
+
+    pub fn is_binary(&self) -> bool {
+        matches!(self.mode, Mode::Binary { .. })
+    }
+
+    /// Push the current tag back so the next [`Reader::next_tag`] returns it again.
+    pub fn unread(&mut self) {
+        self.peeked = true;
+    }
+
+    /// The next tag's group code, or `None` at the end of the input.
+    pub fn next_tag(&mut self) -> Result<Option<i32>, DxfError> {
+        if self.peeked {
+            self.peeked = false;
+            return Ok(Some(self.code));
+        }
+        match self.mode {
+            Mode::Ascii => self.next_ascii(),
+            Mode::Binary { wide_codes } => self.next_binary(wide_codes),
+        }
+    }
+
+    pub fn float(&self) -> f64 {
+        self.float
+    }
+
+    pub fn int(&self) -> i64 {
+        self.int
+    }
+
+    pub fn text(&self) -> &str {
+        &self.text
+    }
+
+    /// The value as a number whatever its declared kind (some writers put
+    /// integers where floats belong and the reverse).
+    pub fn number(&self) -> f64 {
+        match kind_of(self.code) {
+            Kind::Float => self.float,
+            Kind::Int16 | Kind::Int32 | Kind::Int64 | Kind::Bool => self.int as f64,
+            _ => self.text.trim().parse().unwrap_or(f64::NAN),
+        }
+    }
+
+    fn read_line(&mut self) -> Result<bool, DxfError> {
+        self.buf.clear();
+        let n = self.input.read_until(b'\n', &mut self.buf)?;
+        if n == 0 {
+            return Ok(false);
+        }
+        self.count += 1;
+        while matches!(self.buf.last(), Some(b'\n' | b'\r')) {
+            self.buf.pop();
+        }
+        Ok(true)
+    }
+
+    fn next_ascii(&mut self) -> Result<Option<i32>, DxfError> {
+        // Blank lines where a group code belongs are tolerated only at the
+        // very end of the file (many writers add a trailing newline).
+        if !self.read_line()? {
+            return Ok(None);
+        }
+        if self.buf.iter().all(|b| b.is_ascii_whitespace()) {
+            let line = self.count;
+            loop {
+                if !self.read_line()? {
+                    return Ok(None);
+                }
+                if !self.buf.iter().all(|b| b.is_ascii_whitespace()) {
+                    return Err(DxfError::at(Pos::Line(line), "empty line where a group code belongs"));
+                }
+            }
+        }
+        let pos = Pos::Line(self.count);
+        self.pos = pos;
+        let code_text = trim_ascii(&self.buf);
+        let code: i32 = std::str::from_utf8(code_text)
+            .ok()
+            .and_then(|s| s.parse().ok())
+            .ok_or_else(|| {
+                DxfError::at(
+                    pos,
+                    format!(
+                        "expected a group code (an integer), found '{}'",
+                        shorten(&String::from_utf8_lossy(code_text))
+                    ),
+                )
+            })?;
+        if !(0..=1071).contains(&code) && code != -1 && code != -2 && code != -3 && code != -4 && code != -5 {
+            return Err(DxfError::at(pos, format!("group code {code} is out of range")));
+        }
+        self.code = code;
+        if !self.read_line()? {
+            return Err(DxfError::at(
+                pos,
+                format!("file ends after group code {code}: truncated file?"),
+            ));
+        }
+        let vpos = Pos::Line(self.count);
+        match kind_of(code) {
+            Kind::Float => {
+                let t = trim_ascii(&self.buf);
+                self.float = parse_float(t).ok_or_else(|| bad_number(vpos, code, t))?;
+            }
+            Kind::Int16 | Kind::Int32 | Kind::Int64 | Kind::Bool => {
+                let t = trim_ascii(&self.buf);
+                self.int = parse_int(t).ok_or_else(|| bad_number(vpos, code, t))?;
+            }
+            Kind::Str | Kind::Binary => {
+                self.text.clear();
+                match std::str::from_utf8(&self.buf) {
+                    Ok(s) => self.text.push_str(s),
+                    // Pre-2007 files are in a code page; names only matter
+                    // for layers and blocks, so a lossy decode is enough.
+                    Err(_) => self.text.push_str(&String::from_utf8_lossy(&self.buf)),
+                }
+            }
+        }
+        Ok(Some(code))
+    }
+
+    fn byte(&mut self, what: &str) -> Result<u8, DxfError> {
+        let mut b = [0u8; 1];
+        self.exact(&mut b, what)?;
+        Ok(b[0])
+    }
+
+    fn exact(&mut self, out: &mut [u8], what: &str) -> Result<(), DxfError> {
+        match self.input.read_exact(out) {
+            Ok(()) => {
+                self.count += out.len() as u64;
+                Ok(())
+            }
+            Err(e) if e.kind() == std::io::ErrorKind::UnexpectedEof => Err(DxfError::at(
+                Pos::Byte(self.count),
+                format!("file ends inside {what}: truncated file?"),
+            )),
+            Err(e) => Err(e.into()),
+        }
+    }
+
+    fn next_binary(&mut self, wide: bool) -> Result<Option<i32>, DxfError> {
+        let start = self.count;
+        self.pos = Pos::Byte(start);
+        // End of input exactly at a tag boundary is a normal end.
+        if self.input.fill_buf()?.is_empty() {
+            return Ok(None);
+        }
+        let code = if wide {
+            let mut b = [0u8; 2];
+            self.exact(&mut b, "a group code")?;
+            i16::from_le_bytes(b) as i32
+        } else {
+            let b = self.byte("a group code")?;
+            if b == 255 {
+                let mut w = [0u8; 2];
+                self.exact(&mut w, "a group code")?;
+                i16::from_le_bytes(w) as i32
+            } else {
+                b as i32
+            }
+        };
+        if !(-5..=1071).contains(&code) {
+            return Err(DxfError::at(
+                Pos::Byte(start),
+                format!("group code {code} is out of range: not a DXF file, or a corrupt one"),
+            ));
+        }
+        self.code = code;
+        match kind_of(code) {
+            Kind::Float => {
+                let mut b = [0u8; 8];
+                self.exact(&mut b, "a floating-point value")?;
+                self.float = f64::from_le_bytes(b);
+            }
+            Kind::Int16 => {
+                let mut b = [0u8; 2];
+                self.exact(&mut b, "an integer value")?;
+                self.int = i16::from_le_bytes(b) as i64;
+            }
+            Kind::Int32 => {
+                let mut b = [0u8; 4];
+                self.exact(&mut b, "an integer value")?;
+                self.int = i32::from_le_bytes(b) as i64;
+            }
+            Kind::Int64 => {
+                let mut b = [0u8; 8];
+                self.exact(&mut b, "an integer value")?;
+                self.int = i64::from_le_bytes(b);
+            }
+            Kind::Bool => {
+                self.int = self.byte("a boolean value")? as i64;
+            }
+            Kind::Binary => {
+                let n = self.byte("a binary chunk length")? as usize;
+                let mut b = vec![0u8; n];
+                self.exact(&mut b, "a binary chunk")?;
+                self.text.clear();
+            }
+            Kind::Str => {
+                self.buf.clear();
+                let n = self.input.read_until(0, &mut self.buf)?;
+                self.count += n as u64;
+                if self.buf.last() != Some(&0) {
+                    return Err(DxfError::at(
+                        Pos::Byte(self.count),
+                        "file ends inside a string: truncated file?",
+                    ));
+                }
+                self.buf.pop();
+                if self.buf.len() > 65_536 {
+                    return Err(DxfError::at(
+                        Pos::Byte(start),
+                        "string value longer than 64 KiB: corrupt file?",
+                    ));
+                }
+                self.text.clear();
+                self.text.push_str(&String::from_utf8_lossy(&self.buf));
+            }
+        }
+        Ok(Some(code))
+    }
+}
+
+fn trim_ascii(b: &[u8]) -> &[u8] {
+    b.trim_ascii()
+}
+
+fn shorten(s: &str) -> String {
+    // Binary garbage must not reach the terminal as is.
+    let mut t: String = s
+        .chars()
+        .take(40)
+        .map(|c| if c.is_ascii_graphic() || c == ' ' { c } else { '?' })
+        .collect();
+    if s.chars().count() > 40 {
+        t.push_str("...");
+    }
+    t
+}
+
+fn bad_number(pos: Pos, code: i32, t: &[u8]) -> DxfError {
+    let s = String::from_utf8_lossy(t);
+    let hint = if s.contains(',') && s.replace(',', ".").parse::<f64>().is_ok() {
+        " (a decimal comma? DXF numbers use a decimal point)"
+    } else {
+        ""
+    };
+    DxfError::at(
+        pos,
+        format!("group code {code} needs a number, found '{}'{hint}", shorten(&s)),
+    )
+}
+
+fn parse_float(t: &[u8]) -> Option<f64> {
+    let s = std::str::from_utf8(t).ok()?;
+    let v: f64 = s.parse().ok()?;
+    v.is_finite().then_some(v)
+}
+
+fn parse_int(t: &[u8]) -> Option<i64> {
+    let s = std::str::from_utf8(t).ok()?;
+    if let Ok(v) = s.parse::<i64>() {
+        return Some(v);
+    }
+    // Some writers print integers as "1.0"; accept only whole values.
+    let f: f64 = s.parse().ok()?;
+    (f.is_finite() && f.fract() == 0.0 && f.abs() < 9e15).then_some(f as i64)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn reader(bytes: &[u8]) -> Reader {
+        Reader::new(Box::new(Cursor::new(bytes.to_vec()))).unwrap()
+    }
+
+    #[test]
+    fn ascii_tags_and_numbers() {
+        let mut r = reader(b"  0\r\nSECTION\r\n 10\r\n1.5\r\n 70\r\n     3\r\n");
+        assert_eq!(r.next_tag().unwrap(), Some(0));
+        assert_eq!(r.text(), "SECTION");
+        assert_eq!(r.next_tag().unwrap(), Some(10));
+        assert_eq!(r.float(), 1.5);
+        assert_eq!(r.next_tag().unwrap(), Some(70));
+        assert_eq!(r.int(), 3);
+        assert_eq!(r.next_tag().unwrap(), None);
+    }
+
+    #[test]
+    fn decimal_comma_is_located() {
+        let mut r = reader(b"0\nSECTION\n10\n-6,5\n");
+        r.next_tag().unwrap();
+        let e = r.next_tag().unwrap_err().to_string();
+        assert!(e.starts_with("line 4:"), "{e}");
+        assert!(e.contains("decimal comma"), "{e}");
+    }
+
+    #[test]
+    fn truncated_after_code() {
+        let mut r = reader(b"0\nSECTION\n10\n");
+        r.next_tag().unwrap();
+        let e = r.next_tag().unwrap_err().to_string();
+        assert!(e.contains("line 3") && e.contains("truncated"), "{e}");
+    }
+
+    #[test]
+    fn garbage_code() {
+        let mut r = reader(b"0\nSECTION\nhello\nx\n");
+        r.next_tag().unwrap();
+        let e = r.next_tag().unwrap_err().to_string();
+        assert!(e.contains("line 3") && e.contains("group code"), "{e}");
+    }
+
+    #[test]
+    fn binary_one_byte_codes() {
+        let mut b = BINARY_SENTINEL.to_vec();
+        b.extend_from_slice(b"\0SECTION\0");
+        b.push(10);
+        b.extend_from_slice(&2.5f64.to_le_bytes());
+        b.push(70);
+        b.extend_from_slice(&7i16.to_le_bytes());
+        let mut r = reader(&b);
+        assert!(r.is_binary());
+        assert_eq!(r.next_tag().unwrap(), Some(0));
+        assert_eq!(r.text(), "SECTION");
+        assert_eq!(r.next_tag().unwrap(), Some(10));
+        assert_eq!(r.float(), 2.5);
+        assert_eq!(r.next_tag().unwrap(), Some(70));
+        assert_eq!(r.int(), 7);
+        assert_eq!(r.next_tag().unwrap(), None);
+    }
+
+    #[test]
+    fn binary_two_byte_codes_and_truncation() {
+        let mut b = BINARY_SENTINEL.to_vec();
+        b.extend_from_slice(&0i16.to_le_bytes());
+        b.extend_from_slice(b"SECTION\0");
+        b.extend_from_slice(&10i16.to_le_bytes());
+        b.extend_from_slice(&[1, 2, 3]);
+        let mut r = reader(&b);
+        assert_eq!(r.next_tag().unwrap(), Some(0));
+        let e = r.next_tag().unwrap_err().to_string();
+        assert!(e.contains("byte") && e.contains("truncated"), "{e}");
+    }
+}

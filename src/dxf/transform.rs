@@ -1,0 +1,148 @@
+//! The drawing transforms of the seed's CAD panel: move, rotate, scale,
+//! mirror, and linear and polar patterns, as the list of affine maps (one
+//! per copy) that [`super::ImportOptions::copies`] takes.
+//!
+//! Order for each copy: scale, mirror, rotate (about the origin),
+//! translate; then the copy's array offset and polar rotation.
+
+use super::ocs::Affine;
+use crate::geometry::V3;
+
+/// `--mirror`: which coordinate changes sign.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Mirror {
+    /// x -> -x (mirror about the Y axis).
+    X,
+    /// y -> -y (mirror about the X axis).
+    Y,
+}
+
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Transforms {
+    pub translate: Option<(f64, f64)>,
+    pub rotate_deg: Option<f64>,
+    pub scale: Option<f64>,
+    pub mirror: Option<Mirror>,
+    /// nx, ny, dx, dy.
+    pub array: Option<(u32, u32, f64, f64)>,
+    /// n, step angle (degrees), centre x, centre y.
+    pub polar: Option<(u32, f64, f64, f64)>,
+}
+
+impl Transforms {
+    pub fn is_identity(&self) -> bool {
+        *self == Transforms::default()
+    }
+
+    /// One affine map per copy, in a fixed order (array rows, then columns,
+    /// then polar copies).
+    pub fn copies(&self) -> Vec<Affine> {
+        let mut base = Affine::identity();
+        if let Some(s) = self.scale {
+            base = Affine::scale(s, s, s).then_after(&base);
+        }
+        match self.mirror {
+            Some(Mirror::X) => base = Affine::scale(-1.0, 1.0, 1.0).then_after(&base),
+            Some(Mirror::Y) => base = Affine::scale(1.0, -1.0, 1.0).then_after(&base),
+            None => {}
+        }
+        if let Some(r) = self.rotate_deg {
+            base = Affine::rotate_z(r.to_radians()).then_after(&base);
+        }
+        if let Some((dx, dy)) = self.translate {
+            base = Affine::translate(V3::new(dx, dy, 0.0)).then_after(&base);
+        }
+        let mut out = Vec::new();
+        let (nx, ny, dx, dy) = self.array.unwrap_or((1, 1, 0.0, 0.0));
+        for j in 0..ny {
+            for i in 0..nx {
+                let a = Affine::translate(V3::new(i as f64 * dx, j as f64 * dy, 0.0)).then_after(&base);
+                match self.polar {
+                    None => out.push(a),
+                    Some((n, step, cx, cy)) => {
+                        for k in 0..n {
+                            let c = V3::new(cx, cy, 0.0);
+                            let rot = Affine::translate(c)
+                                .then_after(&Affine::rotate_z((k as f64 * step).to_radians()))
+                                .then_after(&Affine::translate(-c));
+                            out.push(rot.then_after(&a));
+                        }
+                    }
+                }
+            }
+        }
+        out
+    }
+}
+
+/// Parse `a,b,...` into exactly `n` finite numbers.
+pub fn parse_numbers(s: &str, n: usize, what: &str) -> Result<Vec<f64>, String> {
+    let v: Vec<f64> = s
+        .split(',')
+        .map(|t| {
+            t.trim()
+                .parse::<f64>()
+                .map_err(|_| format!("{what}: '{t}' is not a number"))
+        })
+        .collect::<Result<_, _>>()?;
+    if v.len() != n || v.iter().any(|x| !x.is_finite()) {
+        return Err(format!(
+            "{what}: expected {n} finite numbers separated by commas, got '{s}'"
+        ));
+    }
+    Ok(v)
+}
+
+/// A copy count from the command line: a whole number from 1 to 10,000.
+pub fn count(x: f64, what: &str) -> Result<u32, String> {
+    if x.fract() == 0.0 && (1.0..=10_000.0).contains(&x) {
+        Ok(x as u32)
+    } else {
+        Err(format!(
+            "{what}: copy counts must be whole numbers from 1 to 10000, got {x}"
+        ))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::P3;
+
+    #[test]
+    fn order_is_scale_mirror_rotate_translate() {
+        let t = Transforms {
+            translate: Some((10.0, 0.0)),
+            rotate_deg: Some(90.0),
+            scale: Some(2.0),
+            mirror: Some(Mirror::X),
+            ..Default::default()
+        };
+        let c = t.copies();
+        assert_eq!(c.len(), 1);
+        // (1,0) -> (2,0) -> (-2,0) -> (0,-2) -> (10,-2)
+        let p = c[0].apply(&P3::new(1.0, 0.0, 0.0));
+        assert!((p - P3::new(10.0, -2.0, 0.0)).norm() < 1e-12);
+    }
+
+    #[test]
+    fn array_and_polar_counts() {
+        let t = Transforms {
+            array: Some((3, 2, 5.0, 7.0)),
+            polar: Some((4, 90.0, 0.0, 0.0)),
+            ..Default::default()
+        };
+        let c = t.copies();
+        assert_eq!(c.len(), 24);
+        let p = c[1].apply(&P3::new(1.0, 0.0, 0.0));
+        assert!((p - P3::new(0.0, 1.0, 0.0)).norm() < 1e-12);
+    }
+
+    #[test]
+    fn number_lists() {
+        assert_eq!(parse_numbers("1, 2", 2, "x").unwrap(), vec![1.0, 2.0]);
+        assert!(parse_numbers("1", 2, "x").is_err());
+        assert!(parse_numbers("1,a", 2, "x").is_err());
+        assert!(count(2.5, "x").is_err());
+    }
+}

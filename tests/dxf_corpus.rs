@@ -1,0 +1,227 @@
+//! Every DXF file of the corpus (copied into testdata/dxf/) through the
+//! library: each either converts into chains that the chains reader accepts
+//! back, byte-identically on a second run, or fails with a located error.
+//! Files with a known feature are checked for it.
+
+use microcam::dxf::{self, ImportOptions, UnitSource, chain};
+use microcam::formats::chains::{ChainsReader, ChainsWriter};
+use microcam::model::chain::{Chain, ChainsHeader, Segment};
+use std::io::{BufReader, Cursor};
+use std::path::{Path, PathBuf};
+
+fn dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("testdata/dxf")
+}
+
+struct Run {
+    imp: dxf::Import,
+    chains: Vec<Chain>,
+    report: chain::Report,
+    text: Vec<u8>,
+}
+
+fn convert(name: &str, opts: &ImportOptions) -> Result<Run, String> {
+    let f = std::fs::File::open(dir().join(name)).unwrap();
+    let mut imp = dxf::import(Box::new(BufReader::new(f)), opts).map_err(|e| e.to_string())?;
+    let segs = std::mem::take(&mut imp.sink.segments);
+    let (chains, report) = chain::build(segs, &imp.sink.points, &imp.sink.layers, 0.001);
+    let chains: Vec<Chain> = chains.iter().collect();
+    let mut w = ChainsWriter::new(Vec::new());
+    w.header(&ChainsHeader {
+        source: Some(name.into()),
+    })
+    .unwrap();
+    for c in &chains {
+        w.chain(c).unwrap();
+    }
+    let text = w.finish().unwrap();
+    Ok(Run {
+        imp,
+        chains,
+        report,
+        text,
+    })
+}
+
+fn run(name: &str) -> Run {
+    convert(name, &ImportOptions::default()).unwrap_or_else(|e| panic!("{name}: {e}"))
+}
+
+fn radius(s: &Segment) -> Option<f64> {
+    match s {
+        Segment::Arc { start, center, .. } => Some((start - center).xy().norm()),
+        _ => None,
+    }
+}
+
+#[test]
+fn every_corpus_file_converts_or_fails_cleanly() {
+    let mut names: Vec<String> = std::fs::read_dir(dir())
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    assert!(names.len() >= 30, "corpus copied into testdata/dxf");
+    for name in names {
+        let expect_error = name.starts_with("bad-") || name.starts_with("nothing-decimal-comma");
+        match convert(&name, &ImportOptions::default()) {
+            Err(e) => {
+                assert!(expect_error, "{name}: {e}");
+                assert!(
+                    e.starts_with("line ") || e.starts_with("byte "),
+                    "{name}: error not located: {e}"
+                );
+            }
+            Ok(r) => {
+                assert!(!expect_error, "{name} should fail");
+                // The pipe format's own reader accepts every chain back.
+                let back: Vec<Chain> = ChainsReader::new(Cursor::new(&r.text))
+                    .unwrap()
+                    .collect::<Result<_, _>>()
+                    .unwrap_or_else(|e| panic!("{name}: chains reader rejects our output: {e}"));
+                assert_eq!(back.len(), r.chains.len());
+                // Identical input, identical output.
+                assert_eq!(run(&name).text, r.text, "{name}: output differs between runs");
+                for c in &r.chains {
+                    for w in c.segments.windows(2) {
+                        assert_eq!(w[0].end(), w[1].start(), "{name}: chain {} not snapped", c.id);
+                    }
+                    if c.closed {
+                        assert_eq!(c.segments.last().unwrap().end(), c.segments[0].start());
+                    }
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn stir_mirrored_arcs_land_where_autocad_draws_them() {
+    let r = run("Stir_1.dxf");
+    assert_eq!(r.report.closed, 14);
+    assert_eq!(r.report.open, 0);
+    // The central hole: a circle with extrusion (0,0,-1) at OCS x = -3.489655
+    // lies at world x = +3.489655.
+    let hole = r
+        .chains
+        .iter()
+        .find(|c| c.segments.len() == 1 && radius(&c.segments[0]).is_some_and(|x| (x - 26.8).abs() < 1e-6))
+        .expect("the central circle");
+    let Segment::Arc { center, .. } = hole.segments[0] else {
+        unreachable!()
+    };
+    assert!(
+        (center.x - 3.489655).abs() < 1e-9 && (center.y + 0.846101).abs() < 1e-9,
+        "{center:?}"
+    );
+    // Every arc of the outline ends on its neighbours: no chain is open,
+    // which would not be so if the mirrored arcs were placed unmirrored.
+}
+
+#[test]
+fn duplicate_lines_halve() {
+    let r = run("1997_simplified_doppelte_linien.dxf");
+    assert_eq!(r.imp.sink.used.get("LINE"), Some(&908));
+    assert_eq!(r.report.duplicates, 454);
+    let segs: usize = r.chains.iter().map(|c| c.segments.len()).sum();
+    assert_eq!(segs, 454);
+    assert!(r.chains.iter().all(|c| c.closed));
+}
+
+#[test]
+fn inch_file_scales_by_25_4() {
+    let inch = run("fc_mounting.dxf");
+    let plain = run("fc_mounting_R12.dxf");
+    assert_eq!(inch.imp.unit_source, UnitSource::Header(1));
+    assert_eq!(plain.imp.unit_source, UnitSource::Assumed);
+    let ri: Vec<f64> = inch.chains.iter().filter_map(|c| radius(&c.segments[0])).collect();
+    let rp: Vec<f64> = plain.chains.iter().filter_map(|c| radius(&c.segments[0])).collect();
+    assert_eq!(ri.len(), 8);
+    for (a, b) in ri.iter().zip(&rp) {
+        assert!((a / b - 25.4).abs() < 1e-9, "{a} {b}");
+    }
+    // --units overrides the header.
+    let o = ImportOptions {
+        units_mm: Some(1.0),
+        ..Default::default()
+    };
+    let mm = convert("fc_mounting.dxf", &o).unwrap();
+    assert!((radius(&mm.chains[0].segments[0]).unwrap() - 1.3).abs() < 1e-9);
+}
+
+#[test]
+fn splines_and_ellipses_come_out_as_arcs() {
+    for name in [
+        "Inkspace_dxf_export_kreis_splines.dxf",
+        "ellipse-reverse.dxf",
+        "camotics.dxf",
+        "Wiele.DXF",
+    ] {
+        let r = run(name);
+        assert!(r.imp.sink.curves > 0, "{name}");
+        assert!(
+            r.imp.sink.curve_pieces < r.imp.sink.curve_chords,
+            "{name}: no blocks saved"
+        );
+        let arcs = r
+            .chains
+            .iter()
+            .flat_map(|c| &c.segments)
+            .filter(|s| matches!(s, Segment::Arc { .. }))
+            .count();
+        assert!(arcs as u64 >= r.imp.sink.curve_pieces / 2, "{name}: mostly lines");
+    }
+    // Inkscape's circle of seven splines is one closed chain.
+    let r = run("Inkspace_dxf_export_kreis_splines.dxf");
+    assert_eq!((r.report.closed, r.report.open), (1, 0));
+}
+
+#[test]
+fn inserts_nested_and_mirrored() {
+    let r = run("transform-insert.dxf");
+    assert_eq!(r.imp.sink.used.get("INSERT"), Some(&6));
+    assert_eq!((r.report.closed, r.report.open), (3, 0));
+    let r = run("insert_bricscad_level_1.dxf");
+    assert_eq!(r.imp.unit_source, UnitSource::Header(6));
+    assert_eq!(r.chains.len(), 330);
+    let r = run("Bogen_Ellipsen_Polylinien_Block.dxf");
+    assert_eq!(r.imp.unit_source, UnitSource::Header(1));
+    assert!(r.imp.sink.curves >= 15);
+}
+
+#[test]
+fn binary_files_read() {
+    let r = run("bin_dxf_r12.dxf");
+    assert!(r.imp.binary);
+    assert_eq!(r.imp.sink.used.get("LINE"), Some(&3));
+    let r = run("diamond-bin.dxf");
+    assert!(r.imp.binary);
+    assert_eq!(r.imp.sink.used.get("LINE"), Some(&12));
+}
+
+#[test]
+fn skipped_types_are_counted() {
+    let r = run("FLH-001.dxf");
+    assert_eq!(r.imp.skipped.get("SOLID"), Some(&22));
+    assert_eq!(r.imp.skipped.get("TEXT"), Some(&12));
+}
+
+#[test]
+fn decimal_commas_fail_at_their_line() {
+    let e = convert("nothing-decimal-comma-separated.dxf", &ImportOptions::default())
+        .err()
+        .unwrap();
+    assert!(e.starts_with("line 10:") && e.contains("decimal comma"), "{e}");
+}
+
+#[test]
+fn every_prefix_of_a_file_fails_cleanly_or_converts() {
+    // Truncation anywhere: never a panic.
+    for name in ["Stir_1.dxf", "bin_dxf_r12.dxf", "lwpoly-bulge.dxf"] {
+        let bytes = std::fs::read(dir().join(name)).unwrap();
+        for cut in (0..bytes.len()).step_by(97) {
+            let r = dxf::import(Box::new(Cursor::new(bytes[..cut].to_vec())), &ImportOptions::default());
+            assert!(r.is_err(), "{name} cut at {cut} accepted");
+        }
+    }
+}
