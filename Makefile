@@ -5,7 +5,7 @@
 CARGO ?= cargo
 BIN   := target/release
 
-.PHONY: bench-order all build test unit golden update-golden conformance checks fig3-20 removal-check lint demo bench fuzz-smoke clean
+.PHONY: bench-order all build test unit golden update-golden conformance checks fig3-20 removal-check dxf-check lint demo bench fuzz-smoke clean
 
 all: build
 
@@ -32,8 +32,13 @@ conformance: build
 	python3 scripts/rs274-diff --gsim $(BIN)/gsim
 	python3 scripts/pmac-conformance --emu $(BIN)/pmac-emu
 
-# Checks of the physics against independent references.
-checks: fig3-20 removal-check
+# Checks against independent references.
+checks: fig3-20 removal-check dxf-check
+
+# dxf2chains against ezdxf on random drawings of every entity type and on
+# the corpus (installs ezdxf when missing).
+dxf-check: build
+	python3 scripts/dxf-ezdxf-check --bin $(BIN)/dxf2chains --corpus testdata/dxf
 
 # Seed 000 Fig. 3-20: achieved feed against segment length under the PMAC model.
 fig3-20: build
@@ -54,6 +59,7 @@ demo: build
 # Benchmarks, each side by side with its anchor in one run.
 bench: build
 	scripts/bench/interp
+	scripts/bench/dxf --bin $(BIN)/dxf2chains
 	python3 -c "import manifold3d" 2>/dev/null || python3 -m pip install -q manifold3d
 	scripts/bench/removal --gsim $(BIN)/gsim
 	scripts/bench/upload
