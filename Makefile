@@ -61,7 +61,7 @@ bench: build
 	scripts/bench/interp
 	scripts/bench/dxf --bin $(BIN)/dxf2chains
 	python3 -c "import manifold3d" 2>/dev/null || python3 -m pip install -q manifold3d
-	scripts/bench/removal --gsim $(BIN)/gsim
+	scripts/bench/removal --gsim $(BIN)/gsim --passes 6000
 	scripts/bench/upload
 	scripts/bench/pathgen
 	scripts/bench/loops
