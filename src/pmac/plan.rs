@@ -302,7 +302,34 @@ pub fn offset_counter(line: &str, var: &str, offset: u64) -> String {
 
 /// The trapezoid time model the emulator uses: a move takes
 /// max(length / F, TA); rapids at [`RAPID_MM_S`]; dwells their time.
+/// Run time (s) of `records` from `start` under gsim's Turbo PMAC time
+/// model on the laser stage's profile (TA/TS records in the program apply),
+/// so the time left that pmac-send shows is the simulator's prediction. A
+/// program the model refuses (outside the profile's travel, say) falls back
+/// to a plain sum of max(L/F, TA) per move.
 pub fn estimate(records: &[Record], start: P3, unit: FeedUnit) -> f64 {
+    use crate::model::toolpath::Header;
+    use crate::sim::beam::CommandTiming;
+    use crate::sim::machine::Machine;
+    use crate::sim::report::Simulator;
+    let header = Header {
+        feed_unit: unit,
+        source: None,
+    };
+    let Ok(machine) = Machine::load("laser-stage") else {
+        return trapezoid_estimate(records, start, unit);
+    };
+    let mut sim = Simulator::<std::io::Sink>::new(&header, machine, CommandTiming::Sync, start, None);
+    if records.iter().all(|r| sim.add(r).is_ok())
+        && let Ok((report, _)) = sim.finish()
+    {
+        return report.time.cycle_time_s;
+    }
+    trapezoid_estimate(records, start, unit)
+}
+
+/// max(L/F, TA) per move: the fallback estimate.
+fn trapezoid_estimate(records: &[Record], start: P3, unit: FeedUnit) -> f64 {
     let mut pos = start;
     let mut ta = DEFAULT_TA_MS / 1000.0;
     let mut t = 0.0;
