@@ -70,34 +70,7 @@ fn finite(s: &Segment) -> bool {
     }
 }
 
-/// Signed sweep of an arc (radians, positive counter-clockwise); a full
-/// circle when start == end.
-pub fn arc_sweep(start: &P3, end: &P3, center: &P3, ccw: bool) -> f64 {
-    let tau = std::f64::consts::TAU;
-    let a0 = (start.y - center.y).atan2(start.x - center.x);
-    let a1 = (end.y - center.y).atan2(end.x - center.x);
-    let mut s = if ccw {
-        (a1 - a0).rem_euclid(tau)
-    } else {
-        -(a0 - a1).rem_euclid(tau)
-    };
-    if start == end || s == 0.0 {
-        s = if ccw { tau } else { -tau };
-    }
-    s
-}
-
-pub fn seg_len(s: &Segment) -> f64 {
-    match s {
-        Segment::Line { start, end } => (end - start).norm(),
-        Segment::Arc {
-            start,
-            end,
-            center,
-            ccw,
-        } => (start - center).xy().norm() * arc_sweep(start, end, center, *ccw).abs(),
-    }
-}
+pub use crate::model::chain::arc_sweep;
 
 fn midpoint(s: &Segment) -> P3 {
     match *s {
@@ -112,23 +85,6 @@ fn midpoint(s: &Segment) -> P3 {
             let a = (start.y - center.y).atan2(start.x - center.x) + 0.5 * arc_sweep(&start, &end, &center, ccw);
             P3::new(center.x + r * a.cos(), center.y + r * a.sin(), start.z)
         }
-    }
-}
-
-pub fn reversed(s: &Segment) -> Segment {
-    match *s {
-        Segment::Line { start, end } => Segment::Line { start: end, end: start },
-        Segment::Arc {
-            start,
-            end,
-            center,
-            ccw,
-        } => Segment::Arc {
-            start: end,
-            end: start,
-            center,
-            ccw: !ccw,
-        },
     }
 }
 
@@ -297,7 +253,7 @@ impl Chains {
         buf.clear();
         let run = &self.seq[it.start as usize..(it.start + it.len) as usize];
         if it.reversed {
-            buf.extend(run.iter().rev().map(|&k| reversed(&self.work[k as usize].seg)));
+            buf.extend(run.iter().rev().map(|&k| self.work[k as usize].seg.reversed()));
         } else {
             buf.extend(run.iter().map(|&k| self.work[k as usize].seg));
         }
@@ -424,7 +380,7 @@ fn chain_layer(
             Segment::Arc { start, center, .. } => (start - center).xy().norm(),
             _ => f64::INFINITY,
         };
-        if x.alive && (seg_len(&x.seg) <= tol || r <= tol) {
+        if x.alive && (x.seg.length() <= tol || r <= tol) {
             x.alive = false;
             report.zero_length += 1;
         }
@@ -608,7 +564,7 @@ fn chain_layer(
             order = order.min(w[i].order);
             let (a, b) = ends[i];
             let (na, nb) = if fwd { (a, b) } else { (b, a) };
-            let seg = if fwd { w[i].seg } else { reversed(&w[i].seg) };
+            let seg = if fwd { w[i].seg } else { w[i].seg.reversed() };
             // Snapped in place, turned to the direction of travel.
             w[i].seg = snap(&seg, reps[na as usize], reps[nb as usize]);
             out.seq.push(base + i as u32);
@@ -982,7 +938,7 @@ mod tests {
             line(x, y + s, x, y),
         ];
         if cw {
-            v = v.into_iter().rev().map(|(s, l)| (reversed(&s), l)).collect();
+            v = v.into_iter().rev().map(|(s, l)| (s.reversed(), l)).collect();
         }
         v
     }
@@ -1042,7 +998,7 @@ mod tests {
         assert_eq!(r.overlaps, 1);
         assert_eq!(c.len(), 1);
         assert_eq!(c[0].segments.len(), 1);
-        assert!((seg_len(&c[0].segments[0]) - 15.0).abs() < 1e-9);
+        assert!((c[0].segments[0].length() - 15.0).abs() < 1e-9);
         assert_eq!(c[0].repairs.len(), 3);
     }
 

@@ -307,25 +307,8 @@ pub fn biarc(p0: P3, t0: V3, p1: P3, t1: V3) -> Option<[Segment; 2]> {
     }
     let j = P3::from((p0.coords + t0 * d + p1.coords - t1 * d) * 0.5);
     let first = arc_from_tangent(p0, t0, j);
-    let second = reverse(arc_from_tangent(p1, -t1, j));
+    let second = arc_from_tangent(p1, -t1, j).reversed();
     Some([first, second])
-}
-
-fn reverse(s: Segment) -> Segment {
-    match s {
-        Segment::Line { start, end } => Segment::Line { start: end, end: start },
-        Segment::Arc {
-            start,
-            end,
-            center,
-            ccw,
-        } => Segment::Arc {
-            start: end,
-            end: start,
-            center,
-            ccw: !ccw,
-        },
-    }
 }
 
 /// Distance in XY from `q` to a segment.

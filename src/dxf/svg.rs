@@ -120,7 +120,7 @@ pub fn render(chains: impl Iterator<Item = Chain> + Clone) -> String {
                 n(dot)
             );
             if let Some(t) = tangent_at_start(first).try_normalize(1e-300) {
-                let len = crate::dxf::chain::seg_len(first);
+                let len = first.length();
                 let a = arrow.min(len * 0.3);
                 let tip = p + t * a;
                 let side = V3::new(-t.y, t.x, 0.0) * a * 0.35;
