@@ -119,6 +119,7 @@ fn motion(kind: MotionKind, to: P3, feed: Option<f64>, beam: bool) -> Record {
         to,
         feed,
         beam,
+        beam_switch: None,
         role: None,
         chain: None,
         block: None,

@@ -80,8 +80,9 @@ struct Args {
     /// feed, time, limit).
     #[arg(long, value_name = "FILE.csv")]
     blocks: Option<PathBuf>,
-    /// How the PMAC program assigns the shutter: `M33==` (sync, as pathgen
-    /// writes) or `M33=` (immediate, executed one move ahead).
+    /// Shutter timing for switches whose statement is not known: `M33==`
+    /// (sync, as pathgen writes) or `M33=` (immediate, executed one move
+    /// ahead). PMAC programs say it per statement, which wins.
     #[arg(long, value_parser = ["sync", "immediate"], default_value = "sync")]
     shutter_timing: String,
     /// Controller model, overriding the profile's.

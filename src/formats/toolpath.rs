@@ -4,7 +4,9 @@ use super::{
     FormatError, LineSource, check_schema, parse_json, point_from, push_num, push_point3, push_str_lit, push_uint,
 };
 use crate::geometry::{P3, Plane};
-use crate::model::toolpath::{ArcData, FeedUnit, Header, Motion, MotionKind, Record, Role, arc_end_tolerance};
+use crate::model::toolpath::{
+    ArcData, FeedUnit, Header, Motion, MotionKind, Record, Role, ShutterSwitch, arc_end_tolerance,
+};
 use serde::Deserialize;
 use std::io::{BufRead, Write};
 
@@ -30,6 +32,7 @@ struct WireRecord {
     turns: Option<u32>,
     feed: Option<f64>,
     beam: Option<bool>,
+    beam_switch: Option<String>,
     role: Option<String>,
     chain: Option<u64>,
     block: Option<u64>,
@@ -138,6 +141,13 @@ fn decode(w: WireRecord, line: u64, pos: Option<P3>) -> Result<Record, FormatErr
         Some(r) => Some(Role::from_name(r).ok_or_else(|| FormatError::invalid(line, format!("unknown role '{r}'")))?),
     };
     let block = w.block;
+    let beam_switch = match w.beam_switch.as_deref() {
+        None => None,
+        Some(b) => Some(
+            ShutterSwitch::from_name(b)
+                .ok_or_else(|| FormatError::invalid(line, format!("unknown beam_switch '{b}' (sync or immediate)")))?,
+        ),
+    };
     let feed_of = |w: &WireRecord| -> Result<f64, FormatError> {
         let f = finite(need(w.feed, line, &kind, "feed")?, line, "feed")?;
         if f <= 0.0 {
@@ -150,6 +160,7 @@ fn decode(w: WireRecord, line: u64, pos: Option<P3>) -> Result<Record, FormatErr
         to,
         feed,
         beam: w.beam.unwrap_or(false),
+        beam_switch,
         role,
         chain: w.chain,
         block,
@@ -300,6 +311,11 @@ pub fn format_record(b: &mut String, r: &Record) {
             }
             if m.feed.is_some() || m.beam {
                 b.push_str(if m.beam { ",\"beam\":true" } else { ",\"beam\":false" });
+            }
+            if let Some(sw) = m.beam_switch {
+                b.push_str(",\"beam_switch\":\"");
+                b.push_str(sw.name());
+                b.push('"');
             }
             if let Some(role) = m.role {
                 b.push_str(",\"role\":\"");
@@ -512,6 +528,7 @@ mod stream_tests {
                     to: P3::new(i as f64 * 0.1, (i % 7) as f64, 0.0),
                     feed: Some(2.0),
                     beam: i % 3 == 0,
+                    beam_switch: None,
                     role: None,
                     chain: None,
                     block: Some(i as u64 + 1),

@@ -65,7 +65,7 @@
 use super::{GcodeError, LineInterpreter, ReadOptions, make_arc};
 use crate::geometry::planar::center_from_radius;
 use crate::geometry::{EPS_LEN, P2, P3, Plane};
-use crate::model::toolpath::{ArcData, Motion, MotionKind, Record, arc_end_tolerance};
+use crate::model::toolpath::{ArcData, Motion, MotionKind, Record, ShutterSwitch, arc_end_tolerance};
 use std::collections::VecDeque;
 
 /// Highest variable number of each kind (P, Q, M, I) on a Turbo PMAC.
@@ -530,6 +530,11 @@ pub struct PmacInterpreter {
     normal_positive: bool,
     feed: Option<f64>,
     beam: bool,
+    /// The beam state of the last move written, and how the shutter was
+    /// last switched (`==` or `=`): the next move carries the switch when
+    /// its beam differs.
+    moved_beam: bool,
+    last_switch: ShutterSwitch,
     buffer: Buffer,
     opened_at: u64,
     /// Records made since the buffer opened (CLEAR would erase them).
@@ -570,6 +575,8 @@ impl PmacInterpreter {
             normal_positive: false,
             feed: None,
             beam: false,
+            moved_beam: false,
+            last_switch: ShutterSwitch::Sync,
             buffer: Buffer::Bare,
             opened_at: 0,
             buffer_has_records: false,
@@ -1135,6 +1142,11 @@ impl PmacInterpreter {
         }
         if Some(var) == self.shutter {
             self.beam = value != 0.0;
+            self.last_switch = if sync {
+                ShutterSwitch::Sync
+            } else {
+                ShutterSwitch::Immediate
+            };
         } else if Some(var) != self.counter {
             self.push(
                 out,
@@ -1427,8 +1439,12 @@ impl PmacInterpreter {
                 MotionKind::Arc(self.arc(&pm, &to, ccw, lineno)?)
             }
         };
-        let rec = Record::Move(Motion::from_block(kind, to, feed, self.beam, lineno));
-        self.push(out, rec);
+        let mut motion = Motion::from_block(kind, to, feed, self.beam, lineno);
+        if self.beam != self.moved_beam {
+            motion.beam_switch = Some(self.last_switch);
+        }
+        self.moved_beam = self.beam;
+        self.push(out, Record::Move(motion));
         self.pos = to;
         Ok(())
     }
@@ -1841,6 +1857,25 @@ mod tests {
         // comes after `M33=0`: closed.
         assert_eq!(beams, [false, true, true, true, false, true, false]);
         assert_eq!(recs.len(), 7, "shutter assignments make no records");
+        // Each move whose beam differs from the one before carries how the
+        // switch was written.
+        use ShutterSwitch::{Immediate, Sync};
+        let switches: Vec<Option<ShutterSwitch>> = moves(&recs).iter().map(|m| m.beam_switch).collect();
+        assert_eq!(
+            switches,
+            [
+                None,
+                Some(Immediate),
+                None,
+                None,
+                Some(Immediate),
+                Some(Immediate),
+                Some(Immediate)
+            ]
+        );
+        let recs = read("LINEAR F1\nM33==1 X1\nX2\nM33==0 X3\n");
+        let switches: Vec<Option<ShutterSwitch>> = moves(&recs).iter().map(|m| m.beam_switch).collect();
+        assert_eq!(switches, [Some(Sync), None, Some(Sync)]);
         // A configured shutter variable.
         let opts = ReadOptions {
             shutter_var: "m7".into(),

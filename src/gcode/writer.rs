@@ -54,7 +54,7 @@
 use super::Dialect;
 use crate::geometry::planar::sweep_angle;
 use crate::geometry::{P2, P3, Plane};
-use crate::model::toolpath::{ArcData, FeedUnit, Motion, MotionKind, Record, Role};
+use crate::model::toolpath::{ArcData, FeedUnit, Motion, MotionKind, Record, Role, ShutterSwitch};
 use std::f64::consts::TAU;
 use std::io::{self, Write};
 use thiserror::Error;
@@ -286,6 +286,9 @@ pub struct GcodeWriter<W: Write> {
     decimals: u32,
     /// Text of the record being written.
     buf: String,
+    /// How the move being written wants its shutter switch written, when
+    /// it says (PMAC `==` or `=`); otherwise `opts.shutter_sync` decides.
+    switch: Option<ShutterSwitch>,
     /// Byte index in `buf` where the current line starts.
     line_start: usize,
     begun: bool,
@@ -320,6 +323,7 @@ impl<W: Write> GcodeWriter<W> {
             scale: 10f64.powi(decimals as i32),
             decimals,
             buf: String::with_capacity(256),
+            switch: None,
             line_start: 0,
             begun: false,
             pos: [0; 3],
@@ -401,7 +405,12 @@ impl<W: Write> GcodeWriter<W> {
         self.records += 1;
         self.buf.clear();
         let res = match r {
-            Record::Move(m) => self.write_move(m),
+            Record::Move(m) => {
+                self.switch = m.beam_switch;
+                let r = self.write_move(m);
+                self.switch = None;
+                r
+            }
             Record::Dwell { seconds, .. } => self.write_dwell(*seconds),
             Record::Spindle { rpm, .. } => self.write_spindle(*rpm),
             Record::Accel { ta_ms, ts_ms, .. } => self.write_accel(*ta_ms, *ts_ms),
@@ -726,7 +735,11 @@ impl<W: Write> GcodeWriter<W> {
             Dialect::Pmac => {
                 self.sep();
                 self.buf.push_str(&self.opts.shutter_var);
-                self.buf.push_str(if self.opts.shutter_sync { "==" } else { "=" });
+                let sync = match self.switch {
+                    Some(sw) => sw == ShutterSwitch::Sync,
+                    None => self.opts.shutter_sync,
+                };
+                self.buf.push_str(if sync { "==" } else { "=" });
                 self.buf.push(if on { '1' } else { '0' });
             }
             Dialect::Iso => {
@@ -1007,6 +1020,7 @@ mod tests {
             to: P3::new(to[0], to[1], to[2]),
             feed,
             beam,
+            beam_switch: None,
             role: None,
             chain: None,
             block: None,

@@ -130,6 +130,34 @@ pub struct ArcData {
     pub extra_turns: u32,
 }
 
+/// How the command that switched the shutter before a move was written on
+/// a Turbo PMAC: synchronous (`M33==1`, takes effect when that move's
+/// motion starts) or immediate (`M33=1`, takes effect when look-ahead
+/// calculates the line, ahead of the motion). Simulators time the shutter
+/// by it; writers reproduce it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum ShutterSwitch {
+    Sync,
+    Immediate,
+}
+
+impl ShutterSwitch {
+    pub fn name(self) -> &'static str {
+        match self {
+            ShutterSwitch::Sync => "sync",
+            ShutterSwitch::Immediate => "immediate",
+        }
+    }
+
+    pub fn from_name(s: &str) -> Option<ShutterSwitch> {
+        match s {
+            "sync" => Some(ShutterSwitch::Sync),
+            "immediate" => Some(ShutterSwitch::Immediate),
+            _ => None,
+        }
+    }
+}
+
 /// What kind of motion a [`Motion`] is.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum MotionKind {
@@ -150,6 +178,9 @@ pub struct Motion {
     pub feed: Option<f64>,
     /// Commanded beam / shutter / cutting state during the move.
     pub beam: bool,
+    /// When `beam` differs from the previous move's: how that switch was
+    /// commanded, if the source says (PMAC `==` or `=`); `None` otherwise.
+    pub beam_switch: Option<ShutterSwitch>,
     pub role: Option<Role>,
     /// Source chain id, when generated from chains.
     pub chain: Option<u64>,
@@ -166,6 +197,7 @@ impl Motion {
             to,
             feed,
             beam,
+            beam_switch: None,
             role: None,
             chain: None,
             block: Some(block),

@@ -34,6 +34,7 @@ use super::machine::Shutter;
 use super::time::{MAX_PIECES, Piece, TimedBlock};
 use crate::geometry::{Arc3, Line3, P3, Plane};
 use crate::model::chain::{Chain, Segment};
+use crate::model::toolpath::ShutterSwitch;
 use std::collections::{HashMap, VecDeque};
 
 /// When a program's shutter commands take effect.
@@ -229,7 +230,15 @@ impl BeamModel {
         self.prev_beam = b.beam;
         self.prev_chain = b.chain;
         if b.beam != self.cmd_on {
-            let t = match self.timing {
+            // A PMAC program says per statement how each switch was written;
+            // the model's timing is the default for those that do not, and a
+            // look-ahead controller always switches at the block boundary.
+            let timing = match (self.timing, b.beam_switch) {
+                (CommandTiming::Boundary, _) | (_, None) => self.timing,
+                (_, Some(ShutterSwitch::Sync)) => CommandTiming::Sync,
+                (_, Some(ShutterSwitch::Immediate)) => CommandTiming::Immediate,
+            };
+            let t = match timing {
                 CommandTiming::Sync => tb.exec_start_s,
                 CommandTiming::Boundary => tb.t_start_s,
                 CommandTiming::Immediate => self.dwell_end.or(self.last_exec_start).unwrap_or(tb.exec_start_s),

@@ -280,6 +280,7 @@ impl<W: Write> Simulator<W> {
                             delta,
                             end: m.to,
                             beam: false,
+                            beam_switch: None,
                             chain: None,
                         }
                     }
@@ -291,6 +292,7 @@ impl<W: Write> Simulator<W> {
                 block.line = m.block;
                 block.end = m.to;
                 block.beam = m.beam;
+                block.beam_switch = m.beam_switch;
                 block.chain = m.chain;
                 if let Some(r) = self.removal.as_mut() {
                     let index = self.index;
@@ -899,6 +901,7 @@ mod tests {
             to: P3::new(1.0, 0.0, 0.0),
             feed: Some(0.0),
             beam: false,
+            beam_switch: None,
             role: None,
             chain: None,
             block: None,

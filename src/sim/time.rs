@@ -109,6 +109,9 @@ pub struct Block {
     /// End point (mm), for matching cuts to drawing chains.
     pub end: crate::geometry::P3,
     pub beam: bool,
+    /// How a shutter switch before this block was commanded, when the
+    /// program says (PMAC `==` / `=`).
+    pub beam_switch: Option<crate::model::toolpath::ShutterSwitch>,
     pub chain: Option<u64>,
 }
 
@@ -128,6 +131,7 @@ impl Block {
             delta,
             end: crate::geometry::P3::from(delta),
             beam: false,
+            beam_switch: None,
             chain: None,
         }
     }
