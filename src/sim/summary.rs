@@ -1,7 +1,7 @@
 //! Path summary: lengths by kind, beam-on length, extents, counts.
 //! One pass over the records, constant memory.
 
-use crate::geometry::{P3, planar};
+use crate::geometry::{Arc3, P3};
 use crate::model::toolpath::{FeedUnit, MotionKind, Record};
 
 /// Running totals over a toolpath.
@@ -72,26 +72,20 @@ impl Summary {
                     }
                     MotionKind::Arc(a) => {
                         self.arcs += 1;
-                        let c = a.plane.project(&a.center);
-                        let s = a.plane.project(&self.pos);
-                        let e = a.plane.project(&m.to);
-                        let sweep = planar::sweep_angle(&c, &s, &e, a.ccw, a.extra_turns, 1e-9);
-                        let r = (s - c).norm();
-                        // Extents: sample the arc finely enough for a
-                        // report (exact extremes come with the geometry
-                        // kernel's arc bounding box).
-                        let n = ((sweep.abs() / (std::f64::consts::PI / 32.0)).ceil() as usize).clamp(1, 4096);
-                        let a0 = (s - c).y.atan2((s - c).x);
-                        let z0 = a.plane.normal_coord(&self.pos);
-                        let z1 = a.plane.normal_coord(&m.to);
-                        for i in 1..n {
-                            let t = i as f64 / n as f64;
-                            let ang = a0 + sweep * t;
-                            let q = c + crate::geometry::V2::new(ang.cos(), ang.sin()) * r;
-                            let p = a.plane.lift(&q, z0 + (z1 - z0) * t);
-                            self.grow(&p);
+                        // The geometry kernel's arc: exact length (helical
+                        // rise included) and exact extents.
+                        match Arc3::new(a.center, self.pos, m.to, a.ccw, a.plane, a.extra_turns) {
+                            Some(arc) => {
+                                let bb = arc.bbox();
+                                if !bb.is_empty() {
+                                    self.grow(&bb.min);
+                                    self.grow(&bb.max);
+                                }
+                                arc.length()
+                            }
+                            // Zero radius: readers refuse it; count the chord.
+                            None => (m.to - self.pos).norm(),
                         }
-                        ((r * sweep).powi(2) + (z1 - z0).powi(2)).sqrt()
                     }
                 };
                 if let Some(f) = m.feed {
