@@ -173,6 +173,16 @@ impl Machine {
     }
 
     /// Apply flags, then re-check.
+    /// Shortest time a block can take (s): the controller's block
+    /// processing rate; 0 when the rate is unlimited (0 Hz in the profile).
+    pub fn block_time_s(&self) -> f64 {
+        if self.block_rate_hz > 0.0 {
+            1.0 / self.block_rate_hz
+        } else {
+            0.0
+        }
+    }
+
     pub fn apply(&mut self, o: &Overrides) -> Result<(), MachineError> {
         if let Some(c) = o.controller {
             self.controller = c;

@@ -408,11 +408,7 @@ impl Pmac {
             max_feed: m.max_feed_mm_s,
             rapid: m.rapid_mm_s,
             rapid_accel: m.rapid_accel_mm_s2,
-            block_time: if m.block_rate_hz > 0.0 {
-                1.0 / m.block_rate_hz
-            } else {
-                0.0
-            },
+            block_time: m.block_time_s(),
             ta_ms: m.ta_ms,
             ts_ms: m.ts_ms,
             t: 0.0,
@@ -651,11 +647,7 @@ impl Lookahead {
             n_max: m.lookahead_blocks,
             max_feed: m.max_feed_mm_s,
             rapid: m.rapid_mm_s,
-            block_time: if m.block_rate_hz > 0.0 {
-                1.0 / m.block_rate_hz
-            } else {
-                0.0
-            },
+            block_time: m.block_time_s(),
             t: 0.0,
             buf: VecDeque::new(),
             entry: 0.0,
