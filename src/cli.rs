@@ -180,23 +180,22 @@ impl Output {
                     .map_err(|e| CliError::failure(format!("{}: {}", path.display(), e.error())))?;
                 // A temp file is private (0600); the result should look like
                 // any file the user writes: the old file's mode, else 0644.
-                let perms = std::fs::metadata(&path).map(|m| m.permissions()).unwrap_or_else(|_| {
+                let perms = match std::fs::metadata(&path) {
+                    Ok(m) => Some(m.permissions()),
                     #[cfg(unix)]
-                    {
+                    Err(_) => {
                         use std::os::unix::fs::PermissionsExt;
-                        std::fs::Permissions::from_mode(0o644)
+                        Some(std::fs::Permissions::from_mode(0o644))
                     }
+                    // Elsewhere a new file keeps the temp file's defaults.
                     #[cfg(not(unix))]
-                    {
-                        tmp.as_file()
-                            .metadata()
-                            .map(|m| m.permissions())
-                            .expect("temp file metadata")
-                    }
-                });
-                tmp.as_file()
-                    .set_permissions(perms)
-                    .map_err(|e| CliError::failure(format!("{}: {e}", path.display())))?;
+                    Err(_) => None,
+                };
+                if let Some(perms) = perms {
+                    tmp.as_file()
+                        .set_permissions(perms)
+                        .map_err(|e| CliError::failure(format!("{}: {e}", path.display())))?;
+                }
                 tmp.persist(&path)
                     .map_err(|e| CliError::failure(format!("{}: {e}", path.display())))?;
                 Ok(())

@@ -7,7 +7,7 @@
 //! is what a top view shows of them up to their bulge.
 
 use crate::formats::push_num;
-use crate::geometry::{P3, Plane, planar};
+use crate::geometry::{Arc3, P3, Plane};
 use crate::model::toolpath::{MotionKind, Record, Role};
 
 /// Streaming SVG builder: add records one by one, then [`Preview::finish`].
@@ -52,18 +52,22 @@ impl Preview {
         push_num(b, self.pos.x);
         b.push(' ');
         push_num(b, -self.pos.y);
-        match m.kind {
+        // XY arcs are drawn exactly from one Arc3 (sweep and extents); a
+        // degenerate arc, and arcs in other planes, as their chord.
+        let arc = match m.kind {
             MotionKind::Arc(a) if a.plane == Plane::Xy => {
-                let c = a.plane.project(&a.center);
-                let s = a.plane.project(&self.pos);
-                let e = a.plane.project(&m.to);
-                let r = (s - c).norm();
-                let sweep = planar::sweep_angle(&c, &s, &e, a.ccw, a.extra_turns, 1e-9);
+                Arc3::new(a.center, self.pos, m.to, a.ccw, a.plane, a.extra_turns)
+            }
+            _ => None,
+        };
+        match arc {
+            Some(arc) => {
+                let (c, r, sweep) = (arc.center, arc.radius(), arc.sweep());
                 // SVG cannot draw a full circle in one arc: split into
                 // pieces of at most half a turn. In the flipped y of SVG, a
                 // counter-clockwise arc has sweep-flag 0.
                 let pieces = ((sweep.abs() / std::f64::consts::PI).ceil() as usize).max(1);
-                let a0 = (s - c).y.atan2((s - c).x);
+                let a0 = (self.pos.y - c.y).atan2(self.pos.x - c.x);
                 for i in 1..=pieces {
                     let ang = a0 + sweep * i as f64 / pieces as f64;
                     let (x, y) = (c.x + r * ang.cos(), c.y + r * ang.sin());
@@ -71,20 +75,18 @@ impl Preview {
                     push_num(b, r);
                     b.push(' ');
                     push_num(b, r);
-                    b.push_str(if a.ccw { " 0 0 0 " } else { " 0 0 1 " });
+                    b.push_str(if arc.ccw { " 0 0 0 " } else { " 0 0 1 " });
                     push_num(b, x);
                     b.push(' ');
                     push_num(b, -y);
                 }
-                // Extents: the arc's axis extremes and its ends.
-                let bb = crate::geometry::Arc3::new(a.center, self.pos, m.to, a.ccw, a.plane, a.extra_turns)
-                    .map(|arc| arc.bbox());
-                if let Some(bb) = bb.filter(|bb| !bb.is_empty()) {
+                let bb = arc.bbox();
+                if !bb.is_empty() {
                     self.grow(bb.min.x, bb.min.y);
                     self.grow(bb.max.x, bb.max.y);
                 }
             }
-            _ => {
+            None => {
                 b.push_str(" L");
                 push_num(b, m.to.x);
                 b.push(' ');
