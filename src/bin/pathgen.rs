@@ -14,7 +14,7 @@ use microcam::paths::arcfit;
 use microcam::paths::contour::{ContourOptions, Direction, OrderMode, Warning, contour, contour_streamed};
 use microcam::paths::elem::Elem;
 use microcam::paths::input::read_chains;
-use microcam::paths::machine::Machine;
+use microcam::paths::machine::{Controller, Machine};
 use microcam::paths::offset::Side;
 use microcam::paths::patterns;
 use microcam::paths::plan::{Tagged, all_cut, plan_paths};
@@ -300,10 +300,27 @@ struct MachineArgs {
     /// Corners turning less than this (degrees) are tangent: no loop.
     #[arg(long, default_value_t = 0.5)]
     tangent_tol: f64,
+    /// Controller the program is planned for: pmac (M33== acts where the
+    /// blend into its block starts; blocks at V get a short TA) or lookahead
+    /// (commands act at block boundaries). Default: pmac, or lookahead with
+    /// --gcode iso.
+    #[arg(long, value_parser = ["pmac", "lookahead"])]
+    controller: Option<String>,
+    /// PMAC: TA (whole ms) of the blocks at V between a path's ramps.
+    /// Default: 2 × the close delay, so the close command sits on the
+    /// boundary at the cut end.
+    #[arg(long)]
+    cut_ta: Option<f64>,
 }
 
 impl MachineArgs {
-    fn machine(&self) -> Result<Machine, CliError> {
+    /// The machine; `gcode` is the dialect written, which picks the
+    /// controller when `--controller` is not given.
+    fn machine(&self, gcode: Option<&str>) -> Result<Machine, CliError> {
+        let controller = match (self.controller.as_deref(), gcode) {
+            (Some("lookahead"), _) | (None, Some("iso")) => Controller::Lookahead,
+            _ => Controller::Pmac,
+        };
         let mut m = Machine {
             feed: self.feed,
             ta_ms: self.ta,
@@ -315,6 +332,10 @@ impl MachineArgs {
             close_transfer_ms: self.close_transfer,
             min_exposure_ms: self.min_exposure,
             tangent_tol_deg: self.tangent_tol,
+            controller,
+            cut_ta_ms: self
+                .cut_ta
+                .unwrap_or((2.0 * self.close_delay).clamp(1.0, self.ta.max(self.td).max(1.0))),
         };
         if let Some(a) = self.accel {
             if !(a.is_finite() && a > 0.0) {
@@ -568,9 +589,9 @@ fn warn_all(warnings: &[Warning]) {
 fn short_note(short: usize, total: usize, m: &Machine) {
     if short > 0 {
         eprintln!(
-            "pathgen: note: {short} of {total} feed moves are shorter than V·TA ({:.4} mm); a PMAC not in \
-             segmentation mode stretches them to TA and slows down there",
-            m.feed * m.ta_ms / 1000.0
+            "pathgen: note: {short} of {total} feed moves last less than 1 ms at V ({:.6} mm); a Turbo PMAC \
+             stretches them to its least TA and slows down there",
+            m.min_block()
         );
     }
 }
@@ -578,7 +599,7 @@ fn short_note(short: usize, total: usize, m: &Machine) {
 /// Write generated records as a toolpath or, with `--gcode`, as G-code
 /// through the same writer as `emit`; the SVG preview goes beside.
 fn write_generated(records: &[Record], o: &GenOutput, source: Option<String>, m: &Machine) -> Result<(), CliError> {
-    let (short, total) = microcam::paths::audit::short_blocks(records, m, P3::origin());
+    let (short, total) = microcam::paths::audit::stretched_blocks(records, m, P3::origin());
     short_note(short, total, m);
     if let Some(path) = &o.svg {
         let mut svg = Output::new(Some(path));
@@ -644,7 +665,7 @@ fn write_streamed(
 }
 
 fn contour_cmd(a: ContourArgs) -> Result<(), CliError> {
-    let m = a.machine.machine()?;
+    let m = a.machine.machine(a.out.gcode.as_deref())?;
     let side = match a.side.as_str() {
         "inside" => Side::Inside,
         "outside" => Side::Outside,
@@ -693,7 +714,7 @@ fn contour_cmd(a: ContourArgs) -> Result<(), CliError> {
     let mut warnings = Vec::new();
     write_streamed(&a.out, source, |sink| {
         warnings = contour_streamed(&chains, &m, &o, |chunk| {
-            let (s, t) = microcam::paths::audit::short_blocks(&chunk, &m, P3::origin());
+            let (s, t) = microcam::paths::audit::stretched_blocks(&chunk, &m, P3::origin());
             short += s;
             total += t;
             sink(chunk)
@@ -730,7 +751,7 @@ fn finish_pattern(paths: Vec<Tagged>, m: &Machine, out: &GenOutput, what: &str) 
 }
 
 fn helix_cmd(a: HelixArgs) -> Result<(), CliError> {
-    let m = a.machine.machine()?;
+    let m = a.machine.machine(a.out.gcode.as_deref())?;
     let r = positive("radius", a.radius)?;
     if !a.pitch.is_finite() {
         return Err(CliError::input("--pitch must be finite"));
@@ -741,7 +762,7 @@ fn helix_cmd(a: HelixArgs) -> Result<(), CliError> {
 }
 
 fn spiral_cmd(a: SpiralArgs) -> Result<(), CliError> {
-    let m = a.machine.machine()?;
+    let m = a.machine.machine(a.out.gcode.as_deref())?;
     let step = positive("step", a.step)?;
     let c = P3::new(a.center.0, a.center.1, a.z);
     let path = if a.kind == "square" {
@@ -766,7 +787,7 @@ fn spiral_cmd(a: SpiralArgs) -> Result<(), CliError> {
 }
 
 fn zigzag_cmd(a: ZigzagArgs) -> Result<(), CliError> {
-    let m = a.machine.machine()?;
+    let m = a.machine.machine(a.out.gcode.as_deref())?;
     let (plane, along_second) = match (a.plane.as_str(), a.along.as_str()) {
         ("xy", "x") => (Plane::Xy, false),
         ("xy", "y") => (Plane::Xy, true),
@@ -790,7 +811,7 @@ fn zigzag_cmd(a: ZigzagArgs) -> Result<(), CliError> {
 }
 
 fn cone_cmd(a: ConeArgs) -> Result<(), CliError> {
-    let m = a.machine.machine()?;
+    let m = a.machine.machine(a.out.gcode.as_deref())?;
     let h = positive("height", a.height)?;
     let (d1, d2) = (positive("d1", a.d1)?, positive("d2", a.d2)?);
     let step = positive("step", a.step.unwrap_or(a.beam_diameter))?;
@@ -891,7 +912,7 @@ fn arcfit_cmd(a: ArcfitArgs) -> Result<(), CliError> {
 }
 
 fn audit_cmd(a: AuditArgs) -> Result<(), CliError> {
-    let m = a.machine.machine()?;
+    let m = a.machine.machine(None)?;
     let input = cli::open_input(a.file.as_deref())?;
     let source = ToolpathSource::open(input, &ReadOptions::default())?;
     let unit = source.header.feed_unit;
@@ -905,7 +926,6 @@ fn audit_cmd(a: AuditArgs) -> Result<(), CliError> {
         records.push(r);
     }
     let au = microcam::paths::audit::audit(&records, &m, P3::origin());
-    let (short, total) = microcam::paths::audit::short_blocks(&records, &m, P3::origin());
     // Radii within the printing precision of V²/a pass; G-code carries no
     // roles, so exposure is checked only when cut runs are marked.
     let r_min = m.feed * m.feed / au.max_accel_off_cut;
@@ -915,6 +935,9 @@ fn audit_cmd(a: AuditArgs) -> Result<(), CliError> {
         && au.corners_at_speed == 0
         && au.beam_on_rapids == 0
         && r_min >= m.min_radius() - a.precision
+        && au.stretched_moves == 0
+        && au.min_run_after_close >= -a.precision
+        && au.min_run_before_open >= m.accel_distance() - a.precision
         && exposure_ok;
     let exposure = if roles { au.exposure_error } else { f64::NAN };
     let num = |x: f64| {
@@ -925,7 +948,8 @@ fn audit_cmd(a: AuditArgs) -> Result<(), CliError> {
         }
     };
     println!(
-        "{{\"schema\":\"microcam.pathgen-audit/1\",\"ok\":{ok},\"feed_moves\":{total},\"off_feed_moves\":{},\"corners_at_speed\":{},\"beam_on_rapids\":{},\"max_accel_off_cut_mm_s2\":{},\"max_accel_cut_mm_s2\":{},\"accel_limit_mm_s2\":{},\"exposure_error_mm\":{},\"blocks_shorter_than_ta\":{short},\"cut_runs\":{}}}",
+        "{{\"schema\":\"microcam.pathgen-audit/1\",\"ok\":{ok},\"feed_moves\":{},\"off_feed_moves\":{},\"corners_at_speed\":{},\"beam_on_rapids\":{},\"max_accel_off_cut_mm_s2\":{},\"max_accel_cut_mm_s2\":{},\"accel_limit_mm_s2\":{},\"exposure_error_mm\":{},\"stretched_moves\":{},\"min_run_before_open_mm\":{},\"min_run_after_close_mm\":{},\"controller\":\"{}\",\"cut_runs\":{}}}",
+        au.feed_moves,
         au.off_feed_moves,
         au.corners_at_speed,
         au.beam_on_rapids,
@@ -933,6 +957,10 @@ fn audit_cmd(a: AuditArgs) -> Result<(), CliError> {
         num(au.max_accel_cut),
         num(m.accel()),
         num(exposure),
+        au.stretched_moves,
+        num(au.min_run_before_open),
+        num(au.min_run_after_close),
+        m.controller.name(),
         au.cut_runs.values().sum::<usize>()
     );
     if ok {

@@ -2,9 +2,15 @@
 //! actually do, checked against the machine's limits. Tests use it on every
 //! generated drawing; it reads only the toolpath model, so it checks the
 //! output, not the planner's intentions.
+//!
+//! The controller model is the machine's: on a Turbo PMAC a block lasts at
+//! least its TA (whole ms, or 2·TS), the blend into a block takes that
+//! block's TA and starts TA/2 before the boundary, and a shutter command
+//! (`M33==`) on a block acts where that blend starts; a look-ahead
+//! controller acts at the boundary.
 
 use super::elem::Elem;
-use super::machine::Machine;
+use super::machine::{Controller, Machine};
 use crate::geometry::P3;
 use crate::geometry::arc::Arc3;
 use crate::model::toolpath::{MotionKind, Record, Role};
@@ -13,8 +19,13 @@ use std::collections::BTreeMap;
 /// What the audit found.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct Audit {
+    /// Feed moves.
+    pub feed_moves: usize,
     /// Feed moves whose feed is not V.
     pub off_feed_moves: usize,
+    /// PMAC: feed moves shorter in time than their acceleration time, which
+    /// the controller stretches to it (so they run slower than V).
+    pub stretched_moves: usize,
     /// Joints between feed moves (without a stop between) whose direction
     /// jumps by more than the tangency tolerance: an infinite acceleration
     /// demand at V.
@@ -30,46 +41,83 @@ pub struct Audit {
     /// open and the matching edge of a run of cut moves; infinite when the
     /// two do not pair up.
     pub exposure_error: f64,
-    /// Fully-open stretches (mm) that do not start at V: the stage must be
-    /// at V from (open command - lead-in's acceleration) on; here: the
-    /// shutter command must not come before the lead-in's acceleration is
-    /// over, measured as the distance from the last stop.
+    /// Least path length (mm) from a stop to where an open command acts:
+    /// it must not act before the stage has reached V.
     pub min_run_before_open: f64,
+    /// Least path length (mm) from where the shutter is fully closed to
+    /// where the stage starts to slow down for a stop (negative: the beam
+    /// still passes while the speed drops).
+    pub min_run_after_close: f64,
     /// Cut length (mm) per chain id.
     pub cut_length: BTreeMap<u64, f64>,
     /// Number of cut runs per chain id.
     pub cut_runs: BTreeMap<u64, usize>,
 }
 
+/// The acceleration time (s) a Turbo PMAC uses for TA/TS in ms: TA rounded
+/// to whole ms (at least 1), or 2·TS when that is longer.
+pub fn pmac_accel_s(ta_ms: f64, ts_ms: f64) -> f64 {
+    ta_ms.round().max(1.0).max(2.0 * ts_ms) / 1000.0
+}
+
 /// Audit `records` (starting at `start`) against `m`.
 pub fn audit(records: &[Record], m: &Machine, start: P3) -> Audit {
     let mut a = Audit {
         min_run_before_open: f64::INFINITY,
+        min_run_after_close: f64::INFINITY,
         ..Default::default()
     };
     let v = m.feed;
+    let pmac = m.controller == Controller::Pmac;
     let cos_tol = m.tangent_cos();
+    let (mut ta, mut ts) = (m.program_ta_ms(), m.ts_ms);
     let mut pos = start;
     let mut s = 0.0; // path length since the last stop
     let mut prev_dir: Option<crate::geometry::V3> = None;
+    let mut blended = false; // a feed move precedes without a stop
+    let mut acc_last = 0.0; // acceleration time of the last feed move (s)
     let mut beam = false;
     let mut cmd_on_at = 0.0;
+    let mut closed_at: Option<f64> = None; // fully closed, global length
     let mut cut_run: Option<(f64, u64)> = None;
     let mut open: Vec<(f64, f64)> = Vec::new(); // physical fully-open, in global length
     let mut cuts: Vec<(f64, f64)> = Vec::new();
     let mut g = 0.0; // global feed length; stops add a gap so intervals never merge across them
+    // A stop: the last feed move slows down over its final V·acc/2.
+    let stop = |a: &mut Audit, g: f64, acc: f64, closed_at: &mut Option<f64>| {
+        if let Some(c) = closed_at.take() {
+            a.min_run_after_close = a.min_run_after_close.min(g - 0.5 * v * acc - c);
+        }
+    };
     for r in records {
-        let Record::Move(mv) = r else {
-            prev_dir = None;
-            continue;
+        let mv = match r {
+            Record::Move(mv) => mv,
+            Record::Accel { ta_ms, ts_ms, .. } => {
+                ta = ta_ms.unwrap_or(ta);
+                ts = ts_ms.unwrap_or(ts);
+                continue;
+            }
+            _ => {
+                // Dwells and other statements stop look-ahead and blending.
+                if blended {
+                    stop(&mut a, g, acc_last, &mut closed_at);
+                }
+                prev_dir = None;
+                blended = false;
+                continue;
+            }
         };
         let elem = match mv.kind {
             MotionKind::Rapid => {
                 if mv.beam {
                     a.beam_on_rapids += 1;
                 }
+                if blended {
+                    stop(&mut a, g, acc_last, &mut closed_at);
+                }
                 pos = mv.to;
                 prev_dir = None;
+                blended = false;
                 s = 0.0;
                 g += 1e6;
                 continue;
@@ -80,6 +128,7 @@ pub fn audit(records: &[Record], m: &Machine, start: P3) -> Audit {
                 None => Elem::line(pos, mv.to),
             },
         };
+        a.feed_moves += 1;
         if mv.feed.is_none_or(|f| (f - v).abs() > 1e-9 * v) {
             a.off_feed_moves += 1;
         }
@@ -94,16 +143,24 @@ pub fn audit(records: &[Record], m: &Machine, start: P3) -> Audit {
         } else {
             a.max_accel_off_cut = a.max_accel_off_cut.max(demand);
         }
+        let len = elem.length();
+        let acc = if pmac { pmac_accel_s(ta, ts) } else { m.ramp_time_s() };
+        if pmac && len / v < acc * (1.0 - 1e-9) - 1e-12 {
+            a.stretched_moves += 1;
+        }
         if mv.beam != beam {
+            // Where the command acts: PMAC M33== at the start of the blend
+            // into this move (none from rest), else at the boundary.
+            let acts = if pmac && blended { g - 0.5 * v * acc } else { g };
             if mv.beam {
-                cmd_on_at = g;
-                a.min_run_before_open = a.min_run_before_open.min(s);
+                cmd_on_at = acts;
+                a.min_run_before_open = a.min_run_before_open.min(s - (g - acts));
             } else {
-                open.push((cmd_on_at + m.open_lead(), g + m.close_lead()));
+                open.push((cmd_on_at + m.open_lead(), acts + m.close_lead()));
+                closed_at = Some(acts + m.close_lead() + m.close_travel());
             }
             beam = mv.beam;
         }
-        let len = elem.length();
         let is_cut = mv.role == Some(Role::Cut);
         match (is_cut, cut_run) {
             (true, None) => cut_run = Some((g, mv.chain.unwrap_or(0))),
@@ -121,6 +178,11 @@ pub fn audit(records: &[Record], m: &Machine, start: P3) -> Audit {
         g += len;
         pos = mv.to;
         prev_dir = Some(elem.dir_end());
+        blended = true;
+        acc_last = acc;
+    }
+    if blended {
+        stop(&mut a, g, acc_last, &mut closed_at);
     }
     if let Some((c0, id)) = cut_run {
         cuts.push((c0, g));
@@ -141,31 +203,10 @@ pub fn audit(records: &[Record], m: &Machine, start: P3) -> Audit {
     a
 }
 
-/// Feed moves that last less than the acceleration time TA at V. A Turbo
-/// PMAC that is not in segmentation mode stretches such a LINEAR/CIRCLE
-/// block to TA (PMAC.md; seed 000 Fig. 3-20), so the stage slows on it
-/// and the beam dwells: the count says how much of a program depends on
-/// the controller running segmented with look-ahead.
-pub fn short_blocks(records: &[Record], m: &Machine, start: P3) -> (usize, usize) {
-    let min_len = m.feed * m.ta_ms / 1000.0;
-    let mut pos = start;
-    let (mut short, mut feed_moves) = (0, 0);
-    for r in records {
-        let Record::Move(mv) = r else { continue };
-        let len = match mv.kind {
-            MotionKind::Rapid => {
-                pos = mv.to;
-                continue;
-            }
-            MotionKind::Line => (mv.to - pos).norm(),
-            MotionKind::Arc(d) => Arc3::new(d.center, pos, mv.to, d.ccw, d.plane, d.extra_turns)
-                .map_or((mv.to - pos).norm(), |a| a.length()),
-        };
-        feed_moves += 1;
-        if len < min_len {
-            short += 1;
-        }
-        pos = mv.to;
-    }
-    (short, feed_moves)
+/// Feed moves a Turbo PMAC would stretch (see [`Audit::stretched_moves`])
+/// and all feed moves: `records` must start where the machine's ramps are
+/// in force (a job, or a chunk of whole paths, which end on them).
+pub fn stretched_blocks(records: &[Record], m: &Machine, start: P3) -> (usize, usize) {
+    let a = audit(records, m, start);
+    (a.stretched_moves, a.feed_moves)
 }

@@ -316,7 +316,7 @@ fn plan_in_chunks(
                 let mut notes = Vec::new();
                 let pieces = plan_path(&path, m, &mut notes);
                 let mut recs = Vec::with_capacity(pieces.len() + 1);
-                to_records(&pieces, m.feed, Some(items[it].chain), &mut recs);
+                to_records(&pieces, m, Some(items[it].chain), &mut recs);
                 (recs, notes)
             })
             .collect();

@@ -121,6 +121,11 @@ fn word_params(w: Word, d: f64, a: f64, b: f64) -> Option<[f64; 3]> {
 /// `h1` (headings in radians). Ties go to the earlier word, so the answer is
 /// deterministic.
 pub fn shortest(p0: P2, h0: f64, p1: P2, h1: f64, r: f64) -> Option<Dubins> {
+    shortest_where(p0, h0, p1, h1, r, |_| true)
+}
+
+/// The shortest path among those `accept` lets through.
+pub fn shortest_where(p0: P2, h0: f64, p1: P2, h1: f64, r: f64, accept: impl Fn(&Dubins) -> bool) -> Option<Dubins> {
     if !(r.is_finite() && r > 0.0) {
         return None;
     }
@@ -137,7 +142,7 @@ pub fn shortest(p0: P2, h0: f64, p1: P2, h1: f64, r: f64) -> Option<Dubins> {
                 params,
                 radius: r,
             };
-            if best.is_none_or(|b| cand.length() < b.length() - 1e-12) {
+            if accept(&cand) && best.is_none_or(|b| cand.length() < b.length() - 1e-12) {
                 best = Some(cand);
             }
         }
@@ -199,10 +204,26 @@ pub fn to_elems(dp: &Dubins, p0: P2, h0: f64, goal: P2, plane: Plane, nz: f64) -
 
 /// A beam-off corner loop of radius `r` at `corner`: leaves along the
 /// incoming direction `din`, returns through the corner along `dout`, and is
-/// at least `min_len` long (so the shutter has time to close and reopen).
-pub fn corner_loop(corner: P3, din: V2, dout: V2, r: f64, min_len: f64, plane: Plane) -> Option<Vec<Elem>> {
-    connect(corner, din, corner, dout, r, min_len, plane)
+/// at least `min_len` long (so the shutter has time to close and reopen),
+/// with no piece shorter than `min_piece` and a last straight of at least
+/// `tail` (see [`connect`]).
+pub fn corner_loop(corner: P3, din: V2, dout: V2, r: f64, shape: Shape, plane: Plane) -> Option<Vec<Elem>> {
+    connect(corner, din, corner, dout, r, shape, plane)
 }
+
+/// What a connection must be besides shortest.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Shape {
+    /// Least total length.
+    pub min_len: f64,
+    /// Least length of any piece.
+    pub min_piece: f64,
+    /// Least length of the straight it ends with.
+    pub tail: f64,
+}
+
+/// Most candidate paths tried while looking for one without a sliver.
+const SLIVER_TRIES: usize = 64;
 
 /// The shortest path of radius `r` in `plane` from `from` heading `din` to
 /// `to` heading `dout`, at least `min_len` long. When the shortest is
@@ -210,15 +231,29 @@ pub fn corner_loop(corner: P3, din: V2, dout: V2, r: f64, min_len: f64, plane: P
 /// least amount that makes it long enough: curvature stays at the limit
 /// and only straight travel is added. `to` must share `from`'s normal
 /// coordinate.
-pub fn connect(from: P3, din: V2, to: P3, dout: V2, r: f64, min_len: f64, plane: Plane) -> Option<Vec<Elem>> {
+///
+/// No piece is shorter than `shape.min_piece` (a sliver would be a block
+/// shorter than the controller's least acceleration time, which it would
+/// run slower than V): among paths of a sliver-free word, the shortest is
+/// taken, and if none exists the straight extensions grow in steps of
+/// `min_piece` until one does. The final straight is at least
+/// `shape.tail` long (room for the shutter's open command).
+pub fn connect(from: P3, din: V2, to: P3, dout: V2, r: f64, shape: Shape, plane: Plane) -> Option<Vec<Elem>> {
+    let Shape {
+        min_len,
+        min_piece,
+        tail,
+    } = shape;
     let a2 = plane.project(&from);
     let b2 = plane.project(&to);
     let nz = plane.normal_coord(&from);
     let (h0, h1) = (din.y.atan2(din.x), dout.y.atan2(dout.x));
     let (u0, u1) = (V2::new(h0.cos(), h0.sin()), V2::new(h1.cos(), h1.sin()));
+    // Start extension e, end extension max(e, tail).
+    let end_ext = |e: f64| if tail > 0.0 { e.max(tail) } else { e };
     let total = |e: f64| -> Option<(f64, Dubins)> {
-        let dp = shortest(a2 + u0 * e, h0, b2 - u1 * e, h1, r)?;
-        Some((2.0 * e + dp.length(), dp))
+        let dp = shortest(a2 + u0 * e, h0, b2 - u1 * end_ext(e), h1, r)?;
+        Some((e + end_ext(e) + dp.length(), dp))
     };
     let (len0, _) = total(0.0)?;
     let mut e = 0.0;
@@ -231,25 +266,47 @@ pub fn connect(from: P3, din: V2, to: P3, dout: V2, r: f64, min_len: f64, plane:
         }
         e = hi;
     }
-    let (_, dp) = total(e)?;
-    let ext = e > MIN_PIECE;
-    let (s2, g2) = if ext { (a2 + u0 * e, b2 - u1 * e) } else { (a2, b2) };
+    if e > MIN_PIECE && e < min_piece {
+        e = min_piece;
+    }
+    let clean = |dp: &Dubins| dp.params.iter().all(|&p| p * r <= MIN_PIECE || p * r >= min_piece);
+    let mut dp = None;
+    for k in 0..=SLIVER_TRIES {
+        let ek = if k == 0 {
+            e
+        } else {
+            e.max(min_piece) + (k - 1) as f64 * min_piece
+        };
+        let s = a2 + u0 * ek;
+        let g = b2 - u1 * end_ext(ek);
+        if let Some(best) = shortest_where(s, h0, g, h1, r, clean) {
+            e = ek;
+            dp = Some(best);
+            break;
+        }
+    }
+    // Nothing sliver-free within the tries: the plain shortest path.
+    let dp = match dp {
+        Some(d) => d,
+        None => total(e)?.1,
+    };
+    let (ext0, ext1) = (e > MIN_PIECE, end_ext(e) > MIN_PIECE);
+    let s2 = if ext0 { a2 + u0 * e } else { a2 };
+    let g2 = if ext1 { b2 - u1 * end_ext(e) } else { b2 };
     let mut out = Vec::with_capacity(5);
-    if ext {
+    if ext0 {
         out.push(Elem::line(from, plane.lift(&s2, nz)));
     }
     let mut mid = to_elems(&dp, s2, h0, g2, plane, nz);
-    if !ext {
-        // Snap the ends exactly onto the given points.
-        if let Some(first) = mid.first_mut() {
-            set_start(first, from);
-        }
-        if let Some(last) = mid.last_mut() {
-            set_end(last, to);
-        }
+    // Snap unextended ends exactly onto the given points.
+    if !ext0 && let Some(first) = mid.first_mut() {
+        set_start(first, from);
+    }
+    if !ext1 && let Some(last) = mid.last_mut() {
+        set_end(last, to);
     }
     out.append(&mut mid);
-    if ext {
+    if ext1 {
         out.push(Elem::line(plane.lift(&g2, nz), to));
     }
     Some(out)
@@ -317,7 +374,8 @@ mod tests {
             let hin = 0.3f64;
             let hout = if left { hin + turn } else { hin - turn };
             let r = 0.2;
-            let els = corner_loop(corner, V2::new(hin.cos(), hin.sin()), V2::new(hout.cos(), hout.sin()), r, min_len, Plane::Xy).unwrap();
+            let shape = Shape { min_len, min_piece: 0.002, tail: if left { 0.03 } else { 0.0 } };
+            let els = corner_loop(corner, V2::new(hin.cos(), hin.sin()), V2::new(hout.cos(), hout.sin()), r, shape, Plane::Xy).unwrap();
             prop_assert_eq!(els.first().unwrap().start(), corner);
             prop_assert!((els.last().unwrap().end() - corner).norm() < 1e-9);
             let d0 = els[0].dir_start();
@@ -333,6 +391,13 @@ mod tests {
             }
             let len: f64 = els.iter().map(Elem::length).sum();
             prop_assert!(len >= min_len - 1e-9);
+            for e in &els {
+                prop_assert!(e.length() >= 0.002 - 1e-9, "a sliver of {} mm", e.length());
+            }
+            if shape.tail > 0.0 {
+                let last = els.last().unwrap();
+                prop_assert!(matches!(last, Elem::Line(_)) && last.length() >= shape.tail - 1e-9);
+            }
         }
     }
 

@@ -5,6 +5,7 @@
 //! delay + 9 ms transfer to open, 3 ms delay + 14 ms transfer to close
 //! (29 ms window), 15 ms minimum exposure.
 
+pub use crate::sim::machine::Controller;
 use thiserror::Error;
 
 /// Why a set of machine parameters cannot be planned with.
@@ -41,6 +42,15 @@ pub struct Machine {
     /// Two segments meeting at less than this angle (degrees) are tangent:
     /// no corner loop.
     pub tangent_tol_deg: f64,
+    /// The controller the program is planned for: it decides where a
+    /// shutter command takes effect and how short a block may be.
+    pub controller: Controller,
+    /// PMAC: the acceleration time (ms) written for the moves at V between
+    /// a path's ramps. Those moves are tangent and at one speed, so the
+    /// blend changes nothing but the curvature, and a short TA keeps every
+    /// block at V (a Turbo PMAC stretches a block shorter than its TA to
+    /// TA) and puts an `M33==` switch within V·TA/2 of its block boundary.
+    pub cut_ta_ms: f64,
 }
 
 impl Default for Machine {
@@ -56,6 +66,11 @@ impl Default for Machine {
             close_transfer_ms: 14.0,
             min_exposure_ms: 15.0,
             tangent_tol_deg: 0.5,
+            controller: Controller::Pmac,
+            // 2 × the close delay: the close command then acts V·TA/2 =
+            // V·close delay before the cut end, i.e. on the boundary at
+            // the cut end itself, with no extra block.
+            cut_ta_ms: 6.0,
         }
     }
 }
@@ -63,7 +78,12 @@ impl Default for Machine {
 impl Machine {
     /// Check every figure; planning with NaN or zero feed would loop or divide by zero.
     pub fn validate(&self) -> Result<(), MachineError> {
-        for (name, v) in [("feed", self.feed), ("TA", self.ta_ms), ("TD", self.td_ms)] {
+        for (name, v) in [
+            ("feed", self.feed),
+            ("TA", self.ta_ms),
+            ("TD", self.td_ms),
+            ("cut TA", self.cut_ta_ms),
+        ] {
             if !(v.is_finite() && v > 0.0) {
                 return Err(MachineError::NotPositive(name, v));
             }
@@ -146,14 +166,87 @@ impl Machine {
         self.feed * (self.open_delay_ms + self.open_transfer_ms + self.close_delay_ms + self.close_transfer_ms) / 1000.0
     }
 
+    /// Time (s) of the program's start and stop ramps: max(TA, TD) or 2·TS.
+    pub fn ramp_time_s(&self) -> f64 {
+        self.ramp_s(self.program_ta_ms())
+    }
+
+    /// PMAC: the integer TA (ms) of the moves at V. A Turbo PMAC rounds TA
+    /// to whole milliseconds and needs at least TA1.
+    pub fn cut_ta(&self) -> u32 {
+        self.cut_ta_ms.floor().clamp(1.0, 1e6) as u32
+    }
+
+    /// Shortest block pathgen makes on purpose (mm): one millisecond at V,
+    /// the least TA a Turbo PMAC accepts, so no such block is stretched
+    /// (plus 0.2 µm for the 4 decimals of PMAC text).
+    pub fn min_block(&self) -> f64 {
+        self.feed / 1000.0 + 2e-4
+    }
+
+    /// What every beam-off connection (corner loop, turnaround) must be:
+    /// long enough for the shutter window, no piece shorter than
+    /// [`min_block`](Self::min_block), ending with [`switch_tail`](Self::switch_tail).
+    pub fn connection_shape(&self) -> crate::paths::dubins::Shape {
+        let min_piece = match self.controller {
+            // Pieces of at least the cut TA keep one TA along the loop.
+            Controller::Pmac => self.feed * self.cut_ta() as f64 / 1000.0 + 2e-4,
+            Controller::Lookahead => self.min_block(),
+        };
+        crate::paths::dubins::Shape {
+            min_len: self.shutter_window(),
+            min_piece,
+            tail: self.switch_tail(),
+        }
+    }
+
+    /// Straight run (mm) every beam-off connection ends with before a cut.
+    /// PMAC: the open command must act `open_lead` before the cut, on a
+    /// block boundary b = command + V·t/2, with blocks of at least t ms on
+    /// both sides; a straight of open lead + V·TA/2 holds that boundary for
+    /// t = the cut TA (when the open lead leaves room for it: t ≤ 2/3 of
+    /// the open lead's time). A look-ahead controller switches at any
+    /// boundary: none needed.
+    pub fn switch_tail(&self) -> f64 {
+        match self.controller {
+            Controller::Pmac => self.open_lead() + 0.5 * self.feed * self.cut_ta() as f64 / 1000.0 + 4e-4,
+            Controller::Lookahead => 0.0,
+        }
+    }
+
     /// Lead-in length: reach V, then travel at V while the shutter opens.
+    /// A PMAC block lasts at least its TA, so the block that starts from
+    /// rest is V·TA long (the ramp covers its first half); the shutter
+    /// command then follows it.
     pub fn lead_in(&self) -> f64 {
-        self.accel_distance() + self.open_lead()
+        match self.controller {
+            Controller::Pmac => self.ramp_block() + self.open_lead(),
+            Controller::Lookahead => self.accel_distance() + self.open_lead(),
+        }
     }
 
     /// Lead-out length: stay at V while the shutter closes, then stop.
+    /// PMAC: a block at V of (cut TA + TA)/2, so that the blend into the
+    /// stopping block (which takes that block's TA) fits in it, then the
+    /// stopping block of V·TA.
     pub fn lead_out(&self) -> f64 {
-        self.close_lead().max(0.0) + self.close_travel() + self.decel_distance()
+        match self.controller {
+            Controller::Pmac => self.lead_out_cruise() + self.ramp_block(),
+            Controller::Lookahead => self.close_lead().max(0.0) + self.close_travel() + self.decel_distance(),
+        }
+    }
+
+    /// PMAC: length of a block that starts from or ends at rest: it must
+    /// last its TA, with 0.2 µm in hand for the 4 decimals of PMAC text.
+    pub fn ramp_block(&self) -> f64 {
+        self.feed * self.ramp_time_s() + 2e-4
+    }
+
+    /// PMAC: the part of the lead-out at V before the stopping block.
+    pub fn lead_out_cruise(&self) -> f64 {
+        let at_v = 0.5 * self.feed * (self.cut_ta() as f64 / 1000.0 + self.ramp_time_s()) + 2e-4;
+        // Never shorter than the shutter needs to close at V.
+        at_v.max(self.close_lead().max(0.0) + self.close_travel())
     }
 
     /// Shortest cut the shutter exposes reliably (mm).
@@ -180,8 +273,16 @@ mod tests {
         // a = 2 / 0.1 = 20 mm/s², R = 4 / 20 = 0.2 mm.
         assert!((m.accel() - 20.0).abs() < 1e-12);
         assert!((m.min_radius() - 0.2).abs() < 1e-12);
-        assert!((m.lead_in() - (0.1 + 0.024)).abs() < 1e-12);
-        assert!((m.lead_out() - (0.006 + 0.028 + 0.1)).abs() < 1e-12);
+        // PMAC: a V·TA block from rest, then the shutter's 12 ms at V.
+        assert!((m.lead_in() - (0.2002 + 0.024)).abs() < 1e-12);
+        // At V for (6 + 100)/2 ms, then the V·TA stopping block.
+        assert!((m.lead_out() - (0.1062 + 0.2002)).abs() < 1e-12);
+        let l = Machine {
+            controller: Controller::Lookahead,
+            ..Machine::default()
+        };
+        assert!((l.lead_in() - (0.1 + 0.024)).abs() < 1e-12);
+        assert!((l.lead_out() - (0.006 + 0.028 + 0.1)).abs() < 1e-12);
     }
 
     #[test]

@@ -167,14 +167,35 @@ fn miter_joins(path: Vec<Elem>, vertices: &[P3], dist: f64) -> Vec<Elem> {
         }
         Elem::Line(_) => false,
     };
-    let mut out = Vec::with_capacity(path.len() + 4);
+    let mut out: Vec<Elem> = Vec::with_capacity(path.len() + 4);
+    // A miter's legs extend the lines beside the corner: one block each,
+    // not a line and a short collinear stub (a stub shorter than the
+    // controller's least acceleration time would be run slower than V).
+    let push = |out: &mut Vec<Elem>, e: Elem| {
+        if let (Some(Elem::Line(prev)), Elem::Line(l)) = (out.last(), &e) {
+            let (d0, d1) = (prev.end - prev.start, l.end - l.start);
+            let (n0, n1) = (d0.norm(), d1.norm());
+            if prev.end == l.start
+                && n0 > 0.0
+                && n1 > 0.0
+                && d0.cross(&d1).norm() <= 1e-12 * n0 * n1
+                && d0.dot(&d1) > 0.0
+            {
+                let start = prev.start;
+                out.pop();
+                out.push(Elem::line(start, l.end));
+                return;
+            }
+        }
+        out.push(e);
+    };
     for e in &path {
         let Elem::Arc(arc) = e else {
-            out.push(*e);
+            push(&mut out, *e);
             continue;
         };
         if !is_join(e) {
-            out.push(*e);
+            push(&mut out, *e);
             continue;
         }
         let (a, b) = (arc.start, arc.end);
@@ -184,13 +205,25 @@ fn miter_joins(path: Vec<Elem>, vertices: &[P3], dist: f64) -> Vec<Elem> {
             // Lines a + s·ta and b - u·tb meet at s = u = dist·tan(sweep/2).
             let s = dist * (0.5 * sweep).tan();
             let m = a + ta * s;
-            out.push(Elem::line(a, m));
-            out.push(Elem::line(m, b));
+            push(&mut out, Elem::line(a, m));
+            push(&mut out, Elem::line(m, b));
         } else {
             let (p, q) = (a + ta * dist, b - tb * dist);
-            out.push(Elem::line(a, p));
-            out.push(Elem::line(p, q));
-            out.push(Elem::line(q, b));
+            push(&mut out, Elem::line(a, p));
+            push(&mut out, Elem::line(p, q));
+            push(&mut out, Elem::line(q, b));
+        }
+    }
+    // The path's first piece may continue its last (a closed offset).
+    if out.len() > 2
+        && let (Some(Elem::Line(last)), Some(Elem::Line(first))) = (out.last().copied(), out.first().copied())
+        && last.end == first.start
+    {
+        let (d0, d1) = (last.end - last.start, first.end - first.start);
+        let (n0, n1) = (d0.norm(), d1.norm());
+        if n0 > 0.0 && n1 > 0.0 && d0.cross(&d1).norm() <= 1e-12 * n0 * n1 && d0.dot(&d1) > 0.0 {
+            out.pop();
+            out[0] = Elem::line(last.start, first.end);
         }
     }
     out

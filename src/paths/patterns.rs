@@ -171,7 +171,7 @@ pub fn zigzag(z: &Zigzag, m: &Machine) -> Tagged {
                 let (pi, pj, _) = plane.axes();
                 V2::new(v[pi], v[pj])
             };
-            if let Some(turn) = connect(from, p2(din), a, p2(dout), r, m.shutter_window(), plane) {
+            if let Some(turn) = connect(from, p2(din), a, p2(dout), r, m.connection_shape(), plane) {
                 out.extend(turn.into_iter().map(|e| (e, Role::Loop)));
             }
         }

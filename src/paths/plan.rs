@@ -2,22 +2,47 @@
 //! beam-off loop at every non-tangent corner, lead-out, and the shutter
 //! commands moved earlier by its latencies so the shutter is fully open
 //! exactly over the cut.
+//!
+//! For a Turbo PMAC every piece also gets its pace: the path's first and
+//! last blocks ramp from and to rest over the machine's TA, and every block
+//! between runs at V with a short TA of whole milliseconds no longer than
+//! the block itself or the one before it. A Turbo PMAC stretches a block
+//! shorter than its TA to TA (PMAC.md), and blends two moves over the
+//! incoming move's TA, starting TA/2 before the boundary, which is also
+//! where an `M33==` takes effect (Turbo PMAC User Manual, synchronous
+//! M-variable assignment). So each shutter switch is placed V·t/2 after
+//! the point where the command must act, with t the TA of the block that
+//! carries it, chosen so that no block is stretched.
 
 use super::dubins::corner_loop;
 use super::elem::{Elem, MIN_PIECE};
-use super::machine::Machine;
+use super::machine::{Controller, Machine};
 use crate::geometry::{P3, Plane, V2};
 use crate::model::toolpath::{Motion, MotionKind, Record, Role};
 
 /// A path whose pieces carry their role (cut, or a beam-off connection).
 pub type Tagged = Vec<(Elem, Role)>;
 
-/// One planned piece: geometry, why it is there, and the commanded beam.
+/// One planned piece: geometry, why it is there, the commanded beam and,
+/// for a PMAC, its pace.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Piece {
     pub elem: Elem,
     pub role: Role,
     pub beam: bool,
+    /// `None` for look-ahead controllers, which pace themselves.
+    pub pace: Option<Pace>,
+}
+
+/// How a Turbo PMAC is told to pace one block.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Pace {
+    /// The path's first or last block: from or to rest over the machine's
+    /// TA and TS.
+    Ramp,
+    /// A block at V, blended into from the previous one over this TA (whole
+    /// ms, TS 0); never longer than the block or the block before it.
+    Cruise(u32),
 }
 
 /// Something the user should know about a planned path.
@@ -31,6 +56,11 @@ pub enum Note {
     /// A corner between pieces whose turn could not be looped (the
     /// direction has no component in the loop plane).
     UnloopedCorner { at: P3 },
+    /// Shutter commands that act off the point they must (PMAC: the pieces
+    /// next to the switch point are only a few ms long at V, so no block
+    /// boundary with a whole-ms TA fits exactly): how many, and the worst
+    /// (mm, at most V·1 ms).
+    SwitchOff { count: usize, worst: f64 },
 }
 
 impl std::fmt::Display for Note {
@@ -45,6 +75,12 @@ impl std::fmt::Display for Note {
                 "{count} arc(s) tighter than V²/a; the tightest, radius {radius:.6} mm, asks {demand:.3} mm/s² at this feed"
             ),
             Note::UnloopedCorner { at } => write!(f, "corner at ({}, {}, {}) could not be looped", at.x, at.y, at.z),
+            Note::SwitchOff { count, worst } => write!(
+                f,
+                "{count} shutter switch(es) act up to {:.3} µm off their point: the pieces there last only a few ms \
+                 at V, too short for a block boundary where a whole-ms TA would put it",
+                worst * 1000.0
+            ),
         }
     }
 }
@@ -70,11 +106,14 @@ pub fn plan_tagged(path: &[(Elem, Role)], m: &Machine, notes: &mut Vec<Note>) ->
     // Count of drawing arcs tighter than V²/a and the tightest radius:
     // one note per path, not one per arc.
     let mut tight = (0usize, f64::INFINITY);
+    let pmac = m.controller == Controller::Pmac;
+    let ramp = pmac.then_some(Pace::Ramp);
     let s0 = first.start();
     out.push(Piece {
         elem: Elem::line(s0 - first.dir_start() * m.lead_in(), s0),
         role: Role::LeadIn,
         beam: false,
+        pace: ramp,
     });
     for (i, (e, role)) in path.iter().enumerate() {
         if *role != Role::Cut {
@@ -82,6 +121,7 @@ pub fn plan_tagged(path: &[(Elem, Role)], m: &Machine, notes: &mut Vec<Note>) ->
                 elem: *e,
                 role: *role,
                 beam: false,
+                pace: None,
             });
             continue;
         }
@@ -93,6 +133,7 @@ pub fn plan_tagged(path: &[(Elem, Role)], m: &Machine, notes: &mut Vec<Note>) ->
             elem: *e,
             role: Role::Cut,
             beam: true,
+            pace: None,
         });
         let Some((next, Role::Cut)) = path.get(i + 1) else {
             continue;
@@ -112,7 +153,7 @@ pub fn plan_tagged(path: &[(Elem, Role)], m: &Machine, notes: &mut Vec<Note>) ->
                     d2(din).normalize(),
                     d2(dout).normalize(),
                     r,
-                    m.shutter_window(),
+                    m.connection_shape(),
                     plane,
                 )
             })
@@ -122,6 +163,7 @@ pub fn plan_tagged(path: &[(Elem, Role)], m: &Machine, notes: &mut Vec<Note>) ->
                 elem,
                 role: Role::Loop,
                 beam: false,
+                pace: None,
             })),
             None => notes.push(Note::UnloopedCorner { at: corner }),
         }
@@ -134,12 +176,33 @@ pub fn plan_tagged(path: &[(Elem, Role)], m: &Machine, notes: &mut Vec<Note>) ->
         });
     }
     let e = last.end();
-    out.push(Piece {
-        elem: Elem::line(e, e + last.dir_end() * m.lead_out()),
-        role: Role::LeadOut,
-        beam: false,
-    });
-    time_shutter(out, m, notes)
+    let dir = last.dir_end();
+    if pmac {
+        // At V until the shutter is closed and the blend into the stopping
+        // block is over, then the stopping block.
+        let mid = e + dir * m.lead_out_cruise();
+        out.push(Piece {
+            elem: Elem::line(e, mid),
+            role: Role::LeadOut,
+            beam: false,
+            pace: None,
+        });
+        out.push(Piece {
+            elem: Elem::line(mid, e + dir * m.lead_out()),
+            role: Role::LeadOut,
+            beam: false,
+            pace: ramp,
+        });
+        time_shutter_pmac(out, m, notes)
+    } else {
+        out.push(Piece {
+            elem: Elem::line(e, e + dir * m.lead_out()),
+            role: Role::LeadOut,
+            beam: false,
+            pace: None,
+        });
+        time_shutter(out, m, notes)
+    }
 }
 
 /// Loops turn in the plane of the arcs around them, else XY.
@@ -151,16 +214,15 @@ fn loop_plane(a: &Elem, b: &Elem) -> Plane {
     }
 }
 
-/// Commanded-on intervals along the path: each run of cut pieces
-/// [s0, s1] becomes [s0 - open lead, s1 - close lead], so that the shutter,
-/// commanded at V, is fully open from s0 and starts to close at s1.
-fn time_shutter(pieces: Vec<Piece>, m: &Machine, notes: &mut Vec<Note>) -> Vec<Piece> {
-    // Arc lengths cost an atan2 each; a million-segment job asks them once.
-    let lens: Vec<f64> = pieces.iter().map(|p| p.elem.length()).collect();
+/// Where along the path (arc length) the shutter commands must act: each
+/// run of cut pieces [s0, s1] becomes [s0 - open lead, s1 - close lead], so
+/// that the shutter, commanded at V, is fully open from s0 and starts to
+/// close at s1. Cuts shorter than the minimum exposure are noted.
+fn commanded_on(pieces: &[Piece], lens: &[f64], m: &Machine, notes: &mut Vec<Note>) -> Vec<(f64, f64)> {
     let mut on: Vec<(f64, f64)> = Vec::new();
     let mut s = 0.0;
     let mut run: Option<f64> = None;
-    for (p, &len) in pieces.iter().zip(&lens) {
+    for (p, &len) in pieces.iter().zip(lens) {
         match (p.role == Role::Cut, run) {
             (true, None) => run = Some(s),
             (false, Some(s0)) => {
@@ -182,10 +244,17 @@ fn time_shutter(pieces: Vec<Piece>, m: &Machine, notes: &mut Vec<Note>) -> Vec<P
             });
         }
     }
-    let cmd: Vec<(f64, f64)> = on
-        .iter()
+    on.iter()
         .map(|&(a, b)| (a - m.open_lead(), (b - m.close_lead()).max(a - m.open_lead())))
-        .collect();
+        .collect()
+}
+
+/// Look-ahead controllers switch at the block boundary: split the pieces
+/// exactly where the commands must act.
+fn time_shutter(pieces: Vec<Piece>, m: &Machine, notes: &mut Vec<Note>) -> Vec<Piece> {
+    // Arc lengths cost an atan2 each; a million-segment job asks them once.
+    let lens: Vec<f64> = pieces.iter().map(|p| p.elem.length()).collect();
+    let cmd = commanded_on(&pieces, &lens, m, notes);
     let mut cuts: Vec<f64> = cmd.iter().flat_map(|&(a, b)| [a, b]).collect();
     cuts.sort_by(f64::total_cmp);
     // Intervals come in path order, so the one that may hold x is the last
@@ -217,8 +286,8 @@ fn time_shutter(pieces: Vec<Piece>, m: &Machine, notes: &mut Vec<Note>) -> Vec<P
                 let mid = rest_s + 0.5 * a.length();
                 out.push(Piece {
                     elem: a,
-                    role: p.role,
                     beam: inside(mid),
+                    ..p
                 });
                 rest_s += a.length();
                 rest = b;
@@ -228,17 +297,280 @@ fn time_shutter(pieces: Vec<Piece>, m: &Machine, notes: &mut Vec<Note>) -> Vec<P
         let mid = rest_s + 0.5 * rest.length();
         out.push(Piece {
             elem: rest,
-            role: p.role,
             beam: inside(mid),
+            ..p
         });
         s = end;
     }
     out
 }
 
+/// Positions are written to 4 decimals in PMAC text (0.1 µm), so a block
+/// may come out up to twice this shorter than planned; TA choices keep
+/// that much in hand.
+pub const WRITE_QUANTUM: f64 = 1e-4;
+
+/// A piece on its way through [`time_shutter_pmac`].
+struct Slot {
+    piece: Piece,
+    start: f64,
+    len: f64,
+    /// Carries a shutter command: its TA and the beam state it sets.
+    switch: Option<(u32, bool)>,
+}
+
+impl Slot {
+    fn end(&self) -> f64 {
+        self.start + self.len
+    }
+}
+
+/// Where one command goes: on the boundary before `slots[at]`, or inside
+/// `slots[at]` at `b`, carried by a block of TA `t`.
+struct Placement {
+    at: usize,
+    b: f64,
+    inside: bool,
+    t: u32,
+}
+
+/// Turbo PMAC: each command acts V·t/2 before the boundary of the block
+/// carrying it (t = that block's TA), so the boundary goes there, with t
+/// the largest whole TA (up to the cut TA) for which neither block around
+/// the boundary is shorter than t and the block before allows it. Then
+/// every block gets its TA: min(cut TA, its own time, the time of the block
+/// before), so that no block is stretched and two blends never overlap.
+fn time_shutter_pmac(pieces: Vec<Piece>, m: &Machine, notes: &mut Vec<Note>) -> Vec<Piece> {
+    let lens: Vec<f64> = pieces.iter().map(|p| p.elem.length()).collect();
+    let cmd = commanded_on(&pieces, &lens, m, notes);
+    let v = m.feed;
+    let tac = m.cut_ta();
+    let ms = |len: f64| (len - 2.0 * WRITE_QUANTUM) / v * 1000.0;
+    let mut slots: Vec<Slot> = Vec::with_capacity(pieces.len() + 2 * cmd.len());
+    let mut input = pieces.into_iter().zip(lens);
+    let mut end = 0.0;
+    let mut last_b = f64::NEG_INFINITY;
+    // Commands that could not act exactly where they must: count, worst (mm).
+    let mut off = (0usize, 0.0f64);
+    let commands = cmd.iter().flat_map(|&(a, b)| [(a, true), (b, false)]);
+    for (c, on) in commands {
+        // Load the pieces up to the farthest candidate, plus one for the
+        // block after a boundary candidate.
+        let reach = c + v * tac as f64 / 2000.0 + MIN_PIECE;
+        let mut extra = 1;
+        while end <= reach || extra > 0 {
+            if end > reach {
+                extra -= 1;
+            }
+            let Some((piece, len)) = input.next() else { break };
+            slots.push(Slot {
+                piece,
+                start: end,
+                len,
+                switch: None,
+            });
+            end += len;
+        }
+        let Some((p, err)) = place(&slots, c, last_b, m) else {
+            off.0 += 1;
+            off.1 = f64::INFINITY;
+            continue;
+        };
+        if err > 1e-9 {
+            off.0 += 1;
+            off.1 = off.1.max(err);
+        }
+        let at = if p.inside {
+            let s = &slots[p.at];
+            match s.piece.elem.split_at_length(p.b - s.start) {
+                Some((a, rest)) => {
+                    let start = s.start;
+                    let (la, lr) = (a.length(), rest.length());
+                    let front_pace = s.piece.pace;
+                    let piece = s.piece.clone();
+                    slots[p.at] = Slot {
+                        piece: Piece {
+                            elem: a,
+                            pace: front_pace,
+                            ..piece.clone()
+                        },
+                        start,
+                        len: la,
+                        switch: s.switch,
+                    };
+                    slots.insert(
+                        p.at + 1,
+                        Slot {
+                            piece: Piece {
+                                elem: rest,
+                                pace: None,
+                                ..piece
+                            },
+                            start: start + la,
+                            len: lr,
+                            switch: None,
+                        },
+                    );
+                    p.at + 1
+                }
+                None => continue,
+            }
+        } else {
+            p.at
+        };
+        slots[at].switch = Some((p.t, on));
+        last_b = slots[at].start;
+    }
+    if off.0 > 0 {
+        notes.push(Note::SwitchOff {
+            count: off.0,
+            worst: off.1,
+        });
+    }
+    for (piece, len) in input {
+        slots.push(Slot {
+            piece,
+            start: end,
+            len,
+            switch: None,
+        });
+        end += len;
+    }
+    let mut beam = false;
+    let mut prev_ms = f64::INFINITY;
+    let mut out = Vec::with_capacity(slots.len());
+    for s in slots {
+        let d = ms(s.len);
+        let pace = match (s.piece.pace, s.switch) {
+            (Some(Pace::Ramp), _) => Pace::Ramp,
+            (_, Some((t, _))) => Pace::Cruise(t),
+            _ => Pace::Cruise(whole_ta(tac, d.min(prev_ms))),
+        };
+        if let Some((_, on)) = s.switch {
+            beam = on;
+        }
+        prev_ms = d;
+        out.push(Piece {
+            beam,
+            pace: Some(pace),
+            ..s.piece
+        });
+    }
+    out
+}
+
+/// The TA (whole ms, at least 1) of a block at V whose own time, or its
+/// predecessor's, is `d` ms.
+fn whole_ta(tac: u32, d: f64) -> u32 {
+    let fl = if d.is_finite() {
+        (d + 1e-6).floor()
+    } else {
+        f64::from(tac)
+    };
+    (fl.min(f64::from(tac)) as u32).max(1)
+}
+
+/// Where to carry the command that must act at `c`: the boundary b (an
+/// existing one, or a split) and the TA t of the block after it, so that
+/// the command acts at b - V·t/2, as close to `c` as blocks allow. A
+/// candidate is feasible when neither block around b is shorter than t
+/// (nor than its own TA), the block before allows a TA of at least t (so
+/// either reading of which TA a blend takes gives t), and a ramp stays long
+/// enough for its ramp. Among the best positions the largest t wins. The
+/// answer is exact wherever the pieces near `c` are at least 1 ms long at
+/// V; next to shorter drawing pieces it may act up to V·1 ms off.
+fn place(slots: &[Slot], c: f64, last_b: f64, m: &Machine) -> Option<(Placement, f64)> {
+    let v = m.feed;
+    let tac = m.cut_ta();
+    let q = 2.0 * WRITE_QUANTUM;
+    let ms = |len: f64| (len - q) / v * 1000.0;
+    // Least length of a block of TA t (ms).
+    let len_for = |t: f64| v * t / 1000.0 + q;
+    let ramp_len = m.ramp_time_s() * v + q;
+    // Least length of the part of slot i before a boundary for a command
+    // block of TA t, or None when the block before cannot allow t.
+    let before = |i: usize, t: f64| -> Option<f64> {
+        let s = &slots[i];
+        if s.piece.pace == Some(Pace::Ramp) {
+            return (s.piece.role == Role::LeadIn).then_some(ramp_len);
+        }
+        if let Some((tp, _)) = s.switch {
+            let tp = f64::from(tp);
+            return (tp >= t).then_some(len_for(tp));
+        }
+        // Its TA is held to the time of the block before it (at least 1).
+        let prev_ok = i == 0
+            || slots[i - 1].piece.pace == Some(Pace::Ramp)
+            || f64::from(whole_ta(tac, ms(slots[i - 1].len))) >= t - 1e-6;
+        prev_ok.then_some(len_for(t))
+    };
+    let window = v * f64::from(tac) / 1000.0;
+    let mut best: Option<(f64, Placement)> = None;
+    let mut consider = |err: f64, p: Placement| {
+        let better = match &best {
+            None => true,
+            Some((e, bp)) => err < e - 1e-12 || (err <= e + 1e-12 && p.t > bp.t),
+        };
+        if better && p.b > last_b + MIN_PIECE {
+            best = Some((err, p));
+        }
+    };
+    for i in (0..slots.len()).rev() {
+        let s = &slots[i];
+        if s.end() < c - window {
+            break;
+        }
+        if s.start > c + window + MIN_PIECE {
+            continue;
+        }
+        let carries = s.piece.pace != Some(Pace::Ramp) || s.piece.role == Role::LeadIn;
+        for t in 1..=tac {
+            let tf = f64::from(t);
+            let half = 0.5 * v * tf / 1000.0;
+            // On the boundary before slot i: no split.
+            if i > 0
+                && s.piece.pace != Some(Pace::Ramp)
+                && s.switch.is_none()
+                && s.len >= len_for(tf) - 1e-12
+                && before(i - 1, tf).is_some_and(|need| slots[i - 1].len >= need - 1e-12)
+            {
+                let acts = s.start - half;
+                consider(
+                    (acts - c).abs(),
+                    Placement {
+                        at: i,
+                        b: s.start,
+                        inside: false,
+                        t,
+                    },
+                );
+            }
+            // Inside slot i: the front keeps its pace, the rest carries.
+            if carries && let Some(need) = before(i, tf) {
+                let (lo, hi) = (s.start + need, s.end() - len_for(tf));
+                if lo <= hi {
+                    let b = (c + half).clamp(lo, hi);
+                    consider(
+                        (b - half - c).abs(),
+                        Placement {
+                            at: i,
+                            b,
+                            inside: true,
+                            t,
+                        },
+                    );
+                }
+            }
+        }
+    }
+    best.map(|(e, p)| (p, e))
+}
+
 /// Turn planned pieces into toolpath moves at feed V, preceded by a rapid
-/// link to the lead-in start.
-pub fn to_records(pieces: &[Piece], feed: f64, chain: Option<u64>, out: &mut Vec<Record>) {
+/// link to the lead-in start. For a PMAC, an `accel` record goes before
+/// every block whose pace differs from the one before; every path starts
+/// and ends on the machine's ramps, so the state between paths is those.
+pub fn to_records(pieces: &[Piece], m: &Machine, chain: Option<u64>, out: &mut Vec<Record>) {
     let Some(first) = pieces.first() else { return };
     out.push(Record::Move(Motion {
         kind: MotionKind::Rapid,
@@ -250,11 +582,25 @@ pub fn to_records(pieces: &[Piece], feed: f64, chain: Option<u64>, out: &mut Vec
         chain,
         block: None,
     }));
+    let mut pace = Pace::Ramp;
     for p in pieces {
+        if let Some(next) = p.pace
+            && next != pace
+        {
+            out.push(match next {
+                Pace::Ramp => ramps_record(m),
+                Pace::Cruise(t) => Record::Accel {
+                    ta_ms: Some(f64::from(t)),
+                    ts_ms: Some(0.0),
+                    block: None,
+                },
+            });
+            pace = next;
+        }
         out.push(Record::Move(Motion {
             kind: p.elem.motion_kind(),
             to: p.elem.end(),
-            feed: Some(feed),
+            feed: Some(m.feed),
             beam: p.beam,
             beam_switch: None,
             role: Some(p.role),
@@ -282,7 +628,7 @@ pub fn plan_paths(paths: &[Vec<(Elem, Role)>], m: &Machine, chain: Option<u64>) 
     let mut recs = vec![ramps_record(m)];
     for p in paths {
         let pieces = plan_tagged(p, m, &mut notes);
-        to_records(&pieces, m.feed, chain, &mut recs);
+        to_records(&pieces, m, chain, &mut recs);
     }
     (recs, notes)
 }

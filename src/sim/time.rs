@@ -11,7 +11,8 @@
 //! **PMAC** (Turbo PMAC LINEAR/CIRCLE with blending): a move of length L at
 //! feed F lasts T = max(L/F, Ta) where Ta = max(TA, 2·TS) is the
 //! acceleration time; it runs at the plateau speed L/T. Between two blended
-//! moves the speed ramps linearly over the acceleration time, centred on the
+//! moves the speed ramps linearly over the acceleration time of the move
+//! blended into (the TA/TS in force when it is calculated), centred on the
 //! nominal boundary; a move from or to rest adds half a ramp at each end.
 //! That is why short segments never reach their feed: the plateau of a
 //! stretched move is L/Ta, proportional to L (seed 000 Fig. 3-20). RAPID
@@ -466,7 +467,11 @@ impl Pmac {
         }
         let next = self.plan(b);
         if let Some(p) = self.pending.take() {
-            let d_out = p.acc.min(next.acc);
+            // The blend takes the incoming move's acceleration time (the TA
+            // in force when it is calculated), clamped so that it fits in
+            // what is left of the move before it after its own entry blend.
+            let d_in = self.entry.map_or(p.acc, |(_, d)| d);
+            let d_out = next.acc.min(2.0 * p.time - d_in).max(0.0);
             let v_prev = p.v;
             self.emit(p, Some((next.v, d_out)), out);
             self.entry = Some((v_prev, d_out));
