@@ -205,8 +205,88 @@ pub fn audit(records: &[Record], m: &Machine, start: P3) -> Audit {
 
 /// Feed moves a Turbo PMAC would stretch (see [`Audit::stretched_moves`])
 /// and all feed moves: `records` must start where the machine's ramps are
-/// in force (a job, or a chunk of whole paths, which end on them).
+/// in force (a job, or a chunk of whole paths, which end on them). Only
+/// lengths and TAs are looked at, so this is cheap enough to run on every
+/// generated chunk.
 pub fn stretched_blocks(records: &[Record], m: &Machine, start: P3) -> (usize, usize) {
-    let a = audit(records, m, start);
-    (a.stretched_moves, a.feed_moves)
+    let (mut ta, mut ts) = (m.program_ta_ms(), m.ts_ms);
+    let pmac = m.controller == Controller::Pmac;
+    let mut pos = start;
+    let (mut stretched, mut feed_moves) = (0, 0);
+    for r in records {
+        let mv = match r {
+            Record::Move(mv) => mv,
+            Record::Accel { ta_ms, ts_ms, .. } => {
+                ta = ta_ms.unwrap_or(ta);
+                ts = ts_ms.unwrap_or(ts);
+                continue;
+            }
+            _ => continue,
+        };
+        let len = match mv.kind {
+            MotionKind::Rapid => {
+                pos = mv.to;
+                continue;
+            }
+            MotionKind::Line => (mv.to - pos).norm(),
+            MotionKind::Arc(d) => Arc3::new(d.center, pos, mv.to, d.ccw, d.plane, d.extra_turns)
+                .map_or((mv.to - pos).norm(), |a| a.length()),
+        };
+        feed_moves += 1;
+        if pmac && len / m.feed < pmac_accel_s(ta, ts) * (1.0 - 1e-9) - 1e-12 {
+            stretched += 1;
+        }
+        pos = mv.to;
+    }
+    (stretched, feed_moves)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::toolpath::Motion;
+
+    fn line(to: P3, beam: bool) -> Record {
+        Record::Move(Motion {
+            kind: MotionKind::Line,
+            to,
+            feed: Some(2.0),
+            beam,
+            beam_switch: None,
+            role: None,
+            chain: None,
+            block: None,
+        })
+    }
+
+    #[test]
+    fn a_pmac_block_shorter_than_its_ta_is_stretched_and_m33_acts_at_the_blend() {
+        let m = Machine::default();
+        let accel = |ta: f64| Record::Accel {
+            ta_ms: Some(ta),
+            ts_ms: Some(0.0),
+            block: None,
+        };
+        // 0.3 mm from rest (TA100: 150 ms >= 100), then TA6 and a beam-on
+        // block: its M33== acts V·3 ms = 6 µm before its start.
+        let recs = vec![
+            accel(100.0),
+            line(P3::new(0.3, 0.0, 0.0), false),
+            accel(6.0),
+            line(P3::new(1.3, 0.0, 0.0), true),
+            line(P3::new(1.305, 0.0, 0.0), true),
+        ];
+        let a = audit(&recs, &m, P3::origin());
+        assert_eq!(a.stretched_moves, 1, "5 µm at TA6 lasts 2.5 ms < 6 ms");
+        assert_eq!(stretched_blocks(&recs, &m, P3::origin()), (1, 3));
+        assert!((a.min_run_before_open - (0.3 - 0.006)).abs() < 1e-12);
+        // A look-ahead controller acts at the boundary and stretches nothing.
+        let l = Machine {
+            controller: Controller::Lookahead,
+            ..Machine::default()
+        };
+        let a = audit(&recs, &l, P3::origin());
+        assert_eq!(a.stretched_moves, 0);
+        assert!((a.min_run_before_open - 0.3).abs() < 1e-12);
+    }
 }

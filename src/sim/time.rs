@@ -914,6 +914,45 @@ mod tests {
     }
 
     #[test]
+    fn pmac_blend_takes_the_incoming_moves_ta() {
+        // 1 mm from rest at TA 133, then TA 6 and 0.03 mm: the second move
+        // is not stretched (10 ms >= 6 ms), and the blend into it (at one
+        // speed, so flat) starts 3 ms before its nominal start: that is
+        // where an M33== on it acts.
+        let m = machine(Controller::Pmac);
+        let mut tm = TimeModel::new(&m);
+        tm.push_move(line(1.0, 0.0, 3.0));
+        tm.set_accel(Some(6.0), Some(0.0));
+        tm.push_move(line(0.03, 0.0, 3.0));
+        tm.finish();
+        let mut t = Vec::new();
+        while let Some(e) = tm.pop() {
+            if let Event::Block(b) = e {
+                t.push(b);
+            }
+        }
+        check_consistent(&t);
+        assert_eq!(t[1].limited_by, Limit::None);
+        assert!(close(t[1].achieved_feed_mm_s, 3.0, 1e-12));
+        assert!(close(t[1].t_start_s - t[1].exec_start_s, 0.003, 1e-12));
+        // The other way round the blend is clamped to what the shorter
+        // move before it has left, so the curve stays consistent.
+        let mut tm = TimeModel::new(&m);
+        tm.set_accel(Some(6.0), Some(0.0));
+        tm.push_move(line(0.03, 0.0, 3.0));
+        tm.set_accel(Some(133.0), Some(0.0));
+        tm.push_move(line(1.0, 0.0, 3.0));
+        tm.finish();
+        let mut t = Vec::new();
+        while let Some(e) = tm.pop() {
+            if let Event::Block(b) = e {
+                t.push(b);
+            }
+        }
+        check_consistent(&t);
+    }
+
+    #[test]
     fn pmac_s_curve_time_and_block_rate() {
         let mut m = machine(Controller::Pmac);
         m.ta_ms = 10.0;
