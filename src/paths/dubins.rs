@@ -205,7 +205,7 @@ pub fn to_elems(dp: &Dubins, p0: P2, h0: f64, goal: P2, plane: Plane, nz: f64) -
 /// A beam-off corner loop of radius `r` at `corner`: leaves along the
 /// incoming direction `din`, returns through the corner along `dout`, and is
 /// at least `min_len` long (so the shutter has time to close and reopen),
-/// with no piece shorter than `min_piece` and a last straight of at least
+/// with no piece shorter than `min_piece` and a last piece of at least
 /// `tail` (see [`connect`]).
 pub fn corner_loop(corner: P3, din: V2, dout: V2, r: f64, shape: Shape, plane: Plane) -> Option<Vec<Elem>> {
     connect(corner, din, corner, dout, r, shape, plane)
@@ -218,7 +218,7 @@ pub struct Shape {
     pub min_len: f64,
     /// Least length of any piece.
     pub min_piece: f64,
-    /// Least length of the straight it ends with.
+    /// Least length of its last piece (room for a shutter switch).
     pub tail: f64,
 }
 
@@ -236,8 +236,9 @@ const SLIVER_TRIES: usize = 64;
 /// shorter than the controller's least acceleration time, which it would
 /// run slower than V): among paths of a sliver-free word, the shortest is
 /// taken, and if none exists the straight extensions grow in steps of
-/// `min_piece` until one does. The final straight is at least
-/// `shape.tail` long (room for the shutter's open command).
+/// `min_piece` until one does. The last piece is at least `shape.tail`
+/// long (room for the shutter's open command): the path's own last turn
+/// when it is long enough, else an end straight of that length.
 pub fn connect(from: P3, din: V2, to: P3, dout: V2, r: f64, shape: Shape, plane: Plane) -> Option<Vec<Elem>> {
     let Shape {
         min_len,
@@ -249,47 +250,97 @@ pub fn connect(from: P3, din: V2, to: P3, dout: V2, r: f64, shape: Shape, plane:
     let nz = plane.normal_coord(&from);
     let (h0, h1) = (din.y.atan2(din.x), dout.y.atan2(dout.x));
     let (u0, u1) = (V2::new(h0.cos(), h0.sin()), V2::new(h1.cos(), h1.sin()));
-    // Start extension e, end extension max(e, tail).
-    let end_ext = |e: f64| if tail > 0.0 { e.max(tail) } else { e };
-    let total = |e: f64| -> Option<(f64, Dubins)> {
-        let dp = shortest(a2 + u0 * e, h0, b2 - u1 * end_ext(e), h1, r)?;
-        Some((e + end_ext(e) + dp.length(), dp))
-    };
-    let (len0, _) = total(0.0)?;
-    let mut e = 0.0;
-    if len0 < min_len {
-        // 2e alone reaches min_len at e = min_len/2; bisect for the least e.
-        let (mut lo, mut hi) = (0.0, 0.5 * min_len);
-        for _ in 0..60 {
-            let mid = 0.5 * (lo + hi);
-            if total(mid)?.0 >= min_len { hi = mid } else { lo = mid }
-        }
-        e = hi;
-    }
-    if e > MIN_PIECE && e < min_piece {
-        e = min_piece;
-    }
     let clean = |dp: &Dubins| dp.params.iter().all(|&p| p * r <= MIN_PIECE || p * r >= min_piece);
-    let mut dp = None;
-    for k in 0..=SLIVER_TRIES {
-        let ek = if k == 0 {
-            e
+    // The last piece: the end straight if there is one, else the Dubins
+    // path's last turn or straight.
+    let last_piece = |end: f64, dp: &Dubins| {
+        if end > MIN_PIECE {
+            end
         } else {
-            e.max(min_piece) + (k - 1) as f64 * min_piece
-        };
-        let s = a2 + u0 * ek;
-        let g = b2 - u1 * end_ext(ek);
-        if let Some(best) = shortest_where(s, h0, g, h1, r, clean) {
-            e = ek;
-            dp = Some(best);
-            break;
+            dp.params
+                .iter()
+                .rev()
+                .map(|p| p * r)
+                .find(|&l| l > MIN_PIECE)
+                .unwrap_or(0.0)
         }
-    }
-    // Nothing sliver-free within the tries: the plain shortest path.
-    let dp = match dp {
-        Some(d) => d,
-        None => total(e)?.1,
     };
+    // Two shapes: symmetric straight extensions e (the last piece may be
+    // long enough by itself), or an end straight of at least `tail`.
+    let search = |forced: bool| -> Option<(f64, f64, Dubins)> {
+        let end_ext = |e: f64| if forced { e.max(tail) } else { e };
+        let total = |e: f64| -> Option<f64> {
+            let dp = shortest(a2 + u0 * e, h0, b2 - u1 * end_ext(e), h1, r)?;
+            Some(e + end_ext(e) + dp.length())
+        };
+        let mut e = 0.0;
+        if total(0.0)? < min_len {
+            // 2e alone reaches min_len at e = min_len/2; bisect for the least e.
+            let (mut lo, mut hi) = (0.0, 0.5 * min_len);
+            for _ in 0..60 {
+                let mid = 0.5 * (lo + hi);
+                if total(mid)? >= min_len { hi = mid } else { lo = mid }
+            }
+            e = hi;
+        }
+        if e > MIN_PIECE && e < min_piece {
+            e = min_piece;
+        }
+        // Scan longer extensions for the shortest acceptable total, stopping
+        // once the straights alone are longer than the best found.
+        let mut best: Option<(f64, f64, Dubins)> = None;
+        for k in 0..=SLIVER_TRIES {
+            let ek = if k == 0 {
+                e
+            } else {
+                e.max(min_piece) + (k - 1) as f64 * min_piece
+            };
+            let straights = ek + end_ext(ek);
+            if best.as_ref().is_some_and(|b| straights >= b.0) {
+                break;
+            }
+            let (s, g) = (a2 + u0 * ek, b2 - u1 * end_ext(ek));
+            let ok = |dp: &Dubins| clean(dp) && last_piece(end_ext(ek), dp) >= tail - 1e-12;
+            if let Some(cand) = shortest_where(s, h0, g, h1, r, ok) {
+                let len = straights + cand.length();
+                if best.as_ref().is_none_or(|b| len < b.0 - 1e-12) {
+                    best = Some((len, ek, cand));
+                }
+            }
+        }
+        // The grid step is coarse: refine around the best grid point.
+        if let Some((_, eb, _)) = best
+            && eb > 0.0
+        {
+            for j in 1..32 {
+                let ek = (eb - min_piece + 2.0 * min_piece * j as f64 / 32.0).max(e);
+                if ek > MIN_PIECE && ek < min_piece {
+                    continue;
+                }
+                let (s, g) = (a2 + u0 * ek, b2 - u1 * end_ext(ek));
+                let ok = |dp: &Dubins| clean(dp) && last_piece(end_ext(ek), dp) >= tail - 1e-12;
+                if let Some(cand) = shortest_where(s, h0, g, h1, r, ok) {
+                    let len = ek + end_ext(ek) + cand.length();
+                    if best.as_ref().is_none_or(|b| len < b.0 - 1e-12) {
+                        best = Some((len, ek, cand));
+                    }
+                }
+            }
+        }
+        best
+    };
+    let found = match (search(false), if tail > 0.0 { search(true) } else { None }) {
+        (Some(a), Some(b)) => Some(if b.0 < a.0 - 1e-12 { (b, true) } else { (a, false) }),
+        (Some(a), None) => Some((a, false)),
+        (None, Some(b)) => Some((b, true)),
+        (None, None) => None,
+    };
+    // Nothing acceptable within the tries: the plain shortest path.
+    let ((_, e, dp), forced) = match found {
+        Some(f) => f,
+        None => ((0.0, 0.0, shortest(a2, h0, b2, h1, r)?), false),
+    };
+    let end_ext = |e: f64| if forced { e.max(tail) } else { e };
     let (ext0, ext1) = (e > MIN_PIECE, end_ext(e) > MIN_PIECE);
     let s2 = if ext0 { a2 + u0 * e } else { a2 };
     let g2 = if ext1 { b2 - u1 * end_ext(e) } else { b2 };
@@ -396,7 +447,7 @@ mod tests {
             }
             if shape.tail > 0.0 {
                 let last = els.last().unwrap();
-                prop_assert!(matches!(last, Elem::Line(_)) && last.length() >= shape.tail - 1e-9);
+                prop_assert!(last.length() >= shape.tail - 1e-9, "last piece {} < tail", last.length());
             }
         }
     }

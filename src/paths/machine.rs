@@ -186,24 +186,21 @@ impl Machine {
 
     /// What every beam-off connection (corner loop, turnaround) must be:
     /// long enough for the shutter window, no piece shorter than
-    /// [`min_block`](Self::min_block), ending with [`switch_tail`](Self::switch_tail).
+    /// [`min_block`](Self::min_block), its last piece at least
+    /// [`switch_tail`](Self::switch_tail).
     pub fn connection_shape(&self) -> crate::paths::dubins::Shape {
-        let min_piece = match self.controller {
-            // Pieces of at least the cut TA keep one TA along the loop.
-            Controller::Pmac => self.feed * self.cut_ta() as f64 / 1000.0 + 2e-4,
-            Controller::Lookahead => self.min_block(),
-        };
         crate::paths::dubins::Shape {
             min_len: self.shutter_window(),
-            min_piece,
+            min_piece: self.min_block(),
             tail: self.switch_tail(),
         }
     }
 
-    /// Straight run (mm) every beam-off connection ends with before a cut.
+    /// Least length of the last piece of every beam-off connection before a
+    /// cut (a turn or a straight).
     /// PMAC: the open command must act `open_lead` before the cut, on a
     /// block boundary b = command + V·t/2, with blocks of at least t ms on
-    /// both sides; a straight of open lead + V·TA/2 holds that boundary for
+    /// both sides; a last piece of open lead + V·TA/2 holds that boundary for
     /// t = the cut TA (when the open lead leaves room for it: t ≤ 2/3 of
     /// the open lead's time). A look-ahead controller switches at any
     /// boundary: none needed.
