@@ -267,7 +267,8 @@ pub fn connect(from: P3, din: V2, to: P3, dout: V2, r: f64, shape: Shape, plane:
     };
     // Two shapes: symmetric straight extensions e (the last piece may be
     // long enough by itself), or an end straight of at least `tail`.
-    let search = |forced: bool| -> Option<(f64, f64, Dubins)> {
+    // (total, e, path, whether it is the unconstrained optimum)
+    let search = |forced: bool| -> Option<(f64, f64, Dubins, bool)> {
         let end_ext = |e: f64| if forced { e.max(tail) } else { e };
         let total = |e: f64| -> Option<f64> {
             let dp = shortest(a2 + u0 * e, h0, b2 - u1 * end_ext(e), h1, r)?;
@@ -301,6 +302,13 @@ pub fn connect(from: P3, din: V2, to: P3, dout: V2, r: f64, shape: Shape, plane:
             }
             let (s, g) = (a2 + u0 * ek, b2 - u1 * end_ext(ek));
             let ok = |dp: &Dubins| clean(dp) && last_piece(end_ext(ek), dp) >= tail - 1e-12;
+            if k == 0
+                && let Some(plain) = shortest(s, h0, g, h1, r)
+                && ok(&plain)
+            {
+                // The usual case: the shortest path is acceptable as it is.
+                return Some((straights + plain.length(), ek, plain, true));
+            }
             if let Some(cand) = shortest_where(s, h0, g, h1, r, ok) {
                 let len = straights + cand.length();
                 if best.as_ref().is_none_or(|b| len < b.0 - 1e-12) {
@@ -327,18 +335,23 @@ pub fn connect(from: P3, din: V2, to: P3, dout: V2, r: f64, shape: Shape, plane:
                 }
             }
         }
-        best
+        best.map(|(l, e, d)| (l, e, d, false))
     };
-    let found = match (search(false), if tail > 0.0 { search(true) } else { None }) {
-        (Some(a), Some(b)) => Some(if b.0 < a.0 - 1e-12 { (b, true) } else { (a, false) }),
-        (Some(a), None) => Some((a, false)),
-        (None, Some(b)) => Some((b, true)),
-        (None, None) => None,
+    let free = search(false);
+    let found = match free {
+        // Nothing constrained it: no other shape can be shorter.
+        Some(a) if a.3 => Some((a, false)),
+        _ => match (free, if tail > 0.0 { search(true) } else { None }) {
+            (Some(a), Some(b)) => Some(if b.0 < a.0 - 1e-12 { (b, true) } else { (a, false) }),
+            (Some(a), None) => Some((a, false)),
+            (None, Some(b)) => Some((b, true)),
+            (None, None) => None,
+        },
     };
     // Nothing acceptable within the tries: the plain shortest path.
-    let ((_, e, dp), forced) = match found {
+    let ((_, e, dp, _), forced) = match found {
         Some(f) => f,
-        None => ((0.0, 0.0, shortest(a2, h0, b2, h1, r)?), false),
+        None => ((0.0, 0.0, shortest(a2, h0, b2, h1, r)?, false), false),
     };
     let end_ext = |e: f64| if forced { e.max(tail) } else { e };
     let (ext0, ext1) = (e > MIN_PIECE, end_ext(e) > MIN_PIECE);
