@@ -1,18 +1,21 @@
 //! Fit one point file with the seed's curvature-matching method
 //! (`paths::arcfit_seed`) and with our biarcs (`paths::arcfit`, the same
-//! call `pathgen arcfit` makes) and print one JSON object: block counts,
+//! call `pathgen arcfit` makes; or, with `--fit`, take `pathgen arcfit`'s
+//! own output) and print one JSON object: block counts,
 //! deviation from the points (and with `--polyline-dev`, both ways from
 //! their polyline by dense sampling), tangent breaks and run time for each.
 //!
 //! Usage: cargo run --release --example arcfit_compare -- [--tolerance MM]
-//!        [--elements] [--raw] [--polyline-dev] [FILE|-]
+//!        [--elements] [--raw] [--polyline-dev] [--fit CHAINS] [FILE|-]
 //!
 //! `--elements` adds the seed's pieces (`[x0,y0,x1,y1]` lines,
 //! `[x0,y0,x1,y1,cx,cy,ccw]` arcs) so a caller can measure them against a
 //! true curve; `--raw` adds the seed method without tolerance enforcement.
 //! Points: one `x y` or `x,y` per line, `#` comments (as `pathgen arcfit`).
 
-use microcam::geometry::P2;
+use microcam::formats::chains::ChainsReader;
+use microcam::geometry::{Arc3, P2, Plane};
+use microcam::model::chain::Segment;
 use microcam::paths::arcfit;
 use microcam::paths::arcfit_seed::{SeedParams, fit_curvature_matching_with};
 use microcam::paths::elem::Elem;
@@ -39,6 +42,30 @@ fn read_points(text: &str) -> Result<Vec<P2>, String> {
         pts.push(P2::new(v[0], v[1]));
     }
     Ok(pts)
+}
+
+/// The pieces of every chain in a microcam.chains/1 file.
+fn read_fit(path: &str) -> Result<Vec<Elem>, String> {
+    let f = std::fs::File::open(path).map_err(|e| format!("{path}: {e}"))?;
+    let r = ChainsReader::new(std::io::BufReader::new(f)).map_err(|e| format!("{path}: {e}"))?;
+    let mut out = Vec::new();
+    for c in r {
+        for s in c.map_err(|e| format!("{path}: {e}"))?.segments {
+            out.push(match s {
+                Segment::Line { start, end } => Elem::line(start, end),
+                Segment::Arc {
+                    start,
+                    end,
+                    center,
+                    ccw,
+                } => Elem::Arc(
+                    Arc3::new(center, start, end, ccw, Plane::Xy, 0)
+                        .ok_or_else(|| format!("{path}: degenerate arc"))?,
+                ),
+            });
+        }
+    }
+    Ok(out)
 }
 
 fn seg_dist(p: &P2, a: &P2, b: &P2) -> f64 {
@@ -237,6 +264,7 @@ fn summary(fit: &[Elem], pts: &[P2], polyline: bool, secs: f64) -> serde_json::M
 fn main() {
     let mut tol = 1e-3;
     let (mut want_elements, mut raw, mut poly, mut file) = (false, false, false, None::<String>);
+    let mut fit_file = None::<String>;
     let mut args = std::env::args().skip(1);
     while let Some(a) = args.next() {
         match a.as_str() {
@@ -250,8 +278,11 @@ fn main() {
             "--elements" => want_elements = true,
             "--raw" => raw = true,
             "--polyline-dev" => poly = true,
+            "--fit" => fit_file = Some(args.next().unwrap_or_else(|| fail("--fit needs a file"))),
             "-h" | "--help" => {
-                println!("usage: arcfit_compare [--tolerance MM] [--elements] [--raw] [--polyline-dev] [FILE|-]");
+                println!(
+                    "usage: arcfit_compare [--tolerance MM] [--elements] [--raw] [--polyline-dev] [--fit CHAINS] [FILE|-]"
+                );
                 return;
             }
             _ if file.is_none() => file = Some(a),
@@ -282,9 +313,13 @@ fn main() {
     }
 
     let t0 = Instant::now();
-    let ours = arcfit::fit_points(&pts, tol, 0.0, false);
+    let ours = match fit_file.as_deref() {
+        Some(f) => read_fit(f).unwrap_or_else(|e| fail(&e)),
+        None => arcfit::fit_points(&pts, tol, 0.0, false),
+    };
     let ours_secs = t0.elapsed().as_secs_f64();
-    let o = summary(&ours, &pts, poly, ours_secs);
+    let mut o = summary(&ours, &pts, poly, ours_secs);
+    o.insert("source".into(), json!(fit_file.as_deref().unwrap_or("library")));
 
     let mut out = json!({
         "schema": "microcam.arcfit-compare/1",
