@@ -1,6 +1,6 @@
-//! The seed's way of turning a curve into arcs (seed 000 §6.1.4, "convert
-//! curves into arcs by matching curve curvature radius values based on the
-//! input tolerance"), kept as a baseline for [`super::arcfit`].
+//! The seed's way of turning a curve into arcs (seed 000 §6.1.4: arcs found
+//! by matching the curve's radius of curvature, with the input tolerance
+//! setting the resolution), kept as a baseline for [`super::arcfit`].
 //!
 //! Our reading of the method (see docs/arcfit.md for why):
 //!
