@@ -1,11 +1,15 @@
-//! Curves to tangent-continuous arcs (biarcs): each span between two
-//! points with given tangents becomes two arcs meeting tangentially, so the
+//! Curves to tangent-continuous arcs: each span between two points becomes
+//! a biarc (two arcs meeting tangentially, matching the tangent estimates at
+//! both points) or a single arc leaving along the incoming tangent, so the
 //! whole fit has continuous tangents — no corner loops, no speed changes —
-//! and far fewer blocks than a polyline at the same tolerance.
+//! and far fewer blocks than a polyline at the same tolerance. Sharp corners
+//! in the input are kept as corners. docs/arcfit.md compares it with the
+//! seed's curvature matching ([`super::arcfit_seed`]).
 
 use super::elem::Elem;
 use crate::geometry::arc::Arc3;
 use crate::geometry::{P2, P3, Plane, V2};
+use std::f64::consts::TAU;
 
 fn lift(p: &P2, z: f64) -> P3 {
     P3::new(p.x, p.y, z)
@@ -91,63 +95,519 @@ fn dist_to_polyline(p: &P2, pts: &[P2]) -> f64 {
         .fold(f64::INFINITY, f64::min)
 }
 
+/// Unit tangent at `a` of the circle through `a`, `b`, `c`, pointing the
+/// way `a` → `b` runs (the chord direction when the three are collinear).
+fn circle_tangent(a: P2, b: P2, c: P2) -> V2 {
+    let (ab, ac) = (b - a, c - a);
+    let chord = ab.normalize();
+    let cross = ab.perp(&ac);
+    let (lab2, lac2) = (ab.norm_squared(), ac.norm_squared());
+    // Collinear (or NaN): the chord.
+    if cross.abs().partial_cmp(&(1e-12 * (lab2 * lac2).sqrt())) != Some(std::cmp::Ordering::Greater) {
+        return chord;
+    }
+    // Centre relative to a; the tangent is the radius turned a quarter.
+    let u = V2::new(ac.y * lab2 - ab.y * lac2, ab.x * lac2 - ac.x * lab2) / (2.0 * cross);
+    let t = perp(&u);
+    let t = if t.dot(&ab) < 0.0 { -t } else { t };
+    if t.norm() > 0.0 { t.normalize() } else { chord }
+}
+
 /// Tangent estimates at each point: the direction of the circle through it
-/// and its neighbours (exact for points on a circle), chord direction at
-/// the ends.
+/// and its neighbours (exact for points on a circle). At the ends of an open
+/// sequence, the tangent of the circle through the last three points (the
+/// chord direction for two points); a closed sequence (last point = first)
+/// wraps round instead.
 pub fn tangents(pts: &[P2]) -> Vec<V2> {
     let n = pts.len();
+    let closed = n >= 4 && (pts[n - 1] - pts[0]).norm() <= 1e-12;
+    let bessel = |prev: P2, p: P2, next: P2| {
+        let (a, b) = (p - prev, next - p);
+        let (la, lb) = (a.norm(), b.norm());
+        // Weighted so that the tangent of a circle through the three
+        // points comes out exactly (Bessel's tangent).
+        let t = a * (lb / la) + b * (la / lb);
+        if t.norm() > 0.0 { t.normalize() } else { b.normalize() }
+    };
     (0..n)
         .map(|i| {
             if n < 2 {
                 return V2::x();
             }
-            if i == 0 || i == n - 1 || n < 3 {
-                let d = if i == 0 {
-                    pts[1] - pts[0]
-                } else {
-                    pts[n - 1] - pts[n - 2]
-                };
-                return d.normalize();
+            if n == 2 {
+                return (pts[1] - pts[0]).normalize();
             }
-            let (a, b) = (pts[i] - pts[i - 1], pts[i + 1] - pts[i]);
-            let (la, lb) = (a.norm(), b.norm());
-            // Weighted so that the tangent of a circle through the three
-            // points comes out exactly (Bessel's tangent).
-            let t = a * (lb / la) + b * (la / lb);
-            if t.norm() > 0.0 { t.normalize() } else { b.normalize() }
+            if closed && (i == 0 || i == n - 1) {
+                return bessel(pts[n - 2], pts[0], pts[1]);
+            }
+            if i == 0 {
+                return circle_tangent(pts[0], pts[1], pts[2]);
+            }
+            if i == n - 1 {
+                return -circle_tangent(pts[n - 1], pts[n - 2], pts[n - 3]);
+            }
+            bessel(pts[i - 1], pts[i], pts[i + 1])
         })
         .collect()
+}
+
+/// Pieces (fit pieces or polyline segments) bucketed on a uniform grid by
+/// their boxes, for exact nearest-distance queries: rings of cells are
+/// searched outwards until no unsearched cell can hold anything nearer
+/// (everything is searched after 32 rings, for queries far from all).
+struct Grid {
+    x0: f64,
+    y0: f64,
+    cell: f64,
+    nx: usize,
+    ny: usize,
+    cells: Vec<Vec<u32>>,
+}
+
+impl Grid {
+    fn new(boxes: &[(P2, P2)]) -> Grid {
+        let (mut lo, mut hi) = (
+            P2::new(f64::INFINITY, f64::INFINITY),
+            P2::new(-f64::INFINITY, -f64::INFINITY),
+        );
+        for (a, b) in boxes {
+            lo = P2::new(lo.x.min(a.x), lo.y.min(a.y));
+            hi = P2::new(hi.x.max(b.x), hi.y.max(b.y));
+        }
+        let diag = (hi - lo).norm();
+        let diag = if diag.is_finite() && diag > 0.0 { diag } else { 1.0 };
+        let mut ext: Vec<f64> = boxes.iter().map(|(a, b)| (b - a).amax()).collect();
+        ext.sort_by(f64::total_cmp);
+        let median = ext
+            .get(ext.len() / 2)
+            .copied()
+            .filter(|m| m.is_finite())
+            .unwrap_or(diag);
+        let cell = median.max(diag / 512.0);
+        let nx = ((hi.x - lo.x) / cell).clamp(0.0, 1024.0) as usize + 1;
+        let ny = ((hi.y - lo.y) / cell).clamp(0.0, 1024.0) as usize + 1;
+        let mut g = Grid {
+            x0: lo.x,
+            y0: lo.y,
+            cell,
+            nx,
+            ny,
+            cells: vec![Vec::new(); nx * ny],
+        };
+        for (k, (a, b)) in boxes.iter().enumerate() {
+            let ((i0, j0), (i1, j1)) = (g.ij(a), g.ij(b));
+            for j in j0..=j1 {
+                for i in i0..=i1 {
+                    g.cells[j * nx + i].push(k as u32);
+                }
+            }
+        }
+        g
+    }
+
+    fn ij(&self, p: &P2) -> (usize, usize) {
+        let f = |v: f64, n: usize| {
+            if v.is_nan() {
+                0
+            } else {
+                (v.max(0.0) as usize).min(n - 1)
+            }
+        };
+        (
+            f((p.x - self.x0) / self.cell, self.nx),
+            f((p.y - self.y0) / self.cell, self.ny),
+        )
+    }
+
+    /// Smallest `dist(k)` over all pieces `k` (exact).
+    fn nearest(&self, p: &P2, dist: impl Fn(usize) -> f64) -> f64 {
+        let (ci, cj) = self.ij(p);
+        let (ci, cj) = (ci as i64, cj as i64);
+        let mut best = f64::INFINITY;
+        for r in 0..=self.nx.max(self.ny).min(32) as i64 {
+            for j in (cj - r).max(0)..=(cj + r).min(self.ny as i64 - 1) {
+                for i in (ci - r).max(0)..=(ci + r).min(self.nx as i64 - 1) {
+                    if (i - ci).abs() == r || (j - cj).abs() == r {
+                        for &k in &self.cells[j as usize * self.nx + i as usize] {
+                            best = best.min(dist(k as usize));
+                        }
+                    }
+                }
+            }
+            // Cells beyond ring r are at least r cells from p.
+            if best <= r as f64 * self.cell {
+                return best;
+            }
+        }
+        let n = self.cells.iter().flatten().map(|&k| k as usize + 1).max().unwrap_or(0);
+        (0..n).map(dist).fold(best, f64::min)
+    }
+}
+
+fn elem_box(e: &Elem) -> (P2, P2) {
+    let b = match e {
+        Elem::Line(l) => l.bbox(),
+        Elem::Arc(a) => a.bbox(),
+    };
+    (b.min.xy(), b.max.xy())
+}
+
+/// Below this many distance evaluations the plain double loop is faster
+/// than building a grid.
+const BRUTE: usize = 1 << 14;
+
+/// A piece prepared for many distance queries: a planar arc's inside test
+/// by cross products instead of angles (the fit asks millions).
+enum Probe {
+    Line {
+        a: P2,
+        d: V2,
+        l2: f64,
+    },
+    Arc {
+        c: P2,
+        s: P2,
+        e: P2,
+        u: V2,
+        w: V2,
+        r0: f64,
+        r1: f64,
+        sgn: f64,
+        big: bool,
+        full: bool,
+        sweep: f64,
+    },
+    Exact(Elem),
+}
+
+impl Probe {
+    fn new(e: &Elem) -> Probe {
+        match e {
+            Elem::Line(l) => {
+                let (a, b) = (l.start.xy(), l.end.xy());
+                Probe::Line {
+                    a,
+                    d: b - a,
+                    l2: (b - a).norm_squared(),
+                }
+            }
+            Elem::Arc(x) if x.plane == Plane::Xy && x.rise() == 0.0 && x.extra_turns == 0 => {
+                let (c, s, e) = (x.center.xy(), x.start.xy(), x.end.xy());
+                let sweep = x.sweep();
+                Probe::Arc {
+                    c,
+                    s,
+                    e,
+                    u: s - c,
+                    w: e - c,
+                    r0: x.radius(),
+                    r1: x.end_radius(),
+                    sgn: if x.ccw { 1.0 } else { -1.0 },
+                    big: sweep.abs() > std::f64::consts::PI,
+                    full: sweep.abs() >= TAU,
+                    sweep: sweep.abs(),
+                }
+            }
+            other => Probe::Exact(*other),
+        }
+    }
+
+    fn dist(&self, p: &P2) -> f64 {
+        match self {
+            Probe::Line { a, d, l2 } => {
+                let t = if *l2 > 0.0 {
+                    ((p - a).dot(d) / l2).clamp(0.0, 1.0)
+                } else {
+                    0.0
+                };
+                (p - (a + d * t)).norm()
+            }
+            Probe::Arc {
+                c,
+                s,
+                e,
+                u,
+                w,
+                r0,
+                r1,
+                sgn,
+                big,
+                full,
+                sweep,
+            } => {
+                let v = p - c;
+                let (cu, cw) = (sgn * u.perp(&v), sgn * v.perp(w));
+                let inside = *full
+                    || if *big {
+                        cu >= 0.0 || cw >= 0.0
+                    } else {
+                        cu >= 0.0 && cw >= 0.0
+                    };
+                if inside {
+                    let r = if (r1 - r0).abs() <= 1e-12 * r0 {
+                        *r0
+                    } else {
+                        // Radius blended over the sweep, as Arc3 does.
+                        let mut f = (sgn * u.perp(&v)).atan2(u.dot(&v));
+                        if f < 0.0 {
+                            f += TAU;
+                        }
+                        r0 + (r1 - r0) * (f / sweep).min(1.0)
+                    };
+                    (v.norm() - r).abs()
+                } else {
+                    (p - s).norm().min((p - e).norm())
+                }
+            }
+            Probe::Exact(e) => dist_to_elem(p, e),
+        }
+    }
+}
+
+/// Whether every point is within `limit` of the pieces (stops at the first
+/// that is not).
+fn all_within(probes: &[Probe], pts: &[P2], limit: f64) -> bool {
+    pts.iter().all(|p| probes.iter().any(|q| q.dist(p) <= limit))
 }
 
 /// Largest distance from the points to the fit (points are the truth; the
 /// curve between them is unknown).
 pub fn point_deviation(fit: &[Elem], pts: &[P2]) -> f64 {
+    let probes: Vec<Probe> = fit.iter().map(Probe::new).collect();
+    let brute = |p: &P2| probes.iter().map(|q| q.dist(p)).fold(f64::INFINITY, f64::min);
+    if fit.len() <= 16 || fit.len() * pts.len() <= BRUTE {
+        return pts.iter().map(brute).fold(0.0, f64::max);
+    }
+    let g = Grid::new(&fit.iter().map(elem_box).collect::<Vec<_>>());
     pts.iter()
-        .map(|p| fit.iter().map(|e| dist_to_elem(p, e)).fold(f64::INFINITY, f64::min))
+        .map(|p| g.nearest(p, |k| probes[k].dist(p)))
         .fold(0.0, f64::max)
 }
 
 /// Largest deviation between a fit and a polyline: the fit sampled densely
 /// against the polyline, and the polyline's vertices against the fit.
 pub fn max_deviation(fit: &[Elem], pts: &[P2], samples_per_piece: usize) -> f64 {
+    let n = samples_per_piece.max(1);
+    let samples = fit.iter().flat_map(|e| {
+        let len = e.length();
+        (0..=n).map(move |k| e.point_at_length(len * k as f64 / n as f64).xy())
+    });
     let mut worst: f64 = 0.0;
-    for e in fit {
-        for k in 0..=samples_per_piece {
-            let p = e.point_at_length(e.length() * k as f64 / samples_per_piece as f64).xy();
+    if fit.len() * (n + 1) * pts.len() <= BRUTE || pts.len() < 2 {
+        for p in samples {
             worst = worst.max(dist_to_polyline(&p, pts));
         }
+    } else {
+        let seg_box = |w: &[P2]| {
+            (
+                P2::new(w[0].x.min(w[1].x), w[0].y.min(w[1].y)),
+                P2::new(w[0].x.max(w[1].x), w[0].y.max(w[1].y)),
+            )
+        };
+        let g = Grid::new(&pts.windows(2).map(seg_box).collect::<Vec<_>>());
+        for p in samples {
+            worst = worst.max(g.nearest(&p, |k| dist_to_polyline(&p, &pts[k..k + 2])));
+        }
     }
-    for p in pts {
-        let d = fit.iter().map(|e| dist_to_elem(p, e)).fold(f64::INFINITY, f64::min);
-        worst = worst.max(d);
-    }
-    worst
+    worst.max(point_deviation(fit, pts))
 }
 
-/// Fit biarcs to a point sequence within `tol`: spans grow greedily while
-/// the biarc over them stays within `tol` of every point in between and,
-/// when `polyline` is set, of every polyline piece too (the polyline is then
-/// the shape; otherwise the points are samples of an unknown smooth curve).
+/// Consecutive pieces on one circle (centres and radii within `eps`, same
+/// sense, less than a turn together) or one line become one piece: a biarc
+/// between two points of a circle with the circle's tangents is two arcs of
+/// that circle.
+fn merge_pieces(pieces: Vec<Elem>, eps: f64) -> Vec<Elem> {
+    let mut out: Vec<Elem> = Vec::with_capacity(pieces.len());
+    for e in pieces {
+        let merged = match (out.last(), &e) {
+            (Some(Elem::Arc(a)), Elem::Arc(b))
+                if a.ccw == b.ccw
+                    && a.plane == b.plane
+                    && a.rise() == 0.0
+                    && b.rise() == 0.0
+                    && a.extra_turns == 0
+                    && b.extra_turns == 0
+                    && (a.center - b.center).norm() + (a.radius() - b.radius()).abs() <= eps =>
+            {
+                let sweep = a.sweep().abs() + b.sweep().abs();
+                Arc3::new(a.center, a.start, b.end, a.ccw, a.plane, 0)
+                    .filter(|m| sweep < TAU - 1e-6 && (m.sweep().abs() - sweep).abs() <= 1e-9)
+                    .map(Elem::Arc)
+            }
+            (Some(Elem::Line(a)), Elem::Line(b)) => {
+                let (d, j) = (b.end - a.start, a.end - a.start);
+                let off = d.cross(&j).norm() / d.norm().max(1e-300);
+                (off <= eps && d.dot(&j) > 0.0 && (b.end - a.end).dot(&j) > 0.0).then(|| Elem::line(a.start, b.end))
+            }
+            _ => None,
+        };
+        match merged {
+            Some(m) => *out.last_mut().expect("merged with the last piece") = m,
+            None => out.push(e),
+        }
+    }
+    out
+}
+
+/// Indices of the points where the sequence turns a corner: the chords
+/// either side turn by more than 20° and by more than four times the turn
+/// at either neighbouring point (a coarse polygon of a smooth curve turns
+/// evenly and has none).
+fn corners(pts: &[P2]) -> Vec<usize> {
+    let n = pts.len();
+    if n < 3 {
+        return Vec::new();
+    }
+    let turn = |k: usize| {
+        if k == 0 || k + 1 >= n {
+            return 0.0;
+        }
+        let (a, b) = (pts[k] - pts[k - 1], pts[k + 1] - pts[k]);
+        a.perp(&b).atan2(a.dot(&b)).abs()
+    };
+    (1..n - 1)
+        .filter(|&k| {
+            let t = turn(k);
+            t > 20f64.to_radians() && t > 4.0 * turn(k - 1).max(turn(k + 1))
+        })
+        .collect()
+}
+
+/// Caps on a single arc's end-tangent error, in units of tol / span chord
+/// (0: biarcs only). Each is tried and the fit with fewest blocks is kept.
+const SINGLE_ARC_CAPS: [f64; 4] = [0.0, 4.0, 8.0, 16.0];
+
+/// One tangent-continuous chain through `pts` (no corners inside).
+fn fit_chain(pts: &[P2], tol: f64, z: f64, polyline: bool, cap: f64, eps: f64) -> Vec<Elem> {
+    let tan = tangents(pts);
+    // Quarter points of each interval on the cubic Hermite curve through
+    // the points with their tangent estimates: where the smooth curve the
+    // points sample most likely runs between them.
+    let mids: Vec<P2> = pts
+        .windows(2)
+        .zip(tan.windows(2))
+        .flat_map(|(p, t)| {
+            let (m0, m1) = (t[0] * (p[1] - p[0]).norm(), t[1] * (p[1] - p[0]).norm());
+            [0.25, 0.5, 0.75].map(|u: f64| {
+                let (u2, u3) = (u * u, u * u * u);
+                let (h00, h10, h01, h11) = (
+                    2.0 * u3 - 3.0 * u2 + 1.0,
+                    u3 - 2.0 * u2 + u,
+                    3.0 * u2 - 2.0 * u3,
+                    u3 - u2,
+                );
+                P2::from(p[0].coords * h00 + m0 * h10 + p[1].coords * h01 + m1 * h11)
+            })
+        })
+        .collect();
+    // 32 samples per arc, with 5 % margin, keeps the dense check (which
+    // samples far finer) within tol.
+    let limit = 0.95 * tol;
+    let within = |f: &[Elem], i: usize, j: usize| {
+        if polyline {
+            return max_deviation(f, &pts[i..=j], 32) <= limit;
+        }
+        let probes: Vec<Probe> = f.iter().map(Probe::new).collect();
+        all_within(&probes, &pts[i..=j], limit) && all_within(&probes, &mids[3 * i..3 * j], limit)
+    };
+    // The longest span from i that `try_fit` accepts (i + 1 is always
+    // taken, with `fallback` when nothing fits).
+    let longest = |i: usize, try_fit: &dyn Fn(usize) -> Option<Vec<Elem>>, fallback: Vec<Elem>| {
+        let mut good = i + 1;
+        let mut best = try_fit(good).unwrap_or(fallback);
+        let mut step = 1;
+        let mut bad = None;
+        while good < pts.len() - 1 {
+            // Gallop, the last try clipped to the last point.
+            let next = (good + step).min(pts.len() - 1);
+            match try_fit(next) {
+                Some(f) => {
+                    good = next;
+                    best = f;
+                    step *= 2;
+                }
+                None => {
+                    bad = Some(next);
+                    break;
+                }
+            }
+        }
+        if let Some(mut hi) = bad {
+            while hi - good > 1 {
+                let mid = (good + hi) / 2;
+                match try_fit(mid) {
+                    Some(f) => {
+                        good = mid;
+                        best = f;
+                    }
+                    None => hi = mid,
+                }
+            }
+        }
+        (good, best)
+    };
+    let mut out = Vec::new();
+    let mut i = 0;
+    let mut t_in = tan[0];
+    while i < pts.len() - 1 {
+        let two = |j: usize| {
+            let f = merge_pieces(biarc(pts[i], t_in, pts[j], tan[j], z), eps);
+            within(&f, i, j).then_some(f)
+        };
+        // A single arc leaving along t_in, while its end tangent stays
+        // within cap·tol/chord of the estimate there (so the error it hands
+        // on stays bounded).
+        let one = |j: usize| {
+            let e = arc_from_tangent(pts[i], t_in, pts[j], z);
+            let te = e.dir_end().xy();
+            let err = te.perp(&tan[j]).atan2(te.dot(&tan[j])).abs();
+            let f = vec![e];
+            (err <= cap * tol / (pts[j] - pts[i]).norm() && within(&f, i, j)).then_some(f)
+        };
+        // Nothing fits even the next point: the biarc to it anyway (it
+        // passes through both points; only the midpoint estimate is missed)
+        // or, against a polyline, the polyline's own piece.
+        let next = if polyline {
+            vec![Elem::line(lift(&pts[i], z), lift(&pts[i + 1], z))]
+        } else {
+            merge_pieces(biarc(pts[i], t_in, pts[i + 1], tan[i + 1], z), eps)
+        };
+        let (jb, fb) = longest(i, &two, next);
+        let (ja, fa) = if cap > 0.0 && one(i + 1).is_some() {
+            longest(i, &one, Vec::new())
+        } else {
+            (i, Vec::new())
+        };
+        // More points per block wins; a tie keeps the biarc, which meets
+        // the tangent estimate at its end.
+        let (j, f) = if !fa.is_empty() && (ja - i) * fb.len() > (jb - i) * fa.len() {
+            (ja, fa)
+        } else {
+            (jb, fb)
+        };
+        if let Some(e) = f.last() {
+            let d = e.dir_end().xy();
+            t_in = if d.norm() > 0.0 { d.normalize() } else { tan[j] };
+        }
+        out.extend(f);
+        i = j;
+    }
+    merge_pieces(out, eps)
+}
+
+/// Fit tangent-continuous arcs to a point sequence within `tol`.
+///
+/// Spans grow greedily (galloping, then bisection) while the pieces over
+/// them stay within `tol` of every point in between and of the midpoints of
+/// the cubic Hermite curve through the points with their tangent estimates
+/// (the points are samples of an unknown smooth curve) or, when `polyline`
+/// is set, of every polyline piece both ways (the polyline is the shape).
+/// Each span is a biarc (meeting the next point's tangent estimate) or a
+/// single arc (its end-tangent error capped), whichever covers more points
+/// per block; every piece leaves in the direction the previous one arrived.
+/// Several caps are tried (0: biarcs only) and the fit with the fewest
+/// blocks kept. Pieces on one circle are merged. Sharp corners in the points
+/// (see [`corners`]) are kept: the fit is tangent-continuous between them.
 pub fn fit_points(pts: &[P2], tol: f64, z: f64, polyline: bool) -> Vec<Elem> {
     let mut clean: Vec<P2> = Vec::with_capacity(pts.len());
     for p in pts {
@@ -159,60 +619,136 @@ pub fn fit_points(pts: &[P2], tol: f64, z: f64, polyline: bool) -> Vec<Elem> {
     if pts.len() < 2 {
         return Vec::new();
     }
-    let tan = tangents(&pts);
-    let fits = |i: usize, j: usize| -> Option<Vec<Elem>> {
-        let f = biarc(pts[i], tan[i], pts[j], tan[j], z);
-        // 32 samples per arc, with 5 % margin, keeps the dense check
-        // (which samples far finer) within tol.
-        let dev = if polyline {
-            max_deviation(&f, &pts[i..=j], 32)
-        } else {
-            point_deviation(&f, &pts[i..=j])
-        };
-        (dev <= 0.95 * tol).then_some(f)
-    };
+    // Pieces on one circle within this are merged (the merge moves the path
+    // by at most this much).
+    let eps = 1e-2 * tol.abs().min(1.0);
+    let mut cuts = vec![0];
+    cuts.extend(corners(&pts));
+    cuts.push(pts.len() - 1);
     let mut out = Vec::new();
-    let mut i = 0;
-    while i < pts.len() - 1 {
-        // Gallop then bisect for the longest span that fits.
-        let mut good = i + 1;
-        let mut best = fits(i, good).unwrap_or_else(|| vec![Elem::line(lift(&pts[i], z), lift(&pts[good], z))]);
-        let mut step = 1;
-        let mut bad = None;
-        while good + step < pts.len() {
-            match fits(i, good + step) {
-                Some(f) => {
-                    good += step;
-                    best = f;
-                    step *= 2;
-                }
-                None => {
-                    bad = Some(good + step);
-                    break;
-                }
-            }
-        }
-        if let Some(mut hi) = bad {
-            while hi - good > 1 {
-                let mid = (good + hi) / 2;
-                match fits(i, mid) {
-                    Some(f) => {
-                        good = mid;
-                        best = f;
-                    }
-                    None => hi = mid,
-                }
-            }
-        }
+    for w in cuts.windows(2) {
+        let part = &pts[w[0]..=w[1]];
+        let best = SINGLE_ARC_CAPS
+            .iter()
+            .map(|&cap| fit_chain(part, tol, z, polyline, cap, eps))
+            .min_by_key(Vec::len)
+            .unwrap_or_default();
         out.extend(best);
-        i = good;
     }
-    out
+    merge_pieces(out, eps)
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    fn circle_pts(r: f64, n: usize, turns: f64) -> Vec<P2> {
+        (0..=n)
+            .map(|i| {
+                let a = TAU * turns * i as f64 / n as f64;
+                P2::new(r * a.cos(), r * a.sin())
+            })
+            .collect()
+    }
+
+    #[test]
+    fn end_tangents_are_exact_on_a_circle() {
+        let pts = circle_pts(3.0, 40, 0.3);
+        let t = tangents(&pts);
+        for (p, u) in [(pts[0], t[0]), (pts[40], t[40])] {
+            let exact = V2::new(-p.y, p.x) / 3.0;
+            assert!((u - exact).norm() < 1e-12, "{u:?} vs {exact:?}");
+        }
+    }
+
+    #[test]
+    fn a_closed_circle_is_two_arcs_and_an_open_arc_one() {
+        for tol in [1e-3, 1e-6] {
+            let closed = circle_pts(5.0, 720, 1.0);
+            let f = fit_points(&closed, tol, 0.0, false);
+            assert!(f.len() <= 2, "{} pieces", f.len());
+            assert!(point_deviation(&f, &closed) <= tol);
+            let open = circle_pts(5.0, 300, 0.6);
+            let f = fit_points(&open, tol, 0.0, false);
+            assert_eq!(f.len(), 1);
+            assert!(point_deviation(&f, &open) <= tol);
+            assert!((f[0].end().xy() - open[300]).norm() < 1e-12);
+        }
+    }
+
+    #[test]
+    fn a_sharp_corner_is_kept() {
+        // A line into a half circle, turning 90° at the origin.
+        let mut pts: Vec<P2> = (0..=30).map(|i| P2::new(-3.0 + 0.1 * i as f64, 0.0)).collect();
+        pts.extend((1..=47).map(|i| {
+            let a = std::f64::consts::PI * (1.0 - i as f64 / 47.0);
+            P2::new(1.5 + 1.5 * a.cos(), 1.5 * a.sin())
+        }));
+        let f = fit_points(&pts, 1e-4, 0.0, false);
+        assert_eq!(f.len(), 2, "{f:?}");
+        assert!(matches!(f[0], Elem::Line(_)) && matches!(f[1], Elem::Arc(_)));
+        assert!((f[0].end().xy() - P2::origin()).norm() < 1e-12);
+        // A coarse polygon of a circle turns evenly: no corners.
+        assert!(corners(&circle_pts(1.0, 12, 1.0)).is_empty());
+    }
+
+    #[test]
+    fn probes_and_the_grid_measure_exactly() {
+        // Arcs of every size and sense, lines; points all round.
+        let mut fit = Vec::new();
+        for k in 0..40 {
+            let a0 = k as f64 * 0.7;
+            let sweep = 0.1 + (k as f64 * 0.37) % 6.0;
+            let c = P3::new((k % 7) as f64, (k % 5) as f64, 0.0);
+            let r = 0.2 + (k % 3) as f64;
+            let at = |a: f64| P3::new(c.x + r * a.cos(), c.y + r * a.sin(), 0.0);
+            let ccw = k % 2 == 0;
+            let end = if ccw { a0 + sweep } else { a0 - sweep };
+            fit.push(Elem::Arc(Arc3::new(c, at(a0), at(end), ccw, Plane::Xy, 0).unwrap()));
+            fit.push(Elem::line(at(end), P3::new(c.x - 1.0, c.y + 0.5, 0.0)));
+        }
+        let pts: Vec<P2> = (0..500)
+            .map(|i| {
+                P2::new(
+                    (i as f64 * 0.618).fract() * 9.0 - 1.0,
+                    (i as f64 * 0.414).fract() * 7.0 - 1.0,
+                )
+            })
+            .collect();
+        for p in &pts {
+            for e in &fit {
+                let (a, b) = (Probe::new(e).dist(p), dist_to_elem(p, e));
+                assert!((a - b).abs() <= 1e-12 * (1.0 + b), "{a} vs {b} for {e:?}");
+            }
+        }
+        let brute = pts
+            .iter()
+            .map(|p| fit.iter().map(|e| dist_to_elem(p, e)).fold(f64::INFINITY, f64::min))
+            .fold(0.0, f64::max);
+        assert!((point_deviation(&fit, &pts) - brute).abs() < 1e-12);
+        let poly_brute = fit
+            .iter()
+            .flat_map(|e| (0..=8).map(move |k| e.point_at_length(e.length() * k as f64 / 8.0).xy()))
+            .map(|q| dist_to_polyline(&q, &pts))
+            .fold(brute, f64::max);
+        assert!((max_deviation(&fit, &pts, 8) - poly_brute).abs() < 1e-12);
+    }
+
+    #[test]
+    fn degenerate_input_does_not_panic() {
+        let p = |x: f64, y: f64| P2::new(x, y);
+        assert!(fit_points(&[], 1e-3, 0.0, false).is_empty());
+        assert!(fit_points(&[p(1.0, 1.0)], 1e-3, 0.0, true).is_empty());
+        assert!(fit_points(&[p(1.0, 1.0), p(1.0, 1.0)], 1e-3, 0.0, false).is_empty());
+        let col = [p(0.0, 0.0), p(1.0, 1.0), p(1.0, 1.0), p(2.0, 2.0), p(3.0, 3.0)];
+        let f = fit_points(&col, 1e-4, 0.0, false);
+        assert_eq!(f.len(), 1, "{f:?}");
+        let back = [p(0.0, 0.0), p(1.0, 0.0), p(0.0, 1e-9), p(1.0, 0.0)];
+        for polyline in [false, true] {
+            let f = fit_points(&back, 1e-4, 0.0, polyline);
+            assert!(point_deviation(&f, &back) <= 1e-4);
+        }
+    }
 
     #[test]
     fn biarcs_join_tangentially_and_hit_both_ends() {

@@ -6,6 +6,7 @@
 //! - [`dubins`]: minimum-radius corner loops.
 
 pub mod arcfit;
+pub mod arcfit_seed;
 pub mod audit;
 pub mod contour;
 pub mod dubins;

@@ -1,0 +1,352 @@
+//! Fit one point file with the seed's curvature-matching method
+//! (`paths::arcfit_seed`) and with our biarcs (`paths::arcfit`, the same
+//! call `pathgen arcfit` makes; or, with `--fit`, take `pathgen arcfit`'s
+//! own output) and print one JSON object: block counts,
+//! deviation from the points (and with `--polyline-dev`, both ways from
+//! their polyline by dense sampling), tangent breaks and run time for each.
+//!
+//! Usage: cargo run --release --example arcfit_compare -- [--tolerance MM]
+//!        [--elements] [--raw] [--polyline-dev] [--fit CHAINS] [FILE|-]
+//!
+//! `--elements` adds the seed's pieces (`[x0,y0,x1,y1]` lines,
+//! `[x0,y0,x1,y1,cx,cy,ccw]` arcs) so a caller can measure them against a
+//! true curve; `--raw` adds the seed method without tolerance enforcement.
+//! Points: one `x y` or `x,y` per line, `#` comments (as `pathgen arcfit`).
+
+use microcam::formats::chains::ChainsReader;
+use microcam::geometry::{Arc3, P2, Plane};
+use microcam::model::chain::Segment;
+use microcam::paths::arcfit;
+use microcam::paths::arcfit_seed::{SeedParams, fit_curvature_matching_with};
+use microcam::paths::elem::Elem;
+use serde_json::{Value, json};
+use std::io::Read;
+use std::time::Instant;
+
+fn read_points(text: &str) -> Result<Vec<P2>, String> {
+    let mut pts = Vec::new();
+    for (i, line) in text.lines().enumerate() {
+        let line = line.split('#').next().unwrap_or("").trim();
+        if line.is_empty() {
+            continue;
+        }
+        let v: Vec<f64> = line
+            .split(|c: char| c == ',' || c.is_whitespace())
+            .filter(|t| !t.is_empty())
+            .map(|t| t.parse::<f64>().ok().filter(|v| v.is_finite()))
+            .collect::<Option<_>>()
+            .ok_or_else(|| format!("line {}: expected numbers 'x y'", i + 1))?;
+        if v.len() < 2 {
+            return Err(format!("line {}: expected 'x y'", i + 1));
+        }
+        pts.push(P2::new(v[0], v[1]));
+    }
+    Ok(pts)
+}
+
+/// The pieces of every chain in a microcam.chains/1 file.
+fn read_fit(path: &str) -> Result<Vec<Elem>, String> {
+    let f = std::fs::File::open(path).map_err(|e| format!("{path}: {e}"))?;
+    let r = ChainsReader::new(std::io::BufReader::new(f)).map_err(|e| format!("{path}: {e}"))?;
+    let mut out = Vec::new();
+    for c in r {
+        for s in c.map_err(|e| format!("{path}: {e}"))?.segments {
+            out.push(match s {
+                Segment::Line { start, end } => Elem::line(start, end),
+                Segment::Arc {
+                    start,
+                    end,
+                    center,
+                    ccw,
+                } => Elem::Arc(
+                    Arc3::new(center, start, end, ccw, Plane::Xy, 0)
+                        .ok_or_else(|| format!("{path}: degenerate arc"))?,
+                ),
+            });
+        }
+    }
+    Ok(out)
+}
+
+fn seg_dist(p: &P2, a: &P2, b: &P2) -> f64 {
+    let d = b - a;
+    let l2 = d.norm_squared();
+    let t = if l2 > 0.0 {
+        ((p - a).dot(&d) / l2).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    (p - (a + d * t)).norm()
+}
+
+/// Items bucketed by bounding box on a uniform grid, for nearest-item
+/// queries: rings of cells are searched outwards until no unsearched cell
+/// can hold anything nearer.
+struct Grid {
+    x0: f64,
+    y0: f64,
+    cell: f64,
+    nx: usize,
+    ny: usize,
+    cells: Vec<Vec<u32>>,
+}
+
+impl Grid {
+    fn new(boxes: &[(P2, P2)]) -> Grid {
+        let (mut lo, mut hi) = (
+            P2::new(f64::INFINITY, f64::INFINITY),
+            P2::new(-f64::INFINITY, -f64::INFINITY),
+        );
+        for (a, b) in boxes {
+            lo = P2::new(lo.x.min(a.x), lo.y.min(a.y));
+            hi = P2::new(hi.x.max(b.x), hi.y.max(b.y));
+        }
+        let diag = (hi - lo).norm().max(1e-9);
+        let mut ext: Vec<f64> = boxes.iter().map(|(a, b)| (b - a).amax()).collect();
+        ext.sort_by(f64::total_cmp);
+        let median = ext.get(ext.len() / 2).copied().unwrap_or(diag);
+        let cell = median.max(diag / 1024.0).max(1e-12);
+        let nx = ((hi.x - lo.x) / cell) as usize + 1;
+        let ny = ((hi.y - lo.y) / cell) as usize + 1;
+        let mut g = Grid {
+            x0: lo.x,
+            y0: lo.y,
+            cell,
+            nx,
+            ny,
+            cells: vec![Vec::new(); nx * ny],
+        };
+        for (i, (a, b)) in boxes.iter().enumerate() {
+            let (i0, j0) = g.ij(a);
+            let (i1, j1) = g.ij(b);
+            for j in j0..=j1 {
+                for ii in i0..=i1 {
+                    g.cells[j * nx + ii].push(i as u32);
+                }
+            }
+        }
+        g
+    }
+
+    fn ij(&self, p: &P2) -> (usize, usize) {
+        let f = |v: f64, n: usize| (v.max(0.0) as usize).min(n - 1);
+        (
+            f((p.x - self.x0) / self.cell, self.nx),
+            f((p.y - self.y0) / self.cell, self.ny),
+        )
+    }
+
+    fn nearest(&self, p: &P2, dist: impl Fn(usize) -> f64) -> f64 {
+        let (ci, cj) = self.ij(p);
+        let (ci, cj) = (ci as i64, cj as i64);
+        let mut best = f64::INFINITY;
+        // Far queries (a fit straying well off the polyline) would walk
+        // many empty rings: after 32, look at everything.
+        for r in 0..=self.nx.max(self.ny).min(32) as i64 {
+            for j in cj - r..=cj + r {
+                for i in ci - r..=ci + r {
+                    let ring = (i - ci).abs() == r || (j - cj).abs() == r;
+                    if !ring || i < 0 || j < 0 || i >= self.nx as i64 || j >= self.ny as i64 {
+                        continue;
+                    }
+                    for &k in &self.cells[j as usize * self.nx + i as usize] {
+                        best = best.min(dist(k as usize));
+                    }
+                }
+            }
+            // Cells beyond ring r are at least r cells away from p.
+            if best <= r as f64 * self.cell {
+                return best;
+            }
+        }
+        let all = self.cells.iter().flatten();
+        all.fold(best, |b, &k| b.min(dist(k as usize)))
+    }
+}
+
+fn elem_box(e: &Elem) -> (P2, P2) {
+    let b = match e {
+        Elem::Line(l) => l.bbox(),
+        Elem::Arc(a) => a.bbox(),
+    };
+    (b.min.xy(), b.max.xy())
+}
+
+struct Measure {
+    point_dev: f64,
+    polyline_dev: f64,
+    breaks: usize,
+    max_turn_deg: f64,
+}
+
+fn measure(fit: &[Elem], pts: &[P2], polyline: bool) -> Measure {
+    // Points to the fit.
+    let fg = Grid::new(&fit.iter().map(elem_box).collect::<Vec<_>>());
+    let point_dev = pts
+        .iter()
+        .map(|p| fg.nearest(p, |i| arcfit::dist_to_elem(p, &fit[i])))
+        .fold(0.0, f64::max);
+    // The fit, densely sampled (64 per piece, at least 4 when there are
+    // very many pieces), to the polyline.
+    let boxes: Vec<(P2, P2)> = pts
+        .windows(2)
+        .map(|w| {
+            (
+                P2::new(w[0].x.min(w[1].x), w[0].y.min(w[1].y)),
+                P2::new(w[0].x.max(w[1].x), w[0].y.max(w[1].y)),
+            )
+        })
+        .collect();
+    let pg = Grid::new(&boxes);
+    let per = (4_000_000 / fit.len().max(1)).clamp(4, 64);
+    let mut polyline_dev = point_dev;
+    for e in fit.iter().filter(|_| polyline) {
+        for k in 0..=per {
+            let q = e.point_at_length(e.length() * k as f64 / per as f64).xy();
+            let d = pg.nearest(&q, |i| seg_dist(&q, &pts[i], &pts[i + 1]));
+            polyline_dev = polyline_dev.max(d);
+        }
+    }
+    let mut breaks = 0;
+    let mut max_turn: f64 = 0.0;
+    for w in fit.windows(2) {
+        let c = w[0].dir_end().dot(&w[1].dir_start()).clamp(-1.0, 1.0);
+        let deg = c.acos().to_degrees();
+        max_turn = max_turn.max(deg);
+        if deg > 0.5 {
+            breaks += 1;
+        }
+    }
+    Measure {
+        point_dev,
+        polyline_dev,
+        breaks,
+        max_turn_deg: max_turn,
+    }
+}
+
+fn elements(fit: &[Elem]) -> Value {
+    Value::Array(
+        fit.iter()
+            .map(|e| match e {
+                Elem::Line(l) => json!([l.start.x, l.start.y, l.end.x, l.end.y]),
+                Elem::Arc(a) => json!([
+                    a.start.x,
+                    a.start.y,
+                    a.end.x,
+                    a.end.y,
+                    a.center.x,
+                    a.center.y,
+                    u8::from(a.ccw)
+                ]),
+            })
+            .collect(),
+    )
+}
+
+fn summary(fit: &[Elem], pts: &[P2], polyline: bool, secs: f64) -> serde_json::Map<String, Value> {
+    let m = measure(fit, pts, polyline);
+    let arcs = fit.iter().filter(|e| matches!(e, Elem::Arc(_))).count();
+    let mut o = serde_json::Map::new();
+    o.insert("blocks".into(), json!(fit.len()));
+    o.insert("arcs".into(), json!(arcs));
+    o.insert("lines".into(), json!(fit.len() - arcs));
+    o.insert("max_point_deviation_mm".into(), json!(m.point_dev));
+    if polyline {
+        o.insert("max_polyline_deviation_mm".into(), json!(m.polyline_dev));
+    }
+    o.insert("tangent_breaks".into(), json!(m.breaks));
+    o.insert("max_turn_deg".into(), json!(m.max_turn_deg));
+    o.insert("time_s".into(), json!(secs));
+    o
+}
+
+fn main() {
+    let mut tol = 1e-3;
+    let (mut want_elements, mut raw, mut poly, mut file) = (false, false, false, None::<String>);
+    let mut fit_file = None::<String>;
+    let mut args = std::env::args().skip(1);
+    while let Some(a) = args.next() {
+        match a.as_str() {
+            "--tolerance" => {
+                tol = args
+                    .next()
+                    .and_then(|v| v.parse().ok())
+                    .filter(|v: &f64| v.is_finite() && *v > 0.0)
+                    .unwrap_or_else(|| fail("--tolerance needs a positive number"));
+            }
+            "--elements" => want_elements = true,
+            "--raw" => raw = true,
+            "--polyline-dev" => poly = true,
+            "--fit" => fit_file = Some(args.next().unwrap_or_else(|| fail("--fit needs a file"))),
+            "-h" | "--help" => {
+                println!(
+                    "usage: arcfit_compare [--tolerance MM] [--elements] [--raw] [--polyline-dev] [--fit CHAINS] [FILE|-]"
+                );
+                return;
+            }
+            _ if file.is_none() => file = Some(a),
+            _ => fail(&format!("unexpected argument '{a}'")),
+        }
+    }
+    let mut text = String::new();
+    match file.as_deref() {
+        None | Some("-") => std::io::stdin().read_to_string(&mut text).map(|_| ()),
+        Some(f) => std::fs::read_to_string(f).map(|t| text = t),
+    }
+    .unwrap_or_else(|e| fail(&format!("reading input: {e}")));
+    let pts = read_points(&text).unwrap_or_else(|e| fail(&e));
+    if pts.len() < 2 {
+        fail("need at least two points");
+    }
+
+    let t0 = Instant::now();
+    let (seed, stats) = fit_curvature_matching_with(&pts, tol, 0.0, &SeedParams::default());
+    let seed_secs = t0.elapsed().as_secs_f64();
+    let mut s = summary(&seed, &pts, poly, seed_secs);
+    s.insert("runs".into(), json!(stats.runs));
+    s.insert("splits".into(), json!(stats.splits));
+    s.insert("unmet".into(), json!(stats.unmet));
+    s.insert("steps".into(), json!(stats.steps));
+    if want_elements {
+        s.insert("elements".into(), elements(&seed));
+    }
+
+    let t0 = Instant::now();
+    let ours = match fit_file.as_deref() {
+        Some(f) => read_fit(f).unwrap_or_else(|e| fail(&e)),
+        None => arcfit::fit_points(&pts, tol, 0.0, false),
+    };
+    let ours_secs = t0.elapsed().as_secs_f64();
+    let mut o = summary(&ours, &pts, poly, ours_secs);
+    o.insert("source".into(), json!(fit_file.as_deref().unwrap_or("library")));
+
+    let mut out = json!({
+        "schema": "microcam.arcfit-compare/1",
+        "points": pts.len(),
+        "polyline_blocks": pts.len() - 1,
+        "tolerance_mm": tol,
+        "seed": s,
+        "biarc": o,
+    });
+    if raw {
+        let p = SeedParams {
+            enforce_tolerance: false,
+            ..SeedParams::default()
+        };
+        let t0 = Instant::now();
+        let (r, st) = fit_curvature_matching_with(&pts, tol, 0.0, &p);
+        let mut rs = summary(&r, &pts, poly, t0.elapsed().as_secs_f64());
+        rs.insert("runs".into(), json!(st.runs));
+        if want_elements {
+            rs.insert("elements".into(), elements(&r));
+        }
+        out["seed_raw"] = Value::Object(rs);
+    }
+    println!("{out}");
+}
+
+fn fail(msg: &str) -> ! {
+    eprintln!("arcfit_compare: {msg}");
+    std::process::exit(2);
+}
