@@ -66,6 +66,7 @@ bench: build
 	scripts/bench/pathgen
 	scripts/bench/loops
 	scripts/bench/order --no-solver
+	scripts/bench/arcfit
 
 # Cut order against an independent TSP solver (LKH via elkai, installed into
 # a private venv; the solver itself takes minutes).
