@@ -17,6 +17,7 @@ use microcam::formats::chains::ChainsReader;
 use microcam::geometry::{Arc3, P2, Plane};
 use microcam::model::chain::Segment;
 use microcam::paths::arcfit;
+use microcam::paths::arcfit::{Grid, elem_box};
 use microcam::paths::arcfit_seed::{SeedParams, fit_curvature_matching_with};
 use microcam::paths::elem::Elem;
 use serde_json::{Value, json};
@@ -77,99 +78,6 @@ fn seg_dist(p: &P2, a: &P2, b: &P2) -> f64 {
         0.0
     };
     (p - (a + d * t)).norm()
-}
-
-/// Items bucketed by bounding box on a uniform grid, for nearest-item
-/// queries: rings of cells are searched outwards until no unsearched cell
-/// can hold anything nearer.
-struct Grid {
-    x0: f64,
-    y0: f64,
-    cell: f64,
-    nx: usize,
-    ny: usize,
-    cells: Vec<Vec<u32>>,
-}
-
-impl Grid {
-    fn new(boxes: &[(P2, P2)]) -> Grid {
-        let (mut lo, mut hi) = (
-            P2::new(f64::INFINITY, f64::INFINITY),
-            P2::new(-f64::INFINITY, -f64::INFINITY),
-        );
-        for (a, b) in boxes {
-            lo = P2::new(lo.x.min(a.x), lo.y.min(a.y));
-            hi = P2::new(hi.x.max(b.x), hi.y.max(b.y));
-        }
-        let diag = (hi - lo).norm().max(1e-9);
-        let mut ext: Vec<f64> = boxes.iter().map(|(a, b)| (b - a).amax()).collect();
-        ext.sort_by(f64::total_cmp);
-        let median = ext.get(ext.len() / 2).copied().unwrap_or(diag);
-        let cell = median.max(diag / 1024.0).max(1e-12);
-        let nx = ((hi.x - lo.x) / cell) as usize + 1;
-        let ny = ((hi.y - lo.y) / cell) as usize + 1;
-        let mut g = Grid {
-            x0: lo.x,
-            y0: lo.y,
-            cell,
-            nx,
-            ny,
-            cells: vec![Vec::new(); nx * ny],
-        };
-        for (i, (a, b)) in boxes.iter().enumerate() {
-            let (i0, j0) = g.ij(a);
-            let (i1, j1) = g.ij(b);
-            for j in j0..=j1 {
-                for ii in i0..=i1 {
-                    g.cells[j * nx + ii].push(i as u32);
-                }
-            }
-        }
-        g
-    }
-
-    fn ij(&self, p: &P2) -> (usize, usize) {
-        let f = |v: f64, n: usize| (v.max(0.0) as usize).min(n - 1);
-        (
-            f((p.x - self.x0) / self.cell, self.nx),
-            f((p.y - self.y0) / self.cell, self.ny),
-        )
-    }
-
-    fn nearest(&self, p: &P2, dist: impl Fn(usize) -> f64) -> f64 {
-        let (ci, cj) = self.ij(p);
-        let (ci, cj) = (ci as i64, cj as i64);
-        let mut best = f64::INFINITY;
-        // Far queries (a fit straying well off the polyline) would walk
-        // many empty rings: after 32, look at everything.
-        for r in 0..=self.nx.max(self.ny).min(32) as i64 {
-            for j in cj - r..=cj + r {
-                for i in ci - r..=ci + r {
-                    let ring = (i - ci).abs() == r || (j - cj).abs() == r;
-                    if !ring || i < 0 || j < 0 || i >= self.nx as i64 || j >= self.ny as i64 {
-                        continue;
-                    }
-                    for &k in &self.cells[j as usize * self.nx + i as usize] {
-                        best = best.min(dist(k as usize));
-                    }
-                }
-            }
-            // Cells beyond ring r are at least r cells away from p.
-            if best <= r as f64 * self.cell {
-                return best;
-            }
-        }
-        let all = self.cells.iter().flatten();
-        all.fold(best, |b, &k| b.min(dist(k as usize)))
-    }
-}
-
-fn elem_box(e: &Elem) -> (P2, P2) {
-    let b = match e {
-        Elem::Line(l) => l.bbox(),
-        Elem::Arc(a) => a.bbox(),
-    };
-    (b.min.xy(), b.max.xy())
 }
 
 struct Measure {

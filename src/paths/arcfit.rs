@@ -155,7 +155,7 @@ pub fn tangents(pts: &[P2]) -> Vec<V2> {
 /// their boxes, for exact nearest-distance queries: rings of cells are
 /// searched outwards until no unsearched cell can hold anything nearer
 /// (everything is searched after 32 rings, for queries far from all).
-struct Grid {
+pub struct Grid {
     x0: f64,
     y0: f64,
     cell: f64,
@@ -165,7 +165,7 @@ struct Grid {
 }
 
 impl Grid {
-    fn new(boxes: &[(P2, P2)]) -> Grid {
+    pub fn new(boxes: &[(P2, P2)]) -> Grid {
         let (mut lo, mut hi) = (
             P2::new(f64::INFINITY, f64::INFINITY),
             P2::new(-f64::INFINITY, -f64::INFINITY),
@@ -220,7 +220,7 @@ impl Grid {
     }
 
     /// Smallest `dist(k)` over all pieces `k` (exact).
-    fn nearest(&self, p: &P2, dist: impl Fn(usize) -> f64) -> f64 {
+    pub fn nearest(&self, p: &P2, dist: impl Fn(usize) -> f64) -> f64 {
         let (ci, cj) = self.ij(p);
         let (ci, cj) = (ci as i64, cj as i64);
         let mut best = f64::INFINITY;
@@ -244,7 +244,8 @@ impl Grid {
     }
 }
 
-fn elem_box(e: &Elem) -> (P2, P2) {
+/// A piece's XY bounding box, for [`Grid`].
+pub fn elem_box(e: &Elem) -> (P2, P2) {
     let b = match e {
         Elem::Line(l) => l.bbox(),
         Elem::Arc(a) => a.bbox(),

@@ -171,23 +171,9 @@ fn miter_joins(path: Vec<Elem>, vertices: &[P3], dist: f64) -> Vec<Elem> {
     // A miter's legs extend the lines beside the corner: one block each,
     // not a line and a short collinear stub (a stub shorter than the
     // controller's least acceleration time would be run slower than V).
-    let push = |out: &mut Vec<Elem>, e: Elem| {
-        if let (Some(Elem::Line(prev)), Elem::Line(l)) = (out.last(), &e) {
-            let (d0, d1) = (prev.end - prev.start, l.end - l.start);
-            let (n0, n1) = (d0.norm(), d1.norm());
-            if prev.end == l.start
-                && n0 > 0.0
-                && n1 > 0.0
-                && d0.cross(&d1).norm() <= 1e-12 * n0 * n1
-                && d0.dot(&d1) > 0.0
-            {
-                let start = prev.start;
-                out.pop();
-                out.push(Elem::line(start, l.end));
-                return;
-            }
-        }
-        out.push(e);
+    let push = |out: &mut Vec<Elem>, e: Elem| match out.last().and_then(|prev| continue_line(prev, &e)) {
+        Some(joined) => *out.last_mut().expect("checked above") = joined,
+        None => out.push(e),
     };
     for e in &path {
         let Elem::Arc(arc) = e else {
@@ -216,17 +202,25 @@ fn miter_joins(path: Vec<Elem>, vertices: &[P3], dist: f64) -> Vec<Elem> {
     }
     // The path's first piece may continue its last (a closed offset).
     if out.len() > 2
-        && let (Some(Elem::Line(last)), Some(Elem::Line(first))) = (out.last().copied(), out.first().copied())
-        && last.end == first.start
+        && let (Some(last), Some(first)) = (out.last(), out.first())
+        && let Some(joined) = continue_line(last, first)
     {
-        let (d0, d1) = (last.end - last.start, first.end - first.start);
-        let (n0, n1) = (d0.norm(), d1.norm());
-        if n0 > 0.0 && n1 > 0.0 && d0.cross(&d1).norm() <= 1e-12 * n0 * n1 && d0.dot(&d1) > 0.0 {
-            out.pop();
-            out[0] = Elem::line(last.start, first.end);
-        }
+        out.pop();
+        out[0] = joined;
     }
     out
+}
+
+/// `a` then `b` as one line, when both are lines and `b` goes straight on
+/// from where `a` ends.
+fn continue_line(a: &Elem, b: &Elem) -> Option<Elem> {
+    let (Elem::Line(a), Elem::Line(b)) = (a, b) else {
+        return None;
+    };
+    let (d0, d1) = (a.end - a.start, b.end - b.start);
+    let (n0, n1) = (d0.norm(), d1.norm());
+    (a.end == b.start && n0 > 0.0 && n1 > 0.0 && d0.cross(&d1).norm() <= 1e-12 * n0 * n1 && d0.dot(&d1) > 0.0)
+        .then(|| Elem::line(a.start, b.end))
 }
 
 #[cfg(test)]

@@ -783,6 +783,11 @@ mod tests {
         for b in blocks {
             tm.push_move(b.clone());
         }
+        drain(tm)
+    }
+
+    /// Finish the model and collect its timed blocks.
+    fn drain(mut tm: TimeModel) -> Vec<TimedBlock> {
         tm.finish();
         let mut v = Vec::new();
         while let Some(e) = tm.pop() {
@@ -924,13 +929,7 @@ mod tests {
         tm.push_move(line(1.0, 0.0, 3.0));
         tm.set_accel(Some(6.0), Some(0.0));
         tm.push_move(line(0.03, 0.0, 3.0));
-        tm.finish();
-        let mut t = Vec::new();
-        while let Some(e) = tm.pop() {
-            if let Event::Block(b) = e {
-                t.push(b);
-            }
-        }
+        let t = drain(tm);
         check_consistent(&t);
         assert_eq!(t[1].limited_by, Limit::None);
         assert!(close(t[1].achieved_feed_mm_s, 3.0, 1e-12));
@@ -942,14 +941,7 @@ mod tests {
         tm.push_move(line(0.03, 0.0, 3.0));
         tm.set_accel(Some(133.0), Some(0.0));
         tm.push_move(line(1.0, 0.0, 3.0));
-        tm.finish();
-        let mut t = Vec::new();
-        while let Some(e) = tm.pop() {
-            if let Event::Block(b) = e {
-                t.push(b);
-            }
-        }
-        check_consistent(&t);
+        check_consistent(&drain(tm));
     }
 
     #[test]
