@@ -24,27 +24,6 @@ use serde_json::{Value, json};
 use std::io::Read;
 use std::time::Instant;
 
-fn read_points(text: &str) -> Result<Vec<P2>, String> {
-    let mut pts = Vec::new();
-    for (i, line) in text.lines().enumerate() {
-        let line = line.split('#').next().unwrap_or("").trim();
-        if line.is_empty() {
-            continue;
-        }
-        let v: Vec<f64> = line
-            .split(|c: char| c == ',' || c.is_whitespace())
-            .filter(|t| !t.is_empty())
-            .map(|t| t.parse::<f64>().ok().filter(|v| v.is_finite()))
-            .collect::<Option<_>>()
-            .ok_or_else(|| format!("line {}: expected numbers 'x y'", i + 1))?;
-        if v.len() < 2 {
-            return Err(format!("line {}: expected 'x y'", i + 1));
-        }
-        pts.push(P2::new(v[0], v[1]));
-    }
-    Ok(pts)
-}
-
 /// The pieces of every chain in a microcam.chains/1 file.
 fn read_fit(path: &str) -> Result<Vec<Elem>, String> {
     let f = std::fs::File::open(path).map_err(|e| format!("{path}: {e}"))?;
@@ -203,7 +182,7 @@ fn main() {
         Some(f) => std::fs::read_to_string(f).map(|t| text = t),
     }
     .unwrap_or_else(|e| fail(&format!("reading input: {e}")));
-    let pts = read_points(&text).unwrap_or_else(|e| fail(&e));
+    let pts = arcfit::parse_points(&text).unwrap_or_else(|(line, msg)| fail(&format!("line {line}: {msg}")));
     if pts.len() < 2 {
         fail("need at least two points");
     }

@@ -834,23 +834,7 @@ fn arcfit_cmd(a: ArcfitArgs) -> Result<(), CliError> {
     let mut input = cli::open_input(a.file.as_deref())?;
     let name = input.name.clone();
     let text = cli::read_to_string(&mut input)?;
-    let mut pts = Vec::new();
-    for (i, line) in text.lines().enumerate() {
-        let line = line.split('#').next().unwrap_or("").trim();
-        if line.is_empty() {
-            continue;
-        }
-        let v: Vec<f64> = line
-            .split(|c: char| c == ',' || c.is_whitespace())
-            .filter(|t| !t.is_empty())
-            .map(|t| t.parse::<f64>().ok().filter(|v| v.is_finite()))
-            .collect::<Option<_>>()
-            .ok_or_else(|| CliError::input(format!("{name}:{}: expected numbers 'x y'", i + 1)))?;
-        if v.len() < 2 {
-            return Err(CliError::input(format!("{name}:{}: expected 'x y'", i + 1)));
-        }
-        pts.push(P2::new(v[0], v[1]));
-    }
+    let pts = arcfit::parse_points(&text).map_err(|(line, msg)| CliError::input(format!("{name}:{line}: {msg}")))?;
     if pts.len() < 2 {
         return Err(CliError::input(format!("{name}: need at least two points")));
     }

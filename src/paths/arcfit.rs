@@ -36,6 +36,29 @@ fn arc_from_tangent(p: P2, t: V2, q: P2, z: f64) -> Elem {
     }
 }
 
+/// Points from text: one `x y` (or `x,y`) per line, `#` starts a comment,
+/// blank lines are skipped. An error names the 1-based line.
+pub fn parse_points(text: &str) -> Result<Vec<P2>, (usize, &'static str)> {
+    let mut pts = Vec::new();
+    for (i, line) in text.lines().enumerate() {
+        let line = line.split('#').next().unwrap_or("").trim();
+        if line.is_empty() {
+            continue;
+        }
+        let v: Vec<f64> = line
+            .split(|c: char| c == ',' || c.is_whitespace())
+            .filter(|t| !t.is_empty())
+            .map(|t| t.parse::<f64>().ok().filter(|v| v.is_finite()))
+            .collect::<Option<_>>()
+            .ok_or((i + 1, "expected numbers 'x y'"))?;
+        if v.len() < 2 {
+            return Err((i + 1, "expected 'x y'"));
+        }
+        pts.push(P2::new(v[0], v[1]));
+    }
+    Ok(pts)
+}
+
 /// Two arcs from `p0` (unit tangent `t0`) to `p1` (unit tangent `t1`),
 /// tangent to each other at their joint (the equal-parameter biarc).
 pub fn biarc(p0: P2, t0: V2, p1: P2, t1: V2, z: f64) -> Vec<Elem> {
