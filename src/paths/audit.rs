@@ -13,7 +13,7 @@ use super::elem::Elem;
 use super::machine::{Controller, Machine};
 use crate::geometry::P3;
 use crate::geometry::arc::Arc3;
-use crate::model::toolpath::{MotionKind, Record, Role};
+use crate::model::toolpath::{Motion, MotionKind, Record, Role};
 use std::collections::BTreeMap;
 
 /// What the audit found.
@@ -54,10 +54,57 @@ pub struct Audit {
     pub cut_runs: BTreeMap<u64, usize>,
 }
 
-/// The acceleration time (s) a Turbo PMAC uses for TA/TS in ms: TA rounded
-/// to whole ms (at least 1), or 2·TS when that is longer.
-pub fn pmac_accel_s(ta_ms: f64, ts_ms: f64) -> f64 {
-    ta_ms.round().max(1.0).max(2.0 * ts_ms) / 1000.0
+/// The TA/TS (ms) a Turbo PMAC has in force while it reads a program, and
+/// what they do to a block.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PmacTa {
+    pub ta_ms: f64,
+    pub ts_ms: f64,
+}
+
+impl PmacTa {
+    /// At the start of a job: the machine's ramps.
+    pub fn new(m: &Machine) -> PmacTa {
+        PmacTa {
+            ta_ms: m.program_ta_ms(),
+            ts_ms: m.ts_ms,
+        }
+    }
+
+    /// Take in an `accel` record; false for any other record.
+    pub fn read(&mut self, r: &Record) -> bool {
+        let Record::Accel { ta_ms, ts_ms, .. } = r else {
+            return false;
+        };
+        self.ta_ms = ta_ms.unwrap_or(self.ta_ms);
+        self.ts_ms = ts_ms.unwrap_or(self.ts_ms);
+        true
+    }
+
+    /// The acceleration time (s): TA rounded to whole ms (at least 1), or
+    /// 2·TS when that is longer.
+    pub fn accel_s(&self) -> f64 {
+        self.ta_ms.round().max(1.0).max(2.0 * self.ts_ms) / 1000.0
+    }
+
+    /// Whether a block `len` mm long at `feed` mm/s lasts less than the
+    /// acceleration time, so that the controller stretches it.
+    pub fn stretches(&self, len: f64, feed: f64) -> bool {
+        len / feed < self.accel_s() * (1.0 - 1e-9) - 1e-12
+    }
+}
+
+/// The path a feed move draws from `pos` (a degenerate arc as its chord);
+/// `None` for a rapid.
+pub fn feed_elem(pos: P3, mv: &Motion) -> Option<Elem> {
+    match mv.kind {
+        MotionKind::Rapid => None,
+        MotionKind::Line => Some(Elem::line(pos, mv.to)),
+        MotionKind::Arc(d) => Some(match Arc3::new(d.center, pos, mv.to, d.ccw, d.plane, d.extra_turns) {
+            Some(arc) => Elem::Arc(arc),
+            None => Elem::line(pos, mv.to),
+        }),
+    }
 }
 
 /// Audit `records` (starting at `start`) against `m`.
@@ -70,7 +117,7 @@ pub fn audit(records: &[Record], m: &Machine, start: P3) -> Audit {
     let v = m.feed;
     let pmac = m.controller == Controller::Pmac;
     let cos_tol = m.tangent_cos();
-    let (mut ta, mut ts) = (m.program_ta_ms(), m.ts_ms);
+    let mut ta = PmacTa::new(m);
     let mut pos = start;
     let mut s = 0.0; // path length since the last stop
     let mut prev_dir: Option<crate::geometry::V3> = None;
@@ -90,13 +137,11 @@ pub fn audit(records: &[Record], m: &Machine, start: P3) -> Audit {
         }
     };
     for r in records {
+        if ta.read(r) {
+            continue;
+        }
         let mv = match r {
             Record::Move(mv) => mv,
-            Record::Accel { ta_ms, ts_ms, .. } => {
-                ta = ta_ms.unwrap_or(ta);
-                ts = ts_ms.unwrap_or(ts);
-                continue;
-            }
             _ => {
                 // Dwells and other statements stop look-ahead and blending.
                 if blended {
@@ -107,26 +152,20 @@ pub fn audit(records: &[Record], m: &Machine, start: P3) -> Audit {
                 continue;
             }
         };
-        let elem = match mv.kind {
-            MotionKind::Rapid => {
-                if mv.beam {
-                    a.beam_on_rapids += 1;
-                }
-                if blended {
-                    stop(&mut a, g, acc_last, &mut closed_at);
-                }
-                pos = mv.to;
-                prev_dir = None;
-                blended = false;
-                s = 0.0;
-                g += 1e6;
-                continue;
+        let Some(elem) = feed_elem(pos, mv) else {
+            // A rapid.
+            if mv.beam {
+                a.beam_on_rapids += 1;
             }
-            MotionKind::Line => Elem::line(pos, mv.to),
-            MotionKind::Arc(d) => match Arc3::new(d.center, pos, mv.to, d.ccw, d.plane, d.extra_turns) {
-                Some(arc) => Elem::Arc(arc),
-                None => Elem::line(pos, mv.to),
-            },
+            if blended {
+                stop(&mut a, g, acc_last, &mut closed_at);
+            }
+            pos = mv.to;
+            prev_dir = None;
+            blended = false;
+            s = 0.0;
+            g += 1e6;
+            continue;
         };
         a.feed_moves += 1;
         if mv.feed.is_none_or(|f| (f - v).abs() > 1e-9 * v) {
@@ -144,8 +183,8 @@ pub fn audit(records: &[Record], m: &Machine, start: P3) -> Audit {
             a.max_accel_off_cut = a.max_accel_off_cut.max(demand);
         }
         let len = elem.length();
-        let acc = if pmac { pmac_accel_s(ta, ts) } else { m.ramp_time_s() };
-        if pmac && len / v < acc * (1.0 - 1e-9) - 1e-12 {
+        let acc = if pmac { ta.accel_s() } else { m.ramp_time_s() };
+        if pmac && ta.stretches(len, v) {
             a.stretched_moves += 1;
         }
         if mv.beam != beam {
@@ -209,32 +248,20 @@ pub fn audit(records: &[Record], m: &Machine, start: P3) -> Audit {
 /// lengths and TAs are looked at, so this is cheap enough to run on every
 /// generated chunk.
 pub fn stretched_blocks(records: &[Record], m: &Machine, start: P3) -> (usize, usize) {
-    let (mut ta, mut ts) = (m.program_ta_ms(), m.ts_ms);
+    let mut ta = PmacTa::new(m);
     let pmac = m.controller == Controller::Pmac;
     let mut pos = start;
     let (mut stretched, mut feed_moves) = (0, 0);
     for r in records {
-        let mv = match r {
-            Record::Move(mv) => mv,
-            Record::Accel { ta_ms, ts_ms, .. } => {
-                ta = ta_ms.unwrap_or(ta);
-                ts = ts_ms.unwrap_or(ts);
-                continue;
+        if ta.read(r) {
+            continue;
+        }
+        let Record::Move(mv) = r else { continue };
+        if let Some(e) = feed_elem(pos, mv) {
+            feed_moves += 1;
+            if pmac && ta.stretches(e.length(), m.feed) {
+                stretched += 1;
             }
-            _ => continue,
-        };
-        let len = match mv.kind {
-            MotionKind::Rapid => {
-                pos = mv.to;
-                continue;
-            }
-            MotionKind::Line => (mv.to - pos).norm(),
-            MotionKind::Arc(d) => Arc3::new(d.center, pos, mv.to, d.ccw, d.plane, d.extra_turns)
-                .map_or((mv.to - pos).norm(), |a| a.length()),
-        };
-        feed_moves += 1;
-        if pmac && len / m.feed < pmac_accel_s(ta, ts) * (1.0 - 1e-9) - 1e-12 {
-            stretched += 1;
         }
         pos = mv.to;
     }

@@ -113,40 +113,26 @@ fn only_short_drawing_pieces_stretched(recs: &[Record], m: &Machine, drawing: &[
         .map(Elem::length)
         .filter(|&l| l < m.min_block())
         .collect();
-    let mut ta = m.program_ta_ms();
-    let mut ts = m.ts_ms;
+    let mut ta = super::audit::PmacTa::new(m);
     let mut pos = P3::origin();
     let mut n = 0;
     for r in recs {
-        match r {
-            Record::Accel { ta_ms, ts_ms, .. } => {
-                ta = ta_ms.unwrap_or(ta);
-                ts = ts_ms.unwrap_or(ts);
-            }
-            Record::Move(mv) => {
-                if mv.kind != MotionKind::Rapid {
-                    let len = match mv.kind {
-                        MotionKind::Arc(d) => {
-                            crate::geometry::arc::Arc3::new(d.center, pos, mv.to, d.ccw, d.plane, d.extra_turns)
-                                .map_or(0.0, |a| a.length())
-                        }
-                        _ => (mv.to - pos).norm(),
-                    };
-                    if m.controller == super::machine::Controller::Pmac
-                        && len / m.feed < super::audit::pmac_accel_s(ta, ts) * (1.0 - 1e-9)
-                    {
-                        n += 1;
-                        assert_eq!(mv.role, Some(Role::Cut), "a stretched {len} mm {:?} move", mv.role);
-                        assert!(
-                            short.iter().any(|&l| (l - len).abs() < 1e-9),
-                            "a stretched {len} mm cut piece that is not a whole drawing piece"
-                        );
-                    }
-                }
-                pos = mv.to;
-            }
-            _ => {}
+        if ta.read(r) {
+            continue;
         }
+        let Record::Move(mv) = r else { continue };
+        if let Some(e) = super::audit::feed_elem(pos, mv) {
+            let len = e.length();
+            if m.controller == super::machine::Controller::Pmac && ta.stretches(len, m.feed) {
+                n += 1;
+                assert_eq!(mv.role, Some(Role::Cut), "a stretched {len} mm {:?} move", mv.role);
+                assert!(
+                    short.iter().any(|&l| (l - len).abs() < 1e-9),
+                    "a stretched {len} mm cut piece that is not a whole drawing piece"
+                );
+            }
+        }
+        pos = mv.to;
     }
     let a = audit(recs, m, P3::origin());
     assert_eq!(a.stretched_moves, n);

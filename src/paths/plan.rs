@@ -177,30 +177,22 @@ pub fn plan_tagged(path: &[(Elem, Role)], m: &Machine, notes: &mut Vec<Note>) ->
     }
     let e = last.end();
     let dir = last.dir_end();
+    let lead_out = |a: P3, b: P3, pace: Option<Pace>| Piece {
+        elem: Elem::line(a, b),
+        role: Role::LeadOut,
+        beam: false,
+        pace,
+    };
+    let end = e + dir * m.lead_out();
     if pmac {
         // At V until the shutter is closed and the blend into the stopping
         // block is over, then the stopping block.
         let mid = e + dir * m.lead_out_cruise();
-        out.push(Piece {
-            elem: Elem::line(e, mid),
-            role: Role::LeadOut,
-            beam: false,
-            pace: None,
-        });
-        out.push(Piece {
-            elem: Elem::line(mid, e + dir * m.lead_out()),
-            role: Role::LeadOut,
-            beam: false,
-            pace: ramp,
-        });
+        out.push(lead_out(e, mid, None));
+        out.push(lead_out(mid, end, ramp));
         time_shutter_pmac(out, m, notes)
     } else {
-        out.push(Piece {
-            elem: Elem::line(e, e + dir * m.lead_out()),
-            role: Role::LeadOut,
-            beam: false,
-            pace: None,
-        });
+        out.push(lead_out(e, end, None));
         time_shutter(out, m, notes)
     }
 }
