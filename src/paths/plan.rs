@@ -317,6 +317,17 @@ impl Slot {
     }
 }
 
+/// Append a piece of length `len` at path length `end`, and move `end`.
+fn push_slot(slots: &mut Vec<Slot>, end: &mut f64, (piece, len): (Piece, f64)) {
+    slots.push(Slot {
+        piece,
+        start: *end,
+        len,
+        switch: None,
+    });
+    *end += len;
+}
+
 /// Where one command goes: on the boundary before `slots[at]`, or inside
 /// `slots[at]` at `b`, carried by a block of TA `t`.
 struct Placement {
@@ -349,19 +360,12 @@ fn time_shutter_pmac(pieces: Vec<Piece>, m: &Machine, notes: &mut Vec<Note>) -> 
         // Load the pieces up to the farthest candidate, plus one for the
         // block after a boundary candidate.
         let reach = c + v * tac as f64 / 2000.0 + MIN_PIECE;
-        let mut extra = 1;
-        while end <= reach || extra > 0 {
-            if end > reach {
-                extra -= 1;
-            }
-            let Some((piece, len)) = input.next() else { break };
-            slots.push(Slot {
-                piece,
-                start: end,
-                len,
-                switch: None,
-            });
-            end += len;
+        while end <= reach {
+            let Some(next) = input.next() else { break };
+            push_slot(&mut slots, &mut end, next);
+        }
+        if let Some(next) = input.next() {
+            push_slot(&mut slots, &mut end, next);
         }
         let Some((p, err)) = place(&slots, c, last_b, m) else {
             off.0 += 1;
@@ -419,14 +423,8 @@ fn time_shutter_pmac(pieces: Vec<Piece>, m: &Machine, notes: &mut Vec<Note>) -> 
             worst: off.1,
         });
     }
-    for (piece, len) in input {
-        slots.push(Slot {
-            piece,
-            start: end,
-            len,
-            switch: None,
-        });
-        end += len;
+    for next in input {
+        push_slot(&mut slots, &mut end, next);
     }
     let mut beam = false;
     let mut prev_ms = f64::INFINITY;
