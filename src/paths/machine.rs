@@ -8,6 +8,14 @@
 pub use crate::sim::machine::Controller;
 use thiserror::Error;
 
+/// Positions are written to 4 decimals in PMAC text (0.1 µm), so a block
+/// may come out up to twice this shorter than planned: every length that
+/// must last a given time keeps [`BLOCK_MARGIN`] in hand.
+pub const WRITE_QUANTUM: f64 = 1e-4;
+
+/// Length (mm) kept in hand on a block that must last a given time.
+pub const BLOCK_MARGIN: f64 = 2.0 * WRITE_QUANTUM;
+
 /// Why a set of machine parameters cannot be planned with.
 #[derive(Debug, Error, PartialEq)]
 pub enum MachineError {
@@ -181,7 +189,7 @@ impl Machine {
     /// the least TA a Turbo PMAC accepts, so no such block is stretched
     /// (plus 0.2 µm for the 4 decimals of PMAC text).
     pub fn min_block(&self) -> f64 {
-        self.feed / 1000.0 + 2e-4
+        self.feed / 1000.0 + BLOCK_MARGIN
     }
 
     /// What every beam-off connection (corner loop, turnaround) must be:
@@ -206,7 +214,7 @@ impl Machine {
     /// boundary: none needed.
     pub fn switch_tail(&self) -> f64 {
         match self.controller {
-            Controller::Pmac => self.open_lead() + 0.5 * self.feed * self.cut_ta() as f64 / 1000.0 + 4e-4,
+            Controller::Pmac => self.open_lead() + 0.5 * self.feed * self.cut_ta() as f64 / 1000.0 + 2.0 * BLOCK_MARGIN,
             Controller::Lookahead => 0.0,
         }
     }
@@ -236,12 +244,12 @@ impl Machine {
     /// PMAC: length of a block that starts from or ends at rest: it must
     /// last its TA, with 0.2 µm in hand for the 4 decimals of PMAC text.
     pub fn ramp_block(&self) -> f64 {
-        self.feed * self.ramp_time_s() + 2e-4
+        self.feed * self.ramp_time_s() + BLOCK_MARGIN
     }
 
     /// PMAC: the part of the lead-out at V before the stopping block.
     pub fn lead_out_cruise(&self) -> f64 {
-        let at_v = 0.5 * self.feed * (self.cut_ta() as f64 / 1000.0 + self.ramp_time_s()) + 2e-4;
+        let at_v = 0.5 * self.feed * (self.cut_ta() as f64 / 1000.0 + self.ramp_time_s()) + BLOCK_MARGIN;
         // Never shorter than the shutter needs to close at V.
         at_v.max(self.close_lead().max(0.0) + self.close_travel())
     }

@@ -16,7 +16,7 @@
 
 use super::dubins::corner_loop;
 use super::elem::{Elem, MIN_PIECE};
-use super::machine::{Controller, Machine};
+use super::machine::{BLOCK_MARGIN, Controller, Machine};
 use crate::geometry::{P3, Plane, V2};
 use crate::model::toolpath::{Motion, MotionKind, Record, Role};
 
@@ -297,11 +297,6 @@ fn time_shutter(pieces: Vec<Piece>, m: &Machine, notes: &mut Vec<Note>) -> Vec<P
     out
 }
 
-/// Positions are written to 4 decimals in PMAC text (0.1 µm), so a block
-/// may come out up to twice this shorter than planned; TA choices keep
-/// that much in hand.
-pub const WRITE_QUANTUM: f64 = 1e-4;
-
 /// A piece on its way through [`time_shutter_pmac`].
 struct Slot {
     piece: Piece,
@@ -348,7 +343,7 @@ fn time_shutter_pmac(pieces: Vec<Piece>, m: &Machine, notes: &mut Vec<Note>) -> 
     let cmd = commanded_on(&pieces, &lens, m, notes);
     let v = m.feed;
     let tac = m.cut_ta();
-    let ms = |len: f64| (len - 2.0 * WRITE_QUANTUM) / v * 1000.0;
+    let ms = |len: f64| (len - BLOCK_MARGIN) / v * 1000.0;
     let mut slots: Vec<Slot> = Vec::with_capacity(pieces.len() + 2 * cmd.len());
     let mut input = pieces.into_iter().zip(lens);
     let mut end = 0.0;
@@ -472,7 +467,7 @@ fn whole_ta(tac: u32, d: f64) -> u32 {
 fn place(slots: &[Slot], c: f64, last_b: f64, m: &Machine) -> Option<(Placement, f64)> {
     let v = m.feed;
     let tac = m.cut_ta();
-    let q = 2.0 * WRITE_QUANTUM;
+    let q = BLOCK_MARGIN;
     let ms = |len: f64| (len - q) / v * 1000.0;
     // Least length of a block of TA t (ms).
     let len_for = |t: f64| v * t / 1000.0 + q;
