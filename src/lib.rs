@@ -13,13 +13,19 @@
 //! - [`sim`]: what a program does on the machine: time, beam and material removal.
 //! - [`preview`]: SVG previews of toolpaths.
 //! - [`pmac`]: Turbo PMAC protocol, client, emulator, splitting and upload.
+//! - [`cutter`]: end mill shapes shared by every milling tool.
+//! - [`mesh`]: triangle meshes (STL, OBJ) and queries on them.
+//! - [`corpus`]: where the shared test corpus lies, for tests and benchmarks.
 //! - [`cli`]: conventions shared by every binary.
 
 pub mod cli;
+pub mod corpus;
+pub mod cutter;
 pub mod dxf;
 pub mod formats;
 pub mod gcode;
 pub mod geometry;
+pub mod mesh;
 pub mod model;
 pub mod paths;
 pub mod pmac;

@@ -3,6 +3,7 @@
 
 use clap::Parser;
 use microcam::cli::{self, CliError, Output};
+use microcam::cutter::Cutter;
 use microcam::formats::chains::ChainsReader;
 use microcam::formats::toolpath::{StreamError, write_stream};
 use microcam::gcode::{Dialect, ReadOptions};
@@ -15,7 +16,7 @@ use microcam::sim::machine::{Controller, Machine, Overrides};
 use microcam::sim::picture::write_png;
 use microcam::sim::report::{SimError, Simulator, StepPlan};
 use microcam::sim::stl::write_stl;
-use microcam::sim::stock::{Cutter, Stock};
+use microcam::sim::stock::Stock;
 use microcam::source::ToolpathSource;
 use std::io::{IsTerminal, Write};
 use std::path::PathBuf;

@@ -150,7 +150,7 @@ pub fn write_png<W: Write>(w: &mut W, width: usize, height: usize, rgb: &[u8]) -
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::sim::stock::Cutter;
+    use crate::cutter::Cutter;
 
     #[test]
     fn png_structure_and_checksums() {

@@ -5,9 +5,10 @@
 use super::beam::{BeamModel, ChainExposure, CommandTiming, EXAMPLES, match_chains};
 use super::machine::{Controller, Machine};
 use super::picture::Overlay;
-use super::stock::{Cutter, Stock};
+use super::stock::Stock;
 use super::summary::Summary;
 use super::time::{Block, Event, Limit, MoveClass, TimeModel, TimedBlock};
+use crate::cutter::Cutter;
 use crate::formats::{push_num, push_str_lit, push_uint};
 use crate::geometry::{Arc3, BBox3, P3, V3};
 use crate::model::chain::Chain;

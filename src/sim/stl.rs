@@ -108,8 +108,8 @@ pub fn write_stl<W: Write>(s: &Stock, w: &mut W) -> io::Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::cutter::Cutter;
     use crate::geometry::P3;
-    use crate::sim::stock::Cutter;
     use std::collections::HashMap;
 
     fn parse(stl: &[u8]) -> Vec<[[f32; 3]; 3]> {

@@ -11,9 +11,10 @@
 //! golden-section search (exact to 1e-10 of the move). Arcs are cut into
 //! chords whose sagitta stays under a tenth of a cell. Rows are processed in parallel with rayon.
 //!
-//! Not yet here: multi-dexel stock (undercuts), STL export, pictures,
-//! per-tooth steps (see docs/gsim.md).
+//! The cutter's shape lives in [`crate::cutter`]; STL export is in
+//! `sim::stl`, pictures in `sim::picture`.
 
+use crate::cutter::Cutter;
 use crate::geometry::{Arc3, P3};
 use rayon::prelude::*;
 use thiserror::Error;
@@ -22,88 +23,6 @@ use thiserror::Error;
 pub enum StockError {
     #[error("stock box {0}")]
     Box(String),
-    #[error("cutter {0}")]
-    Cutter(String),
-}
-
-/// An end mill, dimensions in mm.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum Cutter {
-    Flat {
-        radius: f64,
-    },
-    Ball {
-        radius: f64,
-    },
-    /// Bull nose: corner radius `corner` (0 < corner <= radius).
-    Torus {
-        radius: f64,
-        corner: f64,
-    },
-}
-
-impl Cutter {
-    /// `flat:D`, `ball:D` or `torus:D:RC` (diameter and corner radius, mm).
-    pub fn parse(s: &str) -> Result<Cutter, StockError> {
-        let parts: Vec<&str> = s.split(':').collect();
-        let num = |i: usize| -> Result<f64, StockError> {
-            parts
-                .get(i)
-                .and_then(|x| x.trim().parse::<f64>().ok())
-                .filter(|v| v.is_finite() && *v > 0.0)
-                .ok_or_else(|| StockError::Cutter(format!("'{s}': expected flat:D, ball:D or torus:D:RC in mm")))
-        };
-        let c = match (parts[0], parts.len()) {
-            ("flat", 2) => Cutter::Flat { radius: num(1)? / 2.0 },
-            ("ball", 2) => Cutter::Ball { radius: num(1)? / 2.0 },
-            ("torus", 3) => Cutter::Torus {
-                radius: num(1)? / 2.0,
-                corner: num(2)?,
-            },
-            _ => {
-                return Err(StockError::Cutter(format!(
-                    "'{s}': expected flat:D, ball:D or torus:D:RC in mm"
-                )));
-            }
-        };
-        if let Cutter::Torus { radius, corner } = c
-            && corner > radius
-        {
-            return Err(StockError::Cutter(format!(
-                "'{s}': corner radius above the tool radius"
-            )));
-        }
-        Ok(c)
-    }
-
-    pub fn radius(&self) -> f64 {
-        match *self {
-            Cutter::Flat { radius } | Cutter::Ball { radius } | Cutter::Torus { radius, .. } => radius,
-        }
-    }
-
-    /// Height of the underside above the tool tip at distance `rho` from
-    /// the axis; `None` outside the tool.
-    #[inline]
-    pub fn profile(&self, rho: f64) -> Option<f64> {
-        match *self {
-            Cutter::Flat { radius } => (rho <= radius).then_some(0.0),
-            Cutter::Ball { radius } => (rho <= radius).then(|| radius - (radius * radius - rho * rho).max(0.0).sqrt()),
-            Cutter::Torus { radius, corner } => {
-                if rho > radius {
-                    None
-                } else {
-                    let flat = radius - corner;
-                    if rho <= flat {
-                        Some(0.0)
-                    } else {
-                        let u = rho - flat;
-                        Some(corner - (corner * corner - u * u).max(0.0).sqrt())
-                    }
-                }
-            }
-        }
-    }
 }
 
 /// Height-field stock over `[x0, x0 + nx·cell] × [y0, y0 + ny·cell]`.
@@ -666,20 +585,5 @@ mod tests {
         }
         assert_eq!(one.z, batch.z);
         assert_eq!(one.cells_visited, batch.cells_visited);
-    }
-
-    #[test]
-    fn cutters_parse() {
-        assert_eq!(Cutter::parse("flat:2").unwrap(), Cutter::Flat { radius: 1.0 });
-        assert_eq!(
-            Cutter::parse("torus:2:0.3").unwrap(),
-            Cutter::Torus {
-                radius: 1.0,
-                corner: 0.3
-            }
-        );
-        assert!(Cutter::parse("torus:2:1.5").is_err());
-        assert!(Cutter::parse("ball:-1").is_err());
-        assert!(Cutter::parse("drill:1").is_err());
     }
 }

@@ -1,0 +1,114 @@
+//! Triangle meshes: the models the milling half starts from (STL, OBJ) and
+//! the design parts it verifies against.
+//!
+//! A [`Mesh`] is an indexed triangle list in millimetres. Readers, welding,
+//! the topology report, the ray-query BVH and planar sections build on it.
+
+use crate::geometry::{BBox3, P3, V3};
+
+/// An indexed triangle mesh (mm). Triangles index into `vertices`; their
+/// winding gives the outward normal by the right-hand rule.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Mesh {
+    pub vertices: Vec<P3>,
+    pub triangles: Vec<[u32; 3]>,
+}
+
+/// One triangle by value, for the geometric queries.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Triangle {
+    pub a: P3,
+    pub b: P3,
+    pub c: P3,
+}
+
+impl Triangle {
+    pub fn new(a: P3, b: P3, c: P3) -> Triangle {
+        Triangle { a, b, c }
+    }
+
+    /// Twice the area times the unit normal (right-hand rule over a, b, c).
+    pub fn cross(&self) -> V3 {
+        (self.b - self.a).cross(&(self.c - self.a))
+    }
+
+    /// Unit normal, `None` for a degenerate (zero-area) triangle.
+    pub fn normal(&self) -> Option<V3> {
+        let n = self.cross();
+        let l = n.norm();
+        (l > 0.0 && l.is_finite()).then(|| n / l)
+    }
+
+    pub fn area(&self) -> f64 {
+        0.5 * self.cross().norm()
+    }
+
+    pub fn bbox(&self) -> BBox3 {
+        let mut b = BBox3::empty();
+        b.extend(&self.a);
+        b.extend(&self.b);
+        b.extend(&self.c);
+        b
+    }
+}
+
+impl Mesh {
+    /// The `i`-th triangle by value.
+    pub fn triangle(&self, i: usize) -> Triangle {
+        let [a, b, c] = self.triangles[i];
+        Triangle::new(
+            self.vertices[a as usize],
+            self.vertices[b as usize],
+            self.vertices[c as usize],
+        )
+    }
+
+    /// Every triangle by value, in order.
+    pub fn iter_triangles(&self) -> impl ExactSizeIterator<Item = Triangle> + '_ {
+        (0..self.triangles.len()).map(|i| self.triangle(i))
+    }
+
+    /// Box around every vertex that a triangle uses.
+    pub fn bbox(&self) -> BBox3 {
+        let mut b = BBox3::empty();
+        for t in &self.triangles {
+            for &v in t {
+                b.extend(&self.vertices[v as usize]);
+            }
+        }
+        b
+    }
+
+    /// Build from triangles given by value (no welding: three vertices each).
+    pub fn from_triangles(tris: &[Triangle]) -> Mesh {
+        let mut m = Mesh {
+            vertices: Vec::with_capacity(tris.len() * 3),
+            triangles: Vec::with_capacity(tris.len()),
+        };
+        for t in tris {
+            let i = m.vertices.len() as u32;
+            m.vertices.extend([t.a, t.b, t.c]);
+            m.triangles.push([i, i + 1, i + 2]);
+        }
+        m
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn triangle_normal_area_and_mesh_box() {
+        let t = Triangle::new(P3::new(0.0, 0.0, 0.0), P3::new(2.0, 0.0, 0.0), P3::new(0.0, 1.0, 0.5));
+        assert!((t.area() - 0.5 * (1.0f64 + 0.25).sqrt() * 2.0).abs() < 1e-12);
+        let n = t.normal().unwrap();
+        assert!((n.norm() - 1.0).abs() < 1e-12 && n.z > 0.0);
+        let flat = Triangle::new(P3::origin(), P3::new(1.0, 0.0, 0.0), P3::new(2.0, 0.0, 0.0));
+        assert!(flat.normal().is_none());
+        let m = Mesh::from_triangles(&[t]);
+        let b = m.bbox();
+        assert_eq!(b.max, P3::new(2.0, 1.0, 0.5));
+        assert_eq!(m.triangle(0), t);
+    }
+}
