@@ -1,5 +1,5 @@
 //! Fit one point file with the seed's curvature-matching method
-//! (`paths::arcfit_seed`) and with our biarcs (`paths::arcfit`, the same
+//! (`laser::arcfit_seed`) and with our biarcs (`laser::arcfit`, the same
 //! call `pathgen arcfit` makes; or, with `--fit`, take `pathgen arcfit`'s
 //! own output) and print one JSON object: block counts,
 //! deviation from the points (and with `--polyline-dev`, both ways from
@@ -15,11 +15,11 @@
 
 use microcam::formats::chains::ChainsReader;
 use microcam::geometry::{Arc3, P2, Plane};
+use microcam::laser::arcfit;
+use microcam::laser::arcfit::{Grid, elem_box};
+use microcam::laser::arcfit_seed::{SeedParams, fit_curvature_matching_with};
+use microcam::laser::elem::Elem;
 use microcam::model::chain::Segment;
-use microcam::paths::arcfit;
-use microcam::paths::arcfit::{Grid, elem_box};
-use microcam::paths::arcfit_seed::{SeedParams, fit_curvature_matching_with};
-use microcam::paths::elem::Elem;
 use serde_json::{Value, json};
 use std::io::Read;
 use std::time::Instant;

@@ -8,7 +8,8 @@
 //! - [`formats`]: the JSON Lines pipe formats, streaming.
 //! - [`gcode`]: ISO and PMAC G-code, read and written.
 //! - [`dxf`]: DXF import and chain detection.
-//! - [`paths`]: constant-velocity laser toolpaths from chains (contour,
+//! - [`machine`]: machine profiles (controller, stage, shutter, spindle) and the Turbo PMAC timing rule.
+//! - [`laser`]: constant-velocity laser toolpaths from chains (contour,
 //!   patterns, corner loops, cut order, shutter timing).
 //! - [`sim`]: what a program does on the machine: time, beam and material removal.
 //! - [`preview`]: SVG previews of toolpaths.
@@ -25,9 +26,10 @@ pub mod dxf;
 pub mod formats;
 pub mod gcode;
 pub mod geometry;
+pub mod laser;
+pub mod machine;
 pub mod mesh;
 pub mod model;
-pub mod paths;
 pub mod pmac;
 pub mod preview;
 pub mod sim;

@@ -8,11 +8,11 @@ use microcam::formats::chains::ChainsReader;
 use microcam::formats::toolpath::{StreamError, write_stream};
 use microcam::gcode::{Dialect, ReadOptions};
 use microcam::geometry::P3;
+use microcam::machine::{Controller, Machine, Overrides};
 use microcam::model::chain::Chain;
 use microcam::model::toolpath::{FeedUnit, Record};
 use microcam::preview::Preview;
 use microcam::sim::beam::CommandTiming;
-use microcam::sim::machine::{Controller, Machine, Overrides};
 use microcam::sim::picture::write_png;
 use microcam::sim::report::{SimError, Simulator, StepPlan};
 use microcam::sim::stl::write_stl;
@@ -87,8 +87,8 @@ struct Args {
     #[arg(long, value_parser = ["sync", "immediate"], default_value = "sync")]
     shutter_timing: String,
     /// Controller model, overriding the profile's.
-    #[arg(long, value_parser = ["pmac", "lookahead"])]
-    controller: Option<String>,
+    #[arg(long, value_enum)]
+    controller: Option<Controller>,
     /// PMAC acceleration time TA until the program sets one, ms.
     #[arg(long, allow_negative_numbers = true)]
     ta_ms: Option<f64>,
@@ -256,7 +256,7 @@ fn run(args: Args) -> Result<(), CliError> {
         });
         let mut machine = Machine::load(&spec).map_err(|e| CliError::input(e.to_string()))?;
         let overrides = Overrides {
-            controller: args.controller.as_deref().and_then(Controller::from_name),
+            controller: args.controller,
             ta_ms: args.ta_ms,
             ts_ms: args.ts_ms,
             accel_mm_s2: args.accel_mm_s2,

@@ -8,16 +8,17 @@ use microcam::gcode::writer::{GcodeWriter, WriteError, WriteOptions};
 use microcam::gcode::{Dialect, ReadOptions};
 use microcam::geometry::P2;
 use microcam::geometry::{P3, Plane};
+use microcam::laser::arcfit;
+use microcam::laser::contour::{ContourOptions, Direction, OrderMode, Warning, contour, contour_streamed};
+use microcam::laser::elem::Elem;
+use microcam::laser::input::read_chains;
+use microcam::laser::offset::Side;
+use microcam::laser::patterns;
+use microcam::laser::plan::{Tagged, all_cut, plan_paths};
+use microcam::laser::setup::LaserSetup;
+use microcam::machine::{Controller, Machine, pmac};
 use microcam::model::chain::{Chain, ChainsHeader, Segment};
 use microcam::model::toolpath::{FeedUnit, Header, Record};
-use microcam::paths::arcfit;
-use microcam::paths::contour::{ContourOptions, Direction, OrderMode, Warning, contour, contour_streamed};
-use microcam::paths::elem::Elem;
-use microcam::paths::input::read_chains;
-use microcam::paths::machine::{Controller, Machine};
-use microcam::paths::offset::Side;
-use microcam::paths::patterns;
-use microcam::paths::plan::{Tagged, all_cut, plan_paths};
 use microcam::source::ToolpathSource;
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -264,82 +265,108 @@ microcam.toolpath/1 (feeds in mm/s) or G-code with --gcode. Warnings
 (vanished offsets, cuts shorter than the minimum exposure, arcs tighter than
 V^2/a) go to stderr. Exit status: 0 ok, 1 failure, 2 bad usage or bad input.";
 
-/// The stage and shutter (defaults: seed 000's laser stage, Fig. 6-40).
+/// The stage and shutter: a machine profile (`--machine`, default the
+/// laser stage of Bayesteh 2013), then these flags over it.
 #[derive(ClapArgs)]
 struct MachineArgs {
+    /// Machine profile: a built-in name (laser-stage, lookahead) or a
+    /// microcam.machine/1 JSON file. Its acceleration time and shutter are
+    /// the defaults of the flags below.
+    #[arg(long, default_value = "laser-stage", value_name = "NAME|FILE")]
+    machine: String,
     /// Feed V while the beam is on (mm/s).
     #[arg(long, default_value_t = 2.0)]
     feed: f64,
-    /// Acceleration time TA (ms).
-    #[arg(long, default_value_t = 100.0)]
-    ta: f64,
-    /// Deceleration time TD (ms).
-    #[arg(long, default_value_t = 100.0)]
-    td: f64,
-    /// S-curve time TS (ms).
-    #[arg(long, default_value_t = 0.0)]
+    /// Acceleration time TA (ms). Default: the profile's (on a Turbo PMAC
+    /// its TA/TS rule; on a look-ahead planner V over its acceleration).
+    #[arg(long = "ta-ms", visible_alias = "ta", allow_negative_numbers = true)]
+    ta: Option<f64>,
+    /// Deceleration time TD (ms). Default: TA.
+    #[arg(long = "td-ms", visible_alias = "td", allow_negative_numbers = true)]
+    td: Option<f64>,
+    /// S-curve time TS (ms) written into the program.
+    #[arg(
+        long = "ts-ms",
+        visible_alias = "ts",
+        default_value_t = 0.0,
+        allow_negative_numbers = true
+    )]
     ts: f64,
     /// Acceleration (mm/s^2): sets TA = TD = V/a instead.
-    #[arg(long)]
+    #[arg(long = "accel-mm-s2", visible_alias = "accel", allow_negative_numbers = true)]
     accel: Option<f64>,
-    /// Shutter delay before opening starts (ms).
-    #[arg(long, default_value_t = 3.0)]
-    open_delay: f64,
-    /// Shutter transfer time to fully open (ms).
-    #[arg(long, default_value_t = 9.0)]
-    open_transfer: f64,
-    /// Shutter delay before closing starts (ms).
-    #[arg(long, default_value_t = 3.0)]
-    close_delay: f64,
-    /// Shutter transfer time to fully closed (ms).
-    #[arg(long, default_value_t = 14.0)]
-    close_transfer: f64,
-    /// Minimum exposure (ms); shorter cuts are reported.
-    #[arg(long, default_value_t = 15.0)]
-    min_exposure: f64,
+    /// Shutter delay before opening starts (ms). Default: the profile's.
+    #[arg(long, allow_negative_numbers = true)]
+    open_delay: Option<f64>,
+    /// Shutter transfer time to fully open (ms). Default: the profile's.
+    #[arg(long, allow_negative_numbers = true)]
+    open_transfer: Option<f64>,
+    /// Shutter delay before closing starts (ms). Default: the profile's.
+    #[arg(long, allow_negative_numbers = true)]
+    close_delay: Option<f64>,
+    /// Shutter transfer time to fully closed (ms). Default: the profile's.
+    #[arg(long, allow_negative_numbers = true)]
+    close_transfer: Option<f64>,
+    /// Minimum exposure (ms); shorter cuts are reported. Default: the profile's.
+    #[arg(long, allow_negative_numbers = true)]
+    min_exposure: Option<f64>,
     /// Corners turning less than this (degrees) are tangent: no loop.
     #[arg(long, default_value_t = 0.5)]
     tangent_tol: f64,
     /// Controller the program is planned for: pmac (M33== acts where the
     /// blend into its block starts; blocks at V get a short TA) or lookahead
-    /// (commands act at block boundaries). Default: pmac, or lookahead with
-    /// --gcode iso.
-    #[arg(long, value_parser = ["pmac", "lookahead"])]
-    controller: Option<String>,
+    /// (commands act at block boundaries). Default: lookahead with --gcode
+    /// iso, else the profile's.
+    #[arg(long, value_enum)]
+    controller: Option<Controller>,
     /// PMAC: TA (whole ms) of the blocks at V between a path's ramps.
     /// Default: 2 × the close delay, so the close command sits on the
     /// boundary at the cut end.
-    #[arg(long)]
+    #[arg(long = "cut-ta-ms", visible_alias = "cut-ta")]
     cut_ta: Option<f64>,
 }
 
 impl MachineArgs {
-    /// The machine; `gcode` is the dialect written, which picks the
-    /// controller when `--controller` is not given.
-    fn machine(&self, gcode: Option<&str>) -> Result<Machine, CliError> {
-        let controller = match (self.controller.as_deref(), gcode) {
-            (Some("lookahead"), _) | (None, Some("iso")) => Controller::Lookahead,
-            _ => Controller::Pmac,
+    /// The laser setup: the profile, then the flags; `gcode` is the dialect
+    /// written, which picks the controller when `--controller` is not given.
+    fn machine(&self, gcode: Option<&str>) -> Result<LaserSetup, CliError> {
+        let profile = Machine::load(&self.machine).map_err(|e| CliError::input(format!("--machine: {e}")))?;
+        let shutter = profile.shutter.clone().ok_or_else(|| {
+            CliError::input(format!(
+                "--machine: profile '{}' has no shutter section; the laser strategies need one",
+                profile.name
+            ))
+        })?;
+        let controller = match (self.controller, gcode) {
+            (Some(c), _) => c,
+            (None, Some("iso")) => Controller::Lookahead,
+            (None, _) => profile.controller,
         };
-        let mut m = Machine {
+        let profile_ta_ms = match profile.controller {
+            Controller::Pmac => 1000.0 * pmac::accel_time_s(profile.ta_ms, profile.ts_ms),
+            Controller::Lookahead => 1000.0 * self.feed / profile.accel_mm_s2,
+        };
+        let ta = self.ta.unwrap_or(profile_ta_ms);
+        let close_delay = self.close_delay.unwrap_or(shutter.close_delay_ms);
+        let mut m = LaserSetup {
             feed: self.feed,
-            ta_ms: self.ta,
-            td_ms: self.td,
+            ta_ms: ta,
+            td_ms: self.td.unwrap_or(ta),
             ts_ms: self.ts,
-            open_delay_ms: self.open_delay,
-            open_transfer_ms: self.open_transfer,
-            close_delay_ms: self.close_delay,
-            close_transfer_ms: self.close_transfer,
-            min_exposure_ms: self.min_exposure,
+            open_delay_ms: self.open_delay.unwrap_or(shutter.open_delay_ms),
+            open_transfer_ms: self.open_transfer.unwrap_or(shutter.open_transfer_ms),
+            close_delay_ms: close_delay,
+            close_transfer_ms: self.close_transfer.unwrap_or(shutter.close_transfer_ms),
+            min_exposure_ms: self.min_exposure.unwrap_or(shutter.min_exposure_ms),
             tangent_tol_deg: self.tangent_tol,
             controller,
             cut_ta_ms: self
                 .cut_ta
-                .unwrap_or((2.0 * self.close_delay).clamp(1.0, self.ta.max(self.td).max(1.0))),
+                .unwrap_or((2.0 * close_delay).clamp(1.0, ta.max(self.td.unwrap_or(ta)).max(1.0))),
         };
         if let Some(a) = self.accel {
             if !(a.is_finite() && a > 0.0) {
-                return Err(CliError::input(format!("--accel must be positive, got {a}")));
+                return Err(CliError::input(format!("--accel-mm-s2 must be positive, got {a}")));
             }
             m = m.with_accel(a);
         }
@@ -586,7 +613,7 @@ fn warn_all(warnings: &[Warning]) {
 
 /// Write generated records as a toolpath or, with `--gcode`, as G-code
 /// through the same writer as `emit`; the SVG preview goes beside.
-fn short_note(short: usize, total: usize, m: &Machine) {
+fn short_note(short: usize, total: usize, m: &LaserSetup) {
     if short > 0 {
         eprintln!(
             "pathgen: note: {short} of {total} feed moves last less than 1 ms at V ({:.6} mm); a Turbo PMAC \
@@ -598,12 +625,12 @@ fn short_note(short: usize, total: usize, m: &Machine) {
 
 /// Write generated records as a toolpath or, with `--gcode`, as G-code
 /// through the same writer as `emit`; the SVG preview goes beside.
-fn write_generated(records: &[Record], o: &GenOutput, source: Option<String>, m: &Machine) -> Result<(), CliError> {
-    let (short, total) = microcam::paths::audit::stretched_blocks(records, m, P3::origin());
+fn write_generated(records: &[Record], o: &GenOutput, source: Option<String>, m: &LaserSetup) -> Result<(), CliError> {
+    let (short, total) = microcam::laser::audit::stretched_blocks(records, m, P3::origin());
     short_note(short, total, m);
     if let Some(path) = &o.svg {
         let mut svg = Output::new(Some(path));
-        microcam::paths::svg::write_svg(&mut svg, records, m).map_err(CliError::from)?;
+        microcam::laser::svg::write_svg(&mut svg, records, m).map_err(CliError::from)?;
         svg.commit()?;
     }
     let mut out = Output::new(o.output.as_deref());
@@ -714,7 +741,7 @@ fn contour_cmd(a: ContourArgs) -> Result<(), CliError> {
     let mut warnings = Vec::new();
     write_streamed(&a.out, source, |sink| {
         warnings = contour_streamed(&chains, &m, &o, |chunk| {
-            let (s, t) = microcam::paths::audit::stretched_blocks(&chunk, &m, P3::origin());
+            let (s, t) = microcam::laser::audit::stretched_blocks(&chunk, &m, P3::origin());
             short += s;
             total += t;
             sink(chunk)
@@ -732,7 +759,7 @@ fn contour_cmd(a: ContourArgs) -> Result<(), CliError> {
     Ok(())
 }
 
-fn finish_pattern(paths: Vec<Tagged>, m: &Machine, out: &GenOutput, what: &str) -> Result<(), CliError> {
+fn finish_pattern(paths: Vec<Tagged>, m: &LaserSetup, out: &GenOutput, what: &str) -> Result<(), CliError> {
     let (records, notes) = plan_paths(&paths, m, None);
     if records.is_empty() {
         eprintln!("pathgen: warning: {what}: nothing to cut with these sizes");
@@ -909,7 +936,7 @@ fn audit_cmd(a: AuditArgs) -> Result<(), CliError> {
         }
         records.push(r);
     }
-    let au = microcam::paths::audit::audit(&records, &m, P3::origin());
+    let au = microcam::laser::audit::audit(&records, &m, P3::origin());
     // Radii within the printing precision of V²/a pass; G-code carries no
     // roles, so exposure is checked only when cut runs are marked.
     let r_min = m.feed * m.feed / au.max_accel_off_cut;

@@ -308,9 +308,9 @@ pub fn offset_counter(line: &str, var: &str, offset: u64) -> String {
 /// program the model refuses (outside the profile's travel, say) falls back
 /// to a plain sum of max(L/F, TA) per move.
 pub fn estimate(records: &[Record], start: P3, unit: FeedUnit) -> f64 {
+    use crate::machine::Machine;
     use crate::model::toolpath::Header;
     use crate::sim::beam::CommandTiming;
-    use crate::sim::machine::Machine;
     use crate::sim::report::Simulator;
     let header = Header {
         feed_unit: unit,

@@ -15,7 +15,7 @@
 //!
 //! The shutter then passes the beam from `open_delay + open_transfer/2`
 //! after an open command until `close_delay + close_transfer/2` after a
-//! close command (see [`Shutter`](super::machine::Shutter)). Path length
+//! close command (see [`Shutter`](crate::machine::Shutter)). Path length
 //! covered while the beam passes is exposed; exposed length on beam-off
 //! moves is over-exposure, unexposed length on beam-on moves is the drawing
 //! left uncut.
@@ -30,9 +30,9 @@
 //! latest move, so moves that ended before that (plus the shortest latency)
 //! are settled and dropped; memory holds a few moves and one record per cut.
 
-use super::machine::Shutter;
 use super::time::{MAX_PIECES, Piece, TimedBlock};
 use crate::geometry::{Arc3, Line3, P3, Plane};
+use crate::machine::Shutter;
 use crate::model::chain::{Chain, Segment};
 use crate::model::toolpath::ShutterSwitch;
 use std::collections::{HashMap, VecDeque};
@@ -487,7 +487,7 @@ pub fn match_chains(cuts: &[Cut], chains: &[Chain], tol: f64) -> (Vec<Option<usi
 mod tests {
     use super::*;
     use crate::geometry::V3;
-    use crate::sim::machine::{Controller, Machine};
+    use crate::machine::{Controller, Machine};
     use crate::sim::time::{Block, Event, MoveClass, TimeModel};
 
     fn machine(c: Controller) -> Machine {
@@ -503,7 +503,7 @@ mod tests {
     /// Collinear moves along X: (length, feed, beam).
     fn run(m: &Machine, timing: CommandTiming, moves: &[(f64, f64, bool)]) -> BeamModel {
         let mut tm = TimeModel::new(m);
-        let mut bm = BeamModel::new(&m.shutter, timing);
+        let mut bm = BeamModel::new(&m.shutter_or_instant(), timing);
         bm.keep_probes = true;
         let mut x = 0.0;
         for (i, &(l, f, beam)) in moves.iter().enumerate() {

@@ -1,7 +1,6 @@
 //! Simulation of a toolpath: what the machine will do with a program.
 //!
 //! - [`summary`]: path lengths, counts and extents, one pass, constant memory.
-//! - [`machine`]: machine profiles (controller model, limits, latencies).
 //! - [`time`]: motion time per block under the PMAC or look-ahead model.
 //! - [`beam`]: where the shutter really passes the beam, per cut.
 //! - [`stock`]: material removal on a height-field stock.
@@ -10,7 +9,6 @@
 //! - [`report`]: all of it in one streaming pass, and the gsim report.
 
 pub mod beam;
-pub mod machine;
 pub mod picture;
 pub mod report;
 pub mod stl;

@@ -3,7 +3,6 @@
 //! goes. Constant memory apart from one record per cut.
 
 use super::beam::{BeamModel, ChainExposure, CommandTiming, EXAMPLES, match_chains};
-use super::machine::{Controller, Machine};
 use super::picture::Overlay;
 use super::stock::Stock;
 use super::summary::Summary;
@@ -11,6 +10,7 @@ use super::time::{Block, Event, Limit, MoveClass, TimeModel, TimedBlock};
 use crate::cutter::Cutter;
 use crate::formats::{push_num, push_str_lit, push_uint};
 use crate::geometry::{Arc3, BBox3, P3, V3};
+use crate::machine::{Controller, Machine};
 use crate::model::chain::Chain;
 use crate::model::toolpath::{Header, MotionKind, Record};
 use std::io::Write;
@@ -156,7 +156,7 @@ impl<W: Write> Simulator<W> {
             index: 0,
             summary: Summary::new(header.feed_unit, start),
             time: TimeModel::new(&machine),
-            beam: BeamModel::new(&machine.shutter, timing),
+            beam: BeamModel::new(&machine.shutter_or_instant(), timing),
             stats: TimeStats::default(),
             blocks_csv: csv,
             row,
@@ -754,8 +754,16 @@ impl Report {
         b.push_str(",\"beam\":{\"command_timing\":\"");
         b.push_str(m.timing.name());
         b.push('"');
-        field(b, "open_latency_ms", self.machine.shutter.open_latency_s() * 1e3);
-        field(b, "close_latency_ms", self.machine.shutter.close_latency_s() * 1e3);
+        field(
+            b,
+            "open_latency_ms",
+            self.machine.shutter_or_instant().open_latency_s() * 1e3,
+        );
+        field(
+            b,
+            "close_latency_ms",
+            self.machine.shutter_or_instant().close_latency_s() * 1e3,
+        );
         field(b, "shutter_opens", m.opens as f64);
         field(b, "shutter_open_time_s", m.light_time_s);
         field(b, "intended_length_mm", m.intended_mm());

@@ -363,7 +363,7 @@ pub fn fit_curvature_matching_with(points: &[P2], tol: f64, z: f64, params: &See
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::paths::arcfit::point_deviation;
+    use crate::laser::arcfit::point_deviation;
     use std::f64::consts::TAU;
 
     /// Largest distance from `n` samples per piece to the true curve, given

@@ -1,10 +1,10 @@
 //! `pathgen contour`: chains -> offset paths -> ordered, planned moves.
 
 use super::elem::Elem;
-use super::machine::Machine;
 use super::offset::{Side, offset_chain, to_polyline};
 use super::order;
 use super::plan::{Note, plan_path, to_records};
+use super::setup::LaserSetup;
 use crate::geometry::{P2, P3, V3};
 use crate::model::chain::Chain;
 use crate::model::toolpath::Record;
@@ -210,7 +210,7 @@ fn nesting(chains: &[Chain]) -> Vec<(usize, usize)> {
 }
 
 /// Plan a whole contour job.
-pub fn contour(chains: &[Chain], m: &Machine, o: &ContourOptions) -> Job {
+pub fn contour(chains: &[Chain], m: &LaserSetup, o: &ContourOptions) -> Job {
     let (items, plan, warnings) = prepare(chains, m, o);
     let mut job = Job {
         records: vec![super::plan::ramps_record(m)],
@@ -226,7 +226,7 @@ pub fn contour(chains: &[Chain], m: &Machine, o: &ContourOptions) -> Job {
 
 /// Offsets, nesting and order: the paths to plan, as (item, shift) in
 /// cutting order, and the warnings so far.
-fn prepare(chains: &[Chain], m: &Machine, o: &ContourOptions) -> (Vec<Item>, Vec<(usize, V3)>, Vec<Warning>) {
+fn prepare(chains: &[Chain], m: &LaserSetup, o: &ContourOptions) -> (Vec<Item>, Vec<(usize, V3)>, Vec<Warning>) {
     let nest = nesting(chains);
     let per_chain: Vec<(Vec<Vec<Elem>>, Option<Warning>)> = chains
         .par_iter()
@@ -303,7 +303,7 @@ fn prepare(chains: &[Chain], m: &Machine, o: &ContourOptions) -> (Vec<Item>, Vec
 fn plan_in_chunks(
     items: &[Item],
     plan: &[(usize, V3)],
-    m: &Machine,
+    m: &LaserSetup,
     chunk: usize,
     mut sink: impl FnMut(Vec<Record>) -> bool,
 ) -> Vec<Warning> {
@@ -353,7 +353,7 @@ fn plan_in_chunks(
 /// while the next chunk is planned and never holds the whole job.
 pub fn contour_streamed(
     chains: &[Chain],
-    m: &Machine,
+    m: &LaserSetup,
     o: &ContourOptions,
     sink: impl FnMut(Vec<Record>) -> bool,
 ) -> Vec<Warning> {

@@ -1,11 +1,19 @@
-//! Machine profiles: what the controller and the stage can do, read from a
-//! small JSON file (`microcam.machine/1`, see testdata/machines/) and
-//! adjusted by command-line flags.
+//! Machine profiles: what the controller, the stage, the shutter and the
+//! spindle can do, read from a small JSON file (`microcam.machine/1`, see
+//! testdata/machines/ and docs/machines.md) and adjusted by command-line
+//! flags the same way in every tool (`--machine NAME|FILE`, then flags).
 //!
 //! A profile names its controller model, because the same program runs very
 //! differently on a Turbo PMAC (fixed acceleration *time*, blended moves,
-//! short moves stretched) than on a grbl/Klipper-style look-ahead planner
-//! (fixed acceleration *rate*, junction speeds).
+//! short moves stretched: [`pmac`]) than on a grbl/Klipper-style look-ahead
+//! planner (fixed acceleration *rate*, junction speeds). A laser machine
+//! has a `shutter` section, a mill a `spindle` section; the figures of the
+//! cutter (diameter, flutes) come from the tool, not the machine.
+//!
+//! This module sits below the planners and the simulator: the laser
+//! planner, pathgen, gsim, feedopt and pmac-send all read the same profile.
+
+pub mod pmac;
 
 use serde::Deserialize;
 use std::path::Path;
@@ -32,7 +40,7 @@ pub enum MachineError {
 }
 
 /// The controller's motion model.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, clap::ValueEnum)]
 #[serde(rename_all = "snake_case")]
 pub enum Controller {
     /// Turbo PMAC LINEAR/CIRCLE blending: each move lasts at least the
@@ -45,23 +53,18 @@ pub enum Controller {
 }
 
 impl Controller {
+    /// The name profiles and flags use.
     pub fn name(self) -> &'static str {
         match self {
             Controller::Pmac => "pmac",
             Controller::Lookahead => "lookahead",
         }
     }
-
-    pub fn from_name(s: &str) -> Option<Self> {
-        match s {
-            "pmac" => Some(Controller::Pmac),
-            "lookahead" => Some(Controller::Lookahead),
-            _ => None,
-        }
-    }
 }
 
-/// Shutter latencies, milliseconds (seed 000 Fig. 6-40 for the defaults).
+/// Shutter latencies, milliseconds (the laser stage's figures are those
+/// Bayesteh (2013) measured: 3 ms delay and 9 ms transfer to open, 3 ms
+/// delay and 14 ms transfer to close, 15 ms minimum exposure).
 #[derive(Debug, Clone, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Shutter {
@@ -78,6 +81,19 @@ pub struct Shutter {
 }
 
 impl Shutter {
+    /// A shutter that acts the instant it is commanded: what a profile
+    /// without a `shutter` section (a mill) is simulated with, so the
+    /// cutting state follows the program exactly.
+    pub fn instant() -> Shutter {
+        Shutter {
+            open_delay_ms: 0.0,
+            open_transfer_ms: 0.0,
+            close_delay_ms: 0.0,
+            close_transfer_ms: 0.0,
+            min_exposure_ms: 0.0,
+        }
+    }
+
     /// The beam is taken to pass from halfway through the opening transfer
     /// to halfway through the closing transfer: a half-open aperture passes
     /// about half the beam, so this threshold neither favours under- nor
@@ -126,7 +142,20 @@ pub struct Machine {
     /// Blocks per second the controller can compute; 0 = no limit. A block
     /// shorter in time than 1/rate starves the planner, so it lasts 1/rate.
     pub block_rate_hz: f64,
-    pub shutter: Shutter,
+    /// The laser's shutter; absent on a machine without one.
+    #[serde(default)]
+    pub shutter: Option<Shutter>,
+    /// The milling spindle; absent on a machine without one.
+    #[serde(default)]
+    pub spindle: Option<Spindle>,
+}
+
+/// A milling spindle's speed range (rev/min).
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Spindle {
+    pub min_rpm: f64,
+    pub max_rpm: f64,
 }
 
 /// Command-line adjustments of a profile.
@@ -172,7 +201,11 @@ impl Machine {
         }
     }
 
-    /// Apply flags, then re-check.
+    /// The shutter, or [`Shutter::instant`] when the profile has none.
+    pub fn shutter_or_instant(&self) -> Shutter {
+        self.shutter.clone().unwrap_or_else(Shutter::instant)
+    }
+
     /// Shortest time a block can take (s): the controller's block
     /// processing rate; 0 when the rate is unlimited (0 Hz in the profile).
     pub fn block_time_s(&self) -> f64 {
@@ -183,6 +216,7 @@ impl Machine {
         }
     }
 
+    /// Apply flags, then re-check.
     pub fn apply(&mut self, o: &Overrides) -> Result<(), MachineError> {
         if let Some(c) = o.controller {
             self.controller = c;
@@ -225,17 +259,29 @@ impl Machine {
                 return Err(format!("'{k}' must be a positive number, got {v}"));
             }
         }
-        let non_negative = [
+        let mut non_negative = vec![
             ("junction_deviation_mm", self.junction_deviation_mm),
             ("ta_ms", self.ta_ms),
             ("ts_ms", self.ts_ms),
             ("block_rate_hz", self.block_rate_hz),
-            ("shutter.open_delay_ms", self.shutter.open_delay_ms),
-            ("shutter.open_transfer_ms", self.shutter.open_transfer_ms),
-            ("shutter.close_delay_ms", self.shutter.close_delay_ms),
-            ("shutter.close_transfer_ms", self.shutter.close_transfer_ms),
-            ("shutter.min_exposure_ms", self.shutter.min_exposure_ms),
         ];
+        if let Some(sh) = &self.shutter {
+            non_negative.extend([
+                ("shutter.open_delay_ms", sh.open_delay_ms),
+                ("shutter.open_transfer_ms", sh.open_transfer_ms),
+                ("shutter.close_delay_ms", sh.close_delay_ms),
+                ("shutter.close_transfer_ms", sh.close_transfer_ms),
+                ("shutter.min_exposure_ms", sh.min_exposure_ms),
+            ]);
+        }
+        if let Some(sp) = &self.spindle
+            && !(sp.min_rpm.is_finite() && sp.max_rpm.is_finite() && 0.0 < sp.min_rpm && sp.min_rpm <= sp.max_rpm)
+        {
+            return Err(format!(
+                "'spindle' speeds {}..{} rpm are not a positive range",
+                sp.min_rpm, sp.max_rpm
+            ));
+        }
         for (k, v) in non_negative {
             if !(v.is_finite() && v >= 0.0) {
                 return Err(format!("'{k}' must be a number >= 0, got {v}"));
@@ -262,12 +308,6 @@ impl Machine {
         }
         Ok(())
     }
-
-    /// Effective PMAC acceleration time (s) for TA and TS in ms: the S-curve
-    /// needs 2·TS, so a TA shorter than that is lengthened (Turbo PMAC rule).
-    pub fn pmac_accel_time_s(ta_ms: f64, ts_ms: f64) -> f64 {
-        ta_ms.max(2.0 * ts_ms) * 1e-3
-    }
 }
 
 #[cfg(test)]
@@ -282,13 +322,17 @@ mod tests {
         }
         let laser = Machine::builtin("laser-stage");
         assert_eq!(laser.controller, Controller::Pmac);
-        // Seed 000 Fig. 6-40: 3 ms delay + 9 ms transfer to open, 14 ms to close.
-        assert_eq!(laser.shutter.open_delay_ms + laser.shutter.open_transfer_ms, 12.0);
-        assert_eq!(laser.shutter.close_transfer_ms, 14.0);
-        assert_eq!(laser.shutter.min_exposure_ms, 15.0);
+        // Bayesteh (2013): 3 ms delay + 9 ms transfer to open, 14 ms to close.
+        let sh = laser.shutter.as_ref().unwrap();
+        assert_eq!(sh.open_delay_ms + sh.open_transfer_ms, 12.0);
+        assert_eq!(sh.close_transfer_ms, 14.0);
+        assert_eq!(sh.min_exposure_ms, 15.0);
         let mill = Machine::builtin("micro-mill");
+        assert!(mill.shutter.is_none());
+        let sp = mill.spindle.as_ref().unwrap();
+        assert_eq!((sp.min_rpm, sp.max_rpm), (10_000.0, 80_000.0));
         // 0.4 mm at 3 mm/s: about 133 ms.
-        let t = Machine::pmac_accel_time_s(mill.ta_ms, mill.ts_ms);
+        let t = pmac::accel_time_s(mill.ta_ms, mill.ts_ms);
         assert!((t * 3.0 - 0.4).abs() < 0.005, "{t}");
         assert_eq!(Machine::builtin("lookahead").controller, Controller::Lookahead);
     }
@@ -307,11 +351,5 @@ mod tests {
             ..Default::default()
         };
         assert!(m.apply(&o).unwrap_err().to_string().contains("axis Y"));
-    }
-
-    #[test]
-    fn accel_time_follows_the_s_curve_rule() {
-        assert_eq!(Machine::pmac_accel_time_s(100.0, 20.0), 0.1);
-        assert_eq!(Machine::pmac_accel_time_s(10.0, 50.0), 0.1);
     }
 }

@@ -6,8 +6,8 @@
 use super::audit::{Audit, audit};
 use super::contour::{ContourOptions, contour};
 use super::elem::Elem;
-use super::machine::Machine;
 use super::offset::{Side, chain_elems};
+use super::setup::LaserSetup;
 use crate::formats::chains::ChainsReader;
 use crate::geometry::{P3, V3};
 use crate::model::chain::{Chain, Segment};
@@ -77,7 +77,7 @@ pub(crate) fn random_drawing(n: usize, seed: u64) -> Vec<Chain> {
 /// `exposure_tol`: how far (mm) the shutter may act off a cut end. Exact
 /// (1e-6) unless the drawing has pieces shorter than 1 ms at V beside a
 /// switch point, where pathgen reports the offset (at most V·1 ms).
-fn check_physics(a: &Audit, m: &Machine, exposure_tol: f64) {
+fn check_physics(a: &Audit, m: &LaserSetup, exposure_tol: f64) {
     assert_eq!(a.off_feed_moves, 0, "every feed move at V");
     assert_eq!(a.corners_at_speed, 0, "no corner taken at speed");
     assert!(
@@ -107,7 +107,7 @@ fn check_physics(a: &Audit, m: &Machine, exposure_tol: f64) {
 /// Moves a Turbo PMAC would stretch: each must be a cut piece of the
 /// drawing itself shorter than 1 ms at V (never a lead, a loop or a piece
 /// pathgen split).
-fn only_short_drawing_pieces_stretched(recs: &[Record], m: &Machine, drawing: &[Elem]) {
+fn only_short_drawing_pieces_stretched(recs: &[Record], m: &LaserSetup, drawing: &[Elem]) {
     let short: Vec<f64> = drawing
         .iter()
         .map(Elem::length)
@@ -123,7 +123,7 @@ fn only_short_drawing_pieces_stretched(recs: &[Record], m: &Machine, drawing: &[
         let Record::Move(mv) = r else { continue };
         if let Some(e) = super::audit::feed_elem(pos, mv) {
             let len = e.length();
-            if m.controller == super::machine::Controller::Pmac && ta.stretches(len, m.feed) {
+            if m.controller == crate::machine::Controller::Pmac && ta.stretches(len, m.feed) {
                 n += 1;
                 assert_eq!(mv.role, Some(Role::Cut), "a stretched {len} mm {:?} move", mv.role);
                 assert!(
@@ -147,7 +147,7 @@ fn offset_length(c: &Chain, side: Side, d: f64) -> f64 {
 
 #[test]
 fn plate_outside_two_levels_two_copies() {
-    let m = Machine::default();
+    let m = LaserSetup::default();
     let chains = plate();
     let o = ContourOptions {
         side: Side::Outside,
@@ -215,7 +215,7 @@ fn dist_to_chain(p: &P3, c: &Chain) -> f64 {
 
 #[test]
 fn cuts_run_at_the_offset_distance() {
-    let m = Machine::default();
+    let m = LaserSetup::default();
     let chains = plate();
     for (side, d) in [(Side::Outside, 0.005), (Side::Inside, 0.05), (Side::On, 0.0)] {
         let job = contour(
@@ -264,28 +264,28 @@ fn cuts_run_at_the_offset_distance() {
 #[test]
 fn random_drawings_obey_the_machine() {
     for (seed, m) in [
-        (3u64, Machine::default()),
-        (11, Machine::default().with_accel(500.0)),
+        (3u64, LaserSetup::default()),
+        (11, LaserSetup::default().with_accel(500.0)),
         (
             17,
-            Machine {
+            LaserSetup {
                 feed: 5.0,
                 ts_ms: 60.0,
-                ..Machine::default()
+                ..LaserSetup::default()
             },
         ),
         (
             23,
-            Machine {
+            LaserSetup {
                 cut_ta_ms: 25.0,
-                ..Machine::default()
+                ..LaserSetup::default()
             },
         ),
         (
             31,
-            Machine {
-                controller: super::machine::Controller::Lookahead,
-                ..Machine::default()
+            LaserSetup {
+                controller: crate::machine::Controller::Lookahead,
+                ..LaserSetup::default()
             },
         ),
     ] {
@@ -326,7 +326,7 @@ fn random_drawings_obey_the_machine() {
 
 #[test]
 fn planning_is_deterministic() {
-    let m = Machine::default();
+    let m = LaserSetup::default();
     let chains = random_drawing(200, 5);
     let o = ContourOptions {
         side: Side::Outside,
@@ -341,7 +341,7 @@ fn patterns_obey_the_machine() {
     use super::patterns::*;
     use super::plan::{all_cut, plan_paths};
     use crate::geometry::Plane;
-    let m = Machine::default().with_accel(200.0);
+    let m = LaserSetup::default().with_accel(200.0);
     let c = P3::new(1.0, 1.0, 0.0);
     let zz = |plane, along_second, width, step, corner_radius| Zigzag {
         origin: c,
@@ -404,7 +404,7 @@ fn patterns_obey_the_machine() {
 
 #[test]
 fn degenerate_chains_are_dropped_not_panicked_on() {
-    let m = Machine::default();
+    let m = LaserSetup::default();
     let z = P3::origin();
     let chains = vec![
         Chain {

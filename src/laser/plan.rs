@@ -16,8 +16,9 @@
 
 use super::dubins::corner_loop;
 use super::elem::{Elem, MIN_PIECE};
-use super::machine::{BLOCK_MARGIN, Controller, Machine};
+use super::setup::{BLOCK_MARGIN, LaserSetup};
 use crate::geometry::{P3, Plane, V2};
+use crate::machine::Controller;
 use crate::model::toolpath::{Motion, MotionKind, Record, Role};
 
 /// A path whose pieces carry their role (cut, or a beam-off connection).
@@ -87,7 +88,7 @@ impl std::fmt::Display for Note {
 
 /// Plan one cut path. `path` is continuous; `closed` paths end where they
 /// start (the seam gets a lead-out and the next pass its own lead-in).
-pub fn plan_path(path: &[Elem], m: &Machine, notes: &mut Vec<Note>) -> Vec<Piece> {
+pub fn plan_path(path: &[Elem], m: &LaserSetup, notes: &mut Vec<Note>) -> Vec<Piece> {
     let tagged: Vec<(Elem, Role)> = path.iter().map(|e| (*e, Role::Cut)).collect();
     plan_tagged(&tagged, m, notes)
 }
@@ -95,7 +96,7 @@ pub fn plan_path(path: &[Elem], m: &Machine, notes: &mut Vec<Note>) -> Vec<Piece
 /// Plan a path whose pieces are cuts or beam-off connections the caller
 /// already shaped (zigzag turnarounds: role `Loop` or `Link`, tangent to
 /// their neighbours). Loops are added only between two cut pieces.
-pub fn plan_tagged(path: &[(Elem, Role)], m: &Machine, notes: &mut Vec<Note>) -> Vec<Piece> {
+pub fn plan_tagged(path: &[(Elem, Role)], m: &LaserSetup, notes: &mut Vec<Note>) -> Vec<Piece> {
     let path: Vec<(Elem, Role)> = path.iter().copied().filter(|e| e.0.length() > MIN_PIECE).collect();
     let (Some((first, _)), Some((last, _))) = (path.first(), path.last()) else {
         return Vec::new();
@@ -210,7 +211,7 @@ fn loop_plane(a: &Elem, b: &Elem) -> Plane {
 /// run of cut pieces [s0, s1] becomes [s0 - open lead, s1 - close lead], so
 /// that the shutter, commanded at V, is fully open from s0 and starts to
 /// close at s1. Cuts shorter than the minimum exposure are noted.
-fn commanded_on(pieces: &[Piece], lens: &[f64], m: &Machine, notes: &mut Vec<Note>) -> Vec<(f64, f64)> {
+fn commanded_on(pieces: &[Piece], lens: &[f64], m: &LaserSetup, notes: &mut Vec<Note>) -> Vec<(f64, f64)> {
     let mut on: Vec<(f64, f64)> = Vec::new();
     let mut s = 0.0;
     let mut run: Option<f64> = None;
@@ -243,7 +244,7 @@ fn commanded_on(pieces: &[Piece], lens: &[f64], m: &Machine, notes: &mut Vec<Not
 
 /// Look-ahead controllers switch at the block boundary: split the pieces
 /// exactly where the commands must act.
-fn time_shutter(pieces: Vec<Piece>, m: &Machine, notes: &mut Vec<Note>) -> Vec<Piece> {
+fn time_shutter(pieces: Vec<Piece>, m: &LaserSetup, notes: &mut Vec<Note>) -> Vec<Piece> {
     // Arc lengths cost an atan2 each; a million-segment job asks them once.
     let lens: Vec<f64> = pieces.iter().map(|p| p.elem.length()).collect();
     let cmd = commanded_on(&pieces, &lens, m, notes);
@@ -338,7 +339,7 @@ struct Placement {
 /// the boundary is shorter than t and the block before allows it. Then
 /// every block gets its TA: min(cut TA, its own time, the time of the block
 /// before), so that no block is stretched and two blends never overlap.
-fn time_shutter_pmac(pieces: Vec<Piece>, m: &Machine, notes: &mut Vec<Note>) -> Vec<Piece> {
+fn time_shutter_pmac(pieces: Vec<Piece>, m: &LaserSetup, notes: &mut Vec<Note>) -> Vec<Piece> {
     let lens: Vec<f64> = pieces.iter().map(|p| p.elem.length()).collect();
     let cmd = commanded_on(&pieces, &lens, m, notes);
     let v = m.feed;
@@ -464,7 +465,7 @@ fn whole_ta(tac: u32, d: f64) -> u32 {
 /// enough for its ramp. Among the best positions the largest t wins. The
 /// answer is exact wherever the pieces near `c` are at least 1 ms long at
 /// V; next to shorter drawing pieces it may act up to V·1 ms off.
-fn place(slots: &[Slot], c: f64, last_b: f64, m: &Machine) -> Option<(Placement, f64)> {
+fn place(slots: &[Slot], c: f64, last_b: f64, m: &LaserSetup) -> Option<(Placement, f64)> {
     let v = m.feed;
     let tac = m.cut_ta();
     let q = BLOCK_MARGIN;
@@ -555,7 +556,7 @@ fn place(slots: &[Slot], c: f64, last_b: f64, m: &Machine) -> Option<(Placement,
 /// link to the lead-in start. For a PMAC, an `accel` record goes before
 /// every block whose pace differs from the one before; every path starts
 /// and ends on the machine's ramps, so the state between paths is those.
-pub fn to_records(pieces: &[Piece], m: &Machine, chain: Option<u64>, out: &mut Vec<Record>) {
+pub fn to_records(pieces: &[Piece], m: &LaserSetup, chain: Option<u64>, out: &mut Vec<Record>) {
     let Some(first) = pieces.first() else { return };
     out.push(Record::Move(Motion {
         kind: MotionKind::Rapid,
@@ -598,7 +599,7 @@ pub fn to_records(pieces: &[Piece], m: &Machine, chain: Option<u64>, out: &mut V
 /// The program's TA/TS, first in every generated job: the lead-in and
 /// lead-out lengths assume these ramps, so the controller must not run
 /// with whatever Isx87/Isx88 it happens to hold.
-pub fn ramps_record(m: &Machine) -> Record {
+pub fn ramps_record(m: &LaserSetup) -> Record {
     Record::Accel {
         ta_ms: Some(m.program_ta_ms()),
         ts_ms: Some(m.ts_ms),
@@ -608,7 +609,7 @@ pub fn ramps_record(m: &Machine) -> Record {
 
 /// Plan several tagged paths in order, each with its own leads and shutter
 /// timing, joined by rapids. Pattern generators use this.
-pub fn plan_paths(paths: &[Vec<(Elem, Role)>], m: &Machine, chain: Option<u64>) -> (Vec<Record>, Vec<Note>) {
+pub fn plan_paths(paths: &[Vec<(Elem, Role)>], m: &LaserSetup, chain: Option<u64>) -> (Vec<Record>, Vec<Note>) {
     let mut notes = Vec::new();
     let mut recs = vec![ramps_record(m)];
     for p in paths {

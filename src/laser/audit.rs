@@ -10,9 +10,10 @@
 //! controller acts at the boundary.
 
 use super::elem::Elem;
-use super::machine::{Controller, Machine};
+use super::setup::LaserSetup;
 use crate::geometry::P3;
 use crate::geometry::arc::Arc3;
+use crate::machine::Controller;
 use crate::model::toolpath::{Motion, MotionKind, Record, Role};
 use std::collections::BTreeMap;
 
@@ -64,7 +65,7 @@ pub struct PmacTa {
 
 impl PmacTa {
     /// At the start of a job: the machine's ramps.
-    pub fn new(m: &Machine) -> PmacTa {
+    pub fn new(m: &LaserSetup) -> PmacTa {
         PmacTa {
             ta_ms: m.program_ta_ms(),
             ts_ms: m.ts_ms,
@@ -84,13 +85,13 @@ impl PmacTa {
     /// The acceleration time (s): TA rounded to whole ms (at least 1), or
     /// 2·TS when that is longer.
     pub fn accel_s(&self) -> f64 {
-        self.ta_ms.round().max(1.0).max(2.0 * self.ts_ms) / 1000.0
+        crate::machine::pmac::accel_time_s(self.ta_ms, self.ts_ms)
     }
 
     /// Whether a block `len` mm long at `feed` mm/s lasts less than the
     /// acceleration time, so that the controller stretches it.
     pub fn stretches(&self, len: f64, feed: f64) -> bool {
-        len / feed < self.accel_s() * (1.0 - 1e-9) - 1e-12
+        crate::machine::pmac::stretches(len, feed, self.ta_ms, self.ts_ms)
     }
 }
 
@@ -108,7 +109,7 @@ pub fn feed_elem(pos: P3, mv: &Motion) -> Option<Elem> {
 }
 
 /// Audit `records` (starting at `start`) against `m`.
-pub fn audit(records: &[Record], m: &Machine, start: P3) -> Audit {
+pub fn audit(records: &[Record], m: &LaserSetup, start: P3) -> Audit {
     let mut a = Audit {
         min_run_before_open: f64::INFINITY,
         min_run_after_close: f64::INFINITY,
@@ -247,7 +248,7 @@ pub fn audit(records: &[Record], m: &Machine, start: P3) -> Audit {
 /// in force (a job, or a chunk of whole paths, which end on them). Only
 /// lengths and TAs are looked at, so this is cheap enough to run on every
 /// generated chunk.
-pub fn stretched_blocks(records: &[Record], m: &Machine, start: P3) -> (usize, usize) {
+pub fn stretched_blocks(records: &[Record], m: &LaserSetup, start: P3) -> (usize, usize) {
     let mut ta = PmacTa::new(m);
     let pmac = m.controller == Controller::Pmac;
     let mut pos = start;
@@ -288,7 +289,7 @@ mod tests {
 
     #[test]
     fn a_pmac_block_shorter_than_its_ta_is_stretched_and_m33_acts_at_the_blend() {
-        let m = Machine::default();
+        let m = LaserSetup::default();
         let accel = |ta: f64| Record::Accel {
             ta_ms: Some(ta),
             ts_ms: Some(0.0),
@@ -308,9 +309,9 @@ mod tests {
         assert_eq!(stretched_blocks(&recs, &m, P3::origin()), (1, 3));
         assert!((a.min_run_before_open - (0.3 - 0.006)).abs() < 1e-12);
         // A look-ahead controller acts at the boundary and stretches nothing.
-        let l = Machine {
+        let l = LaserSetup {
             controller: Controller::Lookahead,
-            ..Machine::default()
+            ..LaserSetup::default()
         };
         let a = audit(&recs, &l, P3::origin());
         assert_eq!(a.stretched_moves, 0);

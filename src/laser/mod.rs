@@ -1,7 +1,7 @@
 //! Laser toolpath strategies (seed 000 §6.1.3): constant-velocity,
 //! shutter-exact paths from chains and from parametric patterns.
 //!
-//! - [`machine`]: the stage and shutter facts planning obeys.
+//! - [`setup`]: the stage, shutter and feed a laser job is planned with, taken from a machine profile.
 //! - [`elem`]: exact path pieces that can be split and joined.
 //! - [`dubins`]: minimum-radius corner loops.
 
@@ -12,11 +12,11 @@ pub mod contour;
 pub mod dubins;
 pub mod elem;
 pub mod input;
-pub mod machine;
 pub mod offset;
 pub mod order;
 pub mod patterns;
 pub mod plan;
+pub mod setup;
 pub mod svg;
 
 #[cfg(test)]

@@ -2,7 +2,7 @@
 //! rapids in different colours, each pass's start marked and numbered in
 //! cutting order, with an arrow showing the direction.
 
-use super::machine::Machine;
+use super::setup::LaserSetup;
 use crate::formats::push_num;
 use crate::geometry::P3;
 use crate::geometry::bbox::BBox3;
@@ -22,7 +22,7 @@ fn style(beam: bool, role: Option<Role>, rapid: bool) -> (&'static str, &'static
 }
 
 /// Write the preview. Y is flipped so the drawing reads as in CAD.
-pub fn write_svg(out: &mut impl Write, records: &[Record], _m: &Machine) -> std::io::Result<()> {
+pub fn write_svg(out: &mut impl Write, records: &[Record], _m: &LaserSetup) -> std::io::Result<()> {
     let mut bb = BBox3::empty();
     for r in records {
         if let Some(m) = r.motion() {

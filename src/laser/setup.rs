@@ -1,11 +1,13 @@
-//! The machine and beam facts every laser strategy is planned against.
+//! The stage, shutter and feed every laser strategy is planned against: a
+//! [`LaserSetup`], made from a machine profile ([`crate::machine::Machine`])
+//! and pathgen's flags.
 //!
-//! Defaults are the laser stage of seed 000 (SPEC.md "Machine facts"): a
-//! Geo Brick LV with the shutter on `M33`, whose timing (Fig. 6-40) is 3 ms
-//! delay + 9 ms transfer to open, 3 ms delay + 14 ms transfer to close
-//! (29 ms window), 15 ms minimum exposure.
+//! Its `Default` is the laser stage of Bayesteh (2013): a Geo Brick LV with
+//! the shutter on `M33`, 3 ms delay + 9 ms transfer to open, 3 ms delay +
+//! 14 ms transfer to close (a 29 ms window), 15 ms minimum exposure, and
+//! 100 ms ramps (the `laser-stage` profile's Isx87/Isx88 rule).
 
-pub use crate::sim::machine::Controller;
+use crate::machine::Controller;
 use thiserror::Error;
 
 /// Positions are written to 4 decimals in PMAC text (0.1 µm), so a block
@@ -18,7 +20,7 @@ pub const BLOCK_MARGIN: f64 = 2.0 * WRITE_QUANTUM;
 
 /// Why a set of machine parameters cannot be planned with.
 #[derive(Debug, Error, PartialEq)]
-pub enum MachineError {
+pub enum SetupError {
     #[error("{0} must be a positive finite number, got {1}")]
     NotPositive(&'static str, f64),
     #[error("{0} must be a finite number >= 0, got {1}")]
@@ -28,7 +30,7 @@ pub enum MachineError {
 /// Stage and shutter parameters. Times in ms (as PMAC TA/TS are given),
 /// lengths in mm, speeds in mm/s.
 #[derive(Debug, Clone, PartialEq)]
-pub struct Machine {
+pub struct LaserSetup {
     /// Constant feed V while the beam is on (mm/s).
     pub feed: f64,
     /// Acceleration time TA (ms): 0 -> V takes this long.
@@ -61,9 +63,9 @@ pub struct Machine {
     pub cut_ta_ms: f64,
 }
 
-impl Default for Machine {
+impl Default for LaserSetup {
     fn default() -> Self {
-        Machine {
+        LaserSetup {
             feed: 2.0,
             ta_ms: 100.0,
             td_ms: 100.0,
@@ -83,9 +85,9 @@ impl Default for Machine {
     }
 }
 
-impl Machine {
+impl LaserSetup {
     /// Check every figure; planning with NaN or zero feed would loop or divide by zero.
-    pub fn validate(&self) -> Result<(), MachineError> {
+    pub fn validate(&self) -> Result<(), SetupError> {
         for (name, v) in [
             ("feed", self.feed),
             ("TA", self.ta_ms),
@@ -93,7 +95,7 @@ impl Machine {
             ("cut TA", self.cut_ta_ms),
         ] {
             if !(v.is_finite() && v > 0.0) {
-                return Err(MachineError::NotPositive(name, v));
+                return Err(SetupError::NotPositive(name, v));
             }
         }
         for (name, v) in [
@@ -106,22 +108,33 @@ impl Machine {
             ("tangency tolerance", self.tangent_tol_deg),
         ] {
             if !(v.is_finite() && v >= 0.0) {
-                return Err(MachineError::Negative(name, v));
+                return Err(SetupError::Negative(name, v));
             }
         }
         Ok(())
     }
 
     /// Set TA = TD from an acceleration (mm/s²): the time to reach V at it.
+    /// For a Turbo PMAC, which keeps TA in whole milliseconds, rounded up
+    /// so the stage never accelerates harder than `a`.
     pub fn with_accel(mut self, a: f64) -> Self {
-        self.ta_ms = 1000.0 * self.feed / a;
+        let t = 1000.0 * self.feed / a;
+        self.ta_ms = match self.controller {
+            Controller::Pmac => (t - 1e-9).ceil().max(1.0),
+            Controller::Lookahead => t,
+        };
         self.td_ms = self.ta_ms;
         self
     }
 
-    /// Effective ramp time (s) for `t_ms`: PMAC runs a ramp of 2·TS when TA < 2·TS.
+    /// Effective ramp time (s) for `t_ms`: on a Turbo PMAC the controller's
+    /// own rule ([`crate::machine::pmac::accel_time_s`]: whole ms, 2·TS
+    /// when longer); on a look-ahead planner `t_ms` or 2·TS.
     fn ramp_s(&self, t_ms: f64) -> f64 {
-        t_ms.max(2.0 * self.ts_ms) / 1000.0
+        match self.controller {
+            Controller::Pmac => crate::machine::pmac::accel_time_s(t_ms, self.ts_ms),
+            Controller::Lookahead => t_ms.max(2.0 * self.ts_ms) / 1000.0,
+        }
     }
 
     /// The stage's acceleration limit (mm/s²): V over the slower ramp. With
@@ -139,7 +152,12 @@ impl Machine {
     /// The TA written into programs: a Turbo PMAC has one TA for speeding
     /// up and slowing down, so the slower of TA and TD is used for both.
     pub fn program_ta_ms(&self) -> f64 {
-        self.ta_ms.max(self.td_ms)
+        let t = self.ta_ms.max(self.td_ms);
+        match self.controller {
+            // What the controller will run (whole ms), so the program says it.
+            Controller::Pmac => crate::machine::pmac::effective_ta_ms(t),
+            Controller::Lookahead => t,
+        }
     }
 
     /// Distance to reach V from rest (trapezoid: ½·V·TA, with the program's TA).
@@ -196,8 +214,8 @@ impl Machine {
     /// long enough for the shutter window, no piece shorter than
     /// [`min_block`](Self::min_block), its last piece at least
     /// [`switch_tail`](Self::switch_tail).
-    pub fn connection_shape(&self) -> crate::paths::dubins::Shape {
-        crate::paths::dubins::Shape {
+    pub fn connection_shape(&self) -> crate::laser::dubins::Shape {
+        crate::laser::dubins::Shape {
             min_len: self.shutter_window(),
             min_piece: self.min_block(),
             tail: self.switch_tail(),
@@ -271,7 +289,7 @@ mod tests {
 
     #[test]
     fn defaults_follow_the_seed_shutter() {
-        let m = Machine::default();
+        let m = LaserSetup::default();
         m.validate().unwrap();
         // 29 ms window at 2 mm/s.
         assert!((m.shutter_window() - 0.058).abs() < 1e-12);
@@ -282,9 +300,9 @@ mod tests {
         assert!((m.lead_in() - (0.2002 + 0.024)).abs() < 1e-12);
         // At V for (6 + 100)/2 ms, then the V·TA stopping block.
         assert!((m.lead_out() - (0.1062 + 0.2002)).abs() < 1e-12);
-        let l = Machine {
+        let l = LaserSetup {
             controller: Controller::Lookahead,
-            ..Machine::default()
+            ..LaserSetup::default()
         };
         assert!((l.lead_in() - (0.1 + 0.024)).abs() < 1e-12);
         assert!((l.lead_out() - (0.006 + 0.028 + 0.1)).abs() < 1e-12);
@@ -292,18 +310,18 @@ mod tests {
 
     #[test]
     fn s_curve_stretches_the_ramp_and_accel_sets_ta() {
-        let m = Machine {
+        let m = LaserSetup {
             ts_ms: 80.0,
-            ..Machine::default()
+            ..LaserSetup::default()
         };
         assert!((m.accel_distance() - 0.5 * 2.0 * 0.16).abs() < 1e-12);
-        let m = Machine::default().with_accel(100.0);
+        let m = LaserSetup::default().with_accel(100.0);
         assert!((m.ta_ms - 20.0).abs() < 1e-12);
         assert!((m.min_radius() - 0.04).abs() < 1e-12);
         assert!(
-            Machine {
+            LaserSetup {
                 feed: f64::NAN,
-                ..Machine::default()
+                ..LaserSetup::default()
             }
             .validate()
             .is_err()

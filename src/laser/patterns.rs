@@ -6,8 +6,8 @@
 use super::arcfit::biarc;
 use super::dubins::connect;
 use super::elem::Elem;
-use super::machine::Machine;
 use super::plan::Tagged;
+use super::setup::LaserSetup;
 use crate::geometry::arc::Arc3;
 use crate::geometry::{P2, P3, Plane, V2, V3};
 use crate::model::toolpath::Role;
@@ -135,7 +135,7 @@ pub struct Zigzag {
     pub corner_radius: f64,
 }
 
-pub fn zigzag(z: &Zigzag, m: &Machine) -> Tagged {
+pub fn zigzag(z: &Zigzag, m: &LaserSetup) -> Tagged {
     let Zigzag {
         origin,
         plane,
