@@ -5,7 +5,7 @@
 CARGO ?= cargo
 BIN   := target/release
 
-.PHONY: bench-order all build test unit golden update-golden conformance checks fig3-20 removal-check dxf-check lint demo bench fuzz-smoke clean
+.PHONY: modgraph samples-check bench-order all build test unit golden update-golden conformance checks fig3-20 removal-check dxf-check lint demo bench fuzz-smoke clean
 
 all: build
 
@@ -34,8 +34,16 @@ conformance: build
 	python3 scripts/rs274-diff --gsim $(BIN)/gsim
 	python3 scripts/pmac-conformance --emu $(BIN)/pmac-emu
 
-# Checks against independent references.
-checks: fig3-20 removal-check dxf-check
+# Checks against independent references, and of the repository itself.
+checks: fig3-20 removal-check dxf-check modgraph samples-check
+
+# The module layering (docs/architecture.md): no module uses one above it.
+modgraph:
+	python3 scripts/modgraph
+
+# testdata/samples are exactly what scripts/make-samples writes.
+samples-check:
+	python3 scripts/make-samples --check
 
 # dxf2chains against ezdxf on random drawings of every entity type and on
 # the corpus (installs ezdxf when missing).

@@ -13,6 +13,9 @@ pub struct CliError {
     /// 1 = the job failed (I/O, a fault), 2 = bad usage or bad input.
     pub status: u8,
     pub message: String,
+    /// The reader of our stdout went away (`| head`): the job ends with
+    /// status 1 but without a message, as Unix filters do.
+    pub broken_pipe: bool,
 }
 
 impl CliError {
@@ -21,6 +24,7 @@ impl CliError {
         CliError {
             status: 2,
             message: message.into(),
+            broken_pipe: false,
         }
     }
 
@@ -29,6 +33,7 @@ impl CliError {
         CliError {
             status: 1,
             message: message.into(),
+            broken_pipe: false,
         }
     }
 
@@ -40,7 +45,9 @@ impl CliError {
 
 impl From<io::Error> for CliError {
     fn from(e: io::Error) -> Self {
-        CliError::failure(e.to_string())
+        let mut c = CliError::failure(e.to_string());
+        c.broken_pipe = e.kind() == io::ErrorKind::BrokenPipe;
+        c
     }
 }
 
@@ -50,7 +57,7 @@ impl From<io::Error> for CliError {
 pub fn run(tool: &str, body: impl FnOnce() -> Result<(), CliError>) -> ExitCode {
     match body() {
         Ok(()) => ExitCode::SUCCESS,
-        Err(e) if e.message.contains("Broken pipe") => ExitCode::from(e.status),
+        Err(e) if e.broken_pipe => ExitCode::from(e.status),
         Err(e) => {
             eprintln!("{tool}: {}", e.message);
             ExitCode::from(e.status)

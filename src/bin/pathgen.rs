@@ -397,8 +397,8 @@ struct ContourArgs {
     file: Option<PathBuf>,
     /// Where the beam centre runs: on the chain, inside/outside closed
     /// chains, or left/right of travel.
-    #[arg(long, value_parser = ["on", "inside", "outside", "left", "right"], default_value = "on")]
-    side: String,
+    #[arg(long, value_enum, default_value_t = Side::On)]
+    side: Side,
     /// Beam spot diameter (mm); the default offset is its radius.
     #[arg(long, default_value_t = 0.01)]
     beam_diameter: f64,
@@ -693,13 +693,7 @@ fn write_streamed(
 
 fn contour_cmd(a: ContourArgs) -> Result<(), CliError> {
     let m = a.machine.machine(a.out.gcode.as_deref())?;
-    let side = match a.side.as_str() {
-        "inside" => Side::Inside,
-        "outside" => Side::Outside,
-        "left" => Side::Left,
-        "right" => Side::Right,
-        _ => Side::On,
-    };
+    let side = a.side;
     let distance = a.offset.unwrap_or(0.5 * a.beam_diameter);
     if !(distance.is_finite() && distance >= 0.0) {
         return Err(CliError::input(format!("offset must be >= 0, got {distance}")));
@@ -937,43 +931,8 @@ fn audit_cmd(a: AuditArgs) -> Result<(), CliError> {
         records.push(r);
     }
     let au = microcam::laser::audit::audit(&records, &m, P3::origin());
-    // Radii within the printing precision of V²/a pass; G-code carries no
-    // roles, so exposure is checked only when cut runs are marked.
-    let r_min = m.feed * m.feed / au.max_accel_off_cut;
-    let roles = au.cut_runs.values().sum::<usize>() > 0;
-    let exposure_ok = !roles || au.exposure_error <= 4.0 * a.precision;
-    let ok = au.off_feed_moves == 0
-        && au.corners_at_speed == 0
-        && au.beam_on_rapids == 0
-        && r_min >= m.min_radius() - a.precision
-        && au.stretched_moves == 0
-        && au.min_run_after_close >= -a.precision
-        && au.min_run_before_open >= m.accel_distance() - a.precision
-        && exposure_ok;
-    let exposure = if roles { au.exposure_error } else { f64::NAN };
-    let num = |x: f64| {
-        if x.is_finite() {
-            format!("{x:.9}")
-        } else {
-            "null".into()
-        }
-    };
-    println!(
-        "{{\"schema\":\"microcam.pathgen-audit/1\",\"ok\":{ok},\"feed_moves\":{},\"off_feed_moves\":{},\"corners_at_speed\":{},\"beam_on_rapids\":{},\"max_accel_off_cut_mm_s2\":{},\"max_accel_cut_mm_s2\":{},\"accel_limit_mm_s2\":{},\"exposure_error_mm\":{},\"stretched_moves\":{},\"min_run_before_open_mm\":{},\"min_run_after_close_mm\":{},\"controller\":\"{}\",\"cut_runs\":{}}}",
-        au.feed_moves,
-        au.off_feed_moves,
-        au.corners_at_speed,
-        au.beam_on_rapids,
-        num(au.max_accel_off_cut),
-        num(au.max_accel_cut),
-        num(m.accel()),
-        num(exposure),
-        au.stretched_moves,
-        num(au.min_run_before_open),
-        num(au.min_run_after_close),
-        m.controller.name(),
-        au.cut_runs.values().sum::<usize>()
-    );
+    println!("{}", au.report_json(&m, a.precision));
+    let ok = au.passes(&m, a.precision);
     if ok {
         Ok(())
     } else {

@@ -55,6 +55,67 @@ pub struct Audit {
     pub cut_runs: BTreeMap<u64, usize>,
 }
 
+impl Audit {
+    /// Whether the toolpath keeps every promise of the laser flow on
+    /// machine `m`, with lengths compared at `precision` mm (the printing
+    /// precision of the program): feed at V, no corner at speed, no beam-on
+    /// rapid, no arc tighter than V²/a, no stretched block, the stage at V
+    /// from before the shutter opens until after it closes, and (when cut
+    /// runs are marked: G-code carries no roles) the exposure on the cuts.
+    pub fn passes(&self, m: &LaserSetup, precision: f64) -> bool {
+        let r_min = m.feed * m.feed / self.max_accel_off_cut;
+        let exposure_ok = !self.has_roles() || self.exposure_error <= 4.0 * precision;
+        self.off_feed_moves == 0
+            && self.corners_at_speed == 0
+            && self.beam_on_rapids == 0
+            && r_min >= m.min_radius() - precision
+            && self.stretched_moves == 0
+            && self.min_run_after_close >= -precision
+            && self.min_run_before_open >= m.accel_distance() - precision
+            && exposure_ok
+    }
+
+    /// Whether the input marked its cut runs (toolpath JSON does, G-code
+    /// does not).
+    pub fn has_roles(&self) -> bool {
+        self.cut_runs.values().sum::<usize>() > 0
+    }
+
+    /// The `microcam.pathgen-audit/1` report: one JSON object, every figure
+    /// with its unit in its name, `null` where a figure does not apply.
+    pub fn report_json(&self, m: &LaserSetup, precision: f64) -> String {
+        let num = |x: f64| {
+            if x.is_finite() {
+                format!("{x:.9}")
+            } else {
+                "null".into()
+            }
+        };
+        let exposure = if self.has_roles() {
+            self.exposure_error
+        } else {
+            f64::NAN
+        };
+        format!(
+            "{{\"schema\":\"microcam.pathgen-audit/1\",\"ok\":{},\"feed_moves\":{},\"off_feed_moves\":{},\"corners_at_speed\":{},\"beam_on_rapids\":{},\"max_accel_off_cut_mm_s2\":{},\"max_accel_cut_mm_s2\":{},\"accel_limit_mm_s2\":{},\"exposure_error_mm\":{},\"stretched_moves\":{},\"min_run_before_open_mm\":{},\"min_run_after_close_mm\":{},\"controller\":\"{}\",\"cut_runs\":{}}}",
+            self.passes(m, precision),
+            self.feed_moves,
+            self.off_feed_moves,
+            self.corners_at_speed,
+            self.beam_on_rapids,
+            num(self.max_accel_off_cut),
+            num(self.max_accel_cut),
+            num(m.accel()),
+            num(exposure),
+            self.stretched_moves,
+            num(self.min_run_before_open),
+            num(self.min_run_after_close),
+            m.controller.name(),
+            self.cut_runs.values().sum::<usize>()
+        )
+    }
+}
+
 /// The TA/TS (ms) a Turbo PMAC has in force while it reads a program, and
 /// what they do to a block.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -10,7 +10,7 @@ use crate::model::chain::{Chain, Segment};
 use cavalier_contours::polyline::{PlineSource, PlineSourceMut, Polyline};
 
 /// Which side of a chain the beam centre runs on.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 pub enum Side {
     /// On the chain itself.
     On,
