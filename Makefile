@@ -50,7 +50,7 @@ samples-check:
 dxf-check: build
 	python3 scripts/dxf-ezdxf-check --bin $(BIN)/dxf2chains
 
-# Seed 000 Fig. 3-20: achieved feed against segment length under the PMAC model.
+# Bayesteh (2013) Fig. 3-20: achieved feed against segment length under the PMAC model.
 fig3-20: build
 	python3 scripts/fig3-20 --gsim $(BIN)/gsim
 

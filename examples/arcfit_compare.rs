@@ -1,4 +1,4 @@
-//! Fit one point file with the seed's curvature-matching method
+//! Fit one point file with the thesis' curvature-matching method
 //! (`laser::arcfit_seed`) and with our biarcs (`laser::arcfit`, the same
 //! call `pathgen arcfit` makes; or, with `--fit`, take `pathgen arcfit`'s
 //! own output) and print one JSON object: block counts,
@@ -8,9 +8,9 @@
 //! Usage: cargo run --release --example arcfit_compare -- [--tolerance MM]
 //!        [--elements] [--raw] [--polyline-dev] [--fit CHAINS] [FILE|-]
 //!
-//! `--elements` adds the seed's pieces (`[x0,y0,x1,y1]` lines,
+//! `--elements` adds the thesis' pieces (`[x0,y0,x1,y1]` lines,
 //! `[x0,y0,x1,y1,cx,cy,ccw]` arcs) so a caller can measure them against a
-//! true curve; `--raw` adds the seed method without tolerance enforcement.
+//! true curve; `--raw` adds the thesis method without tolerance enforcement.
 //! Points: one `x y` or `x,y` per line, `#` comments (as `pathgen arcfit`).
 
 use microcam::formats::chains::ChainsReader;

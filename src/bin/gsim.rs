@@ -146,7 +146,7 @@ struct Args {
     #[arg(long, value_name = "FILE.csv", requires = "stock")]
     removal: Option<PathBuf>,
     /// Cutter flutes: cut feed moves in steps of feed per tooth × --step-scale
-    /// and report chip volume per step (seed 000 §3.1).
+    /// and report chip volume per step (Bayesteh (2013) §3.1).
     #[arg(long, requires = "stock")]
     flutes: Option<u32>,
     /// Steps are this many feeds per tooth long.

@@ -58,7 +58,7 @@ enum Command {
     /// Zigzag hatching along X or Y in plane XY or XZ.
     #[command(after_help = PATTERN_EXAMPLES)]
     Zigzag(Box<ZigzagArgs>),
-    /// A cone: spirals on Z levels, diameters per seed 000 eqs. 6.4-6.6.
+    /// A cone: spirals on Z levels, diameters per Bayesteh (2013) eqs. 6.4-6.6.
     #[command(after_help = PATTERN_EXAMPLES)]
     Cone(Box<ConeArgs>),
     /// Fit tangent-continuous arcs (biarcs) to points or a polyline.
@@ -423,7 +423,7 @@ struct ContourArgs {
     /// Travel sense of closed paths.
     #[arg(long, value_parser = ["keep", "ccw", "cw"], default_value = "keep")]
     direction: String,
-    /// Chain order: input, nearest (the seed's), optimized (nearest + 2-opt/Or-opt).
+    /// Chain order: input, nearest (the thesis'), optimized (nearest + 2-opt/Or-opt).
     #[arg(long, value_parser = ["input", "nearest", "optimized"], default_value = "optimized")]
     order: String,
     #[command(flatten)]

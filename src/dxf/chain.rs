@@ -4,7 +4,7 @@
 //! (cells of the join tolerance, 3x3 neighbourhood), collinear overlaps are
 //! found through a hash of (direction, offset), duplicates through the pair
 //! of end nodes, and nesting through a grid over the closed chains' boxes.
-//! The seed's method compares every pair of segments; this one never does.
+//! The thesis' method compares every pair of segments; this one never does.
 //!
 //! Every change to the drawing is counted in [`Report`] and noted on the
 //! chain it touched (`repairs`).

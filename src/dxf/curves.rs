@@ -4,7 +4,7 @@
 //! points with given tangents. Fitting a curve with biarcs, splitting where
 //! the fit is off by more than the tolerance, gives a chain whose tangent is
 //! continuous wherever the curve's is: the stage keeps its speed, and there
-//! are far fewer blocks than a polyline at the same tolerance (seed 000
+//! are far fewer blocks than a polyline at the same tolerance (Bayesteh (2013)
 //! §6.1.4). The deviation is measured by sampling each piece's interval of
 //! the curve densely and taking the distance to the fitted arcs.
 

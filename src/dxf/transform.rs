@@ -1,4 +1,4 @@
-//! The drawing transforms of the seed's CAD panel: move, rotate, scale,
+//! The drawing transforms of the thesis' CAD panel: move, rotate, scale,
 //! mirror, and linear and polar patterns, as the list of affine maps (one
 //! per copy) that [`super::ImportOptions::copies`] takes.
 //!

@@ -7,7 +7,7 @@
 //! # What is understood
 //!
 //! - Case-insensitive text, optional spaces, several commands per line
-//!   (`LINEAR X1 Y2 F3 M33=1 P400=7`), `;` comments, the seed's trailing `%`.
+//!   (`LINEAR X1 Y2 F3 M33=1 P400=7`), `;` comments, the thesis' trailing `%`.
 //! - Modal move modes `RAPID`/`RPD`, `LINEAR`/`LIN`, `CIRCLE1`/`CIR1`
 //!   (clockwise), `CIRCLE2`/`CIR2`; an axis word alone (`X1 Y2`) continues the
 //!   mode. Axes X, Y, Z; `ABS`, `INC`, `ABS(X,Y)`, `ABS(R)`/`INC(R)` for the

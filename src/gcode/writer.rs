@@ -88,7 +88,7 @@ pub struct WriteOptions {
     /// to [`GcodeWriter::new`].
     pub feed_unit: FeedUnit,
     /// Write the motion word on every motion block instead of only when it
-    /// changes. Default off (modal, like the seed's programs).
+    /// changes. Default off (modal, like the thesis' programs).
     pub repeat_motion: bool,
     /// PMAC variable driving the shutter (default `M33`).
     pub shutter_var: String,

@@ -1,4 +1,4 @@
-//! The seed's way of turning a curve into arcs (seed 000 §6.1.4: arcs found
+//! The thesis' way of turning a curve into arcs (Bayesteh (2013) §6.1.4: arcs found
 //! by matching the curve's radius of curvature, with the input tolerance
 //! setting the resolution), kept as a baseline for [`super::arcfit`].
 //!
@@ -7,13 +7,13 @@
 //! 1. Interpolate the points with a cubic spline (chord-length parameter;
 //!    not-a-knot ends, so the spline is fourth-order accurate up to the ends).
 //! 2. Walk the spline in equal parameter steps of about `tol` of arc length
-//!    (the seed's loop step), at most [`SeedParams::max_steps`] steps.
+//!    (the thesis' loop step), at most [`SeedParams::max_steps`] steps.
 //! 3. Round the curvature at each step to two decimals (bins of
-//!    0.01 mm⁻¹, the seed's `Math.Round(curvature, 2)`); a run of steps with
+//!    0.01 mm⁻¹, the thesis' `Math.Round(curvature, 2)`); a run of steps with
 //!    the same rounded curvature becomes one arc through the run's first
 //!    point, its parameter midpoint and its last point.
 //!
-//! The seed's tolerance only sets the step, so step 3 alone does not keep
+//! The thesis' tolerance only sets the step, so step 3 alone does not keep
 //! the arcs within `tol`. We enforce it the way the method allows, by
 //! shrinking spans: a run whose arc strays more than `tol` from the spline
 //! (checked at every input point in it and along the spline between) is
@@ -25,20 +25,20 @@ use super::elem::Elem;
 use crate::geometry::arc::Arc3;
 use crate::geometry::{P2, P3, Plane, V2};
 
-/// The seed's curvature rounding: two decimals, in mm⁻¹.
+/// The thesis' curvature rounding: two decimals, in mm⁻¹.
 pub const SEED_CURVATURE_QUANTUM: f64 = 0.01;
 
 /// Tolerances below this (mm) are raised to it: the output is written with
 /// nanometre resolution, and a finer target would only multiply splits.
 pub const MIN_TOLERANCE: f64 = 1e-9;
 
-/// Knobs of the baseline. The defaults are the seed's method plus the
+/// Knobs of the baseline. The defaults are the thesis' method plus the
 /// tolerance enforcement.
 #[derive(Debug, Clone, Copy)]
 pub struct SeedParams {
     /// Width of a curvature bin (mm⁻¹).
     pub quantum: f64,
-    /// Cap on the number of parameter steps (the seed steps by `tol`, which
+    /// Cap on the number of parameter steps (the thesis steps by `tol`, which
     /// at 1e-7 mm over a long curve would be billions of spline evaluations).
     pub max_steps: usize,
     /// Halve runs whose arc strays beyond `tol` (off: the raw seed method).
@@ -281,7 +281,7 @@ impl Fitter<'_> {
     }
 }
 
-/// The seed's curvature-matching conversion with the default
+/// The thesis' curvature-matching conversion with the default
 /// [`SeedParams`]: lines and arcs through the points, each within `tol`
 /// (mm) of the interpolating spline and of every input point, end points
 /// exact, consecutive pieces sharing end points.

@@ -25,7 +25,7 @@ pub enum Direction {
 pub enum OrderMode {
     /// Input order.
     Input,
-    /// The seed's nearest neighbour.
+    /// The thesis' nearest neighbour.
     Nearest,
     /// Nearest neighbour improved by 2-opt and Or-opt.
     Optimized,

@@ -1,4 +1,4 @@
-//! Laser toolpath strategies (seed 000 §6.1.3): constant-velocity,
+//! Laser toolpath strategies (Bayesteh (2013) §6.1.3): constant-velocity,
 //! shutter-exact paths from chains and from parametric patterns.
 //!
 //! - [`setup`]: the stage, shutter and feed a laser job is planned with, taken from a machine profile.

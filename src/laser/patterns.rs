@@ -1,4 +1,4 @@
-//! Parametric laser patterns (seed 000 §6.1.3): helix, square and
+//! Parametric laser patterns (Bayesteh (2013) §6.1.3): helix, square and
 //! Archimedean spirals, zigzag hatching and cones. Each builds exact path
 //! pieces; planning then adds leads, loops and shutter timing, so every
 //! pattern runs at constant V with the beam switched exactly.
@@ -180,7 +180,7 @@ pub fn zigzag(z: &Zigzag, m: &LaserSetup) -> Tagged {
     out
 }
 
-/// One pass of a cone (seed 000 eqs. 6.4-6.6): the cone angle from the
+/// One pass of a cone (Bayesteh (2013) eqs. 6.4-6.6): the cone angle from the
 /// diameters `d1` (at the surface, z0) and `d2` (at depth `h`), the pass
 /// height H_p = H - p·H/levels, and the section diameter
 /// d2 + 2·H_p·tan(α). Returns (z, diameter) of each pass, surface first.

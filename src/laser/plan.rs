@@ -7,7 +7,7 @@
 //! last blocks ramp from and to rest over the machine's TA, and every block
 //! between runs at V with a short TA of whole milliseconds no longer than
 //! the block itself or the one before it. A Turbo PMAC stretches a block
-//! shorter than its TA to TA (PMAC.md), and blends two moves over the
+//! shorter than its TA to TA, and blends two moves over the
 //! incoming move's TA, starting TA/2 before the boundary, which is also
 //! where an `M33==` takes effect (Turbo PMAC User Manual, synchronous
 //! M-variable assignment). So each shutter switch is placed V·t/2 after

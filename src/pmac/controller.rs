@@ -32,7 +32,7 @@ pub const DEFAULT_TA_MS: f64 = 10.0;
 /// Variables per letter (0..=8191, as on a Turbo PMAC).
 const VARS: usize = 8192;
 
-/// The ERR numbers the emulator answers (PMAC.md "Error codes").
+/// The ERR numbers the emulator answers (Turbo PMAC Software Reference, "Error codes"; docs/pmac-send.md).
 pub mod err {
     pub const RUNNING: u16 = 1;
     pub const DATA: u16 = 3;

@@ -244,7 +244,7 @@ pub fn parse_reply(b: &[u8]) -> Result<Option<Reply>, ProtocolError> {
 }
 
 /// Words of controller memory a program line takes: about one per value
-/// plus the command word (PMAC.md "SIZE").
+/// plus the command word (the Ethernet protocol's request size).
 pub fn line_words(line: &str) -> usize {
     let b = line.as_bytes();
     let mut n = 1;

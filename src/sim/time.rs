@@ -15,7 +15,7 @@
 //! blended into (the TA/TS in force when it is calculated), centred on the
 //! nominal boundary; a move from or to rest adds half a ramp at each end.
 //! That is why short segments never reach their feed: the plateau of a
-//! stretched move is L/Ta, proportional to L (seed 000 Fig. 3-20). RAPID
+//! stretched move is L/Ta, proportional to L (Bayesteh (2013) Fig. 3-20). RAPID
 //! moves are not blended: each axis runs its own trapezoid at the rapid
 //! speed and acceleration, the slowest axis sets the time. DWELL stops
 //! motion.
@@ -980,7 +980,7 @@ mod tests {
         assert!(close(t[0].time_s, 1.0 / 3.0 + 0.133, 1e-12), "stops before the rapid");
     }
 
-    /// Seed 000 Fig. 3-20: a straight path at 3 mm/s in equal segments on
+    /// Bayesteh (2013) Fig. 3-20: a straight path at 3 mm/s in equal segments on
     /// the micro mill's PMAC (TA ≈ 133 ms): the achieved feed grows
     /// linearly with segment length and reaches 3 mm/s at about 0.4 mm.
     #[test]
