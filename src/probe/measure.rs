@@ -1,0 +1,284 @@
+//! What the contacts say about the part: gauge width (Bayesteh 2013,
+//! section 4.4), circle diameter, centre and roundness, deviation from the
+//! design, which parts of the design the probe could not reach, and the
+//! uncertainty of each figure from the noise model.
+//!
+//! Contacts are probe centres. A surface lies `R_e` from them, so fitted
+//! figures are compensated exactly: a plug's radius is the centres' radius
+//! minus `R_e`, a bore's plus `R_e`; a width is the centre distance minus
+//! `D_e`. Uncertainties propagate the per-contact standard deviation `u`
+//! through each fit linearly and are given expanded with k = 2.
+
+use super::ProbeError;
+use super::fit::{self, CircleFit, LineFit, ZoneFit};
+use super::part::{Part, Prim};
+use super::scan::Contact;
+use crate::geometry::{P2, V2};
+
+/// Coverage factor of every expanded uncertainty.
+pub const K: f64 = 2.0;
+
+/// A measured circle (plug or bore).
+#[derive(Debug, Clone, PartialEq)]
+pub struct CircleMeasure {
+    /// True for a plug (material inside), false for a bore.
+    pub plug: bool,
+    /// Least-squares circle of the centres.
+    pub lsq: CircleFit,
+    /// Minimum-zone circles of the centres.
+    pub zone: ZoneFit,
+    /// Diameter of the surface by least squares (mm).
+    pub diameter_lsq_mm: f64,
+    /// Diameter of the surface from the mean of the minimum-zone radii (mm).
+    pub diameter_mz_mm: f64,
+    /// Expanded uncertainty (k = 2) of the least-squares diameter (mm).
+    pub u_diameter_mm: f64,
+    /// Expanded uncertainty (k = 2) of each centre coordinate (mm).
+    pub u_center_mm: [f64; 2],
+}
+
+/// Measure a circle from scanned contacts; `u` is the per-contact standard
+/// uncertainty (mm).
+pub fn circle(contacts: &[Contact], re: f64, u: f64) -> Result<CircleMeasure, ProbeError> {
+    let pts: Vec<P2> = contacts.iter().map(|c| c.center).collect();
+    let lsq = fit::circle_lsq(&pts)?;
+    let zone = fit::circle_min_zone(&pts)?;
+    // Approaching towards the centre means the material is inside.
+    let inward = contacts
+        .iter()
+        .filter(|c| c.dir.dot(&(lsq.center - c.center)) > 0.0)
+        .count();
+    let plug = 2 * inward >= contacts.len();
+    let comp = if plug { -re } else { re };
+    Ok(CircleMeasure {
+        plug,
+        diameter_lsq_mm: 2.0 * (lsq.radius + comp),
+        diameter_mz_mm: (zone.r_in + zone.r_out) + 2.0 * comp,
+        u_diameter_mm: K * 2.0 * u * lsq.cov_unit[(2, 2)].sqrt(),
+        u_center_mm: [
+            K * u * lsq.cov_unit[(0, 0)].sqrt(),
+            K * u * lsq.cov_unit[(1, 1)].sqrt(),
+        ],
+        lsq,
+        zone,
+    })
+}
+
+/// A gauge width: a line fitted to one face and a point on the other.
+#[derive(Debug, Clone, PartialEq)]
+pub struct WidthMeasure {
+    /// The fitted face (probe centres).
+    pub face: LineFit,
+    /// The contact on the opposite face.
+    pub other: P2,
+    /// The width (mm): centre distance minus D_e.
+    pub width_mm: f64,
+    /// Its expanded uncertainty (k = 2, mm).
+    pub u_width_mm: f64,
+}
+
+/// Measure a width from the contacts on one face and one on the other.
+pub fn width(face: &[Contact], other: &Contact, re: f64, u: f64) -> Result<WidthMeasure, ProbeError> {
+    let pts: Vec<P2> = face.iter().map(|c| c.center).collect();
+    let line = fit::line(&pts)?;
+    let f = line.offset_sigma_factor(other.center);
+    Ok(WidthMeasure {
+        width_mm: line.offset(other.center).abs() - 2.0 * re,
+        u_width_mm: K * u * (1.0 + f * f).sqrt(),
+        face: line,
+        other: other.center,
+    })
+}
+
+/// One contact against the design.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Deviation {
+    /// The surface point: the centre moved `R_e` towards the design.
+    pub surface: P2,
+    /// Signed deviation (mm): positive where the part stands proud of the
+    /// design (the probe stopped early), negative where it is short.
+    pub deviation_mm: f64,
+    /// Expanded uncertainty (k = 2) of the deviation (mm).
+    pub u_mm: f64,
+    /// The nearest design piece.
+    pub prim: usize,
+}
+
+/// Deviation of every contact from the design contour.
+pub fn deviations(design: &Part, contacts: &[Contact], re: f64, u: f64) -> Vec<Deviation> {
+    contacts
+        .iter()
+        .map(|c| {
+            let (d, prim) = design.distance(c.center);
+            let foot = design.prims[prim].nearest(c.center);
+            let inside = design.in_material(c.center);
+            let signed = if inside { -d } else { d };
+            let n = if d > 0.0 { (c.center - foot) / d } else { -c.dir };
+            let n = if inside { -n } else { n };
+            // Only the part of the touch error across the surface counts.
+            let across = c.dir.dot(&n).abs();
+            Deviation {
+                surface: c.center - n * re,
+                deviation_mm: signed - re,
+                u_mm: K * u * across,
+                prim,
+            }
+        })
+        .collect()
+}
+
+/// A stretch of the design the probe cannot reach (narrower than D_e, or
+/// the inside of a sharp concave corner).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Unreachable {
+    /// First unreachable point along the contour.
+    pub from: P2,
+    /// Last unreachable point.
+    pub to: P2,
+    /// Length along the contour (mm).
+    pub length_mm: f64,
+}
+
+/// Coverage of the design by a scan.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Coverage {
+    /// Stretches the probe cannot reach, on the contours it touched.
+    pub unreachable: Vec<Unreachable>,
+    /// Design pieces whose reachable length exceeds R_s and that got no
+    /// contact (a skipped feature).
+    pub missed: Vec<usize>,
+    /// Contacts on each design piece.
+    pub per_piece: Vec<usize>,
+}
+
+/// The side of a boundary point away from the material.
+fn free_normal(design: &Part, q: P2, tangent: V2) -> V2 {
+    let n = V2::new(-tangent.y, tangent.x);
+    let eps = 1e-7 * (1.0 + q.coords.norm());
+    if design.in_material(q + n * eps) { -n } else { n }
+}
+
+/// Which stretches of the touched contours a tip of radius `re` cannot
+/// reach, and which pieces the contacts skipped.
+pub fn coverage(design: &Part, contacts: &[Contact], re: f64, rs: f64) -> Coverage {
+    let mut per_piece = vec![0usize; design.prims.len()];
+    for c in contacts {
+        per_piece[design.distance(c.center).1] += 1;
+    }
+    let mut loops: Vec<usize> = per_piece
+        .iter()
+        .enumerate()
+        .filter(|&(_, &n)| n > 0)
+        .map(|(i, _)| design.loop_of(i))
+        .collect();
+    loops.dedup();
+    loops.sort_unstable();
+    loops.dedup();
+    let h = re / 8.0;
+    let mut cov = Coverage {
+        per_piece,
+        ..Default::default()
+    };
+    for l in loops {
+        // (point, reachable, length it stands for), in contour order.
+        let mut samples: Vec<(P2, bool, f64)> = Vec::new();
+        for i in design.loops[l].clone() {
+            let prim = design.prims[i];
+            let len = prim.length();
+            let n = (len / h).ceil().max(1.0) as usize;
+            let ds = len / n as f64;
+            let mut ok_len = 0.0;
+            for j in 0..n {
+                let s = (j as f64 + 0.5) * ds;
+                let q = prim.at(s);
+                let t = tangent(&prim, s);
+                let c = q + free_normal(design, q, t) * re;
+                let ok = design.distance(c).0 >= re * (1.0 - 1e-9);
+                if ok {
+                    ok_len += ds;
+                }
+                samples.push((q, ok, ds));
+            }
+            if ok_len > rs && cov.per_piece[i] == 0 {
+                cov.missed.push(i);
+            }
+        }
+        // Runs of unreachable samples; a run may wrap round the start.
+        let n = samples.len();
+        let Some(first_ok) = samples.iter().position(|s| s.1) else {
+            let len = samples.iter().map(|s| s.2).sum();
+            cov.unreachable.push(Unreachable {
+                from: samples[0].0,
+                to: samples[n - 1].0,
+                length_mm: len,
+            });
+            continue;
+        };
+        let mut k = 0;
+        while k < n {
+            let i = (first_ok + k) % n;
+            if samples[i].1 {
+                k += 1;
+                continue;
+            }
+            let (from, mut to, mut len) = (samples[i].0, samples[i].0, 0.0);
+            while k < n && !samples[(first_ok + k) % n].1 {
+                let s = samples[(first_ok + k) % n];
+                to = s.0;
+                len += s.2;
+                k += 1;
+            }
+            cov.unreachable.push(Unreachable {
+                from,
+                to,
+                length_mm: len,
+            });
+        }
+    }
+    cov
+}
+
+fn tangent(p: &Prim, s: f64) -> V2 {
+    match *p {
+        Prim::Line { a, b } => (b - a) / (b - a).norm(),
+        Prim::Arc { r, a0, sweep, .. } => {
+            let a = a0 + sweep.signum() * s / r;
+            V2::new(-a.sin(), a.cos()) * sweep.signum()
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_square_has_one_unreachable_corner_stretch_per_concave_corner_only() {
+        // An L-shaped pocket wall seen from outside has one concave corner.
+        let pts = [
+            P2::new(0.0, 0.0),
+            P2::new(4.0, 0.0),
+            P2::new(4.0, 2.0),
+            P2::new(2.0, 2.0),
+            P2::new(2.0, 4.0),
+            P2::new(0.0, 4.0),
+        ];
+        let part = Part {
+            prims: (0..6).map(|i| Prim::Line { a: pts[i], b: pts[(i + 1) % 6] }).collect(),
+            loops: vec![0..6],
+        };
+        let c = Contact {
+            center: P2::new(-0.1, 1.0),
+            exact: P2::new(-0.1, 1.0),
+            dir: V2::new(1.0, 0.0),
+            kind: super::super::scan::MoveKind::Approach,
+            prim: 5,
+        };
+        let cov = coverage(&part, &[c], 0.1, 0.3);
+        assert_eq!(cov.unreachable.len(), 1);
+        let u = cov.unreachable[0];
+        assert!((u.length_mm - 0.2).abs() < 0.03, "{u:?}");
+        assert!((u.from - P2::new(2.0, 2.0)).norm() < 0.11);
+        assert_eq!(cov.missed, vec![0, 1, 2, 3, 4]);
+    }
+}
