@@ -11,12 +11,14 @@
 //! - [`noise`]: touch scatter, trigger delay, once-per-revolution touches.
 //! - [`scan`]: the automated scan.
 //! - [`fit`]: line, least-squares circle and minimum-zone circle.
+//! - [`job`]: a whole job: scan a part, then measure.
 //! - [`measure`]: widths, diameters, roundness, deviations, uncertainties.
 //! - [`program`]: the probing program for a Turbo PMAC or an ISO control.
 //! - [`svg`]: a picture of the scan against the design.
 //! - [`report`]: the contact CSV and report JSON.
 
 pub mod fit;
+pub mod job;
 pub mod measure;
 pub mod noise;
 pub mod part;

@@ -53,6 +53,9 @@ pub enum MoveKind {
     Reposition,
     /// Looking for a surface that turned away (convex corner).
     Search,
+    /// Unguarded travel lifted clear of the part in Z (to the opposite face
+    /// of a gauge block).
+    Travel,
 }
 
 impl MoveKind {
@@ -63,6 +66,7 @@ impl MoveKind {
             MoveKind::Retract => "retract",
             MoveKind::Reposition => "reposition",
             MoveKind::Search => "search",
+            MoveKind::Travel => "travel",
         }
     }
 }
