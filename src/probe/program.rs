@@ -216,7 +216,8 @@ impl Writer {
 
     fn note(&mut self, s: &str) {
         match self.d {
-            Dialect::Iso => self.line(&format!("({s})")),
+            // RS274NGC comments do not nest.
+            Dialect::Iso => self.line(&format!("({})", s.replace('(', "[").replace(')', "]"))),
             Dialect::Pmac => self.line(&format!("; {s}")),
         }
     }
@@ -241,8 +242,9 @@ impl Writer {
         match self.d {
             Dialect::Iso => {
                 let (mx, my, ml) = (self.var("mx"), self.var("my"), self.var("ml"));
-                self.line(&format!("{mx} = [{ex}-#5420]"));
-                self.line(&format!("{my} = [{ey}-#5421]"));
+                let (cx, cy) = (self.var("cx"), self.var("cy"));
+                self.line(&format!("{mx} = [{ex}-{cx}]"));
+                self.line(&format!("{my} = [{ey}-{cy}]"));
                 self.line(&format!("{ml} = SQRT[{mx}*{mx}+{my}*{my}]"));
                 let g = if must { "G38.2" } else { "G38.3" };
                 self.line(&format!("{g} X{ex} Y{ey}"));
@@ -252,9 +254,13 @@ impl Writer {
                 } else {
                     self.line(&format!("{hit} = #5070"));
                 }
-                let (cx, cy, hdx, hdy) = (self.var("cx"), self.var("cy"), self.var("hdx"), self.var("hdy"));
-                self.line(&format!("{cx} = #5061"));
-                self.line(&format!("{cy} = #5062"));
+                let (hdx, hdy) = (self.var("hdx"), self.var("hdy"));
+                // Where it stopped: the trip position after a touch, the
+                // end of the move otherwise (the program keeps the position
+                // itself rather than trusting what the control reports
+                // after a probe move).
+                self.line(&format!("{cx} = [#5061*{hit}+{ex}*[1-{hit}]]"));
+                self.line(&format!("{cy} = [#5062*{hit}+{ey}*[1-{hit}]]"));
                 self.line(&format!("{hdx} = [{mx}/{ml}]"));
                 self.line(&format!("{hdy} = [{my}/{ml}]"));
             }
@@ -406,6 +412,8 @@ pub fn write(d: Dialect, probe: &Probe, params: &ScanParams, machine: &Machine) 
             w.line(&format!("M3 S{}", num(probe.rpm)));
             w.line("G4 P2");
             w.line(&format!("G0 X{} Y{}", num(params.start.x), num(params.start.y)));
+            w.line(&format!("{} = {}", w.var("cx"), num(params.start.x)));
+            w.line(&format!("{} = {}", w.var("cy"), num(params.start.y)));
         }
         Dialect::Pmac => {
             for h in &head {
