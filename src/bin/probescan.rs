@@ -36,7 +36,8 @@ a contact. Convex corners are found by searching back from a missed
 approach.
 
 The report (JSON, stdout or -o) carries every figure with its unit in its
-name and each uncertainty expanded with k = 2 (_k2). Contacts (--csv) are
+name; uncertainties are given as standard uncertainties (u_..._mm) and as
+99 % intervals (u99_..._mm, k = 2.576). Contacts (--csv) are
 probe centres with the compensated surface point. Noise: --noise (sigma,
 mm), --delay (trigger delay, s), --quantise (once-per-revolution touch);
 their mean over-travel is removed as a calibrated D_e would remove it.

@@ -7,7 +7,8 @@
 //! figures are compensated exactly: a plug's radius is the centres' radius
 //! minus `R_e`, a bore's plus `R_e`; a width is the centre distance minus
 //! `D_e`. Uncertainties propagate the per-contact standard deviation `u`
-//! through each fit linearly and are given expanded with k = 2.
+//! through each fit linearly. Fields hold standard uncertainties (k = 1);
+//! the report adds the 99 % interval, [`K99`] times them.
 
 use super::ProbeError;
 use super::fit::{self, CircleFit, LineFit, ZoneFit};
@@ -15,8 +16,8 @@ use super::part::{Part, Prim};
 use super::scan::Contact;
 use crate::geometry::{P2, V2};
 
-/// Coverage factor of every expanded uncertainty.
-pub const K: f64 = 2.0;
+/// Coverage factor of the 99 % interval of a normal estimate.
+pub const K99: f64 = 2.576;
 
 /// A measured circle (plug or bore).
 #[derive(Debug, Clone, PartialEq)]
@@ -31,9 +32,9 @@ pub struct CircleMeasure {
     pub diameter_lsq_mm: f64,
     /// Diameter of the surface from the mean of the minimum-zone radii (mm).
     pub diameter_mz_mm: f64,
-    /// Expanded uncertainty (k = 2) of the least-squares diameter (mm).
+    /// Standard uncertainty of the least-squares diameter (mm).
     pub u_diameter_mm: f64,
-    /// Expanded uncertainty (k = 2) of each centre coordinate (mm).
+    /// Standard uncertainty of each centre coordinate (mm).
     pub u_center_mm: [f64; 2],
 }
 
@@ -54,10 +55,10 @@ pub fn circle(contacts: &[Contact], re: f64, u: f64) -> Result<CircleMeasure, Pr
         plug,
         diameter_lsq_mm: 2.0 * (lsq.radius + comp),
         diameter_mz_mm: (zone.r_in + zone.r_out) + 2.0 * comp,
-        u_diameter_mm: K * 2.0 * u * lsq.cov_unit[(2, 2)].sqrt(),
+        u_diameter_mm: 2.0 * u * lsq.cov_unit[(2, 2)].sqrt(),
         u_center_mm: [
-            K * u * lsq.cov_unit[(0, 0)].sqrt(),
-            K * u * lsq.cov_unit[(1, 1)].sqrt(),
+            u * lsq.cov_unit[(0, 0)].sqrt(),
+            u * lsq.cov_unit[(1, 1)].sqrt(),
         ],
         lsq,
         zone,
@@ -73,7 +74,7 @@ pub struct WidthMeasure {
     pub other: P2,
     /// The width (mm): centre distance minus D_e.
     pub width_mm: f64,
-    /// Its expanded uncertainty (k = 2, mm).
+    /// Its standard uncertainty (mm).
     pub u_width_mm: f64,
 }
 
@@ -84,7 +85,7 @@ pub fn width(face: &[Contact], other: &Contact, re: f64, u: f64) -> Result<Width
     let f = line.offset_sigma_factor(other.center);
     Ok(WidthMeasure {
         width_mm: line.offset(other.center).abs() - 2.0 * re,
-        u_width_mm: K * u * (1.0 + f * f).sqrt(),
+        u_width_mm: u * (1.0 + f * f).sqrt(),
         face: line,
         other: other.center,
     })
@@ -98,7 +99,7 @@ pub struct Deviation {
     /// Signed deviation (mm): positive where the part stands proud of the
     /// design (the probe stopped early), negative where it is short.
     pub deviation_mm: f64,
-    /// Expanded uncertainty (k = 2) of the deviation (mm).
+    /// Standard uncertainty of the deviation (mm).
     pub u_mm: f64,
     /// The nearest design piece.
     pub prim: usize,
@@ -120,7 +121,7 @@ pub fn deviations(design: &Part, contacts: &[Contact], re: f64, u: f64) -> Vec<D
             Deviation {
                 surface: c.center - n * re,
                 deviation_mm: signed - re,
-                u_mm: K * u * across,
+                u_mm: u * across,
                 prim,
             }
         })
@@ -144,8 +145,10 @@ pub struct Unreachable {
 pub struct Coverage {
     /// Stretches the probe cannot reach, on the contours it touched.
     pub unreachable: Vec<Unreachable>,
-    /// Design pieces whose reachable length exceeds R_s and that got no
-    /// contact (a skipped feature).
+    /// Design pieces whose reachable length exceeds 1.5 R_s and that got no
+    /// contact (a skipped feature). Contacts are R_s apart along straight
+    /// faces; round a corner or a concave arc the foot points spread a
+    /// little more, hence the margin.
     pub missed: Vec<usize>,
     /// Contacts on each design piece.
     pub per_piece: Vec<usize>,
@@ -199,7 +202,7 @@ pub fn coverage(design: &Part, contacts: &[Contact], re: f64, rs: f64) -> Covera
                 }
                 samples.push((q, ok, ds));
             }
-            if ok_len > rs && cov.per_piece[i] == 0 {
+            if ok_len > 1.5 * rs && cov.per_piece[i] == 0 {
                 cov.missed.push(i);
             }
         }

@@ -1,9 +1,10 @@
 //! The contact CSV and the report JSON (`microcam.probescan/1`); every
-//! figure carries its unit in its name, every uncertainty its coverage
-//! factor (`_k2`).
+//! figure carries its unit in its name. Uncertainties come twice: the
+//! standard uncertainty (`u_..._mm`, k = 1) and the 99 % interval of a
+//! normal estimate (`u99_..._mm`, k = 2.576).
 
 use super::job::{Job, Outcome};
-use super::measure::K;
+use super::measure::K99;
 use crate::geometry::P2;
 use serde::Serialize;
 
@@ -60,14 +61,17 @@ struct CircleR {
     diameter_mz_mm: f64,
     center_mz_mm: [f64; 2],
     roundness_mz_mm: f64,
-    u_diameter_k2_mm: f64,
-    u_center_k2_mm: [f64; 2],
+    u_diameter_mm: f64,
+    u99_diameter_mm: f64,
+    u_center_mm: [f64; 2],
+    u99_center_mm: [f64; 2],
 }
 
 #[derive(Serialize)]
 struct WidthR {
     width_mm: f64,
-    u_width_k2_mm: f64,
+    u_width_mm: f64,
+    u99_width_mm: f64,
     face_points: usize,
     straightness_mm: f64,
     other_face_contact_mm: [f64; 2],
@@ -78,7 +82,7 @@ struct DeviationR {
     max_mm: f64,
     min_mm: f64,
     rms_mm: f64,
-    u_max_k2_mm: f64,
+    u_max_mm: f64,
 }
 
 #[derive(Serialize)]
@@ -151,12 +155,15 @@ pub fn json(job: &Job, out: &Outcome) -> String {
             diameter_mz_mm: r(c.diameter_mz_mm),
             center_mz_mm: rp(c.zone.center),
             roundness_mz_mm: r(c.zone.zone()),
-            u_diameter_k2_mm: r(c.u_diameter_mm),
-            u_center_k2_mm: [r(c.u_center_mm[0]), r(c.u_center_mm[1])],
+            u_diameter_mm: r(c.u_diameter_mm),
+            u99_diameter_mm: r(K99 * c.u_diameter_mm),
+            u_center_mm: [r(c.u_center_mm[0]), r(c.u_center_mm[1])],
+            u99_center_mm: [r(K99 * c.u_center_mm[0]), r(K99 * c.u_center_mm[1])],
         }),
         width: out.width.as_ref().map(|w| WidthR {
             width_mm: r(w.width_mm),
-            u_width_k2_mm: r(w.u_width_mm),
+            u_width_mm: r(w.u_width_mm),
+            u99_width_mm: r(K99 * w.u_width_mm),
             face_points: w.face.n,
             straightness_mm: r(w.face.straightness_mm),
             other_face_contact_mm: rp(w.other),
@@ -165,7 +172,7 @@ pub fn json(job: &Job, out: &Outcome) -> String {
             max_mm: r(devs.iter().map(|d| d.deviation_mm).fold(f64::NEG_INFINITY, f64::max).max(-1e300)),
             min_mm: r(devs.iter().map(|d| d.deviation_mm).fold(f64::INFINITY, f64::min).min(1e300)),
             rms_mm: r((devs.iter().map(|d| d.deviation_mm.powi(2)).sum::<f64>() / nd).sqrt()),
-            u_max_k2_mm: r(devs.iter().map(|d| d.u_mm).fold(0.0, f64::max)),
+            u_max_mm: r(devs.iter().map(|d| d.u_mm).fold(0.0, f64::max)),
         },
         coverage: CoverageR {
             pieces_touched: out.coverage.per_piece.iter().filter(|&&n| n > 0).count(),
@@ -191,7 +198,7 @@ pub fn json(job: &Job, out: &Outcome) -> String {
 /// point, deviation from the design and its expanded uncertainty.
 pub fn csv(out: &Outcome) -> String {
     let mut s = String::from(
-        "index,move,center_x_mm,center_y_mm,dir_x,dir_y,surface_x_mm,surface_y_mm,deviation_mm,u_k2_mm\n",
+        "index,move,center_x_mm,center_y_mm,dir_x,dir_y,surface_x_mm,surface_y_mm,deviation_mm,u_mm\n",
     );
     for (i, (c, d)) in out.scan.contacts.iter().zip(&out.deviations).enumerate() {
         let f = |x: f64| {
@@ -214,6 +221,3 @@ pub fn csv(out: &Outcome) -> String {
     }
     s
 }
-
-/// The coverage factor used (for the docs and help).
-pub const COVERAGE_FACTOR: f64 = K;
