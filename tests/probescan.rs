@@ -76,9 +76,10 @@ fn noisy_job(measure: Measure, seed: u64) -> Job {
         quantise: true,
     };
     let (part, params) = match measure {
-        Measure::Width { nominal_mm, face_points } => {
-            job::gauge_params(nominal_mm, 9.0, face_points, 0.5, 0.1, probe.radius()).unwrap()
-        }
+        Measure::Width {
+            nominal_mm,
+            face_points,
+        } => job::gauge_params(nominal_mm, 9.0, face_points, 0.5, 0.1, probe.radius()).unwrap(),
         _ => (
             Part::circle(P2::new(0.0, 0.0), 12.7),
             ScanParams {
@@ -183,11 +184,19 @@ fn check_closes(part: &Part, start: P2, dir: V2, de: f64, rs: f64, what: &str) {
     };
     let out = job::run(&j).unwrap_or_else(|e| panic!("{what}: {e}"));
     assert_eq!(out.scan.stop, Stop::Closed, "{what}: {}", out.scan.stop.message());
-    assert!(out.coverage.missed.is_empty(), "{what}: skipped pieces {:?}", out.coverage.missed);
+    assert!(
+        out.coverage.missed.is_empty(),
+        "{what}: skipped pieces {:?}",
+        out.coverage.missed
+    );
     // Every contact is a true touch: R_e from the part, never inside it.
     for c in &out.scan.contacts {
         let (d, _) = part.distance(c.center);
-        assert!((d - de / 2.0).abs() < 1e-9, "{what}: contact {:?} is {d} from the part", c.center);
+        assert!(
+            (d - de / 2.0).abs() < 1e-9,
+            "{what}: contact {:?} is {d} from the part",
+            c.center
+        );
     }
 }
 
@@ -232,10 +241,20 @@ fn generated_convex_and_concave_contours_close_without_skipping() {
         }
     };
     let castle_part = single(poly(&castle()));
-    for (dir, tag) in [(V2::new(1.0, 0.0), "castle"), (V2::new(1.0, -0.4), "castle, slanted start")] {
+    for (dir, tag) in [
+        (V2::new(1.0, 0.0), "castle"),
+        (V2::new(1.0, -0.4), "castle, slanted start"),
+    ] {
         check_closes(&castle_part, P2::new(-1.0, 2.0), dir, 0.1, 0.2, tag);
     }
-    check_closes(&single(poly(&star(7, 5.0, 2.5))), P2::new(-6.0, 0.3), V2::new(1.0, 0.0), 0.1, 0.25, "star");
+    check_closes(
+        &single(poly(&star(7, 5.0, 2.5))),
+        P2::new(-6.0, 0.3),
+        V2::new(1.0, 0.0),
+        0.1,
+        0.25,
+        "star",
+    );
     // A bump smaller than R_s on a face: touched on the way or stepped
     // over, never looped on.
     let bump = single(poly(&[
@@ -256,7 +275,14 @@ fn generated_convex_and_concave_contours_close_without_skipping() {
         prims: pocket,
         loops: vec![0..4, 4..20],
     };
-    check_closes(&pocket, P2::new(4.0, 2.0), V2::new(0.0, -1.0), 0.1, 0.2, "castle pocket");
+    check_closes(
+        &pocket,
+        P2::new(4.0, 2.0),
+        V2::new(0.0, -1.0),
+        0.1,
+        0.2,
+        "castle pocket",
+    );
     // A disc with a keyway-like notch (arcs and lines).
     let text = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/testdata/chains/plate.chains")).unwrap();
     let chains: Vec<_> = microcam::formats::chains::ChainsReader::new(text.as_bytes())
@@ -265,8 +291,22 @@ fn generated_convex_and_concave_contours_close_without_skipping() {
         .filter(|c| c.closed)
         .collect();
     let arcs = Part::from_chains(&chains).unwrap();
-    check_closes(&arcs, P2::new(-1.0, 2.0), V2::new(1.0, 0.0), 0.05, 0.15, "plate outside");
-    check_closes(&arcs, P2::new(1.0, 2.0), V2::new(1.0, 0.0), 0.05, 0.1, "plate round hole");
+    check_closes(
+        &arcs,
+        P2::new(-1.0, 2.0),
+        V2::new(1.0, 0.0),
+        0.05,
+        0.15,
+        "plate outside",
+    );
+    check_closes(
+        &arcs,
+        P2::new(1.0, 2.0),
+        V2::new(1.0, 0.0),
+        0.05,
+        0.1,
+        "plate round hole",
+    );
 }
 
 #[test]
@@ -318,7 +358,10 @@ fn corpus_contours_close_without_skipping() {
 }
 
 fn bbox(part: &Part) -> (P2, P2) {
-    let (mut lo, mut hi) = (P2::new(f64::INFINITY, f64::INFINITY), P2::new(f64::NEG_INFINITY, f64::NEG_INFINITY));
+    let (mut lo, mut hi) = (
+        P2::new(f64::INFINITY, f64::INFINITY),
+        P2::new(f64::NEG_INFINITY, f64::NEG_INFINITY),
+    );
     for p in &part.prims {
         for i in 0..=32 {
             let q = p.at(p.length() * i as f64 / 32.0);
@@ -329,23 +372,29 @@ fn bbox(part: &Part) -> (P2, P2) {
     (lo, hi)
 }
 
-/// True when two non-neighbouring pieces come closer than a millionth of
-/// the part's size (sampled).
+/// True when the outline crosses itself: its pieces, sampled into a
+/// polygon, have two non-neighbouring edges that properly cross.
 fn self_crossing(part: &Part) -> bool {
-    let (lo, hi) = bbox(part);
-    let tol = 1e-6 * (hi - lo).norm();
-    let n = part.prims.len();
+    let per = (2000 / part.prims.len().max(1)).clamp(2, 32);
+    let mut pts = Vec::new();
+    for p in &part.prims {
+        for k in 0..per {
+            pts.push(p.at(p.length() * k as f64 / per as f64));
+        }
+    }
+    let n = pts.len();
+    let orient = |a: P2, b: P2, c: P2| (b - a).perp(&(c - a));
     for i in 0..n {
-        let p = part.prims[i];
-        for k in 1..16 {
-            let q = p.at(p.length() * k as f64 / 16.0);
-            for j in 0..n {
-                if j == i || (j + 1) % n == i || (i + 1) % n == j {
-                    continue;
-                }
-                if part.prims[j].distance(q) < tol {
-                    return true;
-                }
+        let (a, b) = (pts[i], pts[(i + 1) % n]);
+        for j in i + 2..n {
+            if (j + 1) % n == i {
+                continue;
+            }
+            let (c, d) = (pts[j], pts[(j + 1) % n]);
+            let (o1, o2) = (orient(a, b, c), orient(a, b, d));
+            let (o3, o4) = (orient(c, d, a), orient(c, d, b));
+            if o1 * o2 < 0.0 && o3 * o4 < 0.0 {
+                return true;
             }
         }
     }
@@ -363,16 +412,37 @@ fn a_slot_narrower_than_the_probe_is_reported_not_entered() {
     let un = r["coverage"]["unreachable"].as_array().unwrap();
     let slot = un
         .iter()
-        .max_by(|a, b| a["length_mm"].as_f64().unwrap().total_cmp(&b["length_mm"].as_f64().unwrap()))
+        .max_by(|a, b| {
+            a["length_mm"]
+                .as_f64()
+                .unwrap()
+                .total_cmp(&b["length_mm"].as_f64().unwrap())
+        })
         .unwrap();
     let len = slot["length_mm"].as_f64().unwrap();
     assert!(len > 2.0 && len < 2.2, "slot stretch {len}");
     // No contact inside the slot: every probe centre stays above its mouth.
-    let csv = run(&["testdata/chains/slot.chains", "--de", "0.1", "--step", "0.2", "--csv", "/dev/stdout", "-o", "/dev/null"], None);
+    let csv = run(
+        &[
+            "testdata/chains/slot.chains",
+            "--de",
+            "0.1",
+            "--step",
+            "0.2",
+            "--csv",
+            "/dev/stdout",
+            "-o",
+            "/dev/null",
+        ],
+        None,
+    );
     let text = String::from_utf8_lossy(&csv.stdout);
     for line in text.lines().skip(1) {
         let v: Vec<f64> = line.split(',').skip(2).take(2).map(|x| x.parse().unwrap()).collect();
-        assert!(!(v[0] > 2.9 && v[0] < 3.1 && v[1] > 2.9 && v[1] < 3.99), "entered the slot: {line}");
+        assert!(
+            !(v[0] > 2.9 && v[0] < 3.1 && v[1] > 2.9 && v[1] < 3.99),
+            "entered the slot: {line}"
+        );
     }
 }
 
@@ -413,7 +483,10 @@ fn minimum_zone_agrees_with_brute_force() {
             .collect();
         let ours = fit::circle_min_zone(&pts).unwrap().zone();
         let theirs = brute_min_zone(&pts);
-        assert!((ours - theirs).abs() < 1e-12, "case {case}: {ours} vs brute force {theirs}");
+        assert!(
+            (ours - theirs).abs() < 1e-12,
+            "case {case}: {ours} vs brute force {theirs}"
+        );
     }
 }
 
@@ -449,7 +522,11 @@ fn iso_program_runs_through_rs274() {
         .output()
         .unwrap();
     let text = std::fs::read_to_string(&canon).unwrap_or_default();
-    assert!(st.status.success(), "rs274 failed: {}", String::from_utf8_lossy(&st.stderr));
+    assert!(
+        st.status.success(),
+        "rs274 failed: {}",
+        String::from_utf8_lossy(&st.stderr)
+    );
     // rs274 alone has no probe: G38.2 "touches" at its end, G38.3 never.
     // So the program logs two contacts, then runs one full step (retract,
     // reposition, approach, two searches) and stops on the lost surface,
@@ -460,21 +537,30 @@ fn iso_program_runs_through_rs274() {
         .map(|r| r.split(',').take(2).map(|x| x.trim().parse().unwrap()).collect())
         .collect();
     assert!(text.contains("lost surface"), "{text}");
-    assert_eq!(probes.len(), 9, "{probes:?}");
+    assert_eq!(probes.len(), 7, "{probes:?}");
     let rs = job::step_for_points(6.4, 20);
     let (p1, ro) = ((-6.6 + 5.0, rs), 0.1);
     let near = |p: &Vec<f64>, x: f64, y: f64| (p[0] - x).abs() < 1e-3 && (p[1] - y).abs() < 1e-3;
-    // u = +Y (P0 -> P1), material to the right (+X).
-    assert!(near(&probes[4], p1.0 - ro, p1.1), "retract {:?}", probes[4]);
-    assert!(near(&probes[5], p1.0 - ro, p1.1 + rs), "reposition {:?}", probes[5]);
-    assert!(near(&probes[6], p1.0 + rs, p1.1 + rs), "approach {:?}", probes[6]);
-    assert!(near(&probes[7], p1.0 + rs, p1.1 - ro), "search {:?}", probes[7]);
-    assert!(near(&probes[8], p1.0, p1.1), "back to P1 {:?}", probes[8]);
+    // u = +Y (P0 -> P1), material to the right (+X); the back-off is an
+    // unguarded feed move.
+    let feeds: Vec<Vec<f64>> = text
+        .lines()
+        .filter_map(|l| l.split_once("STRAIGHT_FEED(").map(|(_, r)| r))
+        .map(|r| r.split(',').take(2).map(|x| x.trim().parse().unwrap()).collect())
+        .collect();
+    assert!(near(&feeds[1], p1.0 - ro, p1.1), "back-off {feeds:?}");
+    assert!(near(&probes[3], p1.0 - ro, p1.1 + rs), "reposition {:?}", probes[3]);
+    assert!(near(&probes[4], p1.0 + rs, p1.1 + rs), "approach {:?}", probes[4]);
+    assert!(near(&probes[5], p1.0 + rs, p1.1 - ro), "search {:?}", probes[5]);
+    assert!(near(&probes[6], p1.0, p1.1), "back to P1 {:?}", probes[6]);
 }
 
 #[test]
 fn pmac_program_is_balanced() {
-    let o = run(&["--circle", "12.7", "--program", "/dev/stdout", "-o", "/dev/null"], None);
+    let o = run(
+        &["--circle", "12.7", "--program", "/dev/stdout", "-o", "/dev/null"],
+        None,
+    );
     let text = String::from_utf8_lossy(&o.stdout);
     let count = |w: &str| text.lines().filter(|l| l.trim_start().starts_with(w)).count();
     assert_eq!(count("IF ("), count("ENDIF"));
@@ -511,11 +597,33 @@ fn failures_say_why_and_write_nothing() {
 
 #[test]
 fn same_seed_same_bytes() {
-    let args = ["--circle", "12.7", "--noise", "0.001", "--quantise", "--seed", "9", "--csv", "/dev/stdout"];
+    let args = [
+        "--circle",
+        "12.7",
+        "--noise",
+        "0.001",
+        "--quantise",
+        "--seed",
+        "9",
+        "--csv",
+        "/dev/stdout",
+    ];
     let (a, b) = (run(&args, None), run(&args, None));
     assert!(a.status.success());
     assert_eq!(a.stdout, b.stdout);
-    let c = run(&["--circle", "12.7", "--noise", "0.001", "--quantise", "--seed", "10", "--csv", "/dev/stdout"], None);
+    let c = run(
+        &[
+            "--circle",
+            "12.7",
+            "--noise",
+            "0.001",
+            "--quantise",
+            "--seed",
+            "10",
+            "--csv",
+            "/dev/stdout",
+        ],
+        None,
+    );
     assert_ne!(a.stdout, c.stdout);
 }
-

@@ -219,8 +219,7 @@ fn run(a: Args) -> Result<(), CliError> {
         max_approach_mm: a.max_approach,
     };
     let (part, measure) = if let Some(w) = a.gauge {
-        let (part, p) =
-            job::gauge_params(w, a.gauge_length, a.face_points, a.step, a.offset, re).map_err(bad)?;
+        let (part, p) = job::gauge_params(w, a.gauge_length, a.face_points, a.step, a.offset, re).map_err(bad)?;
         params = ScanParams {
             max_approach_mm: a.max_approach,
             ..p
@@ -234,7 +233,9 @@ fn run(a: Args) -> Result<(), CliError> {
         )
     } else if let Some(d) = a.circle {
         if !(d.is_finite() && d > 0.0) {
-            return Err(CliError::input(format!("--circle: must be a positive diameter, got {d}")));
+            return Err(CliError::input(format!(
+                "--circle: must be a positive diameter, got {d}"
+            )));
         }
         let (cx, cy) = pair(&a.center, "--center")?;
         if let Some(n) = a.points {
@@ -246,7 +247,11 @@ fn run(a: Args) -> Result<(), CliError> {
             return Err(CliError::input("--points: only with --circle"));
         }
         let part = read_part(a.file.as_deref())?;
-        let m = if a.fit == FitArg::Circle { Measure::Circle } else { Measure::Contour };
+        let m = if a.fit == FitArg::Circle {
+            Measure::Circle
+        } else {
+            Measure::Contour
+        };
         (part, m)
     };
     if a.gauge.is_none() {

@@ -103,7 +103,10 @@ pub struct CircleFit {
 /// (algebraic start, then Gauss-Newton on the geometric residuals).
 pub fn circle_lsq(points: &[P2]) -> Result<CircleFit, ProbeError> {
     if points.len() < 3 {
-        return Err(ProbeError::Fit(format!("a circle needs 3 points, got {}", points.len())));
+        return Err(ProbeError::Fit(format!(
+            "a circle needs 3 points, got {}",
+            points.len()
+        )));
     }
     let n = points.len() as f64;
     let m = points.iter().fold(V2::zeros(), |a, p| a + p.coords) / n;
@@ -218,7 +221,12 @@ pub fn circle_min_zone(points: &[P2]) -> Result<ZoneFit, ProbeError> {
     let m = points.len().min(8);
     for _ in 0..100 {
         let mut idx: Vec<usize> = (0..points.len()).collect();
-        idx.sort_by(|&i, &j| (points[i] - c).norm().total_cmp(&(points[j] - c).norm()).then(i.cmp(&j)));
+        idx.sort_by(|&i, &j| {
+            (points[i] - c)
+                .norm()
+                .total_cmp(&(points[j] - c).norm())
+                .then(i.cmp(&j))
+        });
         let inner = &idx[..m];
         let outer = &idx[idx.len() - m..];
         let mut cands = Vec::new();

@@ -138,6 +138,7 @@ fn touch_other_face(job: &Job, scan: &mut Scan, nominal_mm: f64) -> Result<Conta
         dir: d,
         kind: MoveKind::Approach,
         prim: t.prim,
+        run_mm: t.t,
     };
     scan.path.push(PathMove {
         from: start,
@@ -147,7 +148,7 @@ fn touch_other_face(job: &Job, scan: &mut Scan, nominal_mm: f64) -> Result<Conta
     });
     scan.path.push(PathMove {
         from: exact,
-        to: exact - d * ro,
+        to: exact - d * ro.min(t.t),
         kind: MoveKind::Retract,
         touched: false,
     });
@@ -158,7 +159,14 @@ fn touch_other_face(job: &Job, scan: &mut Scan, nominal_mm: f64) -> Result<Conta
 /// The gauge-block scan: first face at x = 0 from the left, the block
 /// `width` wide in X and `length` long in Y, `n` contacts `rs` apart
 /// centred on the face.
-pub fn gauge_params(width: f64, length: f64, n: usize, rs: f64, ro: f64, re: f64) -> Result<(Part, ScanParams), ProbeError> {
+pub fn gauge_params(
+    width: f64,
+    length: f64,
+    n: usize,
+    rs: f64,
+    ro: f64,
+    re: f64,
+) -> Result<(Part, ScanParams), ProbeError> {
     for (name, v) in [("gauge width", width), ("gauge length", length)] {
         if !(v.is_finite() && v > 0.0) {
             return Err(ProbeError::Param(format!("{name} must be a positive number, got {v}")));

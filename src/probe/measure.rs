@@ -56,10 +56,7 @@ pub fn circle(contacts: &[Contact], re: f64, u: f64) -> Result<CircleMeasure, Pr
         diameter_lsq_mm: 2.0 * (lsq.radius + comp),
         diameter_mz_mm: (zone.r_in + zone.r_out) + 2.0 * comp,
         u_diameter_mm: 2.0 * u * lsq.cov_unit[(2, 2)].sqrt(),
-        u_center_mm: [
-            u * lsq.cov_unit[(0, 0)].sqrt(),
-            u * lsq.cov_unit[(1, 1)].sqrt(),
-        ],
+        u_center_mm: [u * lsq.cov_unit[(0, 0)].sqrt(), u * lsq.cov_unit[(1, 1)].sqrt()],
         lsq,
         zone,
     })
@@ -145,10 +142,12 @@ pub struct Unreachable {
 pub struct Coverage {
     /// Stretches the probe cannot reach, on the contours it touched.
     pub unreachable: Vec<Unreachable>,
-    /// Design pieces whose reachable length exceeds 1.5 R_s and that got no
-    /// contact (a skipped feature). Contacts are R_s apart along straight
-    /// faces; round a corner or a concave arc the foot points spread a
-    /// little more, hence the margin.
+    /// Skipped features: design pieces with no contact that a disc of
+    /// diameter max(R_s, D_e), moving freely from where the scan went, can
+    /// touch along more than 1.5 R_s. A feature larger than R_s is open at
+    /// least R_s wide and long; contacts are R_s apart along straight
+    /// faces, a little more round corners and concave arcs, hence the
+    /// margin.
     pub missed: Vec<usize>,
     /// Contacts on each design piece.
     pub per_piece: Vec<usize>,
@@ -177,11 +176,15 @@ pub fn coverage(design: &Part, contacts: &[Contact], re: f64, rs: f64) -> Covera
     loops.dedup();
     loops.sort_unstable();
     loops.dedup();
-    let h = re / 8.0;
+    let h = re / 4.0;
+    // The reach of a feature "larger than R_s".
+    let rf = re.max(rs / 2.0);
     let mut cov = Coverage {
         per_piece,
         ..Default::default()
     };
+    // Built only when a piece went untouched: the flood is the slow part.
+    let grid = std::cell::OnceCell::new();
     for l in loops {
         // (point, reachable, length it stands for), in contour order.
         let mut samples: Vec<(P2, bool, f64)> = Vec::new();
@@ -190,19 +193,25 @@ pub fn coverage(design: &Part, contacts: &[Contact], re: f64, rs: f64) -> Covera
             let len = prim.length();
             let n = (len / h).ceil().max(1.0) as usize;
             let ds = len / n as f64;
-            let mut ok_len = 0.0;
+            let mut feature_len = 0.0;
+            let reach = |q: P2, n: V2, r: f64| design.distance(q + n * r).0 >= r * (1.0 - 1e-9);
+            let open = |q: P2, n: V2| {
+                reach(q, n, rf)
+                    && grid
+                        .get_or_init(|| FreeGrid::flood(design, contacts, rf))
+                        .reached(q + n * rf)
+            };
             for j in 0..n {
                 let s = (j as f64 + 0.5) * ds;
                 let q = prim.at(s);
-                let t = tangent(&prim, s);
-                let c = q + free_normal(design, q, t) * re;
-                let ok = design.distance(c).0 >= re * (1.0 - 1e-9);
-                if ok {
-                    ok_len += ds;
+                let nrm = free_normal(design, q, tangent(&prim, s));
+                let ok = reach(q, nrm, re);
+                if ok && cov.per_piece[i] == 0 && open(q, nrm) {
+                    feature_len += ds;
                 }
                 samples.push((q, ok, ds));
             }
-            if ok_len > 1.5 * rs && cov.per_piece[i] == 0 {
+            if feature_len > 1.5 * rs && cov.per_piece[i] == 0 {
                 cov.missed.push(i);
             }
         }
@@ -241,6 +250,108 @@ pub fn coverage(design: &Part, contacts: &[Contact], re: f64, rs: f64) -> Covera
     cov
 }
 
+/// Where a disc of radius `r` can go from the scanned contacts: a grid of
+/// disc centres, free when the disc clears the part, flooded from the free
+/// cells next to the contacts.
+struct FreeGrid {
+    lo: P2,
+    g: f64,
+    nx: usize,
+    ny: usize,
+    reached: Vec<bool>,
+}
+
+impl FreeGrid {
+    fn flood(design: &Part, contacts: &[Contact], r: f64) -> FreeGrid {
+        let (mut lo, mut hi) = (
+            P2::new(f64::INFINITY, f64::INFINITY),
+            P2::new(f64::NEG_INFINITY, f64::NEG_INFINITY),
+        );
+        for p in &design.prims {
+            for k in 0..=16 {
+                let q = p.at(p.length() * k as f64 / 16.0);
+                lo = P2::new(lo.x.min(q.x), lo.y.min(q.y));
+                hi = P2::new(hi.x.max(q.x), hi.y.max(q.y));
+            }
+        }
+        let pad = 3.0 * r;
+        lo -= V2::new(pad, pad);
+        hi += V2::new(pad, pad);
+        // A quarter of the radius, coarser if the grid would pass 250,000 cells.
+        let area = (hi.x - lo.x) * (hi.y - lo.y);
+        let g = (r / 4.0).max((area / 2.5e5).sqrt());
+        let nx = ((hi.x - lo.x) / g).ceil() as usize + 1;
+        let ny = ((hi.y - lo.y) / g).ceil() as usize + 1;
+        let at = |i: usize, j: usize| P2::new(lo.x + i as f64 * g, lo.y + j as f64 * g);
+        let free: Vec<bool> = (0..nx * ny)
+            .map(|k| {
+                let c = at(k % nx, k / nx);
+                !design.in_material(c) && design.distance(c).0 >= r
+            })
+            .collect();
+        let mut reached = vec![false; nx * ny];
+        let mut stack = Vec::new();
+        for c in contacts {
+            let (ci, cj) = (((c.center.x - lo.x) / g).round(), ((c.center.y - lo.y) / g).round());
+            let span = (r / g).ceil() as i64 + 2;
+            for dj in -span..=span {
+                for di in -span..=span {
+                    let (i, j) = (ci as i64 + di, cj as i64 + dj);
+                    if i < 0 || j < 0 || i >= nx as i64 || j >= ny as i64 {
+                        continue;
+                    }
+                    let k = j as usize * nx + i as usize;
+                    if free[k] && !reached[k] && (at(i as usize, j as usize) - c.center).norm() <= r + 2.0 * g {
+                        reached[k] = true;
+                        stack.push(k);
+                    }
+                }
+            }
+        }
+        while let Some(k) = stack.pop() {
+            let (i, j) = (k % nx, k / nx);
+            let mut push = |i: usize, j: usize| {
+                let k = j * nx + i;
+                if free[k] && !reached[k] {
+                    reached[k] = true;
+                    stack.push(k);
+                }
+            };
+            if i > 0 {
+                push(i - 1, j);
+            }
+            if i + 1 < nx {
+                push(i + 1, j);
+            }
+            if j > 0 {
+                push(i, j - 1);
+            }
+            if j + 1 < ny {
+                push(i, j + 1);
+            }
+        }
+        FreeGrid { lo, g, nx, ny, reached }
+    }
+
+    /// True when a reached grid centre lies within one cell of `c`.
+    fn reached(&self, c: P2) -> bool {
+        let (fi, fj) = ((c.x - self.lo.x) / self.g, (c.y - self.lo.y) / self.g);
+        for j in [fj.floor(), fj.ceil()] {
+            for i in [fi.floor(), fi.ceil()] {
+                if i >= 0.0
+                    && j >= 0.0
+                    && (i as usize) < self.nx
+                    && (j as usize) < self.ny
+                    && self.reached[j as usize * self.nx + i as usize]
+                {
+                    return true;
+                }
+            }
+        }
+        false
+    }
+}
+
 fn tangent(p: &Prim, s: f64) -> V2 {
     match *p {
         Prim::Line { a, b } => (b - a) / (b - a).norm(),
@@ -267,7 +378,12 @@ mod tests {
             P2::new(0.0, 4.0),
         ];
         let part = Part {
-            prims: (0..6).map(|i| Prim::Line { a: pts[i], b: pts[(i + 1) % 6] }).collect(),
+            prims: (0..6)
+                .map(|i| Prim::Line {
+                    a: pts[i],
+                    b: pts[(i + 1) % 6],
+                })
+                .collect(),
             loops: vec![0..6],
         };
         let c = Contact {
@@ -276,6 +392,7 @@ mod tests {
             dir: V2::new(1.0, 0.0),
             kind: super::super::scan::MoveKind::Approach,
             prim: 5,
+            run_mm: 1.0,
         };
         let cov = coverage(&part, &[c], 0.1, 0.3);
         assert_eq!(cov.unreachable.len(), 1);

@@ -28,7 +28,9 @@ impl NoiseModel {
     pub fn check(&self) -> Result<(), ProbeError> {
         for (name, v) in [("touch noise", self.sigma_mm), ("trigger delay", self.delay_s)] {
             if !(v.is_finite() && v >= 0.0) {
-                return Err(ProbeError::Param(format!("{name} must be a non-negative number, got {v}")));
+                return Err(ProbeError::Param(format!(
+                    "{name} must be a non-negative number, got {v}"
+                )));
             }
         }
         Ok(())
@@ -40,7 +42,11 @@ impl NoiseModel {
     }
 
     fn resolution(&self, probe: &Probe) -> f64 {
-        if self.quantise { probe.touch_resolution_mm() } else { 0.0 }
+        if self.quantise {
+            probe.touch_resolution_mm()
+        } else {
+            0.0
+        }
     }
 
     /// Mean over-travel along the approach (mm), removed from every contact.

@@ -281,7 +281,12 @@ impl Part {
     pub fn rectangle(lo: P2, hi: P2) -> Part {
         let p = [lo, P2::new(hi.x, lo.y), hi, P2::new(lo.x, hi.y)];
         Part {
-            prims: (0..4).map(|i| Prim::Line { a: p[i], b: p[(i + 1) % 4] }).collect(),
+            prims: (0..4)
+                .map(|i| Prim::Line {
+                    a: p[i],
+                    b: p[(i + 1) % 4],
+                })
+                .collect(),
             loops: vec![0..4],
         }
     }

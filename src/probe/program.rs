@@ -55,20 +55,34 @@ enum St {
     /// Guarded move to (x, y); `must` = the approach must touch (stop
     /// otherwise). Sets `hit`, `cx`, `cy`, `hdx`, `hdy`.
     Guarded(String, String, bool),
+    /// Unguarded move to (x, y) (backing off along a free path).
+    Move(String, String),
     If(String, Vec<St>, Vec<St>),
+    Block(Vec<St>),
     While(String, Vec<St>),
     Record,
     Stop(u32, &'static str),
 }
 
-const VARS: [&str; 40] = [
-    "rs", "ro", "dx", "dy", "maxn", "appr", "sx", "sy", "k", "side", "trav", "hit", "cx", "cy", "hdx", "hdy", "px", "py",
-    "pdx", "pdy", "qx", "qy", "qdx", "qdy", "fx", "fy", "fdx", "fdy", "wx", "wy", "wl", "ux", "uy", "nx", "ny", "ex",
-    "ey", "mx", "my", "ml",
+const VARS: [&str; 43] = [
+    "rs", "ro", "dx", "dy", "maxn", "appr", "sx", "sy", "k", "side", "trav", "hit", "cx", "cy", "hdx", "hdy", "px",
+    "py", "pdx", "pdy", "qx", "qy", "qdx", "qdy", "fx", "fy", "fdx", "fdy", "wx", "wy", "wl", "ux", "uy", "nx", "ny",
+    "ex", "ey", "mx", "my", "ml", "tl", "bk", "qtl",
 ];
 
 fn set(v: &'static str, e: impl Into<String>) -> St {
     St::Set(v, e.into())
+}
+
+/// Back off from the contact at (x, y), touched moving along (dx, dy)
+/// after running `run`: by R_o, or by `run` if less, so the way back is
+/// the free way it came.
+fn back_off(x: &str, y: &str, dx: &str, dy: &str, run: &str) -> Vec<St> {
+    vec![
+        set("bk", "{ro}"),
+        St::If(format!("{run} LT {{ro}}"), vec![set("bk", run.to_string())], vec![]),
+        St::Move(format!("{x}-{dx}*{{bk}}"), format!("{y}-{dy}*{{bk}}")),
+    ]
 }
 
 /// The algorithm, once for both dialects. Expressions use `{name}` for
@@ -100,7 +114,7 @@ fn algorithm(p: &ScanParams, max_points: usize) -> Vec<St> {
         set("fdx", "{hdx}"),
         set("fdy", "{hdy}"),
         St::Note("second start: R_s to the left of the first".into()),
-        St::Guarded("{cx}-{dx}*{ro}".into(), "{cy}-{dy}*{ro}".into(), false),
+        St::Block(back_off("{cx}", "{cy}", "{hdx}", "{hdy}", "{tl}")),
         St::Guarded("{sx}-{dy}*{rs}".into(), "{sy}+{dx}*{rs}".into(), false),
         St::If("{hit} EQ 1".into(), vec![St::Stop(4, "second start blocked")], vec![]),
         St::Guarded("{sx}-{dy}*{rs}+{dx}*{appr}".into(), "{sy}+{dx}*{rs}+{dy}*{appr}".into(), true),
@@ -111,6 +125,7 @@ fn algorithm(p: &ScanParams, max_points: usize) -> Vec<St> {
         set("qy", "{cy}"),
         set("qdx", "{hdx}"),
         set("qdy", "{hdy}"),
+        set("qtl", "{tl}"),
         set("wx", "{qx}-{px}"),
         set("wy", "{qy}-{py}"),
         set("trav", "SQRT({wx}*{wx}+{wy}*{wy})"),
@@ -139,10 +154,10 @@ fn algorithm(p: &ScanParams, max_points: usize) -> Vec<St> {
                     vec![St::Stop(1, "contour closed")],
                     vec![],
                 ),
-                St::Guarded("{qx}-{qdx}*{ro}".into(), "{qy}-{qdy}*{ro}".into(), false),
+                St::Block(back_off("{qx}", "{qy}", "{qdx}", "{qdy}", "{qtl}")),
+                set("hit", "0"),
+                St::Guarded("{qx}+{ux}*{rs}-{nx}*{ro}".into(), "{qy}+{uy}*{rs}-{ny}*{ro}".into(), false),
                 after_touch(vec![
-                    St::Guarded("{qx}+{ux}*{rs}-{nx}*{ro}".into(), "{qy}+{uy}*{rs}-{ny}*{ro}".into(), false),
-                    after_touch(vec![
                         set("ex", "{qx}+{ux}*{rs}+{nx}*{rs}"),
                         set("ey", "{qy}+{uy}*{rs}+{ny}*{rs}"),
                         St::Guarded("{ex}".into(), "{ey}".into(), false),
@@ -151,7 +166,6 @@ fn algorithm(p: &ScanParams, max_points: usize) -> Vec<St> {
                             after_touch(vec![St::Guarded("{qx}".into(), "{qy}".into(), false)]),
                         ]),
                     ]),
-                ]),
                 St::If("{hit} EQ 0".into(), vec![St::Stop(3, "lost surface")], vec![]),
                 St::Record,
                 set("wx", "{cx}-{qx}"),
@@ -163,6 +177,7 @@ fn algorithm(p: &ScanParams, max_points: usize) -> Vec<St> {
                 set("qy", "{cy}"),
                 set("qdx", "{hdx}"),
                 set("qdy", "{hdy}"),
+                set("qtl", "{tl}"),
             ],
         ),
         St::Stop(2, "contact limit reached"),
@@ -263,6 +278,8 @@ impl Writer {
                 self.line(&format!("{cy} = [#5062*{hit}+{ey}*[1-{hit}]]"));
                 self.line(&format!("{hdx} = [{mx}/{ml}]"));
                 self.line(&format!("{hdy} = [{my}/{ml}]"));
+                let tl = self.var("tl");
+                self.line(&format!("{tl} = SQRT[[{cx}-{ex}+{mx}]**2+[{cy}-{ey}+{my}]**2]"));
             }
             Dialect::Pmac => {
                 let (mx, my, ml) = (self.var("mx"), self.var("my"), self.var("ml"));
@@ -282,6 +299,10 @@ impl Writer {
                 self.line("ENDIF");
                 self.line(&format!("{hdx} = {mx}/{ml}"));
                 self.line(&format!("{hdy} = {my}/{ml}"));
+                let tl = self.var("tl");
+                self.line(&format!(
+                    "{tl} = SQRT(({cx}-{ex}+{mx})*({cx}-{ex}+{mx})+({cy}-{ey}+{my})*({cy}-{ey}+{my}))"
+                ));
                 if must {
                     self.line(&format!("IF ({hit} = 0)"));
                     self.indent += 1;
@@ -291,6 +312,18 @@ impl Writer {
                 }
             }
         }
+    }
+
+    fn plain_move(&mut self, x: &str, y: &str) {
+        self.assign("ex", x);
+        self.assign("ey", y);
+        let (ex, ey, cx, cy) = (self.var("ex"), self.var("ey"), self.var("cx"), self.var("cy"));
+        match self.d {
+            Dialect::Iso => self.line(&format!("G1 X{ex} Y{ey}")),
+            Dialect::Pmac => self.line(&format!("X({ex}) Y({ey})")),
+        }
+        self.line(&format!("{cx} = {ex}"));
+        self.line(&format!("{cy} = {ey}"));
     }
 
     fn stop(&mut self, code: u32, why: &str) {
@@ -328,6 +361,8 @@ impl Writer {
                 St::Set(v, e) => self.assign(v, e),
                 St::Guarded(x, y, must) => self.guarded(x, y, *must),
                 St::Record => self.record(),
+                St::Block(b) => self.block(b),
+                St::Move(x, y) => self.plain_move(x, y),
                 St::Stop(c, why) => self.stop(*c, why),
                 St::If(c, a, b) => {
                     self.label += 1;

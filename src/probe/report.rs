@@ -169,8 +169,16 @@ pub fn json(job: &Job, out: &Outcome) -> String {
             other_face_contact_mm: rp(w.other),
         }),
         deviation: DeviationR {
-            max_mm: r(devs.iter().map(|d| d.deviation_mm).fold(f64::NEG_INFINITY, f64::max).max(-1e300)),
-            min_mm: r(devs.iter().map(|d| d.deviation_mm).fold(f64::INFINITY, f64::min).min(1e300)),
+            max_mm: r(devs
+                .iter()
+                .map(|d| d.deviation_mm)
+                .fold(f64::NEG_INFINITY, f64::max)
+                .max(-1e300)),
+            min_mm: r(devs
+                .iter()
+                .map(|d| d.deviation_mm)
+                .fold(f64::INFINITY, f64::min)
+                .min(1e300)),
             rms_mm: r((devs.iter().map(|d| d.deviation_mm.powi(2)).sum::<f64>() / nd).sqrt()),
             u_max_mm: r(devs.iter().map(|d| d.u_mm).fold(0.0, f64::max)),
         },
@@ -197,9 +205,8 @@ pub fn json(job: &Job, out: &Outcome) -> String {
 /// The contacts as CSV: probe centre, touch direction, compensated surface
 /// point, deviation from the design and its expanded uncertainty.
 pub fn csv(out: &Outcome) -> String {
-    let mut s = String::from(
-        "index,move,center_x_mm,center_y_mm,dir_x,dir_y,surface_x_mm,surface_y_mm,deviation_mm,u_mm\n",
-    );
+    let mut s =
+        String::from("index,move,center_x_mm,center_y_mm,dir_x,dir_y,surface_x_mm,surface_y_mm,deviation_mm,u_mm\n");
     for (i, (c, d)) in out.scan.contacts.iter().zip(&out.deviations).enumerate() {
         let f = |x: f64| {
             let mut t = String::new();

@@ -6,7 +6,8 @@
 //! last two contacts, `u = (P1 - P0) / |P1 - P0|` and `n` the normal of `u`
 //! on the material's side (the side is fixed by the first two contacts):
 //!
-//! - back off by `R_o` against the move that touched;
+//! - back off by `R_o` against the move that touched (less if that move was
+//!   shorter: retracing it is then sure to be free);
 //! - move to `S = P1 + R_s u - R_o n` (the seed's circle-line intersections,
 //!   eqs. 4.2-4.7, are exactly these two points);
 //! - approach along `n` for at most `R_o + R_s`.
@@ -98,6 +99,9 @@ pub struct Contact {
     pub kind: MoveKind,
     /// The part piece touched (simulation only).
     pub prim: usize,
+    /// How far the touching move ran before it touched (mm): backing off
+    /// along it that far or less retraces free space.
+    pub run_mm: f64,
 }
 
 /// Why a scan ended.
@@ -166,6 +170,21 @@ struct Runner<'a> {
 }
 
 impl Runner<'_> {
+    /// Back off from contact `c` against its touching move by `R_o`, or by
+    /// as far as that move ran if less: the way it came is free, so this
+    /// move needs no guard (on the machine the wire may still be rubbing
+    /// the surface as it leaves, and a guard would fire at once).
+    fn back_off(&mut self, c: &Contact, ro: f64) {
+        let to = c.exact - c.dir * ro.min(c.run_mm);
+        self.scan.path.push(PathMove {
+            from: c.exact,
+            to,
+            kind: MoveKind::Retract,
+            touched: false,
+        });
+        self.pos = to;
+    }
+
     /// A guarded move from the current position to `to`; records the touch.
     fn go(&mut self, to: P2, kind: MoveKind) -> bool {
         let from = self.pos;
@@ -191,6 +210,7 @@ impl Runner<'_> {
                     dir: d,
                     kind,
                     prim: t.prim,
+                    run_mm: t.t,
                 });
                 self.pos = exact;
                 true
@@ -241,8 +261,9 @@ pub fn run(part: &Part, probe: &Probe, noise: &NoiseModel, params: &ScanParams, 
     let starts = [params.start, params.start + perp(d) * rs];
     for (i, s) in starts.into_iter().enumerate() {
         if i == 1 {
-            let back = r.pos - d * ro;
-            if r.go(back, MoveKind::Retract) || r.go(s, MoveKind::Reposition) {
+            let c = r.scan.contacts[0];
+            r.back_off(&c, ro);
+            if r.go(s, MoveKind::Reposition) {
                 return Err(ProbeError::Start(format!(
                     "the second start ({}, {}), R_s to the left of the first, cannot be reached without touching",
                     s.x, s.y
@@ -273,6 +294,7 @@ pub fn run(part: &Part, probe: &Probe, noise: &NoiseModel, params: &ScanParams, 
     r.scan.side = side;
     let mut travelled = u0.norm();
     let first = r.scan.contacts[0];
+    let mut repeats = 0;
     loop {
         let k = r.scan.contacts.len();
         if k >= params.max_points {
@@ -294,20 +316,20 @@ pub fn run(part: &Part, probe: &Probe, noise: &NoiseModel, params: &ScanParams, 
             r.scan.stop = Stop::Closed;
             break;
         }
-        if k >= 4 {
-            let span = r.scan.contacts[k - 4..]
-                .iter()
-                .map(|c| (c.center - p1.center).norm())
-                .fold(0.0, f64::max);
-            if span < 0.05 * rs {
+        // A contact back where one of the last few was means the scan is
+        // going round in a small cycle; a few in a row and it is stuck.
+        let recent = &r.scan.contacts[k.saturating_sub(9)..k - 1];
+        if recent.iter().any(|c| (c.center - p1.center).norm() < 0.02 * rs) {
+            repeats += 1;
+            if repeats >= 4 {
                 r.scan.stop = Stop::Stuck(p1.center);
                 break;
             }
+        } else {
+            repeats = 0;
         }
-        // Back off the way the touching move came: that always leaves the
-        // surface, whatever the corner.
-        let touched = r.go(p1.exact - p1.dir * ro, MoveKind::Retract)
-            || r.go(p1.center + u * rs - n * ro, MoveKind::Reposition)
+        r.back_off(&p1, ro);
+        let touched = r.go(p1.center + u * rs - n * ro, MoveKind::Reposition)
             || {
                 let s = r.pos;
                 r.go(s + n * (ro + rs), MoveKind::Approach)
@@ -326,8 +348,7 @@ pub fn run(part: &Part, probe: &Probe, noise: &NoiseModel, params: &ScanParams, 
     }
     // Leave the surface.
     if let Some(c) = r.scan.contacts.last().copied() {
-        let to = c.exact - c.dir * ro;
-        r.go(to, MoveKind::Retract);
+        r.back_off(&c, ro);
     }
     Ok(r.scan)
 }
@@ -343,7 +364,9 @@ fn check(p: &ScanParams) -> Result<(), ProbeError> {
         }
     }
     if !(p.dir.norm() > 0.0 && p.dir.norm().is_finite()) {
-        return Err(ProbeError::Param("the initial direction must be a non-zero vector".into()));
+        return Err(ProbeError::Param(
+            "the initial direction must be a non-zero vector".into(),
+        ));
     }
     if !(p.start.x.is_finite() && p.start.y.is_finite()) {
         return Err(ProbeError::Param("the start must be finite".into()));
@@ -391,7 +414,14 @@ mod tests {
         let probe = Probe::new(0.2, 30_000.0, 0.05).unwrap();
         // Outside (convex corners), going either way round.
         for dir in [V2::new(1.0, 0.0), V2::new(1.0, 0.3)] {
-            let s = run(&part, &probe, &NoiseModel::default(), &params(P2::new(-1.0, 1.0), dir, 0.3), 1).unwrap();
+            let s = run(
+                &part,
+                &probe,
+                &NoiseModel::default(),
+                &params(P2::new(-1.0, 1.0), dir, 0.3),
+                1,
+            )
+            .unwrap();
             assert_eq!(s.stop, Stop::Closed);
             let mut seen = [0; 4];
             for c in &s.contacts {

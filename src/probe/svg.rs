@@ -19,7 +19,10 @@ pub fn render(design: &Part, out: &Outcome, re: f64, exaggerate: Option<f64>) ->
         pts.push(m.from);
         pts.push(m.to);
     }
-    let (mut lo, mut hi) = (P2::new(f64::INFINITY, f64::INFINITY), P2::new(f64::NEG_INFINITY, f64::NEG_INFINITY));
+    let (mut lo, mut hi) = (
+        P2::new(f64::INFINITY, f64::INFINITY),
+        P2::new(f64::NEG_INFINITY, f64::NEG_INFINITY),
+    );
     for p in &pts {
         lo = P2::new(lo.x.min(p.x), lo.y.min(p.y));
         hi = P2::new(hi.x.max(p.x), hi.y.max(p.y));
@@ -72,7 +75,11 @@ pub fn render(design: &Part, out: &Outcome, re: f64, exaggerate: Option<f64>) ->
     // Contacts (probe centres) and the probe's size at the first one.
     for c in &out.scan.contacts {
         let a = tx(c.center);
-        let _ = writeln!(s, r##"<circle cx="{:.2}" cy="{:.2}" r="1.6" fill="#1f6fd1"/>"##, a.0, a.1);
+        let _ = writeln!(
+            s,
+            r##"<circle cx="{:.2}" cy="{:.2}" r="1.6" fill="#1f6fd1"/>"##,
+            a.0, a.1
+        );
     }
     if let Some(c) = out.scan.contacts.first() {
         let a = tx(c.center);
@@ -164,7 +171,11 @@ fn nice(x: f64) -> f64 {
         return 1.0;
     }
     let e = 10f64.powf(x.log10().floor());
-    [5.0, 2.0, 1.0].into_iter().map(|m| m * e).find(|&v| v <= x).unwrap_or(e)
+    [5.0, 2.0, 1.0]
+        .into_iter()
+        .map(|m| m * e)
+        .find(|&v| v <= x)
+        .unwrap_or(e)
 }
 
 /// A short decimal for labels.
