@@ -233,13 +233,7 @@ fn star(n: usize, r1: f64, r2: f64) -> Vec<(f64, f64)> {
 
 #[test]
 fn generated_convex_and_concave_contours_close_without_skipping() {
-    let single = |prims: Vec<Prim>| {
-        let n = prims.len();
-        Part {
-            prims,
-            loops: vec![0..n],
-        }
-    };
+    let single = Part::single_loop;
     let castle_part = single(poly(&castle()));
     for (dir, tag) in [
         (V2::new(1.0, 0.0), "castle"),

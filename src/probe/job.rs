@@ -131,7 +131,7 @@ fn touch_other_face(job: &Job, scan: &mut Scan, nominal_mm: f64) -> Result<Conta
     })?;
     let exact = start + d * t.t;
     // A seed apart from the scan's, so the face scan is unchanged.
-    let mut rng = Rng::new(job.seed ^ 0x5EED_0F_0FF5E7);
+    let mut rng = Rng::new(job.seed ^ 0x5EED_0F0F_F5E7);
     let c = Contact {
         center: exact + d * job.noise.draw(&job.probe, &mut rng),
         exact,

@@ -377,15 +377,14 @@ mod tests {
             P2::new(2.0, 4.0),
             P2::new(0.0, 4.0),
         ];
-        let part = Part {
-            prims: (0..6)
+        let part = Part::single_loop(
+            (0..6)
                 .map(|i| Prim::Line {
                     a: pts[i],
                     b: pts[(i + 1) % 6],
                 })
                 .collect(),
-            loops: vec![0..6],
-        };
+        );
         let c = Contact {
             center: P2::new(-0.1, 1.0),
             exact: P2::new(-0.1, 1.0),

@@ -263,32 +263,37 @@ impl Part {
         Ok(Part { prims, loops })
     }
 
+    /// A part bounded by one closed loop of pieces.
+    pub fn single_loop(prims: Vec<Prim>) -> Part {
+        let n = prims.len();
+        Part {
+            prims,
+            loops: std::iter::once(0..n).collect(),
+        }
+    }
+
     /// A round plug of diameter `d` about `c` (a full circle, ccw).
     pub fn circle(c: P2, d: f64) -> Part {
-        Part {
-            prims: vec![Prim::Arc {
-                c,
-                r: d / 2.0,
-                a0: 0.0,
-                sweep: TAU,
-            }],
-            loops: vec![0..1],
-        }
+        Part::single_loop(vec![Prim::Arc {
+            c,
+            r: d / 2.0,
+            a0: 0.0,
+            sweep: TAU,
+        }])
     }
 
     /// A rectangle with corners `lo` and `hi`, counter-clockwise from `lo`:
     /// the section of a gauge block (width along X).
     pub fn rectangle(lo: P2, hi: P2) -> Part {
         let p = [lo, P2::new(hi.x, lo.y), hi, P2::new(lo.x, hi.y)];
-        Part {
-            prims: (0..4)
+        Part::single_loop(
+            (0..4)
                 .map(|i| Prim::Line {
                     a: p[i],
                     b: p[(i + 1) % 4],
                 })
                 .collect(),
-            loops: vec![0..4],
-        }
+        )
     }
 
     /// The loop that piece `prim` belongs to.

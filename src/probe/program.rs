@@ -351,7 +351,7 @@ impl Writer {
                 self.line(&format!("P996 = {k}+1"));
             }
         }
-        self.line(&format!("{k} = {}", self.paren(&format!("{{k}}+1"))));
+        self.line(&format!("{k} = {}", self.paren("{k}+1")));
     }
 
     fn block(&mut self, sts: &[St]) {
