@@ -16,6 +16,7 @@
 //! - [`pmac`]: Turbo PMAC protocol, client, emulator, splitting and upload.
 //! - [`cutter`]: end mill shapes shared by every milling tool.
 //! - [`mesh`]: triangle meshes (STL, OBJ) and queries on them.
+//! - [`probe`]: rotating-wire probe scanning and measurement.
 //! - [`corpus`]: where the shared test corpus lies, for tests and benchmarks.
 //! - [`cli`]: conventions shared by every binary.
 
@@ -32,5 +33,6 @@ pub mod mesh;
 pub mod model;
 pub mod pmac;
 pub mod preview;
+pub mod probe;
 pub mod sim;
 pub mod source;
