@@ -5,6 +5,7 @@
 use super::beam::{BeamModel, ChainExposure, CommandTiming, EXAMPLES, match_chains};
 use super::machine::{Controller, Machine};
 use super::picture::Overlay;
+use super::removal::{CutBlock, CutMove, Engine};
 use super::stock::Stock;
 use super::summary::Summary;
 use super::time::{Block, Event, Limit, MoveClass, TimeModel, TimedBlock};
@@ -80,24 +81,9 @@ pub struct StepPlan {
     pub rpm: Option<f64>,
 }
 
-/// Pieces cut together: large enough to keep two cores busy, small enough
-/// that the queue stays a few hundred kilobytes.
-const BATCH_PIECES: usize = 4096;
-
-/// A block waiting for its batch to be cut.
-struct Queued {
-    line: Option<u64>,
-    class: MoveClass,
-    length_mm: f64,
-    stepped: bool,
-    /// Per step: end point, first piece, piece count.
-    steps: Vec<(P3, usize, usize)>,
-}
-
-/// Stock, cutter and the per-block removal series.
+/// The engine, its stock and the per-block removal series.
 pub struct Removal<W: Write> {
-    pub stock: Stock,
-    pub cutter: Cutter,
+    pub engine: Engine<Stock>,
     pub csv: Option<W>,
     pub stats: RemovalStats,
     pub steps: Option<StepPlan>,
@@ -109,8 +95,6 @@ pub struct Removal<W: Write> {
     header_written: bool,
     /// The path drawn for `--png`.
     pub overlay: Option<Overlay>,
-    pieces: Vec<(P3, P3)>,
-    queued: Vec<Queued>,
 }
 
 /// The header row of the `--steps` CSV.
@@ -173,8 +157,7 @@ impl<W: Write> Simulator<W> {
             ..Default::default()
         };
         self.removal = Some(Removal {
-            stock,
-            cutter,
+            engine: Engine::new(stock, cutter),
             csv,
             stats,
             steps: None,
@@ -182,8 +165,6 @@ impl<W: Write> Simulator<W> {
             rpm: None,
             header_written: false,
             overlay: None,
-            pieces: Vec::new(),
-            queued: Vec::new(),
         });
         self
     }
@@ -191,7 +172,7 @@ impl<W: Write> Simulator<W> {
     /// Draw the path for a picture. Call after [`Self::with_removal`].
     pub fn with_picture(mut self) -> Self {
         if let Some(r) = self.removal.as_mut() {
-            r.overlay = Some(Overlay::for_stock(&r.stock));
+            r.overlay = Some(Overlay::for_stock(&r.engine.stock));
         }
         self
     }
@@ -402,7 +383,7 @@ impl<W: Write> Simulator<W> {
                 for w in [r.csv.as_mut(), r.steps_csv.as_mut()].into_iter().flatten() {
                     w.flush()?;
                 }
-                (Some((r.stats, r.stock)), r.csv, r.steps_csv, r.overlay)
+                (Some((r.stats, r.engine.stock)), r.csv, r.steps_csv, r.overlay)
             }
             None => (None, None, None, None),
         };
@@ -448,7 +429,7 @@ impl<W: Write> Removal<W> {
             let feed = block.class != MoveClass::Rapid;
             match &arc {
                 Some(a) => {
-                    let n = ((a.length() / (0.5 * self.stock.cell)).ceil() as usize).clamp(1, 1 << 16);
+                    let n = ((a.length() / (0.5 * self.engine.stock.cell)).ceil() as usize).clamp(1, 1 << 16);
                     let mut p0 = *from;
                     for k in 1..=n {
                         let p1 = a.point_at(k as f64 / n as f64);
@@ -459,96 +440,55 @@ impl<W: Write> Removal<W> {
                 None => o.line(from, to, feed),
             }
         }
-        let step = self.step_length(block)?;
-        let n = match step {
-            Some(st) if block.length_mm > 0.0 => ((block.length_mm / st).ceil() as usize).clamp(1, 1 << 24),
-            _ => 1,
-        };
-        // Sub-arcs are built without extra turns: keep each under a turn.
-        let n = match &arc {
-            Some(a) if n > 1 => n.max(4 * (a.extra_turns as usize + 1)),
-            _ => n,
-        };
-        // Queue the pieces; volumes come when the batch is cut.
-        let mut prev = *from;
-        let mut steps = Vec::with_capacity(n);
-        for k in 1..=n {
-            let t = k as f64 / n as f64;
-            let first = self.pieces.len();
-            let p = match &arc {
-                Some(a) => {
-                    let p = if k == n { *to } else { a.point_at(t) };
-                    let sub = if n == 1 {
-                        Some(*a)
-                    } else {
-                        Arc3::new(a.center, prev, p, a.ccw, a.plane, 0)
-                    };
-                    if let Some(sa) = sub {
-                        self.pieces.extend(self.stock.arc_chords(&sa));
-                    }
-                    p
-                }
-                None => {
-                    let p = if k == n { *to } else { from + (to - from) * t };
-                    self.pieces.push((prev, p));
-                    p
-                }
-            };
-            steps.push((p, first, self.pieces.len() - first));
-            prev = p;
-        }
-        self.queued.push(Queued {
+        let step_mm = self.step_length(block)?;
+        self.engine.push(&CutMove {
             line: block.line,
             class: block.class,
+            from: *from,
+            to: *to,
+            arc,
             length_mm: block.length_mm,
-            stepped: step.is_some(),
-            steps,
+            step_mm,
         });
-        if self.pieces.len() >= BATCH_PIECES {
-            self.flush()?;
-        }
-        Ok(())
+        self.drain()
     }
 
-    /// Cut the queued pieces and account them block by block, in order.
+    /// Cut what is queued and account it.
     fn flush(&mut self) -> Result<(), SimError> {
-        if self.queued.is_empty() {
-            return Ok(());
-        }
-        let vols = self.stock.cut_lines(&self.pieces, &self.cutter);
-        let queued = std::mem::take(&mut self.queued);
-        for q in &queued {
+        self.engine.flush();
+        self.drain()
+    }
+
+    /// Account the blocks the engine has finished, in order, writing the
+    /// series.
+    fn drain(&mut self) -> Result<(), SimError> {
+        while let Some(q) = self.engine.pop() {
             let n = q.steps.len();
-            let (mut v, mut vmax) = (0.0_f64, 0.0_f64);
-            for (k, (p, first, count)) in q.steps.iter().enumerate() {
-                let vk: f64 = vols[*first..first + count].iter().sum();
-                if q.stepped
-                    && let Some(w) = self.steps_csv.as_mut()
-                {
+            if q.stepped
+                && let Some(w) = self.steps_csv.as_mut()
+            {
+                for (k, st) in q.steps.iter().enumerate() {
                     let mut b = String::with_capacity(80);
                     if let Some(l) = q.line {
                         push_uint(&mut b, l);
                     }
                     b.push(',');
                     push_uint(&mut b, k as u64 + 1);
-                    for c in [p.x, p.y, p.z, q.length_mm / n as f64, vk] {
+                    for c in [st.end.x, st.end.y, st.end.z, q.length_mm / n as f64, st.volume_mm3] {
                         b.push(',');
                         push_num(&mut b, c);
                     }
                     b.push('\n');
                     w.write_all(b.as_bytes())?;
                 }
-                v += vk;
-                vmax = vmax.max(vk);
             }
-            self.account(q, v, vmax)?;
+            self.account(&q)?;
         }
-        self.pieces.clear();
         Ok(())
     }
 
-    fn account(&mut self, q: &Queued, v: f64, vmax: f64) -> Result<(), SimError> {
-        let n = q.steps.len();
+    fn account(&mut self, q: &CutBlock) -> Result<(), SimError> {
+        let (n, v, vmax) = (q.steps.len(), q.volume_mm3, q.max_step_mm3);
         let s = &mut self.stats;
         s.removed_volume_mm3 += v;
         if v > s.max_block_volume_mm3 {
