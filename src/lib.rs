@@ -8,6 +8,7 @@
 //! - [`formats`]: the JSON Lines pipe formats, streaming.
 //! - [`gcode`]: ISO and PMAC G-code, read and written.
 //! - [`dxf`]: DXF import and chain detection.
+//! - [`feedopt`]: feed scheduling from simulated chip volume (milling).
 //! - [`paths`]: constant-velocity laser toolpaths from chains (contour,
 //!   patterns, corner loops, cut order, shutter timing).
 //! - [`sim`]: what a program does on the machine: time, beam and material removal.
@@ -22,6 +23,7 @@ pub mod cli;
 pub mod corpus;
 pub mod cutter;
 pub mod dxf;
+pub mod feedopt;
 pub mod formats;
 pub mod gcode;
 pub mod geometry;
