@@ -21,6 +21,7 @@
 
 pub mod force;
 pub mod report;
+pub mod sample;
 pub mod schedule;
 pub mod text;
 

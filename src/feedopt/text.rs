@@ -263,7 +263,16 @@ pub fn has_incremental(text: &str, dialect: Dialect) -> bool {
         let code = l.body[..code_end(l.body, dialect)].to_ascii_uppercase();
         match dialect {
             Dialect::Iso => word_present(&code, "G91"),
-            Dialect::Pmac => word_present(&code, "INC"),
+            // `INC(R)` (incremental arc centres) leaves positions absolute.
+            Dialect::Pmac => code.match_indices("INC").any(|(i, _)| {
+                let before_ok = i == 0 || !code.as_bytes()[i - 1].is_ascii_alphabetic();
+                let rest = &code[i + 3..];
+                let axes = match rest.strip_prefix('(') {
+                    Some(r) => r.split(')').next().unwrap_or("").contains(['X', 'Y', 'Z']),
+                    None => !rest.starts_with(|c: char| c.is_ascii_alphanumeric()),
+                };
+                before_ok && axes
+            }),
         }
     })
 }
@@ -338,6 +347,9 @@ mod tests {
         assert!(is_marked(&s, Dialect::Pmac));
         assert!(has_incremental("G0 X1\nG91 G1 X2\n", Dialect::Iso));
         assert!(!has_incremental("G90 G91.1\n", Dialect::Iso));
+        assert!(!has_incremental("NORMAL K-1 ABS INC(R)\n", Dialect::Pmac));
+        assert!(has_incremental("INC\nX1\n", Dialect::Pmac));
+        assert!(has_incremental("INC(X,Y)\n", Dialect::Pmac));
         assert!(has_inch("G20 G0 X1\n"));
         assert!(!has_inch("G200\n(G20)\n"));
     }
