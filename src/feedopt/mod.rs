@@ -214,6 +214,7 @@ pub fn optimise(input: &str, o: &Options) -> Result<Outcome, FeedoptError> {
     let mut moves: Vec<Option<MoveInfo>> = Vec::new();
     let (mut lo, mut hi) = (P3::new(f64::MAX, f64::MAX, f64::MAX), P3::new(f64::MIN, f64::MIN, f64::MIN));
     let mut steps_total = 0usize;
+    let mut steps: Vec<Step> = Vec::new();
     for r in &recs {
         match r {
             Record::Spindle { rpm: s, .. } if o.rpm.is_none() => rpm = Some(*s),
@@ -252,7 +253,7 @@ pub fn optimise(input: &str, o: &Options) -> Result<Outcome, FeedoptError> {
                         Some(a) if n > 1 => n.max(4 * (a.extra_turns as usize + 1)),
                         _ => n,
                     };
-                    step = Some(length_mm / n as f64);
+                    step = Some(step_mm);
                     info = Some(MoveInfo {
                         line: m.block,
                         kind: m.kind,
@@ -315,11 +316,11 @@ pub fn optimise(input: &str, o: &Options) -> Result<Outcome, FeedoptError> {
     }
 
     // The per-step series.
-    let mut steps: Vec<Step> = Vec::with_capacity(steps_total);
+    steps.reserve(steps_total);
     let mut rows: Vec<SeriesRow> = Vec::with_capacity(steps_total);
     let mut s_acc = 0.0;
     let mut rapids_cutting = 0u64;
-    for info in &moves {
+    for info in moves.iter_mut() {
         let b = engine.pop().expect("one block per move");
         let Some(mi) = info else {
             if b.volume_mm3 > 0.0 {
@@ -327,6 +328,11 @@ pub fn optimise(input: &str, o: &Options) -> Result<Outcome, FeedoptError> {
             }
             continue;
         };
+        // The engine's step count is the truth (it is computed the same way;
+        // this keeps the series aligned whatever the rounding).
+        mi.first = steps.len();
+        mi.n = b.steps.len();
+        mi.step_mm = b.length_mm / mi.n as f64;
         let fz_before = to_fz(mi.feed, mi.rpm, o.flutes, dialect);
         for st in &b.steps {
             s_acc += mi.step_mm;
