@@ -27,7 +27,16 @@ fn dir(name: &str) -> PathBuf {
 
 fn feedopt(args: &[&str], input: &Path) -> Output {
     Command::new(env!("CARGO_BIN_EXE_feedopt"))
-        .args(["--tool", "flat:0.794", "--stock", STOCK, "--cell-mm", CELL, "--rpm", "60000"])
+        .args([
+            "--tool",
+            "flat:0.794",
+            "--stock",
+            STOCK,
+            "--cell-mm",
+            CELL,
+            "--rpm",
+            "60000",
+        ])
         .args(args)
         .arg(input)
         .output()
@@ -65,7 +74,10 @@ fn peak_chip_per_tooth(text: &str) -> f64 {
         let (class, arc) = match m.kind {
             MotionKind::Rapid => (MoveClass::Rapid, None),
             MotionKind::Line => (MoveClass::Line, None),
-            MotionKind::Arc(a) => (MoveClass::Arc, Arc3::new(a.center, pos, m.to, a.ccw, a.plane, a.extra_turns)),
+            MotionKind::Arc(a) => (
+                MoveClass::Arc,
+                Arc3::new(a.center, pos, m.to, a.ccw, a.plane, a.extra_turns),
+            ),
         };
         let len = arc.map_or((m.to - pos).norm(), |a| a.length());
         let plunge = arc.is_none() && (m.to.xy() - pos.xy()).norm() < 1e-9;
@@ -111,11 +123,17 @@ fn per_block_shortens_the_pocket_by_13_percent_without_a_larger_chip() {
         assert!(after <= 0.87 * before, "{name}: {after} s vs {before} s");
         assert_eq!(r["mode_used"], "per-block");
         let (p0, p1) = (peak_chip_per_tooth(&nominal), peak_chip_per_tooth(&out));
-        assert!(p1 <= p0 * (1.0 + 1e-9), "{name}: peak chip {p1} mm³ vs nominal {p0} mm³");
+        assert!(
+            p1 <= p0 * (1.0 + 1e-9),
+            "{name}: peak chip {p1} mm³ vs nominal {p0} mm³"
+        );
         let r0 = &r["chip_volume_per_tooth_before"];
         let r1 = &r["chip_volume_per_tooth_after"];
         assert!(r1["max_mm3"].as_f64() <= r0["max_mm3"].as_f64());
-        assert!(r1["mean_mm3"].as_f64() > r0["mean_mm3"].as_f64(), "bigger chips on average: faster");
+        assert!(
+            r1["mean_mm3"].as_f64() > r0["mean_mm3"].as_f64(),
+            "bigger chips on average: faster"
+        );
         assert_eq!(r["blocks_added"], 0);
     }
 }
@@ -179,7 +197,10 @@ fn naive_splitting_loses_time_on_a_pmac_and_ours_does_not() {
     ok(&feedopt(&["--mode", "split", "--report", rs.to_str().unwrap()], &p));
     let (n, s) = (json(&rn), json(&rs));
     let before = n["cycle_time_before_s"].as_f64().unwrap();
-    assert!(n["cycle_time_after_s"].as_f64().unwrap() > before, "the thesis' failure (Fig. 3-19)");
+    assert!(
+        n["cycle_time_after_s"].as_f64().unwrap() > before,
+        "the thesis' failure (Fig. 3-19)"
+    );
     assert!(s["cycle_time_after_s"].as_f64().unwrap() < before);
 }
 
@@ -196,7 +217,10 @@ fn only_f_words_change_and_a_second_run_changes_nothing() {
             assert_eq!(once, twice, "{dialect:?} {mode}: not idempotent");
             // Line by line, without the inserted lines: equal once F words
             // are taken out, and the comment and line end byte-identical.
-            let kept: Vec<&str> = once.split_inclusive('\n').filter(|l| !l.contains("feedopt split")).collect();
+            let kept: Vec<&str> = once
+                .split_inclusive('\n')
+                .filter(|l| !l.contains("feedopt split"))
+                .collect();
             let orig: Vec<&str> = nominal.split_inclusive('\n').collect();
             assert_eq!(kept.len(), orig.len(), "{dialect:?} {mode}");
             for (a, b) in orig.iter().zip(&kept) {
@@ -243,15 +267,25 @@ fn bad_input_names_what_is_missing_and_writes_nothing() {
     };
     let e = run(&["--tool", "flat:0.794", "--stock", STOCK], &pmac);
     assert!(e.contains("no spindle speed") && e.contains("p.pmc:"), "{e}");
-    let e = run(&["--tool", "flat:0.794", "--stock", "10,10,-1,20,20,0", "--rpm", "60000"], &pmac);
+    let e = run(
+        &["--tool", "flat:0.794", "--stock", "10,10,-1,20,20,0", "--rpm", "60000"],
+        &pmac,
+    );
     assert!(e.contains("does not overlap the stock"), "{e}");
-    let plunge = write(&d, "plunge.ngc", "G21 G90\nS60000 M3\nG0 Z1\nG1 Z-0.1 F60\nG0 Z1\nM30\n");
+    let plunge = write(
+        &d,
+        "plunge.ngc",
+        "G21 G90\nS60000 M3\nG0 Z1\nG1 Z-0.1 F60\nG0 Z1\nM30\n",
+    );
     let e = run(&["--tool", "flat:0.794", "--stock", STOCK], &plunge);
     assert!(e.contains("never cuts"), "{e}");
     let inch = write(&d, "inch.ngc", "G20 G90\nS60000 M3\nG1 X0.01 F1\nM30\n");
     let e = run(&["--tool", "flat:0.794", "--stock", STOCK], &inch);
     assert!(e.contains("inch"), "{e}");
-    let e = run(&["--tool", "flat:0.794", "--stock", STOCK, "--target", "force"], &plunge);
+    let e = run(
+        &["--tool", "flat:0.794", "--stock", STOCK, "--target", "force"],
+        &plunge,
+    );
     assert!(e.contains("--force"), "{e}");
 }
 
@@ -280,13 +314,23 @@ fn force_figures_and_series_are_reported() {
     assert!(f["peak_after_n"].as_f64() <= f["peak_before_n"].as_f64().map(|v| v * 1.5));
     let rows = std::fs::read_to_string(&csv).unwrap();
     assert!(rows.starts_with("line,x_mm,"));
-    let cutting = rows.lines().skip(1).filter(|l| l.split(',').nth(6) == Some("1")).count();
-    assert_eq!(cutting as u64, r["chip_volume_per_tooth_before"]["steps"].as_u64().unwrap());
+    let cutting = rows
+        .lines()
+        .skip(1)
+        .filter(|l| l.split(',').nth(6) == Some("1"))
+        .count();
+    assert_eq!(
+        cutting as u64,
+        r["chip_volume_per_tooth_before"]["steps"].as_u64().unwrap()
+    );
     assert!(std::fs::read_to_string(&svg).unwrap().contains("<polyline"));
     // Constant force: the mean force over time rises towards the target
     // but never above the largest chip's force at f_min.
     let rep2 = d.join("r2.json");
-    ok(&feedopt(&["--force", "--target", "force", "--report", rep2.to_str().unwrap()], &p));
+    ok(&feedopt(
+        &["--force", "--target", "force", "--report", rep2.to_str().unwrap()],
+        &p,
+    ));
     let r2 = json(&rep2);
     assert_eq!(r2["target"], "force");
     assert!(r2["cycle_time_after_s"].as_f64() < r2["cycle_time_before_s"].as_f64());

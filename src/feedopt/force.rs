@@ -199,6 +199,8 @@ mod tests {
         assert!((f - 0.0012).abs() < 1e-9);
         assert_eq!(m.feed_for(&e, 1e9, 0.001, 0.0015), 0.0015);
         assert!(m.peak_n(&e, 0.001) > m.mean_n(&e, 0.001) * 0.5);
-        assert!(Coefficients::from_json(r#"{"ktc_n_mm2":1,"krc_n_mm2":1,"kte_n_mm":1,"kre_n_mm":-1}"#, "k.json").is_err());
+        assert!(
+            Coefficients::from_json(r#"{"ktc_n_mm2":1,"krc_n_mm2":1,"kte_n_mm":1,"kre_n_mm":-1}"#, "k.json").is_err()
+        );
     }
 }

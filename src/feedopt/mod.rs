@@ -195,7 +195,10 @@ pub fn strip_marked(text: &str, dialect: Dialect) -> String {
 /// Schedule the feeds of `input` (G-code of either dialect).
 pub fn optimise(input: &str, o: &Options) -> Result<Outcome, FeedoptError> {
     check(o)?;
-    let dialect = o.read.dialect.unwrap_or_else(|| detect_dialect(input.lines().take(200)));
+    let dialect = o
+        .read
+        .dialect
+        .unwrap_or_else(|| detect_dialect(input.lines().take(200)));
     let mut ropts = o.read.clone();
     ropts.dialect = Some(dialect);
     if dialect == Dialect::Iso && text::has_inch(input) {
@@ -212,7 +215,10 @@ pub fn optimise(input: &str, o: &Options) -> Result<Outcome, FeedoptError> {
     let mut rpm = o.rpm;
     let mut ta = (o.machine.ta_ms, o.machine.ts_ms);
     let mut moves: Vec<Option<MoveInfo>> = Vec::new();
-    let (mut lo, mut hi) = (P3::new(f64::MAX, f64::MAX, f64::MAX), P3::new(f64::MIN, f64::MIN, f64::MIN));
+    let (mut lo, mut hi) = (
+        P3::new(f64::MAX, f64::MAX, f64::MAX),
+        P3::new(f64::MIN, f64::MIN, f64::MIN),
+    );
     let mut steps_total = 0usize;
     let mut steps: Vec<Step> = Vec::new();
     for r in &recs {
@@ -336,7 +342,11 @@ pub fn optimise(input: &str, o: &Options) -> Result<Outcome, FeedoptError> {
         let fz_before = to_fz(mi.feed, mi.rpm, o.flutes, dialect);
         for st in &b.steps {
             s_acc += mi.step_mm;
-            let area = if mi.step_mm > 0.0 { st.volume_mm3 / mi.step_mm } else { 0.0 };
+            let area = if mi.step_mm > 0.0 {
+                st.volume_mm3 / mi.step_mm
+            } else {
+                0.0
+            };
             steps.push(Step {
                 s_mm: s_acc,
                 area_mm2: area,
@@ -357,7 +367,11 @@ pub fn optimise(input: &str, o: &Options) -> Result<Outcome, FeedoptError> {
     }
     // Slivers (a cell's rounding at the edge of a pass) are air: a step
     // counts as cutting above a thousandth of the largest chip.
-    let amax = steps.iter().filter(|s| s.cutting).map(|s| s.area_mm2).fold(0.0, f64::max);
+    let amax = steps
+        .iter()
+        .filter(|s| s.cutting)
+        .map(|s| s.area_mm2)
+        .fold(0.0, f64::max);
     for s in steps.iter_mut() {
         s.cutting &= s.area_mm2 > 1e-3 * amax;
     }
@@ -379,14 +393,21 @@ pub fn optimise(input: &str, o: &Options) -> Result<Outcome, FeedoptError> {
                 .filter(|(s, _)| s.cutting)
                 .map(|(_, e)| m.mean_n(e, o.fz_min_mm))
                 .fold(0.0, f64::max);
-            let u: Vec<f64> = eng.iter().map(|e| m.feed_for(e, f_target, o.fz_min_mm, o.fz_max_mm)).collect();
+            let u: Vec<f64> = eng
+                .iter()
+                .map(|e| m.feed_for(e, f_target, o.fz_min_mm, o.fz_max_mm))
+                .collect();
             (u.clone(), u)
         }
         _ => steps
             .iter()
             .map(|s| {
                 let u = band.map(s.area_mm2, o.fz_min_mm, o.fz_max_mm);
-                let cap = if s.area_mm2 > 0.0 { cap_chip / s.area_mm2 } else { f64::INFINITY };
+                let cap = if s.area_mm2 > 0.0 {
+                    cap_chip / s.area_mm2
+                } else {
+                    f64::INFINITY
+                };
                 (u, cap.max(o.fz_min_mm))
             })
             .unzip(),
@@ -412,25 +433,35 @@ pub fn optimise(input: &str, o: &Options) -> Result<Outcome, FeedoptError> {
         moves: &moves,
         t_min,
     };
-    let per_block = plan.segments(Mode::PerBlock, &text::has_incremental(&base, dialect));
+    let incremental = text::has_incremental(&base, dialect);
+    let per_block = plan.segments(Mode::PerBlock, incremental);
     let per_block_text = plan.write(&base, &recs, &per_block);
     let before_s = cycle_time_s(input, &ropts, &o.machine)?;
     let per_block_s = cycle_time_s(&per_block_text.0, &ropts, &o.machine)?;
     let mut notes = Vec::new();
     if rapids_cutting > 0 {
-        notes.push(format!("{rapids_cutting} rapid moves remove material (a crash on a real machine)"));
+        notes.push(format!(
+            "{rapids_cutting} rapid moves remove material (a crash on a real machine)"
+        ));
     }
     let (chosen, program, added, changed, after_s, mode_used) = match o.mode {
-        Mode::PerBlock => (per_block, per_block_text.0, 0, per_block_text.1, per_block_s, Mode::PerBlock),
+        Mode::PerBlock => (
+            per_block,
+            per_block_text.0,
+            0,
+            per_block_text.1,
+            per_block_s,
+            Mode::PerBlock,
+        ),
         m => {
-            let segs = plan.segments(m, &text::has_incremental(&base, dialect));
+            let segs = plan.segments(m, incremental);
             let (txt, changed, added) = {
                 let (t, c) = plan.write(&base, &recs, &segs);
                 let added = segs.iter().flatten().map(|s| s.len().saturating_sub(1)).sum::<usize>();
                 (t, c, added)
             };
             let s = cycle_time_s(&txt, &ropts, &o.machine)?;
-            if text::has_incremental(&base, dialect) {
+            if incremental {
                 notes.push("the program uses incremental positions: no block was split".into());
             }
             if m == Mode::Split && s >= per_block_s {
@@ -438,7 +469,14 @@ pub fn optimise(input: &str, o: &Options) -> Result<Outcome, FeedoptError> {
                     "split mode cannot beat one feed per block here ({:.3} s vs {:.3} s): the per-block program was written",
                     s, per_block_s
                 ));
-                (per_block, per_block_text.0, 0, per_block_text.1, per_block_s, Mode::PerBlock)
+                (
+                    per_block,
+                    per_block_text.0,
+                    0,
+                    per_block_text.1,
+                    per_block_s,
+                    Mode::PerBlock,
+                )
             } else {
                 (segs, txt, added, changed, s, m)
             }
@@ -530,7 +568,9 @@ fn time_mean(rows: &[SeriesRow], after: bool) -> f64 {
 fn check(o: &Options) -> Result<(), FeedoptError> {
     let pos = |v: f64| v.is_finite() && v > 0.0;
     if !(pos(o.fz_min_mm) && pos(o.fz_max_mm) && o.fz_min_mm <= o.fz_max_mm) {
-        return Err(FeedoptError::Options("feeds per tooth must be positive with f_min <= f_max".into()));
+        return Err(FeedoptError::Options(
+            "feeds per tooth must be positive with f_min <= f_max".into(),
+        ));
     }
     if o.flutes == 0 {
         return Err(FeedoptError::Options("--flutes must be at least 1".into()));
@@ -541,16 +581,22 @@ fn check(o: &Options) -> Result<(), FeedoptError> {
         return Err(FeedoptError::Options("--rpm must be positive".into()));
     }
     if o.step_mm.is_some_and(|s| !pos(s)) || !(o.window_mm.is_finite() && o.window_mm >= 0.0) {
-        return Err(FeedoptError::Options("--step-mm must be positive and --window-mm not negative".into()));
+        return Err(FeedoptError::Options(
+            "--step-mm must be positive and --window-mm not negative".into(),
+        ));
     }
     if o.air_feed.is_some_and(|s| !pos(s)) || o.min_block_s.is_some_and(|s| !(s.is_finite() && s >= 0.0)) {
-        return Err(FeedoptError::Options("--air-feed must be positive and --min-block-ms not negative".into()));
+        return Err(FeedoptError::Options(
+            "--air-feed must be positive and --min-block-ms not negative".into(),
+        ));
     }
     if !(o.merge_tol.is_finite() && o.merge_tol >= 0.0) {
         return Err(FeedoptError::Options("--merge-tol must not be negative".into()));
     }
     if o.force.is_none() && o.target == Target::Force {
-        return Err(FeedoptError::Options("--target force needs the force model (--force)".into()));
+        return Err(FeedoptError::Options(
+            "--target force needs the force model (--force)".into(),
+        ));
     }
     Ok(())
 }
@@ -588,7 +634,7 @@ impl Plan<'_> {
     }
 
     /// Segments per move (`None` for rapids): one per block, or split.
-    fn segments(&self, mode: Mode, incremental: &bool) -> Vec<Option<Vec<Segment>>> {
+    fn segments(&self, mode: Mode, incremental: bool) -> Vec<Option<Vec<Segment>>> {
         let lines_with_many = {
             let mut count = std::collections::HashMap::new();
             for mi in self.moves.iter().flatten() {
@@ -606,7 +652,7 @@ impl Plan<'_> {
                     feed: self.feed(mi, 0, mi.n, self.o.by),
                 }];
                 let splittable = mode != Mode::PerBlock
-                    && !*incremental
+                    && !incremental
                     && matches!(mi.kind, MotionKind::Line)
                     && !mi.plunge
                     && lines_with_many.get(&mi.line) == Some(&1)

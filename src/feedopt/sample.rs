@@ -77,7 +77,11 @@ impl Pocket {
                 p.push_str(f);
             }
             if !note.is_empty() {
-                p.push_str(&if iso { format!(" ({note})") } else { format!(" ; {note}") });
+                p.push_str(&if iso {
+                    format!(" ({note})")
+                } else {
+                    format!(" ; {note}")
+                });
             }
             p.push('\n');
         };
@@ -85,7 +89,13 @@ impl Pocket {
         // the centre (cx, cy); centres are relative to the start.
         let arc = |p: &mut String, (x0, y0): (f64, f64), (x, y): (f64, f64), (cx, cy): (f64, f64)| {
             p.push_str(if iso { "G3" } else { "CIRCLE2" });
-            p.push_str(&format!(" X{} Y{} I{} J{}\n", num(x), num(y), num(cx - x0), num(cy - y0)));
+            p.push_str(&format!(
+                " X{} Y{} I{} J{}\n",
+                num(x),
+                num(y),
+                num(cx - x0),
+                num(cy - y0)
+            ));
         };
         for (k, (h, c)) in self.rings().into_iter().enumerate() {
             let f = if k == 0 { Some(feed) } else { None };
@@ -93,7 +103,12 @@ impl Pocket {
             line(&mut p, -a, -h, f, &format!("ring {}", k + 1));
             // Sides and corners, counter-clockwise from the bottom side.
             let corners = [(a, -a), (a, a), (-a, a), (-a, -a)];
-            let sides = [((a, -h), (h, -a)), ((h, a), (a, h)), ((-a, h), (-h, a)), ((-h, -a), (-a, -h))];
+            let sides = [
+                ((a, -h), (h, -a)),
+                ((h, a), (a, h)),
+                ((-a, h), (-h, a)),
+                ((-h, -a), (-a, -h)),
+            ];
             for ((s_end, c_end), ctr) in sides.into_iter().zip(corners) {
                 line(&mut p, s_end.0, s_end.1, None, "");
                 if c > 0.0 {

@@ -340,7 +340,10 @@ mod tests {
         );
         assert_eq!(plain_linear("G1 X1 M3", Dialect::Iso), None);
         assert_eq!(plain_linear("G2 X1", Dialect::Iso), None);
-        assert_eq!(plain_linear("LINEAR X1 F2", Dialect::Pmac), Some([Some(1.0), None, None]));
+        assert_eq!(
+            plain_linear("LINEAR X1 F2", Dialect::Pmac),
+            Some([Some(1.0), None, None])
+        );
         assert_eq!(plain_linear("X1 M33==1", Dialect::Pmac), None);
         let s = sub_block(Dialect::Pmac, [Some(0.5), None, Some(-0.1)], "2.5");
         assert_eq!(s, "LINEAR X0.5 Z-0.1 F2.5 ;feedopt split");

@@ -176,7 +176,10 @@ impl<S: Workpiece> Engine<S> {
             let mut steps = Vec::with_capacity(q.steps.len());
             for (p, first, count) in &q.steps {
                 let vk: f64 = vols[*first..first + count].iter().sum();
-                steps.push(CutStep { end: *p, volume_mm3: vk });
+                steps.push(CutStep {
+                    end: *p,
+                    volume_mm3: vk,
+                });
                 v += vk;
                 vmax = vmax.max(vk);
             }
