@@ -711,7 +711,11 @@ impl Plan<'_> {
                 continue;
             };
             k += 1;
-            let Some(l) = m.block.map(|b| b as usize - 1).filter(|l| *l < lines.len()) else {
+            let Some(l) = m
+                .block
+                .and_then(|b| (b as usize).checked_sub(1))
+                .filter(|l| *l < lines.len())
+            else {
                 continue;
             };
             let last = sg.last().map_or(mi.feed, |s| s.feed);
@@ -742,7 +746,7 @@ impl Plan<'_> {
                 out.push_str(if line.eol.is_empty() { "\n" } else { line.eol });
             }
             match feed_of[l] {
-                Some(f) if !(keep[l] && !text::f_words(line.body, d).is_empty()) => {
+                Some(f) if !keep[l] || text::f_words(line.body, d).is_empty() => {
                     let b = text::set_feed(line.body, d, &text::format_feed(f, d));
                     if b != line.body {
                         changed += 1;

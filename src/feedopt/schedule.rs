@@ -255,15 +255,8 @@ mod tests {
     fn splits_respect_the_minimum_time_and_beat_one_feed() {
         // First half light (3 mm/s), second half heavy (2 mm/s); 2 mm in
         // 200 steps; minimum block 0.133 s (0.4 mm at 3 mm/s).
-        let f = |i: usize, j: usize| -> Option<f64> {
-            Some(if j <= 100 {
-                3.0
-            } else if i >= 100 {
-                2.0
-            } else {
-                2.0
-            })
-        };
+        // A segment reaching into the heavy half takes the heavy feed.
+        let f = |_i: usize, j: usize| -> Option<f64> { Some(if j <= 100 { 3.0 } else { 2.0 }) };
         let segs = split_block(200, 0.01, 0.133, 1e-4, 400, &f).unwrap();
         assert_eq!(segs.len(), 2, "{segs:?}");
         assert_eq!((segs[0].end, segs[0].feed), (100, 3.0));

@@ -201,6 +201,9 @@ pub fn set_feed(body: &str, dialect: Dialect, feed: &str) -> String {
 /// with plain numbers and F words. Returns the axes present and their values.
 pub fn plain_linear(body: &str, dialect: Dialect) -> Option<[Option<f64>; 3]> {
     let code = &body[..code_end(body, dialect)];
+    if !code.is_ascii() {
+        return None;
+    }
     let up = code.to_ascii_uppercase();
     let mut rest = up.as_str().trim();
     let mut axes = [None; 3];

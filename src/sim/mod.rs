@@ -8,9 +8,11 @@
 //! - [`stl`]: the simulated stock as a watertight STL.
 //! - [`picture`]: a PNG of the stock with the path drawn over it.
 //! - [`removal`]: the removal engine (chip volume per block and step), no I/O.
-//! - [`report`]: all of it in one streaming pass, and the gsim report.
+//! - [`report`]: all of it in one streaming pass.
+//! - [`gsim_json`]: the gsim report as JSON.
 
 pub mod beam;
+pub mod gsim_json;
 pub mod machine;
 pub mod picture;
 pub mod removal;
