@@ -77,6 +77,7 @@ bench: build
 	scripts/bench/loops
 	scripts/bench/order --no-solver
 	scripts/bench/arcfit
+	scripts/bench/feedopt
 
 # Cut order against an independent TSP solver (LKH via elkai, installed into
 # a private venv; the solver itself takes minutes).

@@ -9,6 +9,7 @@
 //! - [`gcode`]: ISO and PMAC G-code, read and written.
 //! - [`dxf`]: DXF import and chain detection.
 //! - [`machine`]: machine profiles (controller, stage, shutter, spindle) and the Turbo PMAC timing rule.
+//! - [`feedopt`]: feed scheduling from simulated chip volume (milling).
 //! - [`laser`]: constant-velocity laser toolpaths from chains (contour,
 //!   patterns, corner loops, cut order, shutter timing).
 //! - [`sim`]: what a program does on the machine: time, beam and material removal.
@@ -24,6 +25,7 @@ pub mod cli;
 pub mod corpus;
 pub mod cutter;
 pub mod dxf;
+pub mod feedopt;
 pub mod formats;
 pub mod gcode;
 pub mod geometry;

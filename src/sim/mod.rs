@@ -6,10 +6,14 @@
 //! - [`stock`]: material removal on a height-field stock.
 //! - [`stl`]: the simulated stock as a watertight STL.
 //! - [`picture`]: a PNG of the stock with the path drawn over it.
-//! - [`report`]: all of it in one streaming pass, and the gsim report.
+//! - [`removal`]: the removal engine (chip volume per block and step), no I/O.
+//! - [`report`]: all of it in one streaming pass.
+//! - [`gsim_json`]: the gsim report as JSON.
 
 pub mod beam;
+pub mod gsim_json;
 pub mod picture;
+pub mod removal;
 pub mod report;
 pub mod stl;
 pub mod stock;

@@ -1,22 +1,24 @@
-//! The gsim report: one pass over a toolpath through the path summary, the
-//! time model and the beam model, with the per-block series written as it
-//! goes. Constant memory apart from one record per cut.
+//! The gsim simulation: one pass over a toolpath through the path summary,
+//! the time model, the beam model and the removal engine
+//! ([`super::removal`]), with the per-block series written as it goes.
+//! Constant memory apart from one record per cut. The JSON report is
+//! written by [`super::gsim_json`].
 
-use super::beam::{BeamModel, ChainExposure, CommandTiming, EXAMPLES, match_chains};
+use super::beam::{BeamModel, CommandTiming, EXAMPLES};
+use crate::machine::{Controller, Machine};
 use super::picture::Overlay;
+use super::removal::{CutBlock, CutMove, Engine};
 use super::stock::Stock;
 use super::summary::Summary;
 use super::time::{Block, Event, Limit, MoveClass, TimeModel, TimedBlock};
 use crate::cutter::Cutter;
-use crate::formats::{push_num, push_str_lit, push_uint};
+use crate::formats::{push_num, push_uint};
 use crate::geometry::{Arc3, BBox3, P3, V3};
-use crate::machine::{Controller, Machine};
-use crate::model::chain::Chain;
 use crate::model::toolpath::{Header, MotionKind, Record};
 use std::io::Write;
 use thiserror::Error;
 
-pub const SCHEMA: &str = "microcam.gsim/1";
+pub use super::gsim_json::{Report, SCHEMA};
 
 /// A program the machine must not run, or a failed write of the series.
 #[derive(Debug, Error)]
@@ -70,7 +72,7 @@ pub struct RemovalStats {
     pub rapid_lines: Vec<u64>,
 }
 
-/// Per-step chip volume (Bayesteh (2013) §3.1): moves are cut in steps of feed
+/// Per-step chip volume (seed 000 §3.1): moves are cut in steps of feed
 /// per tooth × `scale`.
 #[derive(Debug, Clone, PartialEq)]
 pub struct StepPlan {
@@ -80,24 +82,9 @@ pub struct StepPlan {
     pub rpm: Option<f64>,
 }
 
-/// Pieces cut together: large enough to keep two cores busy, small enough
-/// that the queue stays a few hundred kilobytes.
-const BATCH_PIECES: usize = 4096;
-
-/// A block waiting for its batch to be cut.
-struct Queued {
-    line: Option<u64>,
-    class: MoveClass,
-    length_mm: f64,
-    stepped: bool,
-    /// Per step: end point, first piece, piece count.
-    steps: Vec<(P3, usize, usize)>,
-}
-
-/// Stock, cutter and the per-block removal series.
+/// The engine, its stock and the per-block removal series.
 pub struct Removal<W: Write> {
-    pub stock: Stock,
-    pub cutter: Cutter,
+    pub engine: Engine<Stock>,
     pub csv: Option<W>,
     pub stats: RemovalStats,
     pub steps: Option<StepPlan>,
@@ -109,8 +96,6 @@ pub struct Removal<W: Write> {
     header_written: bool,
     /// The path drawn for `--png`.
     pub overlay: Option<Overlay>,
-    pieces: Vec<(P3, P3)>,
-    queued: Vec<Queued>,
 }
 
 /// The header row of the `--steps` CSV.
@@ -173,8 +158,7 @@ impl<W: Write> Simulator<W> {
             ..Default::default()
         };
         self.removal = Some(Removal {
-            stock,
-            cutter,
+            engine: Engine::new(stock, cutter),
             csv,
             stats,
             steps: None,
@@ -182,8 +166,6 @@ impl<W: Write> Simulator<W> {
             rpm: None,
             header_written: false,
             overlay: None,
-            pieces: Vec::new(),
-            queued: Vec::new(),
         });
         self
     }
@@ -191,7 +173,7 @@ impl<W: Write> Simulator<W> {
     /// Draw the path for a picture. Call after [`Self::with_removal`].
     pub fn with_picture(mut self) -> Self {
         if let Some(r) = self.removal.as_mut() {
-            r.overlay = Some(Overlay::for_stock(&r.stock));
+            r.overlay = Some(Overlay::for_stock(&r.engine.stock));
         }
         self
     }
@@ -402,7 +384,7 @@ impl<W: Write> Simulator<W> {
                 for w in [r.csv.as_mut(), r.steps_csv.as_mut()].into_iter().flatten() {
                     w.flush()?;
                 }
-                (Some((r.stats, r.stock)), r.csv, r.steps_csv, r.overlay)
+                (Some((r.stats, r.engine.stock)), r.csv, r.steps_csv, r.overlay)
             }
             None => (None, None, None, None),
         };
@@ -448,7 +430,7 @@ impl<W: Write> Removal<W> {
             let feed = block.class != MoveClass::Rapid;
             match &arc {
                 Some(a) => {
-                    let n = ((a.length() / (0.5 * self.stock.cell)).ceil() as usize).clamp(1, 1 << 16);
+                    let n = ((a.length() / (0.5 * self.engine.stock.cell)).ceil() as usize).clamp(1, 1 << 16);
                     let mut p0 = *from;
                     for k in 1..=n {
                         let p1 = a.point_at(k as f64 / n as f64);
@@ -459,96 +441,55 @@ impl<W: Write> Removal<W> {
                 None => o.line(from, to, feed),
             }
         }
-        let step = self.step_length(block)?;
-        let n = match step {
-            Some(st) if block.length_mm > 0.0 => ((block.length_mm / st).ceil() as usize).clamp(1, 1 << 24),
-            _ => 1,
-        };
-        // Sub-arcs are built without extra turns: keep each under a turn.
-        let n = match &arc {
-            Some(a) if n > 1 => n.max(4 * (a.extra_turns as usize + 1)),
-            _ => n,
-        };
-        // Queue the pieces; volumes come when the batch is cut.
-        let mut prev = *from;
-        let mut steps = Vec::with_capacity(n);
-        for k in 1..=n {
-            let t = k as f64 / n as f64;
-            let first = self.pieces.len();
-            let p = match &arc {
-                Some(a) => {
-                    let p = if k == n { *to } else { a.point_at(t) };
-                    let sub = if n == 1 {
-                        Some(*a)
-                    } else {
-                        Arc3::new(a.center, prev, p, a.ccw, a.plane, 0)
-                    };
-                    if let Some(sa) = sub {
-                        self.pieces.extend(self.stock.arc_chords(&sa));
-                    }
-                    p
-                }
-                None => {
-                    let p = if k == n { *to } else { from + (to - from) * t };
-                    self.pieces.push((prev, p));
-                    p
-                }
-            };
-            steps.push((p, first, self.pieces.len() - first));
-            prev = p;
-        }
-        self.queued.push(Queued {
+        let step_mm = self.step_length(block)?;
+        self.engine.push(&CutMove {
             line: block.line,
             class: block.class,
+            from: *from,
+            to: *to,
+            arc,
             length_mm: block.length_mm,
-            stepped: step.is_some(),
-            steps,
+            step_mm,
         });
-        if self.pieces.len() >= BATCH_PIECES {
-            self.flush()?;
-        }
-        Ok(())
+        self.drain()
     }
 
-    /// Cut the queued pieces and account them block by block, in order.
+    /// Cut what is queued and account it.
     fn flush(&mut self) -> Result<(), SimError> {
-        if self.queued.is_empty() {
-            return Ok(());
-        }
-        let vols = self.stock.cut_lines(&self.pieces, &self.cutter);
-        let queued = std::mem::take(&mut self.queued);
-        for q in &queued {
+        self.engine.flush();
+        self.drain()
+    }
+
+    /// Account the blocks the engine has finished, in order, writing the
+    /// series.
+    fn drain(&mut self) -> Result<(), SimError> {
+        while let Some(q) = self.engine.pop() {
             let n = q.steps.len();
-            let (mut v, mut vmax) = (0.0_f64, 0.0_f64);
-            for (k, (p, first, count)) in q.steps.iter().enumerate() {
-                let vk: f64 = vols[*first..first + count].iter().sum();
-                if q.stepped
-                    && let Some(w) = self.steps_csv.as_mut()
-                {
+            if q.stepped
+                && let Some(w) = self.steps_csv.as_mut()
+            {
+                for (k, st) in q.steps.iter().enumerate() {
                     let mut b = String::with_capacity(80);
                     if let Some(l) = q.line {
                         push_uint(&mut b, l);
                     }
                     b.push(',');
                     push_uint(&mut b, k as u64 + 1);
-                    for c in [p.x, p.y, p.z, q.length_mm / n as f64, vk] {
+                    for c in [st.end.x, st.end.y, st.end.z, q.length_mm / n as f64, st.volume_mm3] {
                         b.push(',');
                         push_num(&mut b, c);
                     }
                     b.push('\n');
                     w.write_all(b.as_bytes())?;
                 }
-                v += vk;
-                vmax = vmax.max(vk);
             }
-            self.account(q, v, vmax)?;
+            self.account(&q)?;
         }
-        self.pieces.clear();
         Ok(())
     }
 
-    fn account(&mut self, q: &Queued, v: f64, vmax: f64) -> Result<(), SimError> {
-        let n = q.steps.len();
+    fn account(&mut self, q: &CutBlock) -> Result<(), SimError> {
+        let (n, v, vmax) = (q.steps.len(), q.volume_mm3, q.max_step_mm3);
         let s = &mut self.stats;
         s.removed_volume_mm3 += v;
         if v > s.max_block_volume_mm3 {
@@ -627,217 +568,6 @@ fn csv_row(b: &mut String, ev: &Event) {
             push_num(b, *seconds);
             b.push_str(",\n");
         }
-    }
-}
-
-/// Everything gsim reports.
-pub struct Report {
-    pub machine: Machine,
-    pub summary: Summary,
-    pub time: TimeStats,
-    pub beam: BeamModel,
-    /// With a drawing (`--chains`): the drawing chain index per cut and the
-    /// exposure per drawing chain.
-    pub drawing: Option<(Vec<Option<usize>>, Vec<ChainExposure>)>,
-    /// With a stock (`--stock`): removal figures and the final stock.
-    pub removal: Option<(RemovalStats, Stock)>,
-    /// The path overlay for a picture, when asked for.
-    pub picture: Option<Overlay>,
-}
-
-fn field(b: &mut String, k: &str, v: f64) {
-    b.push_str(",\"");
-    b.push_str(k);
-    b.push_str("\":");
-    push_num(b, v);
-}
-
-impl Report {
-    /// Compare the cuts with the drawing's chains (`tol` mm in XY).
-    pub fn with_drawing(mut self, chains: &[Chain], tol: f64) -> Report {
-        self.drawing = Some(match_chains(&self.beam.cuts, chains, tol));
-        self
-    }
-
-    /// The report as one JSON object (`microcam.gsim/1`).
-    pub fn to_json(&self, source: Option<&str>) -> String {
-        let mut b = format!("{{\"schema\":\"{SCHEMA}\"");
-        if let Some(s) = source {
-            b.push_str(",\"source\":");
-            push_str_lit(&mut b, s);
-        }
-        b.push_str(",\"machine\":");
-        push_str_lit(&mut b, &self.machine.name);
-        b.push_str(",\"controller\":\"");
-        b.push_str(self.machine.controller.name());
-        b.push('"');
-        self.summary.push_fields(&mut b);
-        let t = &self.time;
-        field(&mut b, "cycle_time_s", t.cycle_time_s);
-        field(&mut b, "cutting_time_s", t.cutting_time_s);
-        field(&mut b, "rapid_time_s", t.rapid_time_s);
-        field(&mut b, "dwell_time_s", t.dwell_time_s);
-        field(&mut b, "ideal_cutting_time_s", t.ideal_cutting_time_s);
-        if let Some(f) = t.min_achieved_feed_mm_s {
-            field(&mut b, "min_achieved_feed_mm_s", f);
-        }
-        field(&mut b, "feed_blocks", t.feed_blocks as f64);
-        field(&mut b, "limited_blocks", t.limited_blocks as f64);
-        b.push_str(",\"limited_by\":{");
-        let mut first = true;
-        for (i, l) in Limit::ALL.iter().enumerate() {
-            if t.limited_by[i] > 0 {
-                if !first {
-                    b.push(',');
-                }
-                first = false;
-                b.push('"');
-                b.push_str(l.name());
-                b.push_str("\":");
-                push_uint(&mut b, t.limited_by[i]);
-            }
-        }
-        b.push_str("},\"limited_examples\":[");
-        for (i, e) in t.examples.iter().enumerate() {
-            if i > 0 {
-                b.push(',');
-            }
-            b.push('{');
-            if let Some(l) = e.line {
-                b.push_str("\"line\":");
-                push_uint(&mut b, l);
-                b.push(',');
-            }
-            b.push_str("\"length_mm\":");
-            push_num(&mut b, e.length_mm);
-            field(&mut b, "commanded_feed_mm_s", e.commanded_feed_mm_s);
-            field(&mut b, "achieved_feed_mm_s", e.achieved_feed_mm_s);
-            b.push_str(",\"limited_by\":\"");
-            b.push_str(e.limited_by.name());
-            b.push_str("\"}");
-        }
-        b.push(']');
-        self.push_beam(&mut b);
-        if let Some((r, stock)) = &self.removal {
-            b.push_str(",\"removal\":{\"cells\":[");
-            push_uint(&mut b, stock.nx as u64);
-            b.push(',');
-            push_uint(&mut b, stock.ny as u64);
-            b.push(']');
-            field(&mut b, "cell_mm", stock.cell);
-            b.push_str(",\"cells_visited\":");
-            push_uint(&mut b, stock.cells_visited);
-            field(&mut b, "initial_volume_mm3", r.initial_volume_mm3);
-            field(&mut b, "removed_volume_mm3", r.removed_volume_mm3);
-            field(&mut b, "final_volume_mm3", stock.volume());
-            field(&mut b, "max_block_volume_mm3", r.max_block_volume_mm3);
-            if let Some(l) = r.max_block_line {
-                b.push_str(",\"max_block_line\":");
-                push_uint(&mut b, l);
-            }
-            field(&mut b, "rapids_in_material", r.rapids_in_material as f64);
-            b.push_str(",\"rapid_in_material_lines\":[");
-            for (i, l) in r.rapid_lines.iter().enumerate() {
-                if i > 0 {
-                    b.push(',');
-                }
-                push_uint(&mut b, *l);
-            }
-            b.push_str("]}");
-        }
-        b.push('}');
-        b
-    }
-
-    fn push_beam(&self, b: &mut String) {
-        let m = &self.beam;
-        b.push_str(",\"beam\":{\"command_timing\":\"");
-        b.push_str(m.timing.name());
-        b.push('"');
-        field(
-            b,
-            "open_latency_ms",
-            self.machine.shutter_or_instant().open_latency_s() * 1e3,
-        );
-        field(
-            b,
-            "close_latency_ms",
-            self.machine.shutter_or_instant().close_latency_s() * 1e3,
-        );
-        field(b, "shutter_opens", m.opens as f64);
-        field(b, "shutter_open_time_s", m.light_time_s);
-        field(b, "intended_length_mm", m.intended_mm());
-        field(b, "exposed_length_mm", m.exposed_mm());
-        field(b, "unexposed_length_mm", m.unexposed_mm());
-        field(b, "overexposed_length_mm", m.overexposed_mm());
-        field(b, "stationary_exposure_s", m.stationary_exposure_s());
-        field(b, "short_exposures", m.short_exposures as f64);
-        field(b, "missed_exposures", m.missed_exposures as f64);
-        b.push_str(",\"short_exposure_lines\":[");
-        for (i, l) in m.short_exposure_lines.iter().enumerate() {
-            if i > 0 {
-                b.push(',');
-            }
-            push_uint(b, *l);
-        }
-        b.push_str("],\"cuts\":[");
-        for (i, c) in m.cuts.iter().enumerate() {
-            if i > 0 {
-                b.push(',');
-            }
-            b.push_str("{\"cut\":");
-            push_uint(b, i as u64 + 1);
-            if let Some(ch) = c.chain {
-                b.push_str(",\"chain\":");
-                push_uint(b, ch);
-            }
-            if let Some(l) = c.first_line {
-                b.push_str(",\"first_line\":");
-                push_uint(b, l);
-            }
-            if let Some(l) = c.last_line {
-                b.push_str(",\"last_line\":");
-                push_uint(b, l);
-            }
-            if let Some((which, per)) = &self.drawing
-                && let Some(Some(k)) = which.get(i)
-            {
-                b.push_str(",\"drawing_chain\":");
-                push_uint(b, per[*k].id);
-            }
-            field(b, "length_mm", c.length_mm);
-            field(b, "exposed_mm", c.exposed_mm);
-            field(b, "unexposed_mm", c.unexposed_mm());
-            field(b, "overexposed_mm", c.overexposed_mm);
-            field(b, "stationary_exposure_s", c.stationary_exposure_s);
-            b.push('}');
-        }
-        b.push(']');
-        if let Some((_, per)) = &self.drawing {
-            field(b, "drawing_length_mm", per.iter().map(|c| c.drawing_length_mm).sum());
-            field(
-                b,
-                "drawing_unexposed_length_mm",
-                per.iter().map(|c| c.unexposed_mm()).sum(),
-            );
-            b.push_str(",\"chains\":[");
-            for (i, c) in per.iter().enumerate() {
-                if i > 0 {
-                    b.push(',');
-                }
-                b.push_str("{\"chain\":");
-                push_uint(b, c.id);
-                field(b, "drawing_length_mm", c.drawing_length_mm);
-                field(b, "cuts", c.cuts as f64);
-                field(b, "cut_length_mm", c.cut_length_mm);
-                field(b, "exposed_mm", c.exposed_mm);
-                field(b, "unexposed_mm", c.unexposed_mm());
-                field(b, "overexposed_mm", c.overexposed_mm);
-                b.push('}');
-            }
-            b.push(']');
-        }
-        b.push('}');
     }
 }
 

@@ -1,0 +1,300 @@
+//! feedopt's report (`microcam.feedopt/1` JSON), the per-step CSV and an
+//! SVG of the chip-volume and feed profiles along the path (the plots of
+//! Bayesteh 2013 Figs. 3-10 and 3-21).
+
+use super::force::Coefficients;
+use super::schedule::{Band, By};
+use super::{Mode, SeriesRow, Target};
+use crate::formats::{push_num, push_str_lit, push_uint};
+use crate::gcode::Dialect;
+
+/// The report's schema name.
+pub const SCHEMA: &str = "microcam.feedopt/1";
+
+/// Mean, extremes and spread of a series.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Stats {
+    pub count: u64,
+    pub mean: f64,
+    pub min: f64,
+    pub max: f64,
+    /// Standard deviation.
+    pub std: f64,
+}
+
+impl Stats {
+    /// Figures of `values` (all zero when empty).
+    pub fn of(values: impl Iterator<Item = f64>) -> Stats {
+        let (mut n, mut sum, mut sq, mut lo, mut hi) = (0u64, 0.0, 0.0, f64::INFINITY, f64::NEG_INFINITY);
+        for v in values {
+            n += 1;
+            sum += v;
+            sq += v * v;
+            lo = lo.min(v);
+            hi = hi.max(v);
+        }
+        if n == 0 {
+            return Stats::default();
+        }
+        let mean = sum / n as f64;
+        Stats {
+            count: n,
+            mean,
+            min: lo,
+            max: hi,
+            std: (sq / n as f64 - mean * mean).max(0.0).sqrt(),
+        }
+    }
+}
+
+/// Cutting-force figures, before and after.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ForceFigures {
+    pub coefficients: Coefficients,
+    pub mean_before_n: f64,
+    pub mean_after_n: f64,
+    pub peak_before_n: f64,
+    pub peak_after_n: f64,
+}
+
+/// Everything feedopt reports.
+#[derive(Debug, Clone)]
+pub struct Report {
+    pub mode: Mode,
+    /// The mode whose program was written (split falls back to per-block
+    /// when it cannot win).
+    pub mode_used: Mode,
+    pub target: Target,
+    pub by: By,
+    pub dialect: Dialect,
+    pub machine: String,
+    pub min_block_s: f64,
+    pub fz_min_mm: f64,
+    pub fz_max_mm: f64,
+    pub flutes: u32,
+    pub step_mm: f64,
+    pub cell_mm: f64,
+    pub window_mm: f64,
+    pub band: Band,
+    /// Largest chip volume per tooth allowed: the largest chip at f_min.
+    pub chip_cap_mm3: f64,
+    pub cycle_time_before_s: f64,
+    pub cycle_time_after_s: f64,
+    pub per_block_cycle_time_s: f64,
+    /// Chip volume per tooth over the cutting steps, mm³.
+    pub chip_before: Stats,
+    pub chip_after: Stats,
+    pub force: Option<ForceFigures>,
+    pub feed_moves: u64,
+    pub blocks_changed: u64,
+    pub blocks_added: u64,
+    pub notes: Vec<String>,
+}
+
+fn field(b: &mut String, k: &str, v: f64) {
+    b.push_str(",\"");
+    b.push_str(k);
+    b.push_str("\":");
+    push_num(b, v);
+}
+
+fn stats(b: &mut String, k: &str, s: &Stats) {
+    b.push_str(",\"");
+    b.push_str(k);
+    b.push_str("\":{\"steps\":");
+    push_uint(b, s.count);
+    field(b, "mean_mm3", s.mean);
+    field(b, "min_mm3", s.min);
+    field(b, "max_mm3", s.max);
+    field(b, "spread_mm3", s.max - s.min);
+    field(b, "std_mm3", s.std);
+    b.push('}');
+}
+
+impl Report {
+    /// Relative change of the predicted cycle time, % (negative = shorter).
+    pub fn cycle_time_change_pct(&self) -> f64 {
+        if self.cycle_time_before_s > 0.0 {
+            100.0 * (self.cycle_time_after_s / self.cycle_time_before_s - 1.0)
+        } else {
+            0.0
+        }
+    }
+
+    /// The report as one JSON object.
+    pub fn to_json(&self, source: Option<&str>) -> String {
+        let mut b = format!("{{\"schema\":\"{SCHEMA}\"");
+        if let Some(s) = source {
+            b.push_str(",\"source\":");
+            push_str_lit(&mut b, s);
+        }
+        for (k, v) in [
+            ("mode", self.mode.name()),
+            ("mode_used", self.mode_used.name()),
+            (
+                "target",
+                match self.target {
+                    Target::Chip => "chip",
+                    Target::Force => "force",
+                },
+            ),
+            (
+                "by",
+                match self.by {
+                    By::Mean => "mean",
+                    By::Max => "max",
+                },
+            ),
+            ("dialect", self.dialect.name()),
+        ] {
+            b.push_str(",\"");
+            b.push_str(k);
+            b.push_str("\":\"");
+            b.push_str(v);
+            b.push('"');
+        }
+        b.push_str(",\"machine\":");
+        push_str_lit(&mut b, &self.machine);
+        field(&mut b, "min_block_time_s", self.min_block_s);
+        field(&mut b, "fz_min_um", self.fz_min_mm * 1e3);
+        field(&mut b, "fz_max_um", self.fz_max_mm * 1e3);
+        field(&mut b, "flutes", self.flutes as f64);
+        field(&mut b, "step_mm", self.step_mm);
+        field(&mut b, "cell_mm", self.cell_mm);
+        field(&mut b, "window_mm", self.window_mm);
+        field(&mut b, "chip_area_min_mm2", self.band.area_min_mm2);
+        field(&mut b, "chip_area_max_mm2", self.band.area_max_mm2);
+        field(&mut b, "chip_cap_mm3", self.chip_cap_mm3);
+        field(&mut b, "cycle_time_before_s", self.cycle_time_before_s);
+        field(&mut b, "cycle_time_after_s", self.cycle_time_after_s);
+        field(&mut b, "cycle_time_change_pct", self.cycle_time_change_pct());
+        field(&mut b, "per_block_cycle_time_s", self.per_block_cycle_time_s);
+        stats(&mut b, "chip_volume_per_tooth_before", &self.chip_before);
+        stats(&mut b, "chip_volume_per_tooth_after", &self.chip_after);
+        if let Some(f) = &self.force {
+            b.push_str(",\"force\":{\"model\":\"mechanistic mean over a revolution\"");
+            field(&mut b, "ktc_n_mm2", f.coefficients.ktc_n_mm2);
+            field(&mut b, "krc_n_mm2", f.coefficients.krc_n_mm2);
+            field(&mut b, "kte_n_mm", f.coefficients.kte_n_mm);
+            field(&mut b, "kre_n_mm", f.coefficients.kre_n_mm);
+            field(&mut b, "mean_before_n", f.mean_before_n);
+            field(&mut b, "mean_after_n", f.mean_after_n);
+            field(&mut b, "peak_before_n", f.peak_before_n);
+            field(&mut b, "peak_after_n", f.peak_after_n);
+            b.push('}');
+        }
+        field(&mut b, "feed_moves", self.feed_moves as f64);
+        field(&mut b, "blocks_changed", self.blocks_changed as f64);
+        field(&mut b, "blocks_added", self.blocks_added as f64);
+        b.push_str(",\"notes\":[");
+        for (i, n) in self.notes.iter().enumerate() {
+            if i > 0 {
+                b.push(',');
+            }
+            push_str_lit(&mut b, n);
+        }
+        b.push_str("]}");
+        b
+    }
+}
+
+/// The per-step series as CSV.
+pub fn series_csv(rows: &[SeriesRow]) -> String {
+    let mut b = String::from(
+        "line,x_mm,y_mm,z_mm,path_mm,chip_area_mm2,cutting,fz_before_um,fz_after_um,chip_before_mm3,chip_after_mm3,force_before_n,force_after_n\n",
+    );
+    for r in rows {
+        if let Some(l) = r.line {
+            push_uint(&mut b, l);
+        }
+        for v in [r.end.x, r.end.y, r.end.z, r.s_mm, r.area_mm2] {
+            b.push(',');
+            push_num(&mut b, v);
+        }
+        b.push_str(if r.cutting { ",1" } else { ",0" });
+        for v in [
+            r.fz_before_mm * 1e3,
+            r.fz_after_mm * 1e3,
+            r.area_mm2 * r.fz_before_mm,
+            r.area_mm2 * r.fz_after_mm,
+        ] {
+            b.push(',');
+            push_num(&mut b, v);
+        }
+        for v in [r.force_before_n, r.force_after_n] {
+            b.push(',');
+            if let Some(v) = v {
+                push_num(&mut b, v);
+            }
+        }
+        b.push('\n');
+    }
+    b
+}
+
+/// Two stacked plots along the path: chip volume per tooth before and
+/// after, and feed per tooth before and after.
+pub fn profiles_svg(rows: &[SeriesRow], title: &str) -> String {
+    let (w, h, pad) = (900.0, 260.0, 40.0);
+    let s_max = rows.last().map_or(1.0, |r| r.s_mm).max(1e-9);
+    let chip = |r: &SeriesRow, after: bool| r.area_mm2 * if after { r.fz_after_mm } else { r.fz_before_mm };
+    let v_max = rows
+        .iter()
+        .map(|r| chip(r, false).max(chip(r, true)))
+        .fold(0.0, f64::max)
+        .max(1e-30);
+    let f_max = rows
+        .iter()
+        .map(|r| r.fz_before_mm.max(r.fz_after_mm))
+        .fold(0.0, f64::max)
+        .max(1e-30);
+    let mut b = String::new();
+    b.push_str(&format!(
+        "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{w}\" height=\"{}\" viewBox=\"0 0 {w} {}\" font-family=\"sans-serif\" font-size=\"12\">\n",
+        2.0 * h,
+        2.0 * h
+    ));
+    b.push_str("<rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n");
+    let mut esc = String::new();
+    push_str_lit(&mut esc, title);
+    let esc = esc.trim_matches('"').replace('&', "&amp;").replace('<', "&lt;");
+    for (panel, label, top, vmax) in [
+        (0, "chip volume per tooth, mm³", 0.0, v_max),
+        (1, "feed per tooth, µm", h, f_max * 1e3),
+    ] {
+        b.push_str(&format!(
+            "<text x=\"{pad}\" y=\"{}\">{esc}: {label} (grey before, blue after; max {:.3e}) vs path length 0..{:.3} mm</text>\n",
+            top + 16.0,
+            vmax,
+            s_max
+        ));
+        b.push_str(&format!(
+            "<rect x=\"{pad}\" y=\"{}\" width=\"{}\" height=\"{}\" fill=\"none\" stroke=\"black\"/>\n",
+            top + 24.0,
+            w - 2.0 * pad,
+            h - 48.0
+        ));
+        for (after, colour) in [(false, "#999"), (true, "#1f5fbf")] {
+            b.push_str(&format!(
+                "<polyline fill=\"none\" stroke=\"{colour}\" stroke-width=\"1\" points=\""
+            ));
+            // At most one point per horizontal pixel pair keeps the file small.
+            let stride = (rows.len() / 2000).max(1);
+            for r in rows.iter().step_by(stride) {
+                let v = if panel == 0 {
+                    chip(r, after)
+                } else if after {
+                    r.fz_after_mm * 1e3
+                } else {
+                    r.fz_before_mm * 1e3
+                };
+                let x = pad + (w - 2.0 * pad) * r.s_mm / s_max;
+                let y = top + h - 24.0 - (h - 48.0) * (v / vmax).clamp(0.0, 1.0);
+                b.push_str(&format!("{x:.1},{y:.1} "));
+            }
+            b.push_str("\"/>\n");
+        }
+    }
+    b.push_str("</svg>\n");
+    b
+}
