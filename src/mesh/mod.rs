@@ -9,10 +9,12 @@
 //! - [`weld`]: merge vertices within a tolerance (spatial hash, linear time).
 //! - [`topology`]: the topology report and the repairs (degenerate and
 //!   duplicate triangles dropped, orientation made consistent).
+//! - [`solids`]: generated closed solids (sphere, torus, cylinder, box).
 //! - [`bvh`]: a bounding-volume hierarchy with ray and nearest-point queries.
 //! - [`slice`]: planar sections at Z levels as closed, nested chains.
 
-//pub mod bvh;
+pub mod bvh;
+pub mod solids;
 pub mod read;
 pub mod read_obj;
 pub mod read_stl;
