@@ -300,6 +300,24 @@ impl Bvh {
         }
     }
 
+    /// Work a first-hit query does: (nodes whose children were box-tested,
+    /// triangles tested). For benchmarks and docs/mesh.md.
+    pub fn first_hit_cost(&self, ray: &Ray) -> (usize, usize) {
+        let t_max = std::cell::Cell::new(ray.t_max);
+        let tris = std::cell::Cell::new(0usize);
+        let nodes = std::cell::Cell::new(0usize);
+        self.traverse(ray, |_| {
+            nodes.set(nodes.get() + 1);
+            t_max.get()
+        }, |bvh, i, pre| {
+            tris.set(tris.get() + 1);
+            if let Some(h) = bvh.hit_tri(i, ray, pre, t_max.get()) {
+                t_max.set(h.t);
+            }
+        });
+        (nodes.get(), tris.get())
+    }
+
     /// [`Bvh::first_hit`] for many rays, in parallel.
     pub fn first_hits(&self, rays: &[Ray]) -> Vec<Option<Hit>> {
         rays.par_iter().with_min_len(256).map(|r| self.first_hit(r)).collect()
