@@ -19,8 +19,8 @@ pub mod read;
 pub mod read_obj;
 pub mod read_stl;
 //pub mod slice;
-//pub mod topology;
-//pub mod weld;
+pub mod topology;
+pub mod weld;
 
 pub use read::{Format, Group, LoadedMesh, MeshError, ReadOptions, Units, read_bytes, read_path};
 
@@ -89,6 +89,11 @@ impl Mesh {
             self.vertices[b as usize],
             self.vertices[c as usize],
         )
+    }
+
+    /// The triangle on three vertex indices, by value.
+    pub fn triangle_of(&self, t: &[u32; 3]) -> Triangle {
+        Triangle::new(self.vertices[t[0] as usize], self.vertices[t[1] as usize], self.vertices[t[2] as usize])
     }
 
     /// Every triangle by value, in order.
