@@ -18,7 +18,7 @@ pub mod solids;
 pub mod read;
 pub mod read_obj;
 pub mod read_stl;
-//pub mod slice;
+pub mod slice;
 pub mod topology;
 pub mod weld;
 
