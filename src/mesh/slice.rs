@@ -459,7 +459,10 @@ fn loop_segments(l: &Loop, z: f64, arc_tol: Option<f64>) -> Vec<Segment> {
     }
     match arc_tol {
         Some(tol) if tol > 0.0 && pts.len() > 3 => {
-            let fit = arcfit::fit_points(&pts, tol, z, true);
+            // Points mode: the section points lie on the model (on its edges),
+            // the chords between them do not; arcs through the points are
+            // closer to the model than the polygon is.
+            let fit = arcfit::fit_points(&pts, tol, z, false);
             let mut segs: Vec<Segment> = fit
                 .iter()
                 .map(|e| match e {

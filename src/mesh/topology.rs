@@ -324,6 +324,37 @@ fn orient(m: &mut Mesh) -> (usize, usize) {
     (flipped, inverted)
 }
 
+/// A mesh welded, reported on and repaired: what `pathgen slice` and
+/// `pathgen mesh-info` work from.
+#[derive(Debug, Clone)]
+pub struct Prepared {
+    /// The welded, repaired mesh.
+    pub mesh: Mesh,
+    /// What welding did.
+    pub weld: super::weld::WeldReport,
+    /// Topology after welding, before repairs.
+    pub before: TopologyReport,
+    /// The repairs done, one sentence each.
+    pub repairs: Vec<String>,
+    /// Topology after the repairs.
+    pub after: TopologyReport,
+}
+
+/// Weld within `weld_tol` (mm), report, repair, report again.
+pub fn prepare(mesh: &Mesh, weld_tol: f64) -> Prepared {
+    let (welded, weld) = super::weld::weld(mesh, weld_tol);
+    let before = report(&welded);
+    let (fixed, repairs) = repair(&welded);
+    let after = if repairs.is_empty() { before.clone() } else { report(&fixed) };
+    Prepared {
+        mesh: fixed,
+        weld,
+        before,
+        repairs,
+        after,
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -14,7 +14,7 @@ use super::Mesh;
 use crate::geometry::P3;
 
 /// What welding did.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize)]
 pub struct WeldReport {
     /// Vertices before.
     pub vertices_in: usize,
