@@ -159,8 +159,8 @@ fn sniff(bytes: &[u8]) -> Result<Format, MeshError> {
     }
     let head = &bytes[..bytes.len().min(4096)];
     let text = String::from_utf8_lossy(head);
-    let t = text.trim_start();
-    if t.len() >= 5 && t[..5].eq_ignore_ascii_case("solid") {
+    let t = text.trim_start().as_bytes();
+    if t.len() >= 5 && t[..5].eq_ignore_ascii_case(b"solid") {
         return Ok(Format::Stl);
     }
     let objish = text.lines().any(|l| {
@@ -236,5 +236,51 @@ mod corpus_tests {
         // The well-formed corpus files all read.
         assert!(read >= files.len() - 1, "only {read} of {} read", files.len());
         corpus::record("corpus_meshes_read_or_are_refused", files.len());
+    }
+}
+
+#[cfg(test)]
+mod robustness {
+    use super::*;
+    use crate::geometry::P3;
+    use crate::mesh::read_stl::{write_ascii, write_binary};
+    use crate::mesh::solids;
+    use proptest::prelude::*;
+
+    fn seeds() -> Vec<Vec<u8>> {
+        let m = solids::cuboid(P3::origin(), P3::new(1.0, 2.0, 3.0));
+        vec![
+            write_binary(&m, "solid binary"),
+            write_ascii(&m, "a").into_bytes(),
+            b"o a\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\nf -1 -2 -3\nl 1 2\n".to_vec(),
+        ]
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(300))]
+        /// Mutated files read or fail with an error, never a panic; and
+        /// what reads welds, reports and slices without a panic.
+        #[test]
+        fn mutated_files_never_panic(which in 0usize..3, edits in proptest::collection::vec((0usize..4096, any::<u8>(), 0u8..3), 1..8)) {
+            let mut b = seeds()[which].clone();
+            for (pos, byte, op) in edits {
+                let p = pos % (b.len() + 1);
+                match op {
+                    0 if p < b.len() => b[p] = byte,
+                    1 => b.insert(p, byte),
+                    _ => b.truncate(p.max(1)),
+                }
+            }
+            for format in [None, Some(Format::Stl), Some(Format::Obj)] {
+                if let Ok(m) = read_bytes(&b, &ReadOptions { format, ..Default::default() }) {
+                    let p = crate::mesh::topology::prepare(&m.mesh, 1e-6);
+                    let bb = p.mesh.bbox();
+                    if !bb.is_empty() {
+                        let z = 0.5 * (bb.min.z + bb.max.z);
+                        let _ = crate::mesh::slice::section(&p.mesh, z, &Default::default());
+                    }
+                }
+            }
+        }
     }
 }

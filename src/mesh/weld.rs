@@ -50,7 +50,7 @@ pub fn weld(mesh: &Mesh, tol: f64) -> (Mesh, WeldReport) {
             'search: for dx in -1..=1 {
                 for dy in -1..=1 {
                     for dz in -1..=1 {
-                        if let Some(list) = grid.get(&(cx + dx, cy + dy, cz + dz)) {
+                        if let Some(list) = grid.get(&(cx.wrapping_add(dx), cy.wrapping_add(dy), cz.wrapping_add(dz))) {
                             for &k in list {
                                 if (out[k as usize] - p).norm_squared() <= tol2 {
                                     found = Some(k);
