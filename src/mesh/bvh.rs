@@ -93,10 +93,24 @@ struct Node {
     n: u32,
 }
 
+/// An interior node for ray traversal: both children's boxes in one
+/// 64-byte cache line (one memory access per step down instead of two).
+#[derive(Debug, Clone, Copy, Default)]
+#[repr(C, align(64))]
+struct Pair {
+    /// Child boxes, by axis: lo[axis][child], hi[axis][child].
+    lo: [[f32; 2]; 3],
+    hi: [[f32; 2]; 3],
+    /// Child: pair index (count 0) or first triangle (count > 0).
+    child: [u32; 2],
+    count: [u32; 2],
+}
+
 /// The hierarchy, owning a copy of the triangles in leaf order.
 #[derive(Debug, Clone)]
 pub struct Bvh {
     nodes: Vec<Node>,
+    pairs: Vec<Pair>,
     tris: Vec<[P3; 3]>,
     ids: Vec<u32>,
 }
@@ -184,7 +198,8 @@ impl Bvh {
             build(&prims, &mut ids, 0, &mut nodes, pad);
         }
         let tris = ids.iter().map(|&i| corners[i as usize]).collect();
-        Bvh { nodes, tris, ids }
+        let pairs = pairs_of(&nodes);
+        Bvh { nodes, pairs, tris, ids }
     }
 
     /// Number of triangles.
@@ -334,7 +349,7 @@ impl Bvh {
     }
 
     /// Visit every leaf triangle whose node box the ray enters before the
-    /// current `t_max` (asked again at each box, so first-hit queries
+    /// current `t_max` (asked again at each step, so first-hit queries
     /// shrink it), nearer child first.
     #[inline]
     fn traverse(&self, ray: &Ray, mut t_max: impl FnMut(()) -> f64, mut leaf: impl FnMut(&Bvh, usize, &Pre)) {
@@ -342,51 +357,67 @@ impl Bvh {
             return;
         }
         let Some(pre) = Pre::new(ray) else { return };
-        let mut stack = [0u32; 64];
-        let mut sp = 0usize;
-        let mut node = 0u32;
+        let t0 = ray.t_min as f32;
         let root = &self.nodes[0];
-        if pre.slab(root, ray.t_min as f32, t_max(()) as f32).is_none() {
+        if pre.slab(root, t0, t_max(()) as f32).is_none() {
             return;
         }
+        if root.n > 0 {
+            for i in root.a..root.a + root.n {
+                leaf(self, i as usize, &pre);
+            }
+            return;
+        }
+        let mut stack = [(0u32, 0f32); 64];
+        let mut sp = 0usize;
+        let mut node = 0u32;
         loop {
-            let nd = &self.nodes[node as usize];
-            if nd.n > 0 {
-                for i in nd.a..nd.a + nd.n {
-                    leaf(self, i as usize, &pre);
+            let p = &self.pairs[node as usize];
+            let tm = t_max(()) as f32;
+            let e = pre.slab2(p, t0, tm);
+            let mut next = [(0u32, 0f32); 2];
+            let mut k = 0;
+            let order = if e[1] < e[0] { [1, 0] } else { [0, 1] };
+            for c in order {
+                if e[c].is_nan() {
+                    continue;
                 }
-            } else {
-                let tm = t_max(()) as f32;
-                let l = node + 1;
-                let r = nd.a;
-                let hl = pre.slab(&self.nodes[l as usize], ray.t_min as f32, tm);
-                let hr = pre.slab(&self.nodes[r as usize], ray.t_min as f32, tm);
-                match (hl, hr) {
-                    (Some(a), Some(b)) => {
-                        let (near, far) = if a <= b { (l, r) } else { (r, l) };
-                        if sp < stack.len() {
-                            stack[sp] = far;
-                            sp += 1;
-                        }
-                        node = near;
-                        continue;
+                if p.count[c] > 0 {
+                    for i in p.child[c]..p.child[c] + p.count[c] {
+                        leaf(self, i as usize, &pre);
                     }
-                    (Some(_), None) => {
-                        node = l;
-                        continue;
-                    }
-                    (None, Some(_)) => {
-                        node = r;
-                        continue;
-                    }
-                    (None, None) => {}
+                } else {
+                    next[k] = (p.child[c], e[c]);
+                    k += 1;
                 }
             }
-            if sp == 0 {
-                return;
+            match k {
+                2 => {
+                    if sp < stack.len() {
+                        stack[sp] = next[1];
+                        sp += 1;
+                    }
+                    node = next[0].0;
+                    continue;
+                }
+                1 => {
+                    node = next[0].0;
+                    continue;
+                }
+                _ => {}
             }
-            sp -= 1;
-            node = stack[sp];
+            // Pop the next node the ray still enters before t_max.
+            loop {
+                if sp == 0 {
+                    return;
+                }
+                sp -= 1;
+                let (n, entry) = stack[sp];
+                if entry <= t_max(()) as f32 * (1.0 + 4.0 * f32::EPSILON) {
+                    node = n;
+                    break;
+                }
+            }
         }
     }
 
@@ -479,6 +510,29 @@ impl Pre {
         })
     }
 
+    /// Entry parameters of the ray into both child boxes of a pair within
+    /// `[t0, t1]`; NaN for a miss.
+    #[inline(always)]
+    fn slab2(&self, p: &Pair, t0: f32, t1: f32) -> [f32; 2] {
+        let mut lo = [t0; 2];
+        let mut hi = [t1 * (1.0 + 4.0 * f32::EPSILON); 2];
+        for k in 0..3 {
+            for c in 0..2 {
+                let a = (p.lo[k][c] - self.org[k]) * self.inv[k];
+                let b = (p.hi[k][c] - self.org[k]) * self.inv[k];
+                // Comparisons, not f32::min/max: a NaN (0 * inf on a box
+                // face) falls through to the other operand, never culls.
+                let (near, far) = if a < b { (a, b) } else { (b, a) };
+                lo[c] = if near > lo[c] { near } else { lo[c] };
+                hi[c] = if far < hi[c] { far } else { hi[c] };
+            }
+        }
+        [
+            if lo[0] <= hi[0] { lo[0] } else { f32::NAN },
+            if lo[1] <= hi[1] { lo[1] } else { f32::NAN },
+        ]
+    }
+
     /// Entry parameter of the ray into the node box within `[t0, t1]`.
     #[inline(always)]
     fn slab(&self, n: &Node, t0: f32, t1: f32) -> Option<f32> {
@@ -493,6 +547,40 @@ impl Pre {
         }
         (lo <= hi).then_some(lo)
     }
+}
+
+/// The traversal pairs of a depth-first node list: one per interior node.
+fn pairs_of(nodes: &[Node]) -> Vec<Pair> {
+    let mut index = vec![u32::MAX; nodes.len()];
+    let mut k = 0u32;
+    for (i, n) in nodes.iter().enumerate() {
+        if n.n == 0 {
+            index[i] = k;
+            k += 1;
+        }
+    }
+    let mut out = Vec::with_capacity(k as usize);
+    for (i, n) in nodes.iter().enumerate() {
+        if n.n > 0 {
+            continue;
+        }
+        let mut p = Pair::default();
+        for (c, j) in [i + 1, n.a as usize].into_iter().enumerate() {
+            let ch = &nodes[j];
+            for ax in 0..3 {
+                p.lo[ax][c] = ch.min[ax];
+                p.hi[ax][c] = ch.max[ax];
+            }
+            if ch.n > 0 {
+                p.child[c] = ch.a;
+                p.count[c] = ch.n;
+            } else {
+                p.child[c] = index[j];
+            }
+        }
+        out.push(p);
+    }
+    out
 }
 
 fn box_d2(n: &Node, p: &P3) -> f64 {
@@ -654,7 +742,16 @@ fn finish_split(p: &Prims, ids: &mut [u32], offset: usize, out: &mut Vec<Node>, 
 fn best_split(p: &Prims, ids: &[u32], bb: &Aabb, cb: &Aabb) -> Option<(usize, f64)> {
     let n = ids.len();
     let mut best = (f64::INFINITY, 0usize, 0.0f64);
+    // Large nodes: the longest centroid axis only (a third of the binning
+    // work where most of the build time goes, and the SAH rarely prefers
+    // another axis this high up).
+    let longest = (0..3)
+        .max_by(|&a, &b| (cb.max[a] - cb.min[a]).total_cmp(&(cb.max[b] - cb.min[b])))
+        .unwrap_or(0);
     for axis in 0..3 {
+        if n > 4096 && axis != longest {
+            continue;
+        }
         let lo = cb.min[axis];
         let ext = cb.max[axis] - lo;
         if !(ext > 0.0) {
