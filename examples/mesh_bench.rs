@@ -30,7 +30,10 @@ fn main() {
     let bvh = Bvh::new(&m.mesh);
     let build_s = t1.elapsed().as_secs_f64();
     let raw = std::fs::read(&args[2]).expect("rays file");
-    let f: Vec<f64> = raw.chunks_exact(8).map(|c| f64::from_le_bytes(c.try_into().unwrap())).collect();
+    let f: Vec<f64> = raw
+        .chunks_exact(8)
+        .map(|c| f64::from_le_bytes(c.try_into().unwrap()))
+        .collect();
     let rays: Vec<Ray> = f
         .chunks_exact(6)
         .map(|c| Ray::new(P3::new(c[0], c[1], c[2]), V3::new(c[3], c[4], c[5])))
@@ -57,11 +60,18 @@ fn main() {
         cn += a;
         ct += b;
     }
-    eprintln!("per ray: {:.1} interior nodes, {:.1} triangle tests", cn as f64 / rays.len() as f64, ct as f64 / rays.len() as f64);
+    eprintln!(
+        "per ray: {:.1} interior nodes, {:.1} triangle tests",
+        cn as f64 / rays.len() as f64,
+        ct as f64 / rays.len() as f64
+    );
     let t = Instant::now();
     let n_all: usize = rays.iter().map(|r| bvh.count_hits(r)).sum();
     let all_s = t.elapsed().as_secs_f64();
-    let out: Vec<u8> = hits.iter().flat_map(|h| h.map_or(f64::NAN, |h| h.t).to_le_bytes()).collect();
+    let out: Vec<u8> = hits
+        .iter()
+        .flat_map(|h| h.map_or(f64::NAN, |h| h.t).to_le_bytes())
+        .collect();
     std::fs::write(format!("{}.hits", args[2]), out).expect("write hits");
     let n_hit = hits.iter().filter(|h| h.is_some()).count();
     println!(

@@ -48,18 +48,32 @@ fn slices_a_torus_into_outer_and_hole_at_each_level() {
     std::fs::write(&a, write_ascii(&m, "torus")).unwrap();
     let o2 = Command::new("sh")
         .arg("-c")
-        .arg(format!("{PATHGEN} slice --levels 1.0 --arc-tol 0.0001 < {}", a.display()))
+        .arg(format!(
+            "{PATHGEN} slice --levels 1.0 --arc-tol 0.0001 < {}",
+            a.display()
+        ))
         .output()
         .unwrap();
     assert!(o2.status.success(), "{}", String::from_utf8_lossy(&o2.stderr));
     let c2 = chains(&o2.stdout);
     assert_eq!(c2.len(), 2);
-    assert!(c2.iter().any(|c| c.segments.iter().any(|s| matches!(s, microcam::model::chain::Segment::Arc { .. }))));
-    let poly: f64 = c.iter().filter(|c| c.segments[0].start().z == 1.0).map(chain_area).sum();
+    assert!(c2.iter().any(|c| {
+        c.segments
+            .iter()
+            .any(|s| matches!(s, microcam::model::chain::Segment::Arc { .. }))
+    }));
+    let poly: f64 = c
+        .iter()
+        .filter(|c| c.segments[0].start().z == 1.0)
+        .map(chain_area)
+        .sum();
     let arcs: f64 = c2.iter().map(chain_area).sum();
     let exact = 12.0 * std::f64::consts::PI;
     assert!((arcs / exact - 1.0).abs() < 1e-4, "{arcs} vs {exact}");
-    assert!((arcs / exact - 1.0).abs() < (poly / exact - 1.0).abs(), "arcs {arcs} no closer than polygon {poly}");
+    assert!(
+        (arcs / exact - 1.0).abs() < (poly / exact - 1.0).abs(),
+        "arcs {arcs} no closer than polygon {poly}"
+    );
     // Byte-identical output for identical input.
     let o3 = run(&["slice", p.to_str().unwrap(), "--z-step", "0.5", "--from", "bottom"]);
     assert_eq!(o.stdout, o3.stdout);
@@ -69,9 +83,20 @@ fn slices_a_torus_into_outer_and_hole_at_each_level() {
 fn malformed_input_exits_2_naming_the_place_and_writes_nothing() {
     let dir = tempfile::tempdir().unwrap();
     let p = dir.path().join("bad.stl");
-    std::fs::write(&p, "solid x\nfacet normal 0 0 1\n outer loop\n  vertex 0 0 0\n  vertex 1 0 oops\n").unwrap();
+    std::fs::write(
+        &p,
+        "solid x\nfacet normal 0 0 1\n outer loop\n  vertex 0 0 0\n  vertex 1 0 oops\n",
+    )
+    .unwrap();
     let out = dir.path().join("out.jsonl");
-    let o = run(&["slice", p.to_str().unwrap(), "--levels", "0", "-o", out.to_str().unwrap()]);
+    let o = run(&[
+        "slice",
+        p.to_str().unwrap(),
+        "--levels",
+        "0",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
     assert_eq!(o.status.code(), Some(2));
     let e = String::from_utf8_lossy(&o.stderr);
     assert!(e.contains("bad.stl:5:") && e.contains("oops"), "{e}");
@@ -82,7 +107,11 @@ fn malformed_input_exits_2_naming_the_place_and_writes_nothing() {
     std::fs::write(&b, bytes).unwrap();
     let o = run(&["mesh-info", b.to_str().unwrap()]);
     assert_eq!(o.status.code(), Some(2));
-    assert!(String::from_utf8_lossy(&o.stderr).contains("byte 284"), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(
+        String::from_utf8_lossy(&o.stderr).contains("byte 284"),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
     assert!(o.stdout.is_empty());
     let o = run(&["slice", b.to_str().unwrap()]);
     assert_eq!(o.status.code(), Some(2));
@@ -108,7 +137,11 @@ fn mesh_info_reports_topology_and_repairs() {
     let v = j["repaired"]["volume_mm3"].as_f64().unwrap();
     assert!((v - 25.4f64.powi(3)).abs() < 1e-6, "{v}");
     assert!(j["repairs"][0].as_str().unwrap().contains("removed 2 duplicate"));
-    assert!(j["repairs"][1].as_str().unwrap().contains("flipped 2 "), "{}", j["repairs"]);
+    assert!(
+        j["repairs"][1].as_str().unwrap().contains("flipped 2 "),
+        "{}",
+        j["repairs"]
+    );
     assert!(j["notes"][0].as_str().unwrap().contains("line elements"));
 }
 

@@ -143,7 +143,11 @@ impl Aabb {
         }
     }
     fn half_area(&self) -> f64 {
-        let d = [self.max[0] - self.min[0], self.max[1] - self.min[1], self.max[2] - self.min[2]];
+        let d = [
+            self.max[0] - self.min[0],
+            self.max[1] - self.min[1],
+            self.max[2] - self.min[2],
+        ];
         if d[0] < 0.0 {
             return 0.0;
         }
@@ -164,7 +168,13 @@ impl Bvh {
         let corners: Vec<[P3; 3]> = mesh
             .triangles
             .iter()
-            .map(|t| [mesh.vertices[t[0] as usize], mesh.vertices[t[1] as usize], mesh.vertices[t[2] as usize]])
+            .map(|t| {
+                [
+                    mesh.vertices[t[0] as usize],
+                    mesh.vertices[t[1] as usize],
+                    mesh.vertices[t[2] as usize],
+                ]
+            })
             .collect();
         let (boxes, cent): (Vec<Aabb>, Vec<[f64; 3]>) = corners
             .par_iter()
@@ -190,7 +200,9 @@ impl Bvh {
         // Absolute padding of every box: covers the f32 rounding of ray
         // origins and slab parameters for rays starting within a few scene
         // sizes of the mesh.
-        let scale = (0..3).map(|k| all.max[k].abs().max(all.min[k].abs())).fold(0.0, f64::max);
+        let scale = (0..3)
+            .map(|k| all.max[k].abs().max(all.min[k].abs()))
+            .fold(0.0, f64::max);
         let pad = scale * 1e-6 + 1e-12;
         let mut ids: Vec<u32> = (0..n as u32).collect();
         let mut nodes = Vec::with_capacity(2 * n / MAX_LEAF + 1);
@@ -199,7 +211,12 @@ impl Bvh {
         }
         let tris = ids.iter().map(|&i| corners[i as usize]).collect();
         let pairs = pairs_of(&nodes);
-        Bvh { nodes, pairs, tris, ids }
+        Bvh {
+            nodes,
+            pairs,
+            tris,
+            ids,
+        }
     }
 
     /// Number of triangles.
@@ -221,12 +238,16 @@ impl Bvh {
     pub fn first_hit(&self, ray: &Ray) -> Option<Hit> {
         let mut best: Option<Hit> = None;
         let t_max = std::cell::Cell::new(ray.t_max);
-        self.traverse(ray, |_| t_max.get(), |bvh, i, pre| {
-            if let Some(h) = bvh.hit_tri(i, ray, pre, t_max.get()) {
-                t_max.set(h.t);
-                best = Some(h);
-            }
-        });
+        self.traverse(
+            ray,
+            |_| t_max.get(),
+            |bvh, i, pre| {
+                if let Some(h) = bvh.hit_tri(i, ray, pre, t_max.get()) {
+                    t_max.set(h.t);
+                    best = Some(h);
+                }
+            },
+        );
         best
     }
 
@@ -235,11 +256,15 @@ impl Bvh {
     /// counts it once.
     pub fn all_hits(&self, ray: &Ray) -> Vec<Hit> {
         let mut out = Vec::new();
-        self.traverse(ray, |_| ray.t_max, |bvh, i, pre| {
-            if let Some(h) = bvh.hit_tri(i, ray, pre, ray.t_max) {
-                out.push(h);
-            }
-        });
+        self.traverse(
+            ray,
+            |_| ray.t_max,
+            |bvh, i, pre| {
+                if let Some(h) = bvh.hit_tri(i, ray, pre, ray.t_max) {
+                    out.push(h);
+                }
+            },
+        );
         out.sort_by(|a, b| a.t.total_cmp(&b.t).then(a.triangle.cmp(&b.triangle)));
         out
     }
@@ -247,16 +272,24 @@ impl Bvh {
     /// How many triangles the ray crosses.
     pub fn count_hits(&self, ray: &Ray) -> usize {
         let mut n = 0;
-        self.traverse(ray, |_| ray.t_max, |bvh, i, pre| {
-            n += bvh.hit_tri(i, ray, pre, ray.t_max).is_some() as usize;
-        });
+        self.traverse(
+            ray,
+            |_| ray.t_max,
+            |bvh, i, pre| {
+                n += bvh.hit_tri(i, ray, pre, ray.t_max).is_some() as usize;
+            },
+        );
         n
     }
 
     /// Is `p` inside a closed mesh? Parity of the crossings of a ray in a
     /// fixed oblique direction (no axis-aligned faces lie along it).
     pub fn contains(&self, p: &P3) -> bool {
-        let d = V3::new(0.577_350_269_189_625_8, 0.577_350_269_189_625_7 * 1.000_123, 0.577_350_269_189_626 * 0.999_871);
+        let d = V3::new(
+            0.577_350_269_189_625_8,
+            0.577_350_269_189_625_7 * 1.000_123,
+            0.577_350_269_189_626 * 0.999_871,
+        );
         self.count_hits(&Ray::new(*p, d)) % 2 == 1
     }
 
@@ -321,15 +354,19 @@ impl Bvh {
         let t_max = std::cell::Cell::new(ray.t_max);
         let tris = std::cell::Cell::new(0usize);
         let nodes = std::cell::Cell::new(0usize);
-        self.traverse(ray, |_| {
-            nodes.set(nodes.get() + 1);
-            t_max.get()
-        }, |bvh, i, pre| {
-            tris.set(tris.get() + 1);
-            if let Some(h) = bvh.hit_tri(i, ray, pre, t_max.get()) {
-                t_max.set(h.t);
-            }
-        });
+        self.traverse(
+            ray,
+            |_| {
+                nodes.set(nodes.get() + 1);
+                t_max.get()
+            },
+            |bvh, i, pre| {
+                tris.set(tris.get() + 1);
+                if let Some(h) = bvh.hit_tri(i, ray, pre, t_max.get()) {
+                    t_max.set(h.t);
+                }
+            },
+        );
         (nodes.get(), tris.get())
     }
 
@@ -589,7 +626,13 @@ fn box_d2(n: &Node, p: &P3) -> f64 {
         let v = p[k];
         let lo = n.min[k] as f64;
         let hi = n.max[k] as f64;
-        let e = if v < lo { lo - v } else if v > hi { v - hi } else { 0.0 };
+        let e = if v < lo {
+            lo - v
+        } else if v > hi {
+            v - hi
+        } else {
+            0.0
+        };
         d2 += e * e;
     }
     d2
@@ -642,7 +685,11 @@ pub fn closest_on_triangle(p: &P3, a: &P3, b: &P3, c: &P3) -> P3 {
             .map(|(s, e)| {
                 let d = *e - *s;
                 let l2 = d.norm_squared();
-                let t = if l2 > 0.0 { ((p - *s).dot(&d) / l2).clamp(0.0, 1.0) } else { 0.0 };
+                let t = if l2 > 0.0 {
+                    ((p - *s).dot(&d) / l2).clamp(0.0, 1.0)
+                } else {
+                    0.0
+                };
                 *s + d * t
             })
             .min_by(|x, y| (x - p).norm_squared().total_cmp(&(y - p).norm_squared()))
@@ -691,7 +738,9 @@ fn build(p: &Prims, ids: &mut [u32], offset: usize, out: &mut Vec<Node>, pad: f6
             let axis = (0..3)
                 .max_by(|&a, &b| (cb.max[a] - cb.min[a]).total_cmp(&(cb.max[b] - cb.min[b])))
                 .unwrap_or(0);
-            ids.select_nth_unstable_by(n / 2, |&x, &y| p.cent[x as usize][axis].total_cmp(&p.cent[y as usize][axis]));
+            ids.select_nth_unstable_by(n / 2, |&x, &y| {
+                p.cent[x as usize][axis].total_cmp(&p.cent[y as usize][axis])
+            });
             n / 2
         }
         None => 0,
@@ -713,7 +762,10 @@ fn finish_split(p: &Prims, ids: &mut [u32], offset: usize, out: &mut Vec<Node>, 
     let (l, r) = ids.split_at_mut(mid);
     if l.len() + r.len() >= PAR_MIN {
         let (mut lv, mut rv) = (Vec::new(), Vec::new());
-        rayon::join(|| build(p, l, offset, &mut lv, pad), || build(p, r, offset + mid, &mut rv, pad));
+        rayon::join(
+            || build(p, l, offset, &mut lv, pad),
+            || build(p, r, offset + mid, &mut rv, pad),
+        );
         let lb = out.len() as u32;
         out.extend(lv.into_iter().map(|mut n| {
             if n.n == 0 {

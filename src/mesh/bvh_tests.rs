@@ -48,10 +48,15 @@ fn rays_hit_an_analytic_sphere_and_box() {
     }
     let bx = solids::cuboid(P3::new(-1.0, -2.0, -3.0), P3::new(1.0, 2.0, 3.0));
     let bvh = Bvh::new(&bx);
-    let h = bvh.first_hit(&Ray::new(P3::new(0.3, 0.2, 10.0), V3::new(0.0, 0.0, -2.0))).unwrap();
+    let h = bvh
+        .first_hit(&Ray::new(P3::new(0.3, 0.2, 10.0), V3::new(0.0, 0.0, -2.0)))
+        .unwrap();
     assert!((h.t - 3.5).abs() < 1e-15);
     assert!(bx.triangle(h.triangle as usize).normal().unwrap().z > 0.99);
-    assert!(bvh.first_hit(&Ray::new(P3::new(1.5, 0.0, 10.0), V3::new(0.0, 0.0, -1.0))).is_none());
+    assert!(
+        bvh.first_hit(&Ray::new(P3::new(1.5, 0.0, 10.0), V3::new(0.0, 0.0, -1.0)))
+            .is_none()
+    );
     // t range respected.
     let mut ray = Ray::new(P3::new(0.0, 0.0, 10.0), V3::new(0.0, 0.0, -1.0));
     ray.t_max = 6.0;
@@ -66,7 +71,16 @@ fn rays_through_edges_and_vertices_count_once() {
     // grid lines and diagonals pass exactly through edges and vertices.
     let bx = solids::cuboid(P3::new(0.0, 0.0, 0.0), P3::new(4.0, 4.0, 4.0));
     let bvh = Bvh::new(&bx);
-    for &(x, y) in &[(0.0, 0.0), (2.0, 2.0), (1.0, 1.0), (4.0, 4.0), (0.0, 2.0), (3.0, 3.0), (4.0, 0.0), (2.0, 0.0)] {
+    for &(x, y) in &[
+        (0.0, 0.0),
+        (2.0, 2.0),
+        (1.0, 1.0),
+        (4.0, 4.0),
+        (0.0, 2.0),
+        (3.0, 3.0),
+        (4.0, 0.0),
+        (2.0, 0.0),
+    ] {
         for d in [V3::new(0.0, 0.0, -1.0), V3::new(0.0, 0.0, 1.0)] {
             let ray = Ray::new(P3::new(x, y, 2.0) - d * 10.0, d);
             let n = bvh.count_hits(&ray);
@@ -92,7 +106,10 @@ fn batch_queries_match_single_ones() {
     let rays: Vec<Ray> = (0..2000)
         .map(|i| {
             let a = i as f64 * 0.618;
-            Ray::new(P3::new(a.cos() * 8.0, a.sin() * 8.0, (i % 7) as f64 * 0.3 - 0.95), V3::new(-a.cos(), -a.sin(), 0.01 * (i % 5) as f64))
+            Ray::new(
+                P3::new(a.cos() * 8.0, a.sin() * 8.0, (i % 7) as f64 * 0.3 - 0.95),
+                V3::new(-a.cos(), -a.sin(), 0.01 * (i % 5) as f64),
+            )
         })
         .collect();
     let b = bvh.first_hits(&rays);
@@ -184,4 +201,3 @@ fn empty_and_large_builds() {
     assert!(bvh.first_hit(&Ray::new(P3::origin(), V3::new(1.0, 1.0, 1.0))).is_none());
     assert!((bvh.nearest(&P3::origin()).unwrap().distance - 3f64.sqrt()).abs() < 1e-12);
 }
-

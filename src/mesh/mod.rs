@@ -14,11 +14,11 @@
 //! - [`slice`]: planar sections at Z levels as closed, nested chains.
 
 pub mod bvh;
-pub mod solids;
 pub mod read;
 pub mod read_obj;
 pub mod read_stl;
 pub mod slice;
+pub mod solids;
 pub mod topology;
 pub mod weld;
 
@@ -93,7 +93,11 @@ impl Mesh {
 
     /// The triangle on three vertex indices, by value.
     pub fn triangle_of(&self, t: &[u32; 3]) -> Triangle {
-        Triangle::new(self.vertices[t[0] as usize], self.vertices[t[1] as usize], self.vertices[t[2] as usize])
+        Triangle::new(
+            self.vertices[t[0] as usize],
+            self.vertices[t[1] as usize],
+            self.vertices[t[2] as usize],
+        )
     }
 
     /// Every triangle by value, in order.

@@ -119,7 +119,10 @@ pub enum MeshError {
 /// (`.stl`, `.obj`, any case), else the content.
 pub fn read_path(path: &Path, opts: &ReadOptions) -> Result<LoadedMesh, MeshError> {
     let bytes = std::fs::read(path)?;
-    let ext = path.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase());
+    let ext = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(|e| e.to_ascii_lowercase());
     let format = opts.format.or(match ext.as_deref() {
         Some("stl") => Some(Format::Stl),
         Some("obj") => Some(Format::Obj),
@@ -187,14 +190,31 @@ mod tests {
     #[test]
     fn units_scale_and_sniffing() {
         let stl = b"solid t\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\nvertex 0 1 0\nendloop\nendfacet\nendsolid t\n";
-        let m = read_bytes(stl, &ReadOptions { units: Units::Inch, format: None }).unwrap();
+        let m = read_bytes(
+            stl,
+            &ReadOptions {
+                units: Units::Inch,
+                format: None,
+            },
+        )
+        .unwrap();
         assert_eq!(m.format, "stl-ascii");
         assert_eq!(m.mesh.vertices[1].x, 25.4);
         let obj = b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
-        let m = read_bytes(obj, &ReadOptions { units: Units::Um, format: None }).unwrap();
+        let m = read_bytes(
+            obj,
+            &ReadOptions {
+                units: Units::Um,
+                format: None,
+            },
+        )
+        .unwrap();
         assert_eq!(m.format, "obj");
         assert!((m.mesh.vertices[1].x - 0.001).abs() < 1e-15);
-        assert!(matches!(read_bytes(b"hello", &ReadOptions::default()), Err(MeshError::Refused(_))));
+        assert!(matches!(
+            read_bytes(b"hello", &ReadOptions::default()),
+            Err(MeshError::Refused(_))
+        ));
         let empty = b"solid e\nendsolid e\n";
         let e = read_bytes(empty, &ReadOptions::default()).unwrap_err().to_string();
         assert!(e.contains("no triangles"), "{e}");
@@ -224,7 +244,14 @@ mod corpus_tests {
                     assert!(m.mesh.vertices.iter().all(|v| v.coords.iter().all(|c| c.is_finite())));
                     let covered: u32 = m.groups.iter().map(|g| g.triangles.len() as u32).sum();
                     assert_eq!(covered as usize, m.mesh.triangles.len(), "{}", f.display());
-                    eprintln!("{}: {} {} triangles, {} groups, notes {:?}", f.display(), m.format, m.mesh.triangles.len(), m.groups.len(), m.notes);
+                    eprintln!(
+                        "{}: {} {} triangles, {} groups, notes {:?}",
+                        f.display(),
+                        m.format,
+                        m.mesh.triangles.len(),
+                        m.groups.len(),
+                        m.notes
+                    );
                 }
                 Err(e) => {
                     let msg = e.to_string();

@@ -10,8 +10,8 @@
 //! the first line that is wrong (a `v` without three numbers, an `f` index
 //! out of range) and the error names it.
 
-use super::read::{Group, LoadedMesh, MeshError};
 use super::Mesh;
+use super::read::{Group, LoadedMesh, MeshError};
 use crate::geometry::{P3, V3};
 
 /// Read an OBJ file (materials are not loaded).
@@ -37,7 +37,10 @@ pub fn read_obj(bytes: &[u8]) -> Result<LoadedMesh, MeshError> {
         let first = triangles.len() as u32;
         let base = vertices.len() as u32;
         let p = &m.mesh.positions;
-        vertices.extend(p.chunks_exact(3).map(|c| P3::new(c[0] as f64, c[1] as f64, c[2] as f64)));
+        vertices.extend(
+            p.chunks_exact(3)
+                .map(|c| P3::new(c[0] as f64, c[1] as f64, c[2] as f64)),
+        );
         let idx = &m.mesh.indices;
         let arities: Vec<u32> = if m.mesh.face_arities.is_empty() {
             vec![3; idx.len() / 3]
@@ -69,12 +72,17 @@ pub fn read_obj(bytes: &[u8]) -> Result<LoadedMesh, MeshError> {
             });
         }
     }
-    if vertices.iter().any(|v| !(v.x.is_finite() && v.y.is_finite() && v.z.is_finite())) {
+    if vertices
+        .iter()
+        .any(|v| !(v.x.is_finite() && v.y.is_finite() && v.z.is_finite()))
+    {
         return Err(locate(bytes).unwrap_or(MeshError::Refused("OBJ: a vertex is not a finite number".into())));
     }
     let (lines, points) = count_ignored(bytes);
     if lines > 0 {
-        notes.push(format!("ignored {lines} line elements (`l`): a mesh has no use for them"));
+        notes.push(format!(
+            "ignored {lines} line elements (`l`): a mesh has no use for them"
+        ));
     }
     if points > 0 {
         notes.push(format!("ignored {points} point elements (`p`)"));
@@ -120,7 +128,12 @@ fn locate(bytes: &[u8]) -> Option<MeshError> {
             "v" | "vn" | "vt" => {
                 let nums: Vec<&str> = w.collect();
                 let need = if kw == "vt" { 1 } else { 3 };
-                if nums.len() < need || nums.iter().take(need).any(|s| s.parse::<f64>().map(|v| !v.is_finite()).unwrap_or(true)) {
+                if nums.len() < need
+                    || nums
+                        .iter()
+                        .take(need)
+                        .any(|s| s.parse::<f64>().map(|v| !v.is_finite()).unwrap_or(true))
+                {
                     return err(format!("`{kw}` needs {need} finite numbers, found `{}`", short(l)));
                 }
                 match kw {
@@ -170,7 +183,11 @@ pub fn ear_clip(pts: &[P3]) -> Vec<[usize; 3]> {
     let mut nrm = V3::zeros();
     for i in 0..n {
         let (a, b) = (pts[i], pts[(i + 1) % n]);
-        nrm += V3::new((a.y - b.y) * (a.z + b.z), (a.z - b.z) * (a.x + b.x), (a.x - b.x) * (a.y + b.y));
+        nrm += V3::new(
+            (a.y - b.y) * (a.z + b.z),
+            (a.z - b.z) * (a.x + b.x),
+            (a.x - b.x) * (a.y + b.y),
+        );
     }
     // Project on the two axes other than the normal's largest, keeping the
     // polygon counter-clockwise in 2-D.
@@ -240,22 +257,40 @@ mod tests {
 
     #[test]
     fn errors_name_the_line() {
-        let e = read_obj(b"v 0 0 0\nv 1 0 0\nv 0 1 x\nf 1 2 3\n").unwrap_err().to_string();
+        let e = read_obj(b"v 0 0 0\nv 1 0 0\nv 0 1 x\nf 1 2 3\n")
+            .unwrap_err()
+            .to_string();
         assert!(e.starts_with("line 3:"), "{e}");
-        let e = read_obj(b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 7\n").unwrap_err().to_string();
+        let e = read_obj(b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 7\n")
+            .unwrap_err()
+            .to_string();
         assert!(e.starts_with("line 4:"), "{e}");
     }
 
     #[test]
     fn ear_clip_keeps_area_on_a_comb() {
         // A comb-shaped polygon in the XZ plane.
-        let pts: Vec<P3> = [(0.0, 0.0), (4.0, 0.0), (4.0, 3.0), (3.0, 3.0), (3.0, 1.0), (2.0, 1.0), (2.0, 3.0), (1.0, 3.0), (1.0, 1.0), (0.0, 1.0)]
-            .iter()
-            .map(|&(x, z)| P3::new(x, 0.0, z))
-            .collect();
+        let pts: Vec<P3> = [
+            (0.0, 0.0),
+            (4.0, 0.0),
+            (4.0, 3.0),
+            (3.0, 3.0),
+            (3.0, 1.0),
+            (2.0, 1.0),
+            (2.0, 3.0),
+            (1.0, 3.0),
+            (1.0, 1.0),
+            (0.0, 1.0),
+        ]
+        .iter()
+        .map(|&(x, z)| P3::new(x, 0.0, z))
+        .collect();
         let t = ear_clip(&pts);
         assert_eq!(t.len(), pts.len() - 2);
-        let area: f64 = t.iter().map(|&[a, b, c]| 0.5 * (pts[b] - pts[a]).cross(&(pts[c] - pts[a])).norm()).sum();
+        let area: f64 = t
+            .iter()
+            .map(|&[a, b, c]| 0.5 * (pts[b] - pts[a]).cross(&(pts[c] - pts[a])).norm())
+            .sum();
         assert!((area - 8.0).abs() < 1e-12, "{area}");
     }
 }

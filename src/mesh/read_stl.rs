@@ -14,8 +14,8 @@
 //! Binary reading is a plain loop over 50-byte records, which also makes it
 //! fast enough for the million-triangle target (see docs/mesh.md).
 
-use super::read::{Group, LoadedMesh, MeshError};
 use super::Mesh;
+use super::read::{Group, LoadedMesh, MeshError};
 use crate::geometry::P3;
 
 /// Does the byte count fit a binary STL with the triangle count in its
@@ -72,7 +72,10 @@ fn read_binary(bytes: &[u8]) -> Result<LoadedMesh, MeshError> {
     let body = (bytes.len() - 84) as u64;
     let n = if n_header == 0 && body >= 50 {
         // Streaming exporters write the count as 0 and never go back.
-        notes.push(format!("triangle count 0 in the header; read {} triangles from the file size", body / 50));
+        notes.push(format!(
+            "triangle count 0 in the header; read {} triangles from the file size",
+            body / 50
+        ));
         body / 50
     } else {
         n_header
@@ -88,7 +91,10 @@ fn read_binary(bytes: &[u8]) -> Result<LoadedMesh, MeshError> {
         });
     }
     if 50 * n < body {
-        notes.push(format!("ignored {} trailing bytes after the last triangle", body - 50 * n));
+        notes.push(format!(
+            "ignored {} trailing bytes after the last triangle",
+            body - 50 * n
+        ));
     }
     let n = n as usize;
     let mut vertices = Vec::with_capacity(3 * n);
@@ -289,7 +295,9 @@ fn read_ascii(bytes: &[u8]) -> Result<LoadedMesh, MeshError> {
         });
     }
     if fanned > 0 {
-        notes.push(format!("split {fanned} facets with more than 3 vertices into fans of triangles"));
+        notes.push(format!(
+            "split {fanned} facets with more than 3 vertices into fans of triangles"
+        ));
     }
     if groups.is_empty() {
         return Err(MeshError::Refused("empty STL file".into()));

@@ -82,7 +82,10 @@ pub struct Section {
 /// Signed area of a closed polygon (shoelace).
 pub fn polygon_area(p: &[P2]) -> f64 {
     let n = p.len();
-    (0..n).map(|i| p[i].x * p[(i + 1) % n].y - p[(i + 1) % n].x * p[i].y).sum::<f64>() * 0.5
+    (0..n)
+        .map(|i| p[i].x * p[(i + 1) % n].y - p[(i + 1) % n].x * p[i].y)
+        .sum::<f64>()
+        * 0.5
 }
 
 /// Levels every `step` from the top of `[zmin, zmax]` down (the first one
@@ -290,10 +293,15 @@ fn join_open(mut runs: Vec<Vec<P2>>, tol: f64, warnings: &mut Vec<String>) -> (V
         }
     }
     if joins > 0 {
-        warnings.push(format!("joined {joins} gaps in the section (largest {worst:.3e} mm): the mesh is open or not manifold here"));
+        warnings.push(format!(
+            "joined {joins} gaps in the section (largest {worst:.3e} mm): the mesh is open or not manifold here"
+        ));
     }
     if !open.is_empty() {
-        warnings.push(format!("{} pieces of the section stay open (gaps larger than {tol} mm)", open.len()));
+        warnings.push(format!(
+            "{} pieces of the section stay open (gaps larger than {tol} mm)",
+            open.len()
+        ));
     }
     (closed, open)
 }
@@ -326,7 +334,11 @@ fn clean(pts: Vec<P2>, col_tol: f64, closed: bool) -> Vec<P2> {
             let (a, b, c) = (out[prev], out[i], out[next]);
             let ac = c - a;
             let l = ac.norm();
-            let off = if l > 0.0 { (b - a).perp(&ac).abs() / l } else { (b - a).norm() };
+            let off = if l > 0.0 {
+                (b - a).perp(&ac).abs() / l
+            } else {
+                (b - a).norm()
+            };
             // Only when b lies between a and c: a spike back is a real corner.
             if off <= col_tol && (b - a).dot(&ac) >= 0.0 && (c - b).dot(&ac) >= 0.0 {
                 keep[i] = false;
@@ -408,7 +420,11 @@ fn nest(loops: &mut [Loop]) {
 fn probe(p: &[P2]) -> P2 {
     let n = p.len();
     let i = (0..n)
-        .max_by(|&a, &b| (p[(a + 1) % n] - p[a]).norm().total_cmp(&(p[(b + 1) % n] - p[b]).norm()))
+        .max_by(|&a, &b| {
+            (p[(a + 1) % n] - p[a])
+                .norm()
+                .total_cmp(&(p[(b + 1) % n] - p[b]).norm())
+        })
         .unwrap_or(0);
     let (a, b) = (p[i], p[(i + 1) % n]);
     let m = P2::new(0.5 * (a.x + b.x), 0.5 * (a.y + b.y));
@@ -431,11 +447,19 @@ pub fn to_chains(sections: &[Section], arc_tol: Option<f64>, first_id: u64) -> V
             }
             out.push(Chain {
                 id,
-                layer: Some(if l.depth % 2 == 0 { "outer".into() } else { "hole".into() }),
+                layer: Some(if l.depth % 2 == 0 {
+                    "outer".into()
+                } else {
+                    "hole".into()
+                }),
                 closed: l.closed,
                 segments,
                 points: Vec::new(),
-                repairs: if l.closed { Vec::new() } else { vec!["left open: gap larger than the join tolerance".into()] },
+                repairs: if l.closed {
+                    Vec::new()
+                } else {
+                    vec!["left open: gap larger than the join tolerance".into()]
+                },
             });
             id += 1;
         }
@@ -488,7 +512,13 @@ fn loop_segments(l: &Loop, z: f64, arc_tol: Option<f64>) -> Vec<Segment> {
             }
             segs
         }
-        _ => pts.windows(2).map(|w| Segment::Line { start: lift(&w[0]), end: lift(&w[1]) }).collect(),
+        _ => pts
+            .windows(2)
+            .map(|w| Segment::Line {
+                start: lift(&w[0]),
+                end: lift(&w[1]),
+            })
+            .collect(),
     }
 }
 
@@ -498,7 +528,13 @@ pub fn chain_area(c: &Chain) -> f64 {
     for s in &c.segments {
         let (p, q) = (s.start(), s.end());
         a += 0.5 * (p.x * q.y - q.x * p.y);
-        if let Segment::Arc { start, end, center, ccw } = s {
+        if let Segment::Arc {
+            start,
+            end,
+            center,
+            ccw,
+        } = s
+        {
             let th = crate::model::chain::arc_sweep(start, end, center, *ccw);
             let r2 = (start - center).xy().norm_squared();
             a += 0.5 * r2 * (th - th.sin());

@@ -96,7 +96,11 @@ fn gaps_are_joined_with_a_warning() {
     // One triangle uses a copy of a top vertex, 1 µm off: a crack.
     let v = m.vertices[7] + crate::geometry::V3::new(1e-6, 0.0, 0.0);
     m.vertices.push(v);
-    let k = m.triangles.iter().position(|t| t.contains(&7) && !t.iter().all(|&i| m.vertices[i as usize].z == 3.0)).unwrap();
+    let k = m
+        .triangles
+        .iter()
+        .position(|t| t.contains(&7) && !t.iter().all(|&i| m.vertices[i as usize].z == 3.0))
+        .unwrap();
     for i in m.triangles[k].iter_mut() {
         if *i == 7 {
             *i = 8;
@@ -108,7 +112,14 @@ fn gaps_are_joined_with_a_warning() {
     assert!(s.warnings[0].contains("joined"), "{:?}", s.warnings);
     assert!((s.loops[0].area() - 2.0).abs() < 1e-5);
     // With a tolerance below the crack it stays open and says so.
-    let s = section(&m, 1.5, &SliceOptions { join_tol: 1e-9, ..Default::default() });
+    let s = section(
+        &m,
+        1.5,
+        &SliceOptions {
+            join_tol: 1e-9,
+            ..Default::default()
+        },
+    );
     assert!(s.warnings.iter().any(|w| w.contains("stay open")), "{:?}", s.warnings);
     let _ = Mesh::default();
 }

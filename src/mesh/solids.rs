@@ -101,9 +101,22 @@ pub fn cylinder(a: P3, b: P3, r: f64, n: usize, n_len: usize) -> Mesh {
 
 /// An axis-aligned box from `lo` to `hi`, 12 triangles, outward.
 pub fn cuboid(lo: P3, hi: P3) -> Mesh {
-    let v = |i: usize| P3::new(if i & 1 == 0 { lo.x } else { hi.x }, if i & 2 == 0 { lo.y } else { hi.y }, if i & 4 == 0 { lo.z } else { hi.z });
+    let v = |i: usize| {
+        P3::new(
+            if i & 1 == 0 { lo.x } else { hi.x },
+            if i & 2 == 0 { lo.y } else { hi.y },
+            if i & 4 == 0 { lo.z } else { hi.z },
+        )
+    };
     let vertices = (0..8).map(v).collect();
-    let quads = [[0, 2, 3, 1], [4, 5, 7, 6], [0, 1, 5, 4], [2, 6, 7, 3], [0, 4, 6, 2], [1, 3, 7, 5]];
+    let quads = [
+        [0, 2, 3, 1],
+        [4, 5, 7, 6],
+        [0, 1, 5, 4],
+        [2, 6, 7, 3],
+        [0, 4, 6, 2],
+        [1, 3, 7, 5],
+    ];
     let mut triangles = Vec::new();
     for q in quads {
         triangles.push([q[0], q[1], q[2]]);
@@ -117,7 +130,9 @@ mod tests {
     use super::*;
 
     fn signed_volume(m: &Mesh) -> f64 {
-        m.iter_triangles().map(|t| t.a.coords.dot(&t.b.coords.cross(&t.c.coords)) / 6.0).sum()
+        m.iter_triangles()
+            .map(|t| t.a.coords.dot(&t.b.coords.cross(&t.c.coords)) / 6.0)
+            .sum()
     }
 
     #[test]

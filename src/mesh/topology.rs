@@ -132,7 +132,11 @@ pub fn report(m: &Mesh) -> TopologyReport {
         watertight,
         volume_mm3: volume,
         area_mm2: m.iter_triangles().map(|t| t.area()).sum(),
-        bbox_mm: if b.is_empty() { [0.0; 6] } else { [b.min.x, b.min.y, b.min.z, b.max.x, b.max.y, b.max.z] },
+        bbox_mm: if b.is_empty() {
+            [0.0; 6]
+        } else {
+            [b.min.x, b.min.y, b.min.z, b.max.x, b.max.y, b.max.z]
+        },
     }
 }
 
@@ -238,10 +242,14 @@ pub fn repair(m: &Mesh) -> (Mesh, Vec<String>) {
     };
     let (flipped, inverted) = orient(&mut out);
     if flipped > 0 {
-        notes.push(format!("flipped {flipped} triangles to make the orientation consistent"));
+        notes.push(format!(
+            "flipped {flipped} triangles to make the orientation consistent"
+        ));
     }
     if inverted > 0 {
-        notes.push(format!("turned {inverted} closed parts inside out (their volume was negative)"));
+        notes.push(format!(
+            "turned {inverted} closed parts inside out (their volume was negative)"
+        ));
     }
     (out, notes)
 }
@@ -345,7 +353,11 @@ pub fn prepare(mesh: &Mesh, weld_tol: f64) -> Prepared {
     let (welded, weld) = super::weld::weld(mesh, weld_tol);
     let before = report(&welded);
     let (fixed, repairs) = repair(&welded);
-    let after = if repairs.is_empty() { before.clone() } else { report(&fixed) };
+    let after = if repairs.is_empty() {
+        before.clone()
+    } else {
+        report(&fixed)
+    };
     Prepared {
         mesh: fixed,
         weld,
@@ -365,7 +377,15 @@ mod tests {
         let m = solids::sphere(P3::new(5.0, 0.0, 0.0), 1.0, 64, 32);
         let r = report(&m);
         assert!(r.watertight);
-        assert_eq!((r.boundary_edges, r.non_manifold_edges, r.inconsistent_edges, r.components), (0, 0, 0, 1));
+        assert_eq!(
+            (
+                r.boundary_edges,
+                r.non_manifold_edges,
+                r.inconsistent_edges,
+                r.components
+            ),
+            (0, 0, 0, 1)
+        );
         assert_eq!(r.edges * 2, r.triangles * 3);
         let v = r.volume_mm3.unwrap();
         assert!(v > 0.99 * 4.0 / 3.0 * std::f64::consts::PI && v < 4.0 / 3.0 * std::f64::consts::PI);
@@ -393,7 +413,10 @@ mod tests {
             t.swap(1, 2);
         }
         let (fixed, notes) = repair(&inv);
-        assert_eq!(notes, vec!["turned 1 closed parts inside out (their volume was negative)".to_string()]);
+        assert_eq!(
+            notes,
+            vec!["turned 1 closed parts inside out (their volume was negative)".to_string()]
+        );
         assert!(report(&fixed).volume_mm3.unwrap() > 0.0);
     }
 

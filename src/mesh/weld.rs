@@ -38,7 +38,13 @@ pub fn weld(mesh: &Mesh, tol: f64) -> (Mesh, WeldReport) {
     let mut out: Vec<P3> = Vec::new();
     if tol > 0.0 && tol.is_finite() {
         let inv = 1.0 / tol;
-        let cell = |p: &P3| ((p.x * inv).floor() as i64, (p.y * inv).floor() as i64, (p.z * inv).floor() as i64);
+        let cell = |p: &P3| {
+            (
+                (p.x * inv).floor() as i64,
+                (p.y * inv).floor() as i64,
+                (p.z * inv).floor() as i64,
+            )
+        };
         let mut grid: HashMap<(i64, i64, i64), Vec<u32>> = HashMap::with_capacity(n / 4);
         let tol2 = tol * tol;
         for (i, p) in mesh.vertices.iter().enumerate() {
@@ -95,7 +101,13 @@ pub fn weld(mesh: &Mesh, tol: f64) -> (Mesh, WeldReport) {
         vertices_in: n,
         vertices_out: out.len(),
     };
-    (Mesh { vertices: out, triangles }, rep)
+    (
+        Mesh {
+            vertices: out,
+            triangles,
+        },
+        rep,
+    )
 }
 
 #[cfg(test)]

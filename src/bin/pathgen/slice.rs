@@ -115,7 +115,10 @@ pub struct MeshInfoArgs {
 
 fn load(inp: &MeshInput) -> Result<(String, LoadedMesh, Prepared), CliError> {
     if !(inp.weld_tol >= 0.0 && inp.weld_tol.is_finite()) {
-        return Err(CliError::input(format!("--weld-tol must be >= 0, got {}", inp.weld_tol)));
+        return Err(CliError::input(format!(
+            "--weld-tol must be >= 0, got {}",
+            inp.weld_tol
+        )));
     }
     let mut input = cli::open_input(inp.file.as_deref())?;
     let name = input.name.clone();
@@ -180,7 +183,9 @@ pub fn slice_cmd(a: SliceArgs) -> Result<(), CliError> {
             let b = p.mesh.bbox();
             let n = ((b.max.z - b.min.z) / step).floor();
             if n > 1e6 {
-                return Err(CliError::input(format!("--z-step {step} gives {n} levels (more than 1,000,000)")));
+                return Err(CliError::input(format!(
+                    "--z-step {step} gives {n} levels (more than 1,000,000)"
+                )));
             }
             slice::step_levels(b.min.z, b.max.z, step, a.from == From::Top)
         }
@@ -255,6 +260,10 @@ pub fn mesh_info_cmd(a: MeshInfoArgs) -> Result<(), CliError> {
         repaired: &p.after,
     };
     let mut out = Output::new(a.output.as_deref());
-    writeln!(out, "{}", serde_json::to_string(&j).map_err(|e| CliError::failure(e.to_string()))?)?;
+    writeln!(
+        out,
+        "{}",
+        serde_json::to_string(&j).map_err(|e| CliError::failure(e.to_string()))?
+    )?;
     out.commit()
 }
