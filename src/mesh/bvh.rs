@@ -137,9 +137,9 @@ impl Aabb {
         }
     }
     fn grow_p(&mut self, p: &[f64; 3]) {
-        for k in 0..3 {
-            self.min[k] = self.min[k].min(p[k]);
-            self.max[k] = self.max[k].max(p[k]);
+        for (k, &v) in p.iter().enumerate() {
+            self.min[k] = self.min[k].min(v);
+            self.max[k] = self.max[k].max(v);
         }
     }
     fn half_area(&self) -> f64 {
@@ -290,7 +290,7 @@ impl Bvh {
             0.577_350_269_189_625_7 * 1.000_123,
             0.577_350_269_189_626 * 0.999_871,
         );
-        self.count_hits(&Ray::new(*p, d)) % 2 == 1
+        !self.count_hits(&Ray::new(*p, d)).is_multiple_of(2)
     }
 
     /// The nearest point of the mesh to `p` (None for an empty mesh).
@@ -677,7 +677,7 @@ pub fn closest_on_triangle(p: &P3, a: &P3, b: &P3, c: &P3) -> P3 {
         return b + (c - b) * w;
     }
     let denom = va + vb + vc;
-    if !(denom.abs() > 0.0) || !denom.is_finite() {
+    if denom == 0.0 || !denom.is_finite() {
         // Degenerate (collinear corners): nearest of the three edges.
         let segs = [(a, b), (b, c), (c, a)];
         return segs
@@ -806,7 +806,7 @@ fn best_split(p: &Prims, ids: &[u32], bb: &Aabb, cb: &Aabb) -> Option<(usize, f6
         }
         let lo = cb.min[axis];
         let ext = cb.max[axis] - lo;
-        if !(ext > 0.0) {
+        if ext.is_nan() || ext <= 0.0 {
             continue;
         }
         let k = BINS as f64 / ext;

@@ -84,7 +84,7 @@ fn rays_through_edges_and_vertices_count_once() {
         for d in [V3::new(0.0, 0.0, -1.0), V3::new(0.0, 0.0, 1.0)] {
             let ray = Ray::new(P3::new(x, y, 2.0) - d * 10.0, d);
             let n = bvh.count_hits(&ray);
-            assert!(n % 2 == 0, "({x},{y}) {d:?}: {n} hits");
+            assert!(n.is_multiple_of(2), "({x},{y}) {d:?}: {n} hits");
         }
     }
     // A fine sphere, rays aimed exactly at vertices: even counts.
@@ -123,7 +123,7 @@ fn batch_queries_match_single_ones() {
         }
     }
     let all = bvh.all_hits_batch(&rays);
-    assert!(all.iter().all(|h| h.len() % 2 == 0));
+    assert!(all.iter().all(|h| h.len().is_multiple_of(2)));
     let pts: Vec<P3> = rays.iter().map(|r| r.origin).collect();
     let nb = bvh.nearest_batch(&pts);
     assert_eq!(nb[3], bvh.nearest(&pts[3]));

@@ -21,7 +21,6 @@ pub fn read_obj(bytes: &[u8]) -> Result<LoadedMesh, MeshError> {
         single_index: false,
         ignore_points: true,
         ignore_lines: true,
-        ..Default::default()
     };
     let mut rd = std::io::BufReader::new(bytes);
     let (models, _materials) = match tobj::load_obj_buf(&mut rd, &opts, |_| Err(tobj::LoadError::OpenFileFailed)) {

@@ -92,7 +92,7 @@ pub fn polygon_area(p: &[P2]) -> f64 {
 /// step below the top) or from the bottom up (the first at the bottom).
 pub fn step_levels(zmin: f64, zmax: f64, step: f64, from_top: bool) -> Vec<f64> {
     let mut out = Vec::new();
-    if !(step > 0.0) || !(zmax >= zmin) {
+    if step.is_nan() || step <= 0.0 || zmax.is_nan() || zmin.is_nan() || zmax < zmin {
         return out;
     }
     let n = ((zmax - zmin) / step).floor() as usize + 1;
@@ -408,7 +408,7 @@ fn nest(loops: &mut [Loop]) {
         l.depth = d;
         if l.closed {
             let ccw = l.area() > 0.0;
-            if ccw != (d % 2 == 0) {
+            if ccw != d.is_multiple_of(2) {
                 l.points.reverse();
             }
         }
@@ -447,7 +447,7 @@ pub fn to_chains(sections: &[Section], arc_tol: Option<f64>, first_id: u64) -> V
             }
             out.push(Chain {
                 id,
-                layer: Some(if l.depth % 2 == 0 {
+                layer: Some(if l.depth.is_multiple_of(2) {
                     "outer".into()
                 } else {
                     "hole".into()

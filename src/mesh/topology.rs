@@ -186,13 +186,13 @@ fn components(m: &Mesh, e: &[EdgeRec]) -> (Vec<u32>, usize) {
     let mut label = vec![u32::MAX; n];
     let mut count = 0usize;
     let mut root_label = vec![u32::MAX; n];
-    for i in 0..n {
+    for (i, l) in label.iter_mut().enumerate() {
         let r = find(&mut parent, i as u32) as usize;
         if root_label[r] == u32::MAX {
             root_label[r] = count as u32;
             count += 1;
         }
-        label[i] = root_label[r];
+        *l = root_label[r];
     }
     (label, count)
 }

@@ -153,7 +153,7 @@ fn load(inp: &MeshInput) -> Result<(String, LoadedMesh, Prepared), CliError> {
 }
 
 pub fn slice_cmd(a: SliceArgs) -> Result<(), CliError> {
-    if !(a.join_tol >= 0.0 && a.join_tol.is_finite()) || !(a.arc_tol >= 0.0 && a.arc_tol.is_finite()) {
+    if !(a.join_tol >= 0.0 && a.join_tol.is_finite() && a.arc_tol >= 0.0 && a.arc_tol.is_finite()) {
         return Err(CliError::input("--join-tol and --arc-tol must be finite and >= 0"));
     }
     let levels: Vec<f64> = if let Some(step) = a.z_step {
@@ -210,10 +210,8 @@ pub fn slice_cmd(a: SliceArgs) -> Result<(), CliError> {
     let mut out = Output::new(a.output.as_deref());
     let mut w = ChainsWriter::new(&mut out);
     w.header(&ChainsHeader { source: Some(name) })?;
-    let mut id = 1;
-    for mut c in chains.into_iter().flatten() {
+    for (id, mut c) in (1..).zip(chains.into_iter().flatten()) {
         c.id = id;
-        id += 1;
         w.chain(&c)?;
     }
     w.finish()?;
