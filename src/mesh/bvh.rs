@@ -155,9 +155,13 @@ impl Aabb {
     }
 }
 
-struct Prims {
-    boxes: Vec<Aabb>,
-    cent: Vec<[f64; 3]>,
+/// A triangle during the build: box, centroid and index, moved together
+/// by the partitions so every pass over a node reads memory in order.
+#[derive(Clone, Copy)]
+struct Prim {
+    b: Aabb,
+    c: [f64; 3],
+    id: u32,
 }
 
 impl Bvh {
@@ -176,10 +180,11 @@ impl Bvh {
                 ]
             })
             .collect();
-        let (boxes, cent): (Vec<Aabb>, Vec<[f64; 3]>) = corners
+        let mut prims: Vec<Prim> = corners
             .par_iter()
+            .enumerate()
             .with_min_len(4096)
-            .map(|c| {
+            .map(|(i, c)| {
                 let mut b = Aabb::EMPTY;
                 for p in c {
                     b.grow_p(&[p.x, p.y, p.z]);
@@ -189,13 +194,12 @@ impl Bvh {
                     0.5 * (b.min[1] + b.max[1]),
                     0.5 * (b.min[2] + b.max[2]),
                 ];
-                (b, m)
+                Prim { b, c: m, id: i as u32 }
             })
-            .unzip();
-        let prims = Prims { boxes, cent };
+            .collect();
         let mut all = Aabb::EMPTY;
-        for b in &prims.boxes {
-            all.grow(b);
+        for p in &prims {
+            all.grow(&p.b);
         }
         // Absolute padding of every box: covers the f32 rounding of ray
         // origins and slab parameters for rays starting within a few scene
@@ -204,11 +208,11 @@ impl Bvh {
             .map(|k| all.max[k].abs().max(all.min[k].abs()))
             .fold(0.0, f64::max);
         let pad = scale * 1e-6 + 1e-12;
-        let mut ids: Vec<u32> = (0..n as u32).collect();
         let mut nodes = Vec::with_capacity(2 * n / MAX_LEAF + 1);
         if n > 0 {
-            build(&prims, &mut ids, 0, &mut nodes, pad);
+            build(&mut prims, 0, &mut nodes, pad);
         }
+        let ids: Vec<u32> = prims.iter().map(|p| p.id).collect();
         let tris = ids.iter().map(|&i| corners[i as usize]).collect();
         let pairs = pairs_of(&nodes);
         Bvh {
@@ -719,28 +723,26 @@ fn to_node(b: &Aabb, pad: f64) -> Node {
 
 /// Build the subtree over `ids` (which start at `offset` in the full id
 /// list), appending nodes to `out` depth-first; returns its root index.
-fn build(p: &Prims, ids: &mut [u32], offset: usize, out: &mut Vec<Node>, pad: f64) -> u32 {
+fn build(ids: &mut [Prim], offset: usize, out: &mut Vec<Node>, pad: f64) -> u32 {
     let mut bb = Aabb::EMPTY;
     let mut cb = Aabb::EMPTY;
-    for &i in ids.iter() {
-        bb.grow(&p.boxes[i as usize]);
-        cb.grow_p(&p.cent[i as usize]);
+    for q in ids.iter() {
+        bb.grow(&q.b);
+        cb.grow_p(&q.c);
     }
     let me = out.len() as u32;
     out.push(to_node(&bb, pad));
     let n = ids.len();
-    let split = if n <= 2 { None } else { best_split(p, ids, &bb, &cb) };
+    let split = if n <= 2 { None } else { best_split(ids, &bb, &cb) };
     let mid = match split {
-        Some((axis, pos)) => partition(ids, |i| p.cent[i as usize][axis] < pos),
+        Some((axis, pos)) => partition(ids, |q| q.c[axis] < pos),
         None if n > MAX_LEAF => {
             // No useful SAH split (identical centroids, or a leaf would be
             // cheaper but too big): split at the median of the longest axis.
             let axis = (0..3)
                 .max_by(|&a, &b| (cb.max[a] - cb.min[a]).total_cmp(&(cb.max[b] - cb.min[b])))
                 .unwrap_or(0);
-            ids.select_nth_unstable_by(n / 2, |&x, &y| {
-                p.cent[x as usize][axis].total_cmp(&p.cent[y as usize][axis])
-            });
+            ids.select_nth_unstable_by(n / 2, |x, y| x.c[axis].total_cmp(&y.c[axis]));
             n / 2
         }
         None => 0,
@@ -748,23 +750,23 @@ fn build(p: &Prims, ids: &mut [u32], offset: usize, out: &mut Vec<Node>, pad: f6
     if mid == 0 || mid == n {
         if n > MAX_LEAF {
             // Degenerate partition (all on one side): halve by position.
-            return finish_split(p, ids, offset, out, pad, me, n / 2);
+            return finish_split(ids, offset, out, pad, me, n / 2);
         }
         let nd = &mut out[me as usize];
         nd.a = offset as u32;
         nd.n = n as u32;
         return me;
     }
-    finish_split(p, ids, offset, out, pad, me, mid)
+    finish_split(ids, offset, out, pad, me, mid)
 }
 
-fn finish_split(p: &Prims, ids: &mut [u32], offset: usize, out: &mut Vec<Node>, pad: f64, me: u32, mid: usize) -> u32 {
+fn finish_split(ids: &mut [Prim], offset: usize, out: &mut Vec<Node>, pad: f64, me: u32, mid: usize) -> u32 {
     let (l, r) = ids.split_at_mut(mid);
     if l.len() + r.len() >= PAR_MIN {
         let (mut lv, mut rv) = (Vec::new(), Vec::new());
         rayon::join(
-            || build(p, l, offset, &mut lv, pad),
-            || build(p, r, offset + mid, &mut rv, pad),
+            || build(l, offset, &mut lv, pad),
+            || build(r, offset + mid, &mut rv, pad),
         );
         let lb = out.len() as u32;
         out.extend(lv.into_iter().map(|mut n| {
@@ -782,8 +784,8 @@ fn finish_split(p: &Prims, ids: &mut [u32], offset: usize, out: &mut Vec<Node>, 
         }));
         out[me as usize].a = rb;
     } else {
-        build(p, l, offset, out, pad);
-        let rr = build(p, r, offset + mid, out, pad);
+        build(l, offset, out, pad);
+        let rr = build(r, offset + mid, out, pad);
         out[me as usize].a = rr;
     }
     me
@@ -791,7 +793,7 @@ fn finish_split(p: &Prims, ids: &mut [u32], offset: usize, out: &mut Vec<Node>, 
 
 /// Binned SAH over all three axes: `(axis, position)` of the cheapest
 /// split, or None when keeping a leaf is cheaper (and allowed).
-fn best_split(p: &Prims, ids: &[u32], bb: &Aabb, cb: &Aabb) -> Option<(usize, f64)> {
+fn best_split(ids: &[Prim], bb: &Aabb, cb: &Aabb) -> Option<(usize, f64)> {
     let n = ids.len();
     let mut best = (f64::INFINITY, 0usize, 0.0f64);
     // Large nodes: the longest centroid axis only (a third of the binning
@@ -811,9 +813,9 @@ fn best_split(p: &Prims, ids: &[u32], bb: &Aabb, cb: &Aabb) -> Option<(usize, f6
         }
         let k = BINS as f64 / ext;
         let mut bins = [(Aabb::EMPTY, 0u32); BINS];
-        for &i in ids {
-            let b = (((p.cent[i as usize][axis] - lo) * k) as usize).min(BINS - 1);
-            bins[b].0.grow(&p.boxes[i as usize]);
+        for q in ids {
+            let b = (((q.c[axis] - lo) * k) as usize).min(BINS - 1);
+            bins[b].0.grow(&q.b);
             bins[b].1 += 1;
         }
         // Sweep from the right, then from the left.
@@ -848,10 +850,10 @@ fn best_split(p: &Prims, ids: &[u32], bb: &Aabb, cb: &Aabb) -> Option<(usize, f6
     Some((best.1, best.2))
 }
 
-fn partition(ids: &mut [u32], left: impl Fn(u32) -> bool) -> usize {
+fn partition(ids: &mut [Prim], left: impl Fn(&Prim) -> bool) -> usize {
     let mut i = 0;
     for j in 0..ids.len() {
-        if left(ids[j]) {
+        if left(&ids[j]) {
             ids.swap(i, j);
             i += 1;
         }
