@@ -75,6 +75,7 @@ bench: build
 	scripts/bench/upload
 	scripts/bench/pathgen
 	scripts/bench/loops
+	scripts/bench/rays
 	scripts/bench/order --no-solver
 	scripts/bench/arcfit
 	scripts/bench/feedopt

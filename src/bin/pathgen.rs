@@ -23,6 +23,9 @@ use microcam::source::ToolpathSource;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
+#[path = "pathgen/slice.rs"]
+mod slice;
+
 const EXAMPLES: &str = "\
 Examples:
   pathgen emit --dialect pmac part.jsonl > part.pmc     toolpath to PMAC motion program
@@ -66,6 +69,12 @@ enum Command {
     /// Check a laser toolpath against the machine: speed, acceleration,
     /// shutter timing; prints a JSON report, exit 1 when a limit is broken.
     Audit(Box<AuditArgs>),
+    /// Sections of an STL/OBJ model at Z levels, as closed nested chains.
+    #[command(after_help = slice::SLICE_EXAMPLES)]
+    Slice(Box<slice::SliceArgs>),
+    /// Topology report of an STL/OBJ mesh (and the repairs), as JSON.
+    #[command(after_help = slice::INFO_EXAMPLES)]
+    MeshInfo(Box<slice::MeshInfoArgs>),
 }
 
 #[derive(ClapArgs)]
@@ -525,6 +534,8 @@ fn main() -> ExitCode {
         Command::Cone(a) => cone_cmd(*a),
         Command::Arcfit(a) => arcfit_cmd(*a),
         Command::Audit(a) => audit_cmd(*a),
+        Command::Slice(a) => slice::slice_cmd(*a),
+        Command::MeshInfo(a) => slice::mesh_info_cmd(*a),
     })
 }
 
