@@ -28,6 +28,7 @@ pub mod geometry;
 pub mod mesh;
 pub mod model;
 pub mod paths;
+pub mod plough;
 pub mod pmac;
 pub mod preview;
 pub mod sim;
