@@ -171,11 +171,11 @@ mod tests {
         let mut l = vec![(0.0, 10.0)];
         assert_eq!(subtract(&mut l, 2.0, 3.0, 0.0, &mut out), 1.0);
         assert_eq!(l, vec![(0.0, 2.0), (3.0, 10.0)]);
-        assert_eq!(subtract(&mut l, 1.0, 5.0, 0.0, &mut out), 2.0);
+        assert_eq!(subtract(&mut l, 1.0, 5.0, 0.0, &mut out), 3.0);
         assert_eq!(l, vec![(0.0, 1.0), (5.0, 10.0)]);
         assert_eq!(subtract(&mut l, -1.0, 11.0, 0.0, &mut out), 6.0);
         assert!(l.is_empty());
-        assert_eq!(out.len(), 4);
+        assert_eq!(out.len(), 5);
         // Nothing left to remove.
         assert_eq!(subtract(&mut l, 0.0, 1.0, 0.0, &mut out), 0.0);
     }

@@ -22,6 +22,9 @@ pub mod output;
 pub mod pocket;
 pub mod polar;
 
+#[cfg(test)]
+mod checks;
+
 use crate::geometry::{P3, Plane, arc::Arc3};
 use crate::model::toolpath::{FeedUnit, MotionKind, Record};
 use dexel::{DualDexel, Removed};
@@ -114,6 +117,9 @@ pub struct Drawn {
     pub feed: bool,
     pub points: Vec<(f64, f64)>,
 }
+
+/// The dexel density is averaged over this many R of the cutter circle.
+const WINDOW_R: f64 = 3.0;
 
 /// Bytes one dexel line is budgeted: its vector and a few intervals.
 const LINE_BYTES: f64 = 24.0 + 4.0 * 16.0;
@@ -215,7 +221,7 @@ impl Plough {
         let max_steps = ((cap - need) / STEP_BYTES).max(0.0) as usize;
         let bins = Bins::new(r, p.accuracy_mm);
         let n = bins.len();
-        let window = ((1.5 * p.resolution_mm / p.accuracy_mm).round() as usize) | 1;
+        let window = ((WINDOW_R * p.resolution_mm / p.accuracy_mm).round().max(5.0) as usize) | 1;
         let stock = (p.method != Method::Exact).then(|| DualDexel::new(p.stock_mm, p.resolution_mm));
         let swept = (p.method != Method::Dexel).then(|| Swept::new(r));
         Ok(Plough {
