@@ -67,6 +67,7 @@ bench: build
 	scripts/bench/loops
 	scripts/bench/order --no-solver
 	scripts/bench/arcfit
+	scripts/bench/plough2d
 
 # Cut order against an independent TSP solver (LKH via elkai, installed into
 # a private venv; the solver itself takes minutes).
