@@ -32,10 +32,19 @@ fn ploughing_fraction_falls_as_the_feed_rises() {
     let mut last = (f64::INFINITY, f64::INFINITY);
     for feed in [0.5, 0.75, 1.0, 1.25, 2.0] {
         let p = pocket(dir.path(), feed, "pmac");
-        let s = summary(&bin().args(["--stock", STOCK, "--rpm", "60000"]).arg(&p).output().unwrap());
+        let s = summary(
+            &bin()
+                .args(["--stock", STOCK, "--rpm", "60000"])
+                .arg(&p)
+                .output()
+                .unwrap(),
+        );
         let mean = s["mean_plough_fraction"].as_f64().unwrap();
         let total = s["plough_fraction_of_total"].as_f64().unwrap();
-        assert!(mean < last.0 && total < last.1, "{feed} mm/s: {mean} {total} after {last:?}");
+        assert!(
+            mean < last.0 && total < last.1,
+            "{feed} mm/s: {mean} {total} after {last:?}"
+        );
         // The same pocket is cut whatever the feed.
         let chip = s["chip_area_um2"].as_f64().unwrap();
         assert!((chip - 5.865e6).abs() < 0.01e6, "{chip}");
@@ -50,9 +59,18 @@ fn iso_and_pmac_programs_agree() {
     let iso = pocket(dir.path(), 2.0, "iso");
     let pmac = pocket(dir.path(), 2.0, "pmac");
     let a = summary(&bin().args(["--stock", STOCK]).arg(&iso).output().unwrap());
-    let b = summary(&bin().args(["--stock", STOCK, "--rpm", "60000"]).arg(&pmac).output().unwrap());
+    let b = summary(
+        &bin()
+            .args(["--stock", STOCK, "--rpm", "60000"])
+            .arg(&pmac)
+            .output()
+            .unwrap(),
+    );
     assert_eq!(a["steps"], b["steps"]);
-    let (x, y) = (a["plough_area_um2"].as_f64().unwrap(), b["plough_area_um2"].as_f64().unwrap());
+    let (x, y) = (
+        a["plough_area_um2"].as_f64().unwrap(),
+        b["plough_area_um2"].as_f64().unwrap(),
+    );
     assert!((x - y).abs() < 1e-3 * y, "{x} vs {y}");
 }
 

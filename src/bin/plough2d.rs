@@ -183,7 +183,8 @@ fn run(args: Args) -> Result<(), CliError> {
     // Everything is rendered before anything is committed.
     let mut outs = Vec::new();
     let mut o = Output::new(args.output.as_deref());
-    let json = serde_json::to_string_pretty(&summary(&sim, src.clone())).map_err(|e| CliError::failure(e.to_string()))?;
+    let json =
+        serde_json::to_string_pretty(&summary(&sim, src.clone())).map_err(|e| CliError::failure(e.to_string()))?;
     writeln!(o, "{json}")?;
     outs.push(o);
     if let Some(p) = args.csv.as_deref() {

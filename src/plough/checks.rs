@@ -66,7 +66,13 @@ fn crescent(r: f64, s: f64, h_min: f64) -> (f64, f64) {
 /// Mean chip and ploughing area over steps whose x lies in `[xa, xb]`.
 fn mean_between(pl: &Plough, xa: f64, xb: f64, exact: bool) -> (f64, f64, usize) {
     let v: Vec<_> = pl.steps.iter().filter(|s| s.x_mm >= xa && s.x_mm <= xb).collect();
-    let pick = |s: &Step| if exact { s.exact_mm2.unwrap() } else { (s.chip_mm2, s.plough_mm2) };
+    let pick = |s: &Step| {
+        if exact {
+            s.exact_mm2.unwrap()
+        } else {
+            (s.chip_mm2, s.plough_mm2)
+        }
+    };
     let n = v.len() as f64;
     (
         v.iter().map(|s| pick(s).0).sum::<f64>() / n,
@@ -88,7 +94,11 @@ fn full_slot_removes_the_crescent_and_its_thin_part() {
     // Steady state: past the plunge disc.
     let (chip, plough, n) = mean_between(&pl, 1.0, 2.5, false);
     assert!(n > 100);
-    assert!((chip - 0.794 * s).abs() < 0.01 * 0.794 * s, "dexel chip {chip} vs {}", 0.794 * s);
+    assert!(
+        (chip - 0.794 * s).abs() < 0.01 * 0.794 * s,
+        "dexel chip {chip} vs {}",
+        0.794 * s
+    );
     // The ploughing band is about 12 R long on each horn; the dexel sees
     // its edge to about R.
     assert!(
@@ -96,7 +106,10 @@ fn full_slot_removes_the_crescent_and_its_thin_part() {
         "dexel plough {plough} vs {want_plough}"
     );
     let (echip, eplough, _) = mean_between(&pl, 1.0, 2.5, true);
-    assert!((echip - want_chip).abs() < 1e-3 * want_chip, "exact chip {echip} vs {want_chip}");
+    assert!(
+        (echip - want_chip).abs() < 1e-3 * want_chip,
+        "exact chip {echip} vs {want_chip}"
+    );
     assert!(
         (eplough - want_plough).abs() < 0.01 * want_plough,
         "exact plough {eplough} vs {want_plough}"
@@ -165,7 +178,11 @@ fn a_cutter_leaving_the_stock_cuts_less_and_then_nothing() {
     let p = params([0.0, 0.0, 2.0, 2.0], 0.794 / 100.0, Method::Both);
     let pl = run(p, (0.6, 1.0), &[mv(MotionKind::Line, 2.6, 1.0, Some(2.0))]);
     let at = |x: f64| {
-        let s = pl.steps.iter().min_by(|a, b| (a.x_mm - x).abs().total_cmp(&(b.x_mm - x).abs())).unwrap();
+        let s = pl
+            .steps
+            .iter()
+            .min_by(|a, b| (a.x_mm - x).abs().total_cmp(&(b.x_mm - x).abs()))
+            .unwrap();
         let (c, p) = s.exact_mm2.unwrap();
         (s.chip_mm2, s.plough_mm2, c, p)
     };
@@ -239,4 +256,3 @@ fn feed_per_tooth_follows_the_feed_unit() {
     pl.add(&mv(MotionKind::Line, 2.0, 1.0, Some(120.0))).unwrap();
     assert_eq!(pl.steps.len(), 101);
 }
-

@@ -212,9 +212,15 @@ impl Swept {
             density[k] = 0.0;
             thick[k] = 0.0;
             // The stock outline along this ray, within the disc.
-            let Some((t0, t1)) =
-                super::polar::ray_rect(d.0, d.1, stock[0] - c.0, stock[2] - c.0, stock[1] - c.1, stock[3] - c.1, r)
-            else {
+            let Some((t0, t1)) = super::polar::ray_rect(
+                d.0,
+                d.1,
+                stock[0] - c.0,
+                stock[2] - c.0,
+                stock[1] - c.1,
+                stock[3] - c.1,
+                r,
+            ) else {
                 continue;
             };
             br.clear();
@@ -250,7 +256,10 @@ mod tests {
 
     #[test]
     fn distances_to_segments_and_arcs() {
-        let s = Curve::Seg { a: (0.0, 0.0), b: (2.0, 0.0) };
+        let s = Curve::Seg {
+            a: (0.0, 0.0),
+            b: (2.0, 0.0),
+        };
         assert_eq!(s.distance((1.0, 1.0)), 1.0);
         assert_eq!(s.distance((3.0, 0.0)), 1.0);
         let a = Curve::Arc {
@@ -271,8 +280,18 @@ mod tests {
         let mut sw = Swept::new(r);
         let (mut d, mut t) = (vec![0.0; bins.len()], vec![0.0; bins.len()]);
         let s = 0.01;
-        let cur = Curve::Seg { a: (1.0, 2.0), b: (2.0, 2.0) };
-        sw.chip((2.0 + s, 2.0), Some(cur), [0.0, 0.0, 5.0, 4.0], &bins.dir, &mut d, &mut t);
+        let cur = Curve::Seg {
+            a: (1.0, 2.0),
+            b: (2.0, 2.0),
+        };
+        sw.chip(
+            (2.0 + s, 2.0),
+            Some(cur),
+            [0.0, 0.0, 5.0, 4.0],
+            &bins.dir,
+            &mut d,
+            &mut t,
+        );
         let area: f64 = d.iter().sum::<f64>() * bins.dtheta;
         // ∫0^s sqrt(4r² − u²) du.
         let want = 2.0 * r * s - s.powi(3) / (12.0 * r);

@@ -195,11 +195,7 @@ impl Plough {
         }
         let (w, h) = (x1 - x0, y1 - y0);
         if p.diameter_mm > w.min(h) {
-            return Err(PloughError::ToolTooLarge {
-                d: p.diameter_mm,
-                w,
-                h,
-            });
+            return Err(PloughError::ToolTooLarge { d: p.diameter_mm, w, h });
         }
         let r = 0.5 * p.diameter_mm;
         let cap = p.max_memory_mib * 1024.0 * 1024.0;
@@ -337,7 +333,11 @@ impl Plough {
             None => (b.0 - a.0).hypot(b.1 - a.1),
             Some(arc) => arc.radius() * arc.sweep().abs(),
         };
-        let n = if len > 1e-12 { (len / step - 1e-9).ceil().max(1.0) } else { 0.0 };
+        let n = if len > 1e-12 {
+            (len / step - 1e-9).ceil().max(1.0)
+        } else {
+            0.0
+        };
         if self.steps.len() as f64 + n + 1.0 > self.max_steps as f64 {
             return Err(PloughError::Memory {
                 what: format!(
@@ -405,7 +405,10 @@ impl Plough {
         if let Some(sw) = self.swept.as_mut() {
             sw.push(if n == 0 { Curve::Seg { a, b: a } } else { curve });
         }
-        self.drawn.push(Drawn { feed: true, points: pts });
+        self.drawn.push(Drawn {
+            feed: true,
+            points: pts,
+        });
         self.placed = Some(b);
         Ok(())
     }

@@ -149,7 +149,11 @@ pub fn summary(run: &Plough, source: Option<String>) -> Summary {
         chip_area_um2: round(chip * UM2, 3),
         plough_area_um2: round(plough * UM2, 3),
         plough_fraction_of_total: round(fraction(chip, plough), 6),
-        mean_plough_fraction: if cutting > 0 { round(fsum / cutting as f64, 6) } else { 0.0 },
+        mean_plough_fraction: if cutting > 0 {
+            round(fsum / cutting as f64, 6)
+        } else {
+            0.0
+        },
         max_chip_area_um2: round(max * UM2, 3),
         stock_left_mm2: stock.map(|s| round(0.5 * (s.x.area() + s.y.area()), 6)),
         dexel_lines: stock.map(|s| s.x.lines.len() + s.y.lines.len()),
@@ -313,7 +317,10 @@ pub fn stock_svg(run: &Plough, title: &str) -> String {
         } else {
             ("#1f5fbf", " stroke-dasharray=\"4 3\"")
         };
-        let _ = writeln!(s, "<path d=\"{d}\" stroke=\"{c}\" stroke-width=\"1\" fill=\"none\"{dash}/>");
+        let _ = writeln!(
+            s,
+            "<path d=\"{d}\" stroke=\"{c}\" stroke-width=\"1\" fill=\"none\"{dash}/>"
+        );
     }
     s.push_str("</svg>\n");
     s
@@ -367,4 +374,3 @@ pub fn stock_rgb(run: &Plough) -> (usize, usize, Vec<u8>) {
     }
     (nw, nh, rgb)
 }
-
