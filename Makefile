@@ -79,6 +79,7 @@ bench: build
 	scripts/bench/order --no-solver
 	scripts/bench/arcfit
 	scripts/bench/feedopt
+	scripts/bench/plough2d
 
 # Cut order against an independent TSP solver (LKH via elkai, installed into
 # a private venv; the solver itself takes minutes).

@@ -33,6 +33,7 @@ pub mod laser;
 pub mod machine;
 pub mod mesh;
 pub mod model;
+pub mod plough;
 pub mod pmac;
 pub mod preview;
 pub mod probe;
