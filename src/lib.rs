@@ -13,6 +13,7 @@
 //! - [`sim`]: what a program does on the machine: time, beam and material removal.
 //! - [`preview`]: SVG previews of toolpaths.
 //! - [`pmac`]: Turbo PMAC protocol, client, emulator, splitting and upload.
+//! - [`pocket`]: freeform grid pockets (the Iowa State grid-pocket thesis, 1999).
 //! - [`cutter`]: end mill shapes shared by every milling tool.
 //! - [`mesh`]: triangle meshes (STL, OBJ) and queries on them.
 //! - [`corpus`]: where the shared test corpus lies, for tests and benchmarks.
@@ -29,6 +30,7 @@ pub mod mesh;
 pub mod model;
 pub mod paths;
 pub mod pmac;
+pub mod pocket;
 pub mod preview;
 pub mod sim;
 pub mod source;
