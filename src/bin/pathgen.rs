@@ -22,6 +22,9 @@ use microcam::source::ToolpathSource;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
+#[path = "pathgen/pocket.rs"]
+mod pocket;
+
 const EXAMPLES: &str = "\
 Examples:
   pathgen emit --dialect pmac part.jsonl > part.pmc     toolpath to PMAC motion program
@@ -65,6 +68,10 @@ enum Command {
     /// Check a laser toolpath against the machine: speed, acceleration,
     /// shutter timing; prints a JSON report, exit 1 when a limit is broken.
     Audit(Box<AuditArgs>),
+    /// Freeform pocket by grid navigation (Iowa State grid-pocket thesis,
+    /// 1999): layered rough and finish cuts, or contour-parallel offsets.
+    #[command(after_help = pocket::EXAMPLES)]
+    Pocket(Box<pocket::PocketArgs>),
 }
 
 #[derive(ClapArgs)]
@@ -498,6 +505,7 @@ fn main() -> ExitCode {
         Command::Cone(a) => cone_cmd(*a),
         Command::Arcfit(a) => arcfit_cmd(*a),
         Command::Audit(a) => audit_cmd(*a),
+        Command::Pocket(a) => pocket::run(*a),
     })
 }
 

@@ -48,7 +48,9 @@ pub fn write_svg(out: &mut impl Write, prog: &Program, boundary: &[P2], only: Op
     num(&mut s, hi.x - lo.x + 2.0 * pad);
     s.push(' ');
     num(&mut s, hi.y - lo.y + 2.0 * pad);
-    s.push_str("\" width=\"800\">\n");
+    s.push_str("\" width=\"800\" height=\"");
+    num(&mut s, (800.0 * (hi.y - lo.y + 2.0 * pad) / (hi.x - lo.x + 2.0 * pad)).round());
+    s.push_str("\">\n");
     s.push_str("<!-- red: main; green: wall; blue: X zigzag; dark green: Y zigzag; orange: offset loops; purple: feed links; grey dashed: at clearance; black: boundary -->\n");
     s.push_str("<polygon fill=\"none\" stroke=\"#000\" stroke-width=\"");
     num(&mut s, 2.0 * w);
