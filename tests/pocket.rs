@@ -52,7 +52,14 @@ fn bezier(rng: &mut Rng, size: f64, depth: f64) -> Surface {
     Surface::Bezier(BezierPatch::new([0.0, size], [0.0, size], &z).unwrap())
 }
 
-fn spec(poly: &[P2], surface: Surface, cutter: Cutter, pitch: (f64, f64), layers: usize, motion: MotionMode) -> PocketSpec {
+fn spec(
+    poly: &[P2],
+    surface: Surface,
+    cutter: Cutter,
+    pitch: (f64, f64),
+    layers: usize,
+    motion: MotionMode,
+) -> PocketSpec {
     let mut pl = Polyline::new_closed();
     for p in poly {
         pl.add(p.x, p.y, 0.0);
@@ -157,19 +164,39 @@ fn check_proofs(job: &Job, s: &PocketSpec, poly: &[P2], what: &str) {
     for (k, p) in &samples {
         if p.z < s.feeds.safe_z - 1e-9 {
             let d = inside_distance(poly, P2::new(p.x, p.y));
-            assert!(d >= r - UM, "{what}: record {k} at {p:?} is {d} mm from the wall (R = {r})");
+            assert!(
+                d >= r - UM,
+                "{what}: record {k} at {p:?} is {d} mm from the wall (R = {r})"
+            );
         }
     }
-    // 2. Every cell of the region is a cut position.
-    let cut: Vec<P2> = job
-        .program
-        .records
-        .iter()
-        .filter_map(|r| r.motion().filter(|m| m.kind != MotionKind::Rapid).map(|m| P2::new(m.to.x, m.to.y)))
-        .collect();
+    // 2. Every cell of the region is passed over by a cutting move (arcs
+    //    and curves of the final layer lie in vertical planes: from above
+    //    they are straight).
+    let mut segs: Vec<(P2, P2)> = Vec::new();
+    let mut at: Option<P3> = None;
+    for r in &job.program.records {
+        let Some(m) = r.motion() else { continue };
+        if let (Some(p), false) = (at, m.kind == MotionKind::Rapid) {
+            segs.push((P2::new(p.x, p.y), P2::new(m.to.x, m.to.y)));
+        }
+        at = Some(m.to);
+    }
     for c in &job.grid.cells {
         let g = job.grid.centre(*c);
-        assert!(cut.iter().any(|q| (q - g).norm() < 1e-9), "{what}: cell {c:?} never visited");
+        let d = segs
+            .iter()
+            .map(|(a, b)| {
+                let v = b - a;
+                let t = if v.norm_squared() > 0.0 {
+                    ((g - a).dot(&v) / v.norm_squared()).clamp(0.0, 1.0)
+                } else {
+                    0.0
+                };
+                (g - (a + v * t)).norm()
+            })
+            .fold(f64::INFINITY, f64::min);
+        assert!(d < 1e-6, "{what}: cell {c:?} never visited ({d} mm away)");
     }
     // 3. The cutter never below the exact surface (1 um), sampled every
     //    1/10 of the smaller pitch along every feed move.
@@ -185,9 +212,15 @@ fn check_proofs(job: &Job, s: &PocketSpec, poly: &[P2], what: &str) {
         let Some(m) = rec.motion() else { continue };
         if m.kind == MotionKind::Rapid {
             let up = pos.is_some_and(|p| (m.to.x - p.x).abs() < 1e-12 && (m.to.y - p.y).abs() < 1e-12 && m.to.z >= p.z);
-            assert!(up || m.to.z >= s.feeds.safe_z - 1e-12, "{what}: rapid {k} into the pocket");
+            assert!(
+                up || m.to.z >= s.feeds.safe_z - 1e-12,
+                "{what}: rapid {k} into the pocket"
+            );
             if let Some(p) = pos {
-                assert!(p.z >= s.feeds.safe_z - 1e-12 || up, "{what}: rapid {k} leaves from below clearance sideways");
+                assert!(
+                    p.z >= s.feeds.safe_z - 1e-12 || up,
+                    "{what}: rapid {k} leaves from below clearance sideways"
+                );
             }
         }
         pos = Some(m.to);
@@ -197,15 +230,22 @@ fn check_proofs(job: &Job, s: &PocketSpec, poly: &[P2], what: &str) {
 #[test]
 fn generated_concave_pockets_with_bezier_bottoms_keep_every_proof() {
     let mut rng = Rng(0x9e37_79b9_7f4a_7c15);
-    let cutters = [Cutter::Ball { radius: 1.0 }, Cutter::Flat { radius: 1.0 }, Cutter::Torus { radius: 1.0, corner: 0.4 }];
+    let cutters = [
+        Cutter::Ball { radius: 1.0 },
+        Cutter::Flat { radius: 1.0 },
+        Cutter::Torus {
+            radius: 1.0,
+            corner: 0.4,
+        },
+    ];
     for case in 0..6 {
-        let poly = concave_polygon(&mut rng, 14.0);
-        let surface = bezier(&mut rng, 14.0, 3.0);
+        let poly = concave_polygon(&mut rng, 18.0);
+        let surface = bezier(&mut rng, 18.0, 3.0);
         let c = cutters[case % 3];
         let motion = [MotionMode::Lines, MotionMode::ArcLine, MotionMode::BezierLine][case % 3];
         let s = spec(&poly, surface, c, (1.2, 0.9), 2, motion);
         let job = plan(&s).unwrap();
-        assert!(job.grid.cells.len() > 30, "case {case}: {} cells", job.grid.cells.len());
+        assert!(job.grid.cells.len() > 40, "case {case}: {} cells", job.grid.cells.len());
         check_proofs(&job, &s, &poly, &format!("case {case} ({c}, {motion:?})"));
     }
 }
@@ -214,7 +254,14 @@ fn generated_concave_pockets_with_bezier_bottoms_keep_every_proof() {
 fn the_offset_strategy_keeps_the_same_proofs_except_cell_visits() {
     let mut rng = Rng(12345);
     let poly = concave_polygon(&mut rng, 14.0);
-    let mut s = spec(&poly, bezier(&mut rng, 14.0, 3.0), Cutter::Ball { radius: 1.0 }, (1.2, 0.9), 2, MotionMode::Lines);
+    let mut s = spec(
+        &poly,
+        bezier(&mut rng, 14.0, 3.0),
+        Cutter::Ball { radius: 1.0 },
+        (1.2, 0.9),
+        2,
+        MotionMode::Lines,
+    );
     s.strategy = Strategy::Offset;
     let job = plan(&s).unwrap();
     let r = s.cutter.radius();
@@ -224,7 +271,7 @@ fn the_offset_strategy_keeps_the_same_proofs_except_cell_visits() {
         }
         assert!(gouge_at(&s.surface, &s.cutter, &p) <= UM);
     }
-    assert!(job.figures.passes.iter().any(|(k, n)| k == "offset" && *n > 3));
+    assert!(job.figures.passes.iter().any(|(k, n)| k == "offset" && *n >= 2));
 }
 
 fn case_study() -> (Vec<P2>, Surface) {
@@ -260,14 +307,25 @@ fn case_study() -> (Vec<P2>, Surface) {
 #[test]
 fn thesis_case_study_six_layers_with_every_pass_kind() {
     let (poly, surface) = case_study();
-    let mut s = spec(&poly, surface, Cutter::Ball { radius: 0.125 * 25.4 }, (0.125 * 25.4, 0.0625 * 25.4), 6, MotionMode::Lines);
+    let mut s = spec(
+        &poly,
+        surface,
+        Cutter::Ball { radius: 0.125 * 25.4 },
+        (0.125 * 25.4, 0.0625 * 25.4),
+        6,
+        MotionMode::Lines,
+    );
     s.fit.tol = 0.001;
     let job = plan(&s).unwrap();
     let f = &job.figures;
     assert_eq!(f.layers, 6);
     assert_eq!(f.floors_mm.len(), 5);
     for kind in ["main", "wall", "x_zigzag", "y_zigzag"] {
-        assert!(f.passes.iter().any(|(k, n)| k == kind && *n > 0), "{kind}: {:?}", f.passes);
+        assert!(
+            f.passes.iter().any(|(k, n)| k == kind && *n > 0),
+            "{kind}: {:?}",
+            f.passes
+        );
     }
     check_proofs(&job, &s, &poly, "case study");
     // Roughing layers never go below their floor.
@@ -282,14 +340,20 @@ fn thesis_case_study_six_layers_with_every_pass_kind() {
     let blocks = |name: &str| f.motion_blocks.iter().find(|m| m.0 == name).unwrap().clone();
     let (lines, arcs, bez) = (blocks("lines"), blocks("arc_line"), blocks("bezier_line"));
     assert!(arcs.1 < lines.1 && bez.1 < lines.1, "{lines:?} {arcs:?} {bez:?}");
-    assert!(arcs.2 <= s.fit.tol + 1e-9 && bez.2 <= s.fit.tol + 1e-9, "{arcs:?} {bez:?}");
+    assert!(
+        arcs.2 <= s.fit.tol + 1e-9 && bez.2 <= s.fit.tol + 1e-9,
+        "{arcs:?} {bez:?}"
+    );
     // And the programs that use them stay gouge-free.
     for m in [MotionMode::ArcLine, MotionMode::BezierLine] {
         let mut s2 = s.clone();
         s2.motion = m;
         s2.layers = Layers::Count(1);
         let job = plan(&s2).unwrap();
-        assert_eq!(job.program.final_main_blocks, if m == MotionMode::ArcLine { arcs.1 } else { bez.1 });
+        assert_eq!(
+            job.program.final_main_blocks,
+            if m == MotionMode::ArcLine { arcs.1 } else { bez.1 }
+        );
         check_proofs(&job, &s2, &poly, &format!("case study {m:?}"));
     }
 }
@@ -307,19 +371,61 @@ const NET: &str = "-2,-2.2,-2.4,-2,-2.3,-3,-3,-2.4,-2.2,-3,-2.8,-2.1,-2,-2.1,-2.
 #[test]
 fn cli_refuses_a_pitch_above_d_over_root_two_unless_forced() {
     let out = bin("pathgen")
-        .args(["pocket", "--polygon", POLY, "--tool", "ball:2", "--grid", "1.5,1", "--floor-z", "-1", "--report", "-"])
+        .args([
+            "pocket",
+            "--polygon",
+            POLY,
+            "--tool",
+            "ball:2",
+            "--grid",
+            "1.5,1",
+            "--floor-z",
+            "-1",
+            "--report",
+            "-",
+        ])
         .output()
         .unwrap();
     assert_eq!(out.status.code(), Some(2));
     let err = String::from_utf8_lossy(&out.stderr);
-    assert!(err.contains("D/sqrt(2)") && err.contains("material would be left"), "{err}");
+    assert!(
+        err.contains("D/sqrt(2)") && err.contains("material would be left"),
+        "{err}"
+    );
     let out = bin("pathgen")
-        .args(["pocket", "--polygon", POLY, "--tool", "ball:2", "--grid", "1.5,1", "--floor-z", "-1", "--report", "-", "--force"])
+        .args([
+            "pocket",
+            "--polygon",
+            POLY,
+            "--tool",
+            "ball:2",
+            "--grid",
+            "1.5,1",
+            "--floor-z",
+            "-1",
+            "--report",
+            "-",
+            "--force",
+        ])
         .output()
         .unwrap();
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    for bad in [vec!["--tool", "ball:x"], vec!["--polygon", "0,0;1,1"], vec!["--bezier-z", "1,2"]] {
-        let mut args = vec!["pocket", "--grid", "1,1", "--floor-z", "-1", "--polygon", POLY, "--tool", "ball:2"];
+    for bad in [
+        vec!["--tool", "ball:x"],
+        vec!["--polygon", "0,0;1,1"],
+        vec!["--bezier-z", "1,2"],
+    ] {
+        let mut args = vec![
+            "pocket",
+            "--grid",
+            "1,1",
+            "--floor-z",
+            "-1",
+            "--polygon",
+            POLY,
+            "--tool",
+            "ball:2",
+        ];
         if bad[0] == "--bezier-z" {
             args.retain(|a| *a != "--floor-z" && *a != "-1");
         }
@@ -334,7 +440,23 @@ fn cli_programs_are_repeatable_and_rapid_only_above_the_stock_in_gsim() {
     for dialect in ["pmac", "iso"] {
         let run = || {
             bin("pathgen")
-                .args(["pocket", "--polygon", POLY, "--tool", "ball:2", "--grid", "1,1", "--bezier-z", NET, "--layers", "3", "--motion", "arc-line", "--gcode", dialect])
+                .args([
+                    "pocket",
+                    "--polygon",
+                    POLY,
+                    "--tool",
+                    "ball:2",
+                    "--grid",
+                    "1,1",
+                    "--bezier-z",
+                    NET,
+                    "--layers",
+                    "3",
+                    "--motion",
+                    "arc-line",
+                    "--gcode",
+                    dialect,
+                ])
                 .output()
                 .unwrap()
         };
@@ -345,7 +467,16 @@ fn cli_programs_are_repeatable_and_rapid_only_above_the_stock_in_gsim() {
         let prog = dir.path().join("p.nc");
         std::fs::write(&prog, &a.stdout).unwrap();
         let g = bin("gsim")
-            .args(["--stock", "-1,-1,-4,13,11,0", "--tool", "ball:2", "--cell-mm", "0.05", "--start", "0,0,1"])
+            .args([
+                "--stock",
+                "-1,-1,-4,13,11,0",
+                "--tool",
+                "ball:2",
+                "--cell-mm",
+                "0.05",
+                "--start",
+                "0,0,1",
+            ])
             .arg(&prog)
             .output()
             .unwrap();
@@ -375,7 +506,16 @@ fn cli_reads_chains_and_measured_points() {
     }
     std::fs::write(&csv, text).unwrap();
     let out = bin("pathgen")
-        .args(["pocket", "--tool", "ball:2", "--grid", "1,1", "--report", "-", "--surface"])
+        .args([
+            "pocket",
+            "--tool",
+            "ball:2",
+            "--grid",
+            "1,1",
+            "--report",
+            "-",
+            "--surface",
+        ])
         .arg(&csv)
         .arg(&chains)
         .output()
@@ -390,7 +530,17 @@ fn cli_reads_chains_and_measured_points() {
 #[test]
 fn tool_positions_of_the_toolpath_output_are_the_library_job() {
     let out = bin("pathgen")
-        .args(["pocket", "--polygon", POLY, "--tool", "flat:2", "--grid", "1,1", "--floor-z", "-1"])
+        .args([
+            "pocket",
+            "--polygon",
+            POLY,
+            "--tool",
+            "flat:2",
+            "--grid",
+            "1,1",
+            "--floor-z",
+            "-1",
+        ])
         .output()
         .unwrap();
     assert!(out.status.success());
@@ -407,5 +557,8 @@ fn tool_positions_of_the_toolpath_output_are_the_library_job() {
             _ => {}
         }
     }
-    let _ = Record::Dwell { seconds: 0.0, block: None };
+    let _ = Record::Dwell {
+        seconds: 0.0,
+        block: None,
+    };
 }

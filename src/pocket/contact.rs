@@ -85,7 +85,16 @@ impl<'a> Contact<'a> {
             let mut step = r / RINGS as f64;
             while step > 1e-7 * r {
                 let mut moved = false;
-                for (sx, sy) in [(1.0, 0.0), (-1.0, 0.0), (0.0, 1.0), (0.0, -1.0), (0.7071, 0.7071), (-0.7071, 0.7071), (0.7071, -0.7071), (-0.7071, -0.7071)] {
+                for (sx, sy) in [
+                    (1.0, 0.0),
+                    (-1.0, 0.0),
+                    (0.0, 1.0),
+                    (0.0, -1.0),
+                    (0.7071, 0.7071),
+                    (-0.7071, 0.7071),
+                    (0.7071, -0.7071),
+                    (-0.7071, -0.7071),
+                ] {
                     let (nx, ny) = (dx + sx * step, dy + sy * step);
                     let w = self.value(x, y, nx, ny);
                     if w > v {
@@ -155,7 +164,11 @@ mod tests {
         let slope = t / 10.0;
         let c = Contact::new(&s, Cutter::Ball { radius: 1.0 }, 1e-3);
         let want = (2.0 + 10.0) * slope + (1.0 / slope.atan().cos() - 1.0);
-        assert!((c.tip_z(2.0, 3.0) - want).abs() < 1e-9, "{} vs {want}", c.tip_z(2.0, 3.0));
+        assert!(
+            (c.tip_z(2.0, 3.0) - want).abs() < 1e-9,
+            "{} vs {want}",
+            c.tip_z(2.0, 3.0)
+        );
         // A flat end mill rests on the highest point under its disk.
         let f = Contact::new(&s, Cutter::Flat { radius: 1.0 }, 1e-3);
         assert!((f.tip_z(2.0, 3.0) - 13.0 * slope).abs() < 1e-9);

@@ -119,7 +119,11 @@ impl Region {
                 let (a, b) = (l[i], l[(i + 1) % l.len()]);
                 let d = b - a;
                 let l2 = d.norm_squared();
-                let t = if l2 > 0.0 { ((p - a).dot(&d) / l2).clamp(0.0, 1.0) } else { 0.0 };
+                let t = if l2 > 0.0 {
+                    ((p - a).dot(&d) / l2).clamp(0.0, 1.0)
+                } else {
+                    0.0
+                };
                 best = best.min((p - (a + d * t)).norm());
             }
         }
@@ -178,15 +182,24 @@ pub struct Grid {
 impl Grid {
     /// Cells of pitch (dx, dy) from `origin` whose centres lie in `region`.
     pub fn new(region: &Region, origin: P2, dx: f64, dy: f64) -> Grid {
-        let (mut lo, mut hi) = (P2::new(f64::INFINITY, f64::INFINITY), P2::new(f64::NEG_INFINITY, f64::NEG_INFINITY));
+        let (mut lo, mut hi) = (
+            P2::new(f64::INFINITY, f64::INFINITY),
+            P2::new(f64::NEG_INFINITY, f64::NEG_INFINITY),
+        );
         for p in region.loops.iter().flatten() {
             lo = P2::new(lo.x.min(p.x), lo.y.min(p.y));
             hi = P2::new(hi.x.max(p.x), hi.y.max(p.y));
         }
         let mut cells = Vec::new();
         if !region.is_empty() {
-            let (i0, i1) = (((lo.x - origin.x) / dx).floor() as i64 - 1, ((hi.x - origin.x) / dx).ceil() as i64 + 1);
-            let (j0, j1) = (((lo.y - origin.y) / dy).floor() as i64 - 1, ((hi.y - origin.y) / dy).ceil() as i64 + 1);
+            let (i0, i1) = (
+                ((lo.x - origin.x) / dx).floor() as i64 - 1,
+                ((hi.x - origin.x) / dx).ceil() as i64 + 1,
+            );
+            let (j0, j1) = (
+                ((lo.y - origin.y) / dy).floor() as i64 - 1,
+                ((hi.y - origin.y) / dy).ceil() as i64 + 1,
+            );
             for j in j0..=j1 {
                 for i in i0..=i1 {
                     let g = Grid::centre_of(origin, dx, dy, (i, j));

@@ -71,7 +71,13 @@ impl Program {
             Some(p) if (p - to).norm() <= 1e-9 => return,
             Some(p) => {
                 if p.z < f.safe_z {
-                    self.push(MotionKind::Rapid, P3::new(p.x, p.y, f.safe_z), None, Role::Retract, None);
+                    self.push(
+                        MotionKind::Rapid,
+                        P3::new(p.x, p.y, f.safe_z),
+                        None,
+                        Role::Retract,
+                        None,
+                    );
                 }
                 self.push(MotionKind::Rapid, P3::new(to.x, to.y, f.safe_z), None, Role::Link, None);
             }
@@ -105,7 +111,13 @@ impl Program {
         if let Some(p) = self.pos
             && p.z < f.safe_z
         {
-            self.push(MotionKind::Rapid, P3::new(p.x, p.y, f.safe_z), None, Role::Retract, None);
+            self.push(
+                MotionKind::Rapid,
+                P3::new(p.x, p.y, f.safe_z),
+                None,
+                Role::Retract,
+                None,
+            );
         }
     }
 }
@@ -166,7 +178,10 @@ pub fn build(plan: &LayerPlan) -> Program {
         let last = layer + 1 == n_layers;
         let floor = plan.floors.get(layer).copied().unwrap_or(f64::NEG_INFINITY);
         let feed = if last { f.finish } else { f.rough };
-        let passes = plan.every_layer.iter().chain(if last { plan.final_only.iter() } else { [].iter() });
+        let passes = plan
+            .every_layer
+            .iter()
+            .chain(if last { plan.final_only.iter() } else { [].iter() });
         for pass in passes {
             let pts = clamp(&pass.pts, floor);
             let Some(&start) = pts.first() else { continue };
@@ -200,7 +215,10 @@ fn link_to(prog: &mut Program, plan: &LayerPlan, start: P3, floor: f64, feed: f6
         && p.z < plan.feeds.safe_z
         && plan.region.segment_inside(P2::new(p.x, p.y), P2::new(start.x, start.y))
     {
-        let pts = clamp(&lift(plan.contact, &[P2::new(p.x, p.y), P2::new(start.x, start.y)]), floor);
+        let pts = clamp(
+            &lift(plan.contact, &[P2::new(p.x, p.y), P2::new(start.x, start.y)]),
+            floor,
+        );
         // The lifted link starts at the surface; the tool may sit higher
         // (clamped), so go from where it is.
         let mut e = polyline_elems(&pts);

@@ -175,7 +175,9 @@ fn bezier_span(span: &[P3], plane: Plane, o: &FitOptions) -> Option<Vec<Elem>> {
     let (cubic, fixed) = bezier_controls(span, plane)?;
     let n = span.len();
     // Points within tol/2 of the curve, and the curve monotone along the run.
-    let samples: Vec<P2> = (0..=32 * (n - 1)).map(|k| bez(&cubic, k as f64 / (32 * (n - 1)) as f64)).collect();
+    let samples: Vec<P2> = (0..=32 * (n - 1))
+        .map(|k| bez(&cubic, k as f64 / (32 * (n - 1)) as f64))
+        .collect();
     let along = |p: &P2| if plane == Plane::Xz { p.y } else { p.x };
     let dir = (along(&samples[samples.len() - 1]) - along(&samples[0])).signum();
     if samples.windows(2).any(|w| (along(&w[1]) - along(&w[0])) * dir < 0.0) {
@@ -183,7 +185,10 @@ fn bezier_span(span: &[P3], plane: Plane, o: &FitOptions) -> Option<Vec<Elem>> {
     }
     for p in span {
         let q = plane.project(p);
-        let d = samples.windows(2).map(|w| seg_dist(&q, &w[0], &w[1])).fold(f64::INFINITY, f64::min);
+        let d = samples
+            .windows(2)
+            .map(|w| seg_dist(&q, &w[0], &w[1]))
+            .fold(f64::INFINITY, f64::min);
         if d > 0.5 * o.tol {
             return None;
         }
@@ -194,7 +199,14 @@ fn bezier_span(span: &[P3], plane: Plane, o: &FitOptions) -> Option<Vec<Elem>> {
     for e in &fit {
         match e {
             Elem::Line(l) => out.push(Elem::line(lift(&l.start), lift(&l.end))),
-            Elem::Arc(a) => out.push(Elem::Arc(Arc3::new(lift(&a.center), lift(&a.start), lift(&a.end), a.ccw, plane, 0)?)),
+            Elem::Arc(a) => out.push(Elem::Arc(Arc3::new(
+                lift(&a.center),
+                lift(&a.start),
+                lift(&a.end),
+                a.ccw,
+                plane,
+                0,
+            )?)),
         }
     }
     // Exact ends: the span's points, not their round trip.
@@ -238,7 +250,11 @@ pub fn bezier_controls(span: &[P3], plane: Plane) -> Option<([P2; 4], f64)> {
 fn seg_dist(p: &P2, a: &P2, b: &P2) -> f64 {
     let d = b - a;
     let l2 = d.norm_squared();
-    let t = if l2 > 0.0 { ((p - a).dot(&d) / l2).clamp(0.0, 1.0) } else { 0.0 };
+    let t = if l2 > 0.0 {
+        ((p - a).dot(&d) / l2).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
     (p - (a + d * t)).norm()
 }
 
@@ -280,7 +296,10 @@ mod tests {
                 P3::new(x, 1.0, -(400.0 - (x - 2.5).powi(2)).sqrt() + 10.0)
             })
             .collect();
-        let o = FitOptions { tol: 1e-4, max_radius: 1000.0 };
+        let o = FitOptions {
+            tol: 1e-4,
+            max_radius: 1000.0,
+        };
         let arcs = fit_run(&c, &pts, MotionMode::ArcLine, &o, 0.1);
         assert_eq!(arcs.len(), 1);
         assert!(point_deviation(&arcs, &pts) <= 1e-4);
@@ -290,10 +309,12 @@ mod tests {
         assert!(bez.len() < lines.len(), "{}", bez.len());
         assert!(point_deviation(&bez, &pts) <= 1e-4);
         // A cubic's own points come back within tolerance.
-        let cubic: Vec<P3> = (0..7).map(|k| {
-            let x = k as f64;
-            P3::new(3.0, x, 0.01 * x * x * x - 0.1 * x)
-        }).collect();
+        let cubic: Vec<P3> = (0..7)
+            .map(|k| {
+                let x = k as f64;
+                P3::new(3.0, x, 0.01 * x * x * x - 0.1 * x)
+            })
+            .collect();
         let (ctl, fixed) = bezier_controls(&cubic, Plane::Yz).unwrap();
         assert_eq!(fixed, 3.0);
         assert!((super::bez(&ctl, 0.5) - Plane::Yz.project(&cubic[3])).norm() < 1e-9);

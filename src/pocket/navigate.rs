@@ -60,7 +60,9 @@ pub fn navigate(grid: &Grid, region: &Region) -> Navigation {
     while left > 0 {
         // Cells are sorted by (j, i): the first unvisited one has the
         // minimum Y, left-most.
-        let Some(start) = (0..n).find(|&c| !visited[c]) else { break };
+        let Some(start) = (0..n).find(|&c| !visited[c]) else {
+            break;
+        };
         let mut walk = vec![start];
         visited[start] = true;
         left -= 1;
@@ -153,7 +155,10 @@ mod tests {
         assert_eq!(nav.walks.len(), 1);
         let walk: Vec<CellIx> = nav.walks[0].iter().map(|&c| g.cells[c]).collect();
         // Bottom row left to right, up the right side, back along the top.
-        assert_eq!(&walk[..8], &[(0, 0), (1, 0), (2, 0), (3, 0), (4, 0), (4, 1), (4, 2), (4, 3)]);
+        assert_eq!(
+            &walk[..8],
+            &[(0, 0), (1, 0), (2, 0), (3, 0), (4, 0), (4, 1), (4, 2), (4, 3)]
+        );
         assert_eq!(walk[8], (3, 3));
         // Every cell once: a spiral of a rectangle has no dead end.
         let set: BTreeSet<_> = walk.iter().collect();
@@ -165,7 +170,20 @@ mod tests {
     fn a_comb_needs_walking_back_and_still_visits_every_cell() {
         // A comb: teeth going up from a base, so the spiral dead-ends.
         let reg = region(
-            &[(0.0, 0.0), (7.0, 0.0), (7.0, 5.0), (6.0, 5.0), (6.0, 2.0), (4.0, 2.0), (4.0, 5.0), (3.0, 5.0), (3.0, 2.0), (1.0, 2.0), (1.0, 5.0), (0.0, 5.0)],
+            &[
+                (0.0, 0.0),
+                (7.0, 0.0),
+                (7.0, 5.0),
+                (6.0, 5.0),
+                (6.0, 2.0),
+                (4.0, 2.0),
+                (4.0, 5.0),
+                (3.0, 5.0),
+                (3.0, 2.0),
+                (1.0, 2.0),
+                (1.0, 5.0),
+                (0.0, 5.0),
+            ],
             0.25,
         );
         let g = Grid::new(&reg, P2::origin(), 0.5, 0.5);

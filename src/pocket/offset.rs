@@ -40,7 +40,9 @@ pub fn offset_passes(c: &Contact, boundary: &Polyline<f64>, stepover: f64, pitch
     let mut near: Option<P2> = None;
     for l in rings {
         let k0 = match near {
-            Some(q) => (0..l.len()).min_by(|&a, &b| (l[a] - q).norm().total_cmp(&(l[b] - q).norm())).unwrap_or(0),
+            Some(q) => (0..l.len())
+                .min_by(|&a, &b| (l[a] - q).norm().total_cmp(&(l[b] - q).norm()))
+                .unwrap_or(0),
             None => 0,
         };
         let mut xy = Vec::new();

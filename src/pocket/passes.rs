@@ -112,7 +112,9 @@ pub fn wall_passes(c: &Contact, region: &Region, near: P2, pitch: f64) -> Vec<Pa
         .into_iter()
         .filter(|l| l.len() >= 3)
         .map(|l| {
-            let k0 = (0..l.len()).min_by(|&a, &b| (l[a] - near).norm().total_cmp(&(l[b] - near).norm())).unwrap_or(0);
+            let k0 = (0..l.len())
+                .min_by(|&a, &b| (l[a] - near).norm().total_cmp(&(l[b] - near).norm()))
+                .unwrap_or(0);
             let mut xy = Vec::new();
             for s in 0..l.len() {
                 let (a, b) = (l[(k0 + s) % l.len()], l[(k0 + s + 1) % l.len()]);

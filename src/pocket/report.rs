@@ -33,7 +33,10 @@ pub fn fig20(unit: f64, dz: f64) -> f64 {
 /// Cycle time (s) of the records under `machine`'s controller model,
 /// starting where the first move goes.
 pub fn cycle_time_s(records: &[Record], machine: &Machine) -> Result<f64, String> {
-    let start = records.iter().find_map(|r| r.motion().map(|m| m.to)).unwrap_or(P3::origin());
+    let start = records
+        .iter()
+        .find_map(|r| r.motion().map(|m| m.to))
+        .unwrap_or(P3::origin());
     let header = Header {
         feed_unit: FeedUnit::MmPerS,
         source: None,
@@ -120,7 +123,10 @@ impl Figures {
         b.push_str(&self.cutter);
         b.push_str("\",\"machine\":\"");
         b.push_str(&self.machine);
-        b.push_str(&format!("\",\"cells\":{},\"layers\":{},\"floors_mm\":[", self.cells, self.layers));
+        b.push_str(&format!(
+            "\",\"cells\":{},\"layers\":{},\"floors_mm\":[",
+            self.cells, self.layers
+        ));
         for (k, f) in self.floors_mm.iter().enumerate() {
             if k > 0 {
                 b.push(',');
@@ -138,7 +144,10 @@ impl Figures {
         push_f(&mut b, "feed_length_mm", self.feed_length_mm);
         push_f(&mut b, "rapid_length_mm", self.rapid_length_mm);
         push_f(&mut b, "cycle_time_s", self.cycle_time_s);
-        b.push_str(&format!(",\"blocks\":{},\"motion\":\"{}\",\"final_main_blocks\":{}", self.blocks, self.motion, self.final_main_blocks));
+        b.push_str(&format!(
+            ",\"blocks\":{},\"motion\":\"{}\",\"final_main_blocks\":{}",
+            self.blocks, self.motion, self.final_main_blocks
+        ));
         push_f(&mut b, "tolerance_mm", self.tolerance_mm);
         b.push_str(",\"final_main_motion\":{");
         for (k, (n, c, d)) in self.motion_blocks.iter().enumerate() {
@@ -152,7 +161,11 @@ impl Figures {
         b.push('}');
         push_f(&mut b, "scallop_fig35_mm", self.scallop_fig35_mm);
         push_f(&mut b, "surface_error_fig35_mm", self.surface_error_fig35_mm);
-        push_f(&mut b, "surface_point_error_fig20_mm", self.surface_point_error_fig20_mm);
+        push_f(
+            &mut b,
+            "surface_point_error_fig20_mm",
+            self.surface_point_error_fig20_mm,
+        );
         b.push('}');
         b
     }

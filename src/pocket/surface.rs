@@ -64,7 +64,9 @@ impl BezierPatch {
             )));
         }
         if !(x[1] > x[0] && y[1] > y[0]) || !x.iter().chain(&y).all(|v| v.is_finite()) {
-            return Err(PocketError::Input("the patch rectangle needs x0 < x1 and y0 < y1".into()));
+            return Err(PocketError::Input(
+                "the patch rectangle needs x0 < x1 and y0 < y1".into(),
+            ));
         }
         let mut z = [[0.0; 4]; 4];
         for (k, v) in z16.iter().enumerate() {
@@ -162,7 +164,9 @@ impl GridSurface {
         };
         let (xs, ys) = (axis(|p| p.0), axis(|p| p.1));
         if xs.len() < 2 || ys.len() < 2 {
-            return Err(PocketError::Input("grid points need at least two distinct X and two distinct Y".into()));
+            return Err(PocketError::Input(
+                "grid points need at least two distinct X and two distinct Y".into(),
+            ));
         }
         if xs.len() * ys.len() != pts.len() {
             return Err(PocketError::Input(format!(
@@ -228,7 +232,9 @@ impl GridSurface {
                 let (ws, wt) = (catmull(s), catmull(t));
                 let mut z = 0.0;
                 for (b, wb) in wt.iter().enumerate() {
-                    let row: f64 = (0..4).map(|a| ws[a] * self.at_ext(i - 1 + a as isize, j - 1 + b as isize)).sum();
+                    let row: f64 = (0..4)
+                        .map(|a| ws[a] * self.at_ext(i - 1 + a as isize, j - 1 + b as isize))
+                        .sum();
                     z += wb * row;
                 }
                 z

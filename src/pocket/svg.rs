@@ -27,7 +27,10 @@ fn colour(k: Option<PassKind>) -> &'static str {
 /// Write the preview; with `only`, just the moves of that pass kind (and
 /// the boundary).
 pub fn write_svg(out: &mut impl Write, prog: &Program, boundary: &[P2], only: Option<PassKind>) -> std::io::Result<()> {
-    let (mut lo, mut hi) = (P2::new(f64::INFINITY, f64::INFINITY), P2::new(f64::NEG_INFINITY, f64::NEG_INFINITY));
+    let (mut lo, mut hi) = (
+        P2::new(f64::INFINITY, f64::INFINITY),
+        P2::new(f64::NEG_INFINITY, f64::NEG_INFINITY),
+    );
     for p in boundary {
         lo = P2::new(lo.x.min(p.x), lo.y.min(p.y));
         hi = P2::new(hi.x.max(p.x), hi.y.max(p.y));
@@ -49,7 +52,10 @@ pub fn write_svg(out: &mut impl Write, prog: &Program, boundary: &[P2], only: Op
     s.push(' ');
     num(&mut s, hi.y - lo.y + 2.0 * pad);
     s.push_str("\" width=\"800\" height=\"");
-    num(&mut s, (800.0 * (hi.y - lo.y + 2.0 * pad) / (hi.x - lo.x + 2.0 * pad)).round());
+    num(
+        &mut s,
+        (800.0 * (hi.y - lo.y + 2.0 * pad) / (hi.x - lo.x + 2.0 * pad)).round(),
+    );
     s.push_str("\">\n");
     s.push_str("<!-- red: main; green: wall; blue: X zigzag; dark green: Y zigzag; orange: offset loops; purple: feed links; grey dashed: at clearance; black: boundary -->\n");
     s.push_str("<polygon fill=\"none\" stroke=\"#000\" stroke-width=\"");

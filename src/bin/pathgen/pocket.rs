@@ -214,7 +214,9 @@ fn surface(a: &PocketArgs, pl: &Polyline<f64>) -> Result<Surface, CliError> {
                 let f = |sel: fn(&P2) -> f64, min: bool| {
                     g.iter()
                         .map(sel)
-                        .fold(if min { f64::INFINITY } else { f64::NEG_INFINITY }, |a, b| if min { a.min(b) } else { a.max(b) })
+                        .fold(if min { f64::INFINITY } else { f64::NEG_INFINITY }, |a, b| {
+                            if min { a.min(b) } else { a.max(b) }
+                        })
                 };
                 [f(|p| p.x, true), f(|p| p.y, true), f(|p| p.x, false), f(|p| p.y, false)]
             }
@@ -310,7 +312,11 @@ pub fn run(a: PocketArgs) -> Result<(), CliError> {
     if report_stdout {
         writeln!(out, "{}", job.figures.to_json())?;
     } else {
-        let source = a.file.as_ref().map(|p| p.display().to_string()).or(Some("pocket".into()));
+        let source = a
+            .file
+            .as_ref()
+            .map(|p| p.display().to_string())
+            .or(Some("pocket".into()));
         write_records(job.program.records.iter().cloned(), &a.out, source, &mut out)?;
     }
     out.commit()
