@@ -18,6 +18,21 @@ use crate::geometry::{P2, P3};
 
 use super::surface::Surface;
 
+/// Directions of the pattern search.
+const DIRS: [(f64, f64); 8] = {
+    use std::f64::consts::FRAC_1_SQRT_2 as H;
+    [
+        (1.0, 0.0),
+        (-1.0, 0.0),
+        (0.0, 1.0),
+        (0.0, -1.0),
+        (H, H),
+        (-H, H),
+        (H, -H),
+        (-H, -H),
+    ]
+};
+
 /// Rings of the footprint sampling.
 const RINGS: usize = 8;
 
@@ -85,16 +100,7 @@ impl<'a> Contact<'a> {
             let mut step = r / RINGS as f64;
             while step > 1e-7 * r {
                 let mut moved = false;
-                for (sx, sy) in [
-                    (1.0, 0.0),
-                    (-1.0, 0.0),
-                    (0.0, 1.0),
-                    (0.0, -1.0),
-                    (0.7071, 0.7071),
-                    (-0.7071, 0.7071),
-                    (0.7071, -0.7071),
-                    (-0.7071, -0.7071),
-                ] {
+                for (sx, sy) in DIRS {
                     let (nx, ny) = (dx + sx * step, dy + sy * step);
                     let w = self.value(x, y, nx, ny);
                     if w > v {

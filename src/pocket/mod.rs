@@ -145,10 +145,10 @@ fn validate(s: &PocketSpec) -> Result<(), PocketError> {
     if pitch > limit * (1.0 + 1e-12) && !s.force {
         return Err(PocketError::PitchTooLarge { pitch, limit });
     }
-    if let Layers::Floors(f) = &s.layers {
-        if f.iter().any(|v| !v.is_finite()) || f.windows(2).any(|w| w[1] >= w[0]) {
-            return Err(PocketError::Input("layer floors must be finite and descending".into()));
-        }
+    if let Layers::Floors(f) = &s.layers
+        && (f.iter().any(|v| !v.is_finite()) || f.windows(2).any(|w| w[1] >= w[0]))
+    {
+        return Err(PocketError::Input("layer floors must be finite and descending".into()));
     }
     if let Layers::Count(0) = s.layers {
         return Err(PocketError::Input("at least one layer".into()));

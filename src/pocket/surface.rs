@@ -63,7 +63,7 @@ impl BezierPatch {
                 z16.len()
             )));
         }
-        if !(x[1] > x[0] && y[1] > y[0]) || !x.iter().chain(&y).all(|v| v.is_finite()) {
+        if !(x[1] > x[0] && y[1] > y[0] && x.iter().chain(&y).all(|v| v.is_finite())) {
             return Err(PocketError::Input(
                 "the patch rectangle needs x0 < x1 and y0 < y1".into(),
             ));
@@ -81,9 +81,8 @@ impl BezierPatch {
         let v = ((y - self.y[0]) / (self.y[1] - self.y[0])).clamp(0.0, 1.0);
         let (bu, bv) = (bernstein(u), bernstein(v));
         let mut s = 0.0;
-        for j in 0..4 {
-            let row = bu[0] * self.z[j][0] + bu[1] * self.z[j][1] + bu[2] * self.z[j][2] + bu[3] * self.z[j][3];
-            s += bv[j] * row;
+        for (w, zr) in bv.iter().zip(&self.z) {
+            s += w * (bu[0] * zr[0] + bu[1] * zr[1] + bu[2] * zr[2] + bu[3] * zr[3]);
         }
         s
     }
