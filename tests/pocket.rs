@@ -562,3 +562,40 @@ fn tool_positions_of_the_toolpath_output_are_the_library_job() {
         block: None,
     };
 }
+
+#[test]
+fn the_gouge_check_sees_what_the_planner_avoids() {
+    use microcam::pocket::contact::Contact;
+    let (_, surface) = case_study();
+    let ball = Cutter::Ball { radius: 3.175 };
+    let c = Contact::new(&surface, ball, 5e-4);
+    // Plain cell-to-cell chords at touching heights dip below the surface
+    // somewhere on this row: the planner splits them, the check would fail.
+    let mut worst = f64::NEG_INFINITY;
+    for k in 0..14 {
+        let (x0, x1) = (10.0 + 3.175 * k as f64, 10.0 + 3.175 * (k + 1) as f64);
+        let (a, b) = (
+            P3::new(x0, 30.0, c.tip_z(x0, 30.0)),
+            P3::new(x1, 30.0, c.tip_z(x1, 30.0)),
+        );
+        for t in [0.25, 0.5, 0.75] {
+            worst = worst.max(gouge_at(&surface, &ball, &(a + (b - a) * t)));
+        }
+        // The planner's split of the same move stays within 1 um.
+        let mut pts = Vec::new();
+        c.safe_line(a, b, &mut pts);
+        let mut p = a;
+        for q in pts {
+            for t in [0.25, 0.5, 0.75] {
+                assert!(gouge_at(&surface, &ball, &(p + (q - p) * t)) <= UM);
+            }
+            p = q;
+        }
+    }
+    assert!(worst > UM, "chords dip {worst} mm");
+    // The surface point under the centre is too low for a ball on a slope.
+    let p = P3::new(20.0, 40.0, surface.height(20.0, 40.0));
+    let g = gouge_at(&surface, &ball, &p);
+    assert!(g > UM, "{g}");
+    assert!(gouge_at(&surface, &ball, &P3::new(20.0, 40.0, c.tip_z(20.0, 40.0))) <= 1e-6);
+}
