@@ -197,4 +197,36 @@ mod tests {
             }
         }
     }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(24))]
+        /// Skyline pockets (columns of random height: concave, with dead
+        /// ends): every cell visited, every step to a neighbour inside the
+        /// region, the first cell the lowest left-most one.
+        #[test]
+        fn skylines_are_fully_visited(heights in proptest::collection::vec(1u32..7, 2..7)) {
+            let w = heights.len() as f64;
+            let mut pts = vec![(0.0, 0.0), (w, 0.0)];
+            for (k, h) in heights.iter().enumerate().rev() {
+                pts.push(((k + 1) as f64, *h as f64));
+                pts.push((k as f64, *h as f64));
+            }
+            let reg = region(&pts, 0.2);
+            let g = Grid::new(&reg, P2::origin(), 0.5, 0.5);
+            let nav = navigate(&g, &reg);
+            let seen: BTreeSet<usize> = nav.walks.iter().flatten().copied().collect();
+            proptest::prop_assert_eq!(seen.len(), g.cells.len());
+            for w in &nav.walks {
+                for p in w.windows(2) {
+                    let (a, b) = (g.cells[p[0]], g.cells[p[1]]);
+                    proptest::prop_assert_eq!((a.0 - b.0).abs() + (a.1 - b.1).abs(), 1);
+                    proptest::prop_assert!(reg.segment_inside(g.centre(a), g.centre(b)));
+                }
+            }
+            if let Some(w) = nav.walks.first() {
+                let first = g.cells[w[0]];
+                proptest::prop_assert!(g.cells.iter().all(|c| (c.1, c.0) >= (first.1, first.0)));
+            }
+        }
+    }
 }
