@@ -108,12 +108,21 @@ pub struct Job {
     pub figures: Figures,
 }
 
-fn bbox_min(pl: &Polyline<f64>) -> P2 {
+/// Most layers of one job.
+pub const MAX_LAYERS: usize = 1000;
+/// Most grid cells of one job.
+pub const MAX_CELLS: usize = 4_000_000;
+
+/// The boundary's vertex box (arcs bulging out of it are covered by the
+/// region computation, which uses the exact offset).
+fn bbox(pl: &Polyline<f64>) -> (P2, P2) {
     let mut lo = P2::new(f64::INFINITY, f64::INFINITY);
+    let mut hi = P2::new(f64::NEG_INFINITY, f64::NEG_INFINITY);
     for v in pl.iter_vertexes() {
         lo = P2::new(lo.x.min(v.x), lo.y.min(v.y));
+        hi = P2::new(hi.x.max(v.x), hi.y.max(v.y));
     }
-    lo
+    (lo, hi)
 }
 
 /// Check the spec's numbers.
@@ -150,8 +159,33 @@ fn validate(s: &PocketSpec) -> Result<(), PocketError> {
     {
         return Err(PocketError::Input("layer floors must be finite and descending".into()));
     }
-    if let Layers::Count(0) = s.layers {
-        return Err(PocketError::Input("at least one layer".into()));
+    match &s.layers {
+        Layers::Count(0) => return Err(PocketError::Input("at least one layer".into())),
+        Layers::Count(n) if *n > MAX_LAYERS => {
+            return Err(PocketError::Input(format!("{n} layers is more than {MAX_LAYERS}")));
+        }
+        Layers::Floors(f) if f.len() >= MAX_LAYERS => {
+            return Err(PocketError::Input(format!(
+                "{} layer floors is more than {MAX_LAYERS}",
+                f.len()
+            )));
+        }
+        _ => {}
+    }
+    // A job this large is a typo (a pitch in the wrong unit), not a part.
+    let (lo, hi) = bbox(&s.boundary);
+    let (w, h) = (hi.x - lo.x, hi.y - lo.y);
+    if (w / s.dx + 2.0) * (h / s.dy + 2.0) > MAX_CELLS as f64 {
+        return Err(PocketError::Input(format!(
+            "a {w} x {h} mm pocket at pitch {} x {} mm has more than {MAX_CELLS} cells",
+            s.dx, s.dy
+        )));
+    }
+    if s.strategy == Strategy::Offset && w.max(h) / s.stepover > 20_000.0 {
+        return Err(PocketError::Input(format!(
+            "stepover {} mm gives too many loops",
+            s.stepover
+        )));
     }
     Ok(())
 }
@@ -164,7 +198,7 @@ pub fn plan(s: &PocketSpec) -> Result<Job, PocketError> {
     if region.is_empty() {
         return Err(PocketError::NoRegion(s.cutter.diameter()));
     }
-    let origin = s.origin.unwrap_or_else(|| bbox_min(&s.boundary));
+    let origin = s.origin.unwrap_or_else(|| bbox(&s.boundary).0);
     let grid = Grid::new(&region, origin, s.dx, s.dy);
     let pitch = s.dx.min(s.dy);
     let (nav, every, final_only) = match s.strategy {
