@@ -5,7 +5,7 @@
 CARGO ?= cargo
 BIN   := target/release
 
-.PHONY: modgraph samples-check bench-order all build test unit golden update-golden conformance checks fig3-20 removal-check dxf-check lint demo bench fuzz-smoke clean
+.PHONY: modgraph samples-check pocket-compare bench-order all build test unit golden update-golden conformance checks fig3-20 removal-check dxf-check lint demo bench fuzz-smoke clean
 
 all: build
 
@@ -55,6 +55,10 @@ fig3-20: build
 	python3 scripts/fig3-20 --gsim $(BIN)/gsim
 
 # Material removal against exact mesh Booleans (installs manifold3d when missing).
+# Grid pocket vs offsets on the case study (table in docs/pocket.md).
+pocket-compare: build
+	python3 scripts/pocket-compare --bin $(BIN)
+
 removal-check: build
 	python3 -c "import manifold3d" 2>/dev/null || python3 -m pip install -q manifold3d
 	python3 scripts/removal-check --gsim $(BIN)/gsim

@@ -15,6 +15,7 @@
 //! - [`sim`]: what a program does on the machine: time, beam and material removal.
 //! - [`preview`]: SVG previews of toolpaths.
 //! - [`pmac`]: Turbo PMAC protocol, client, emulator, splitting and upload.
+//! - [`pocket`]: freeform grid pockets (the Iowa State grid-pocket thesis, 1999).
 //! - [`cutter`]: end mill shapes shared by every milling tool.
 //! - [`mesh`]: triangle meshes (STL, OBJ) and queries on them.
 //! - [`probe`]: rotating-wire probe scanning and measurement.
@@ -35,6 +36,7 @@ pub mod mesh;
 pub mod model;
 pub mod plough;
 pub mod pmac;
+pub mod pocket;
 pub mod preview;
 pub mod probe;
 pub mod sim;

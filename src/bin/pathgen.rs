@@ -25,6 +25,8 @@ use std::process::ExitCode;
 
 #[path = "pathgen/slice.rs"]
 mod slice;
+#[path = "pathgen/pocket.rs"]
+mod pocket;
 
 const EXAMPLES: &str = "\
 Examples:
@@ -75,6 +77,10 @@ enum Command {
     /// Topology report of an STL/OBJ mesh (and the repairs), as JSON.
     #[command(after_help = slice::INFO_EXAMPLES)]
     MeshInfo(Box<slice::MeshInfoArgs>),
+    /// Freeform pocket by grid navigation (Iowa State grid-pocket thesis,
+    /// 1999): layered rough and finish cuts, or contour-parallel offsets.
+    #[command(after_help = pocket::EXAMPLES)]
+    Pocket(Box<pocket::PocketArgs>),
 }
 
 #[derive(ClapArgs)]
@@ -536,6 +542,7 @@ fn main() -> ExitCode {
         Command::Audit(a) => audit_cmd(*a),
         Command::Slice(a) => slice::slice_cmd(*a),
         Command::MeshInfo(a) => slice::mesh_info_cmd(*a),
+        Command::Pocket(a) => pocket::run(*a),
     })
 }
 

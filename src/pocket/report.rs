@@ -1,0 +1,188 @@
+//! The pocket report (`microcam.pocket-report/1`): path length, predicted
+//! cycle time under gsim's controller model, the scallop and surface error
+//! estimates of the Iowa State grid-pocket thesis (1999) (Fig. 35: CL/CC
+//! surface error R(1 - cos θ) and scallop height between neighbouring
+//! grid points; Fig. 20: surface-point error of a Bezier through grid
+//! points), cells, layers and block counts of each final-layer motion.
+
+use super::layers::Program;
+use crate::formats::push_num;
+use crate::geometry::P3;
+use crate::model::toolpath::{FeedUnit, Header, MotionKind, Record};
+use crate::sim::beam::CommandTiming;
+use crate::machine::Machine;
+use crate::sim::report::Simulator;
+
+/// Thesis Fig. 35 between two neighbours `g` apart whose heights differ
+/// by `dz`, for a cutter of radius `r`: (surface error, scallop height).
+pub fn fig35(r: f64, g: f64, dz: f64) -> (f64, f64) {
+    let dz = dz.abs();
+    let theta = (dz / g).atan();
+    let surface = r * (1.0 - theta.cos());
+    let h = g.hypot(r - dz);
+    (surface, r * theta.cos() * (h - r) / h)
+}
+
+/// Thesis Fig. 20: surface-point error of a unit Bezier step of length
+/// `unit` rising `dz`.
+pub fn fig20(unit: f64, dz: f64) -> f64 {
+    let h = unit.hypot(dz);
+    if h == 0.0 { 0.0 } else { dz.abs() * (h - unit) / h }
+}
+
+/// Cycle time (s) of the records under `machine`'s controller model,
+/// starting where the first move goes.
+pub fn cycle_time_s(records: &[Record], machine: &Machine) -> Result<f64, String> {
+    let start = records
+        .iter()
+        .find_map(|r| r.motion().map(|m| m.to))
+        .unwrap_or(P3::origin());
+    let header = Header {
+        feed_unit: FeedUnit::MmPerS,
+        source: None,
+    };
+    let mut sim: Simulator<std::io::Sink> = Simulator::new(&header, machine.clone(), CommandTiming::Sync, start, None);
+    for r in records {
+        sim.add(r).map_err(|e| e.to_string())?;
+    }
+    let (rep, _) = sim.finish().map_err(|e| e.to_string())?;
+    Ok(rep.time.cycle_time_s)
+}
+
+/// Feed and rapid path lengths (mm).
+pub fn lengths(records: &[Record]) -> (f64, f64) {
+    let (mut feed, mut rapid) = (0.0, 0.0);
+    let mut pos: Option<P3> = None;
+    for r in records {
+        let Some(m) = r.motion() else { continue };
+        if let Some(p) = pos {
+            let l = match m.kind {
+                MotionKind::Arc(a) => crate::geometry::Arc3::new(a.center, p, m.to, a.ccw, a.plane, a.extra_turns)
+                    .map(|x| x.length())
+                    .unwrap_or((m.to - p).norm()),
+                _ => (m.to - p).norm(),
+            };
+            if m.kind == MotionKind::Rapid {
+                rapid += l;
+            } else {
+                feed += l;
+            }
+        }
+        pos = Some(m.to);
+    }
+    (feed, rapid)
+}
+
+/// Figures of one job, for the JSON report.
+#[derive(Debug, Clone, Default)]
+pub struct Figures {
+    pub strategy: String,
+    pub cutter: String,
+    pub cells: usize,
+    pub layers: usize,
+    pub floors_mm: Vec<f64>,
+    pub passes: Vec<(String, usize)>,
+    pub feed_length_mm: f64,
+    pub rapid_length_mm: f64,
+    pub cycle_time_s: f64,
+    pub machine: String,
+    pub blocks: usize,
+    pub final_main_blocks: usize,
+    /// (mode, blocks, largest cell-point deviation mm) per final-layer motion.
+    pub motion_blocks: Vec<(String, usize, f64)>,
+    pub motion: String,
+    pub tolerance_mm: f64,
+    pub scallop_fig35_mm: f64,
+    pub surface_error_fig35_mm: f64,
+    pub surface_point_error_fig20_mm: f64,
+}
+
+fn push_f(b: &mut String, k: &str, v: f64) {
+    b.push_str(",\"");
+    b.push_str(k);
+    b.push_str("\":");
+    push_num(b, (v * 1e9).round() / 1e9);
+}
+
+impl Figures {
+    /// Fill lengths, block count and cycle time from the program.
+    pub fn measure(&mut self, prog: &Program, machine: &Machine) -> Result<(), String> {
+        (self.feed_length_mm, self.rapid_length_mm) = lengths(&prog.records);
+        self.blocks = prog.records.len();
+        self.final_main_blocks = prog.final_main_blocks;
+        self.cycle_time_s = cycle_time_s(&prog.records, machine)?;
+        self.machine = machine.name.clone();
+        Ok(())
+    }
+
+    /// One JSON object on one line.
+    pub fn to_json(&self) -> String {
+        let mut b = String::from("{\"schema\":\"microcam.pocket-report/1\",\"strategy\":\"");
+        b.push_str(&self.strategy);
+        b.push_str("\",\"cutter\":\"");
+        b.push_str(&self.cutter);
+        b.push_str("\",\"machine\":\"");
+        b.push_str(&self.machine);
+        b.push_str(&format!(
+            "\",\"cells\":{},\"layers\":{},\"floors_mm\":[",
+            self.cells, self.layers
+        ));
+        for (k, f) in self.floors_mm.iter().enumerate() {
+            if k > 0 {
+                b.push(',');
+            }
+            push_num(&mut b, (f * 1e9).round() / 1e9);
+        }
+        b.push_str("],\"passes\":{");
+        for (k, (n, c)) in self.passes.iter().enumerate() {
+            if k > 0 {
+                b.push(',');
+            }
+            b.push_str(&format!("\"{n}\":{c}"));
+        }
+        b.push('}');
+        push_f(&mut b, "feed_length_mm", self.feed_length_mm);
+        push_f(&mut b, "rapid_length_mm", self.rapid_length_mm);
+        push_f(&mut b, "cycle_time_s", self.cycle_time_s);
+        b.push_str(&format!(
+            ",\"blocks\":{},\"motion\":\"{}\",\"final_main_blocks\":{}",
+            self.blocks, self.motion, self.final_main_blocks
+        ));
+        push_f(&mut b, "tolerance_mm", self.tolerance_mm);
+        b.push_str(",\"final_main_motion\":{");
+        for (k, (n, c, d)) in self.motion_blocks.iter().enumerate() {
+            if k > 0 {
+                b.push(',');
+            }
+            b.push_str(&format!("\"{n}\":{{\"blocks\":{c}"));
+            push_f(&mut b, "max_point_deviation_mm", *d);
+            b.push('}');
+        }
+        b.push('}');
+        push_f(&mut b, "scallop_fig35_mm", self.scallop_fig35_mm);
+        push_f(&mut b, "surface_error_fig35_mm", self.surface_error_fig35_mm);
+        push_f(
+            &mut b,
+            "surface_point_error_fig20_mm",
+            self.surface_point_error_fig20_mm,
+        );
+        b.push('}');
+        b
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn thesis_formulas_vanish_where_they_should() {
+        let (s, h) = fig35(1.0, 0.5, 0.0);
+        assert_eq!(s, 0.0);
+        // Flat neighbours: R·(√(g²+R²) - R)/√(g²+R²).
+        let w = (0.5f64.hypot(1.0) - 1.0) / 0.5f64.hypot(1.0);
+        assert!((h - w).abs() < 1e-12);
+        assert_eq!(fig20(1.0, 0.0), 0.0);
+        assert!(fig20(1.0, 0.5) > 0.0);
+    }
+}
