@@ -14,6 +14,7 @@
 //! - [`preview`]: SVG previews of toolpaths.
 //! - [`pmac`]: Turbo PMAC protocol, client, emulator, splitting and upload.
 //! - [`cutter`]: end mill shapes shared by every milling tool.
+//! - [`dropcutter`]: 3- and 5-axis cutter locations on meshes.
 //! - [`mesh`]: triangle meshes (STL, OBJ) and queries on them.
 //! - [`corpus`]: where the shared test corpus lies, for tests and benchmarks.
 //! - [`cli`]: conventions shared by every binary.
@@ -21,6 +22,7 @@
 pub mod cli;
 pub mod corpus;
 pub mod cutter;
+pub mod dropcutter;
 pub mod dxf;
 pub mod formats;
 pub mod gcode;
