@@ -22,6 +22,9 @@ use microcam::source::ToolpathSource;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
+#[path = "pathgen/dropcutter.rs"]
+mod dropcutter;
+
 const EXAMPLES: &str = "\
 Examples:
   pathgen emit --dialect pmac part.jsonl > part.pmc     toolpath to PMAC motion program
@@ -65,6 +68,10 @@ enum Command {
     /// Check a laser toolpath against the machine: speed, acceleration,
     /// shutter timing; prints a JSON report, exit 1 when a limit is broken.
     Audit(Box<AuditArgs>),
+    /// CL data from a mesh: drop a flat, ball or torus cutter on a raster
+    /// or along chains (3-axis), or 5-axis along the surface normal.
+    #[command(after_help = dropcutter::EXAMPLES)]
+    Dropcutter(Box<dropcutter::DropcutterArgs>),
 }
 
 #[derive(ClapArgs)]
@@ -498,6 +505,7 @@ fn main() -> ExitCode {
         Command::Cone(a) => cone_cmd(*a),
         Command::Arcfit(a) => arcfit_cmd(*a),
         Command::Audit(a) => audit_cmd(*a),
+        Command::Dropcutter(a) => dropcutter::run(*a),
     })
 }
 
