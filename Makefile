@@ -5,7 +5,7 @@
 CARGO ?= cargo
 BIN   := target/release
 
-.PHONY: bench-order all build test unit golden update-golden conformance checks fig3-20 removal-check dxf-check lint demo bench fuzz-smoke clean
+.PHONY: dropcutter-check bench-order all build test unit golden update-golden conformance checks fig3-20 removal-check dxf-check lint demo bench fuzz-smoke clean
 
 all: build
 
@@ -33,7 +33,11 @@ conformance: build
 	python3 scripts/pmac-conformance --emu $(BIN)/pmac-emu
 
 # Checks against independent references.
-checks: fig3-20 removal-check dxf-check
+checks: fig3-20 removal-check dxf-check dropcutter-check
+
+# pathgen dropcutter against OpenCAMLib (installs it into .venv).
+dropcutter-check: build
+	scripts/dropcutter-ocl-check --bin $(BIN)/pathgen
 
 # dxf2chains against ezdxf on random drawings of every entity type and on
 # the corpus (installs ezdxf when missing).
@@ -67,6 +71,7 @@ bench: build
 	scripts/bench/loops
 	scripts/bench/order --no-solver
 	scripts/bench/arcfit
+	scripts/bench/dropcutter --bin $(BIN)/pathgen
 
 # Cut order against an independent TSP solver (LKH via elkai, installed into
 # a private venv; the solver itself takes minutes).

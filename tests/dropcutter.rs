@@ -51,7 +51,14 @@ fn ball_on_a_sphere_gives_the_offset_sphere() {
     let stl = dir.path().join("s.stl");
     write_stl(&stl, &hemisphere(5.0, 128, 32));
     let out = pathgen()
-        .args(["dropcutter", stl.to_str().unwrap(), "--cutter", "ball:1", "--step-over", "0.5"])
+        .args([
+            "dropcutter",
+            stl.to_str().unwrap(),
+            "--cutter",
+            "ball:1",
+            "--step-over",
+            "0.5",
+        ])
         .args(["--region", "-3,-3,3,3"])
         .output()
         .unwrap();
@@ -64,7 +71,14 @@ fn ball_on_a_sphere_gives_the_offset_sphere() {
     }
     // Same input, same bytes.
     let again = pathgen()
-        .args(["dropcutter", stl.to_str().unwrap(), "--cutter", "ball:1", "--step-over", "0.5"])
+        .args([
+            "dropcutter",
+            stl.to_str().unwrap(),
+            "--cutter",
+            "ball:1",
+            "--step-over",
+            "0.5",
+        ])
         .args(["--region", "-3,-3,3,3"])
         .output()
         .unwrap();
@@ -78,7 +92,16 @@ fn toolpath_gcode_adaptive_and_five_axis_outputs() {
     write_stl(&stl, &hemisphere(5.0, 64, 16));
     let s = stl.to_str().unwrap();
     let run = |args: &[&str]| pathgen().arg("dropcutter").arg(s).args(args).output().unwrap();
-    let tp = run(&["--cutter", "flat:1", "--step-over", "1", "--pattern", "one-way", "--format", "toolpath"]);
+    let tp = run(&[
+        "--cutter",
+        "flat:1",
+        "--step-over",
+        "1",
+        "--pattern",
+        "one-way",
+        "--format",
+        "toolpath",
+    ]);
     assert!(tp.status.success());
     let text = String::from_utf8(tp.stdout).unwrap();
     assert!(text.starts_with("{\"schema\":\"microcam.toolpath/1\""));
@@ -90,10 +113,28 @@ fn toolpath_gcode_adaptive_and_five_axis_outputs() {
     // Adaptive sampling adds points to a coarse raster.
     let coarse = run(&["--cutter", "ball:1", "--step-over", "2"]);
     let fine = run(&["--cutter", "ball:1", "--step-over", "2", "--chord-tol", "0.001"]);
-    let (c, f) = (read_cldata(&coarse.stdout[..]).unwrap(), read_cldata(&fine.stdout[..]).unwrap());
-    assert!(f.points.len() > 2 * c.points.len(), "{} {}", f.points.len(), c.points.len());
+    let (c, f) = (
+        read_cldata(&coarse.stdout[..]).unwrap(),
+        read_cldata(&fine.stdout[..]).unwrap(),
+    );
+    assert!(
+        f.points.len() > 2 * c.points.len(),
+        "{} {}",
+        f.points.len(),
+        c.points.len()
+    );
     // 5-axis: six numbers a row, axis points `--axis-length` from the tip.
-    let five = run(&["--cutter", "flat:1", "--step-over", "1", "--region", "-2,-2,2,2", "--five-axis", "--lead", "5"]);
+    let five = run(&[
+        "--cutter",
+        "flat:1",
+        "--step-over",
+        "1",
+        "--region",
+        "-2,-2,2,2",
+        "--five-axis",
+        "--lead",
+        "5",
+    ]);
     assert!(five.status.success(), "{}", String::from_utf8_lossy(&five.stderr));
     let d = read_cldata(&five.stdout[..]).unwrap();
     assert!(d.is_five_axis() && d.points.len() == d.axis.len());
@@ -111,7 +152,15 @@ fn bad_input_exits_2_and_writes_nothing() {
     std::fs::write(&bad, "solid x\n facet normal 0 0 1\n outer loop\n vertex 1 2\n").unwrap();
     let out_file = dir.path().join("out.cl");
     let o = pathgen()
-        .args(["dropcutter", bad.to_str().unwrap(), "--cutter", "ball:1", "--step-over", "1", "-o"])
+        .args([
+            "dropcutter",
+            bad.to_str().unwrap(),
+            "--cutter",
+            "ball:1",
+            "--step-over",
+            "1",
+            "-o",
+        ])
         .arg(&out_file)
         .output()
         .unwrap();
@@ -150,7 +199,10 @@ fn every_corpus_stl_drops_or_is_refused() {
         match o.status.code() {
             Some(0) => {
                 let d = read_cldata(&o.stdout[..]).unwrap();
-                assert!(!d.points.is_empty() && d.points.iter().all(|p| p.z.is_finite()), "{f:?}");
+                assert!(
+                    !d.points.is_empty() && d.points.iter().all(|p| p.z.is_finite()),
+                    "{f:?}"
+                );
             }
             Some(2) => assert!(!o.stderr.is_empty(), "{f:?}"),
             c => panic!("{f:?}: exit {c:?}"),

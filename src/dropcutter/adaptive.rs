@@ -29,7 +29,11 @@ pub struct Adaptive {
 fn dist_to_segment(p: &P3, a: &P3, b: &P3) -> f64 {
     let ab = b - a;
     let l2 = ab.norm_squared();
-    let t = if l2 > 0.0 { ((p - a).dot(&ab) / l2).clamp(0.0, 1.0) } else { 0.0 };
+    let t = if l2 > 0.0 {
+        ((p - a).dot(&ab) / l2).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
     (p - (a + ab * t)).norm()
 }
 

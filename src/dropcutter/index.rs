@@ -117,7 +117,11 @@ impl Grid {
     #[inline]
     pub fn query(&self, tris: &[Tri], x: f64, y: f64, r: f64, mut f: impl FnMut(&Tri) -> bool) {
         let (qx0, qy0, qx1, qy1) = (x - r, y - r, x + r, y + r);
-        if qx1 < self.x0 || qy1 < self.y0 || qx0 > self.x0 + self.h * self.nx as f64 || qy0 > self.y0 + self.h * self.ny as f64 {
+        if qx1 < self.x0
+            || qy1 < self.y0
+            || qx0 > self.x0 + self.h * self.nx as f64
+            || qy0 > self.y0 + self.h * self.ny as f64
+        {
             return;
         }
         let (i0, j0, i1, j1) = self.span(qx0, qy0, qx1, qy1);

@@ -143,7 +143,10 @@ impl DropCutter {
 /// Grid cell side: about the cutter diameter, but not much below the
 /// typical triangle so that large triangles do not fill many cells.
 fn cell_size(tris: &[Tri], r: f64) -> f64 {
-    let mut ext: Vec<f64> = tris.iter().map(|t| (t.bb[2] - t.bb[0]).max(t.bb[3] - t.bb[1])).collect();
+    let mut ext: Vec<f64> = tris
+        .iter()
+        .map(|t| (t.bb[2] - t.bb[0]).max(t.bb[3] - t.bb[1]))
+        .collect();
     let mid = ext.len() / 2;
     let median = if ext.is_empty() {
         0.0

@@ -87,7 +87,11 @@ pub fn write_cldata5<W: Write>(w: &mut ClWriter<W>, runs: &[Vec<Location>], safe
         let a = l.axis_point - l.cl;
         // Along the axis until the tip reaches safe_z (straight up for a
         // level axis, which cannot happen for an upward normal).
-        let t = if a.z > 1e-12 { ((safe_z - l.cl.z) / a.z).max(0.0) } else { 0.0 };
+        let t = if a.z > 1e-12 {
+            ((safe_z - l.cl.z) / a.z).max(0.0)
+        } else {
+            0.0
+        };
         Location {
             cl: l.cl + a * t,
             axis_point: l.axis_point + a * t,

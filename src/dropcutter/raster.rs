@@ -118,7 +118,11 @@ pub fn sample_line(a: P2, b: P2, step: f64) -> Vec<P2> {
 /// at most `step` apart, every chain vertex kept.
 pub fn chain_passes(chains: &[Chain], step: f64) -> Result<Vec<Vec<P2>>, DropError> {
     check_step("step-forward", step)?;
-    let total: f64 = chains.iter().flat_map(|c| &c.segments).map(|s| s.length() / step + 1.0).sum();
+    let total: f64 = chains
+        .iter()
+        .flat_map(|c| &c.segments)
+        .map(|s| s.length() / step + 1.0)
+        .sum();
     if total > MAX_POINTS {
         return Err(DropError::Option(format!(
             "the chains would give {total:.0} points (more than {MAX_POINTS:.0}); raise --step-forward"
@@ -193,7 +197,10 @@ mod tests {
         };
         let p = one.passes().unwrap();
         assert_eq!(p.len(), 5);
-        assert!(p.iter().all(|l| l[0].y == 0.0 && l.last().unwrap().y == 1.0 && l.len() == 5));
+        assert!(
+            p.iter()
+                .all(|l| l[0].y == 0.0 && l.last().unwrap().y == 1.0 && l.len() == 5)
+        );
         assert!(Raster { step_over: 0.0, ..r }.passes().is_err());
         assert!(
             Raster {

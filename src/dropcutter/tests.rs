@@ -165,6 +165,13 @@ fn empty_and_broken_meshes_are_refused() {
         DropCutter::new(&Mesh::default(), Cutter::Ball { radius: 1.0 }).unwrap_err(),
         DropError::EmptyMesh
     );
-    let m = Mesh::from_triangles(&[Triangle::new(P3::origin(), P3::new(1.0, 0.0, f64::NAN), P3::new(0.0, 1.0, 0.0))]);
-    assert_eq!(DropCutter::new(&m, Cutter::Ball { radius: 1.0 }).unwrap_err(), DropError::NotFinite(0));
+    let m = Mesh::from_triangles(&[Triangle::new(
+        P3::origin(),
+        P3::new(1.0, 0.0, f64::NAN),
+        P3::new(0.0, 1.0, 0.0),
+    )]);
+    assert_eq!(
+        DropCutter::new(&m, Cutter::Ball { radius: 1.0 }).unwrap_err(),
+        DropError::NotFinite(0)
+    );
 }

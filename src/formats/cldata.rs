@@ -44,7 +44,10 @@ pub fn read_cldata(input: impl BufRead) -> Result<ClData, FormatError> {
         }
         nums.clear();
         let mut words = 0;
-        for tok in text.split(|c: char| c == ',' || c.is_whitespace()).filter(|t| !t.is_empty()) {
+        for tok in text
+            .split(|c: char| c == ',' || c.is_whitespace())
+            .filter(|t| !t.is_empty())
+        {
             match tok.parse::<f64>() {
                 Ok(v) if v.is_finite() => nums.push(v),
                 Ok(_) => return Err(FormatError::invalid(line, format!("'{tok}' is not a finite number"))),
@@ -169,7 +172,10 @@ mod tests {
     #[test]
     fn errors_name_the_line() {
         let e = read_cldata("1 2 3\n\n1 2\n".as_bytes()).unwrap_err();
-        assert_eq!(e.to_string(), "line 3: a row has 3 numbers (x y z) or 6 (x y z x1 y1 z1), got 2");
+        assert_eq!(
+            e.to_string(),
+            "line 3: a row has 3 numbers (x y z) or 6 (x y z x1 y1 z1), got 2"
+        );
         let e = read_cldata("1 2 3\n1 2 3 4 5 6\n".as_bytes()).unwrap_err();
         assert_eq!(e.to_string(), "line 2: 6 numbers, but the rows before have 3");
         let e = read_cldata("1 2 3\nx y z\n".as_bytes()).unwrap_err();
