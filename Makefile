@@ -5,7 +5,7 @@
 CARGO ?= cargo
 BIN   := target/release
 
-.PHONY: modgraph samples-check pocket-compare bench-order all build test unit golden update-golden conformance checks fig3-20 removal-check dxf-check lint demo bench fuzz-smoke clean
+.PHONY: modgraph samples-check pocket-compare dropcutter-check bench-order all build test unit golden update-golden conformance checks fig3-20 removal-check dxf-check lint demo bench fuzz-smoke clean
 
 all: build
 
@@ -35,7 +35,7 @@ conformance: build
 	python3 scripts/pmac-conformance --emu $(BIN)/pmac-emu
 
 # Checks against independent references, and of the repository itself.
-checks: fig3-20 removal-check dxf-check modgraph samples-check
+checks: fig3-20 removal-check dxf-check dropcutter-check modgraph samples-check
 
 # The module layering (docs/architecture.md): no module uses one above it.
 modgraph:
@@ -44,6 +44,10 @@ modgraph:
 # testdata/samples are exactly what scripts/make-samples writes.
 samples-check:
 	python3 scripts/make-samples --check
+
+# pathgen dropcutter against OpenCAMLib (installs it into .venv).
+dropcutter-check: build
+	scripts/dropcutter-ocl-check --bin $(BIN)/pathgen
 
 # dxf2chains against ezdxf on random drawings of every entity type and on
 # the corpus (installs ezdxf when missing).
@@ -84,6 +88,7 @@ bench: build
 	scripts/bench/arcfit
 	scripts/bench/feedopt
 	scripts/bench/plough2d
+	scripts/bench/dropcutter --bin $(BIN)/pathgen
 
 # Cut order against an independent TSP solver (LKH via elkai, installed into
 # a private venv; the solver itself takes minutes).

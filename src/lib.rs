@@ -17,6 +17,7 @@
 //! - [`pmac`]: Turbo PMAC protocol, client, emulator, splitting and upload.
 //! - [`pocket`]: freeform grid pockets (the Iowa State grid-pocket thesis, 1999).
 //! - [`cutter`]: end mill shapes shared by every milling tool.
+//! - [`dropcutter`]: 3- and 5-axis cutter locations on meshes.
 //! - [`mesh`]: triangle meshes (STL, OBJ) and queries on them.
 //! - [`probe`]: rotating-wire probe scanning and measurement.
 //! - [`corpus`]: where the shared test corpus lies, for tests and benchmarks.
@@ -25,6 +26,7 @@
 pub mod cli;
 pub mod corpus;
 pub mod cutter;
+pub mod dropcutter;
 pub mod dxf;
 pub mod feedopt;
 pub mod formats;

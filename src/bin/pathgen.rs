@@ -27,6 +27,8 @@ use std::process::ExitCode;
 mod slice;
 #[path = "pathgen/pocket.rs"]
 mod pocket;
+#[path = "pathgen/dropcutter.rs"]
+mod dropcutter;
 
 const EXAMPLES: &str = "\
 Examples:
@@ -81,6 +83,10 @@ enum Command {
     /// 1999): layered rough and finish cuts, or contour-parallel offsets.
     #[command(after_help = pocket::EXAMPLES)]
     Pocket(Box<pocket::PocketArgs>),
+    /// CL data from a mesh: drop a flat, ball or torus cutter on a raster
+    /// or along chains (3-axis), or 5-axis along the surface normal.
+    #[command(after_help = dropcutter::EXAMPLES)]
+    Dropcutter(Box<dropcutter::DropcutterArgs>),
 }
 
 #[derive(ClapArgs)]
@@ -543,6 +549,7 @@ fn main() -> ExitCode {
         Command::Slice(a) => slice::slice_cmd(*a),
         Command::MeshInfo(a) => slice::mesh_info_cmd(*a),
         Command::Pocket(a) => pocket::run(*a),
+        Command::Dropcutter(a) => dropcutter::run(*a),
     })
 }
 

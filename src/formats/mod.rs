@@ -1,5 +1,6 @@
 //! Streaming readers and writers for the JSON Lines pipe formats
-//! (`microcam.chains/1`, `microcam.toolpath/1`). See docs/formats.md.
+//! (`microcam.chains/1`, `microcam.toolpath/1`) and the plain-text CL
+//! data. See docs/formats.md.
 //!
 //! Readers hold one line at a time, so memory stays flat however long the
 //! input; they validate every record and name its line number on error.
@@ -7,6 +8,7 @@
 //! rounding to 1e-9 mm) so output is byte-identical for identical input.
 
 pub mod chains;
+pub mod cldata;
 pub mod toolpath;
 
 use crate::geometry::P3;

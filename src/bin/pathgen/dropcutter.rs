@@ -1,0 +1,323 @@
+//! `pathgen dropcutter`: CL data, a toolpath or G-code from a mesh by
+//! dropping a flat, ball or torus cutter (the library's `dropcutter`).
+
+use super::{WriterArgs, write_gcode, write_options};
+use clap::{Args as ClapArgs, ValueEnum};
+use microcam::cli::{self, CliError, Output};
+use microcam::cutter::Cutter;
+use microcam::dropcutter::adaptive::Adaptive;
+use microcam::dropcutter::fiveaxis::FiveAxis;
+use microcam::dropcutter::output::{Feeds, toolpath_records, write_cldata, write_cldata5};
+use microcam::dropcutter::raster::{Direction, Pattern, Raster, chain_passes};
+use microcam::dropcutter::{DropCutter, DropError};
+use microcam::formats::cldata::ClWriter;
+use microcam::formats::toolpath::ToolpathWriter;
+use microcam::gcode::Dialect;
+use microcam::geometry::{P2, P3};
+use microcam::mesh::{ReadOptions, Units};
+use microcam::model::toolpath::{FeedUnit, Header};
+use microcam::laser::input::read_chains;
+use std::io::Read;
+use std::path::PathBuf;
+
+pub const EXAMPLES: &str = "\
+Examples:
+  pathgen dropcutter part.stl --cutter ball:1 --step-over 0.1 --step-forward 0.05 > part.cl
+  pathgen dropcutter part.stl --cutter torus:2:0.25 --step-over 0.2 --direction y --pattern one-way --format toolpath
+  pathgen dropcutter part.stl --cutter flat:1 --step-over 0.1 --chord-tol 0.001 --gcode iso > part.ngc
+  dxf2chains path.dxf | pathgen dropcutter part.stl --cutter ball:0.5 --chains - --step-forward 0.02
+  pathgen dropcutter part.stl --cutter flat:2 --step-over 0.5 --five-axis --lead 5 --tilt 0 > part5.cl
+
+The mesh is STL (ASCII or binary) or OBJ in mm unless --units says otherwise.
+CL data rows are 'x y z' (tool tip) or, with --five-axis, 'x y z x1 y1 z1'
+(tip and a point up the tool axis: the layout of Singh 2014, Annexure 2).
+Passes are joined at the safe Z. A summary goes to stderr.
+Exit status: 0 ok, 1 failure, 2 bad usage or bad input.";
+
+/// Raster direction.
+#[derive(Clone, Copy, ValueEnum)]
+pub enum DirArg {
+    X,
+    Y,
+}
+
+/// Raster line order.
+#[derive(Clone, Copy, ValueEnum)]
+pub enum PatternArg {
+    Zigzag,
+    OneWay,
+}
+
+/// What to write.
+#[derive(Clone, Copy, ValueEnum, PartialEq)]
+pub enum FormatArg {
+    /// CL data text.
+    Cl,
+    /// microcam.toolpath/1.
+    Toolpath,
+}
+
+/// Units of the mesh file.
+#[derive(Clone, Copy, ValueEnum)]
+pub enum UnitsArg {
+    Mm,
+    Inch,
+    Um,
+}
+
+#[derive(ClapArgs)]
+pub struct DropcutterArgs {
+    /// Mesh (STL or OBJ; '-' for stdin).
+    file: Option<PathBuf>,
+    /// Cutter: flat:D, ball:D or torus:D:RC (mm).
+    #[arg(long)]
+    cutter: String,
+    /// Units of the mesh coordinates.
+    #[arg(long, value_enum, default_value = "mm")]
+    units: UnitsArg,
+    /// Largest distance between raster lines (mm).
+    #[arg(long)]
+    step_over: Option<f64>,
+    /// Largest distance between points along a pass (mm; default: the step-over).
+    #[arg(long)]
+    step_forward: Option<f64>,
+    /// Axis the raster lines run along.
+    #[arg(long, value_enum, default_value = "x")]
+    direction: DirArg,
+    /// Zigzag (lines joined at the edge) or one-way (up to safe Z between lines).
+    #[arg(long, value_enum, default_value = "zigzag")]
+    pattern: PatternArg,
+    /// Raster rectangle XMIN,YMIN,XMAX,YMAX (default: the mesh's XY box).
+    #[arg(long, value_parser = parse_region, allow_hyphen_values = true)]
+    region: Option<[f64; 4]>,
+    /// Drop along these chains (microcam.chains/1, '-' for stdin) instead of a raster.
+    #[arg(long, value_name = "FILE")]
+    chains: Option<PathBuf>,
+    /// Add points where the surface bends so the CL polyline is within this of the true CL curve (mm).
+    #[arg(long)]
+    chord_tol: Option<f64>,
+    /// Adaptive sampling splits no span shorter than this (mm; default chord-tol).
+    #[arg(long)]
+    min_step: Option<f64>,
+    /// Height of links between passes (default: mesh top + clearance).
+    #[arg(long, allow_hyphen_values = true)]
+    safe_z: Option<f64>,
+    /// Safe Z above the mesh top when --safe-z is not given (mm).
+    #[arg(long, default_value_t = 1.0)]
+    clearance: f64,
+    /// The tip never goes below this (mm; default: the mesh bottom, the table).
+    #[arg(long, allow_hyphen_values = true)]
+    floor: Option<f64>,
+    /// Output format (G-code with --gcode).
+    #[arg(long, value_enum, default_value = "cl")]
+    format: FormatArg,
+    /// Write G-code of this dialect instead.
+    #[arg(long, value_parser = ["iso", "pmac"])]
+    gcode: Option<String>,
+    /// Cutting feed (mm/s) for toolpath and G-code output.
+    #[arg(long, default_value_t = 1.0)]
+    feed: f64,
+    /// Plunge feed (mm/s; default: the cutting feed).
+    #[arg(long)]
+    plunge_feed: Option<f64>,
+    /// 5-axis CL data: flat or torus cutter along the surface normal.
+    #[arg(long)]
+    five_axis: bool,
+    /// 5-axis: lean of the axis towards the feed direction (degrees).
+    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+    lead: f64,
+    /// 5-axis: lean of the axis to the left of the feed direction (degrees).
+    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+    tilt: f64,
+    /// 5-axis: distance from the tip to the second point on the axis (mm).
+    #[arg(long, default_value_t = 50.0)]
+    axis_length: f64,
+    #[command(flatten)]
+    writer: WriterArgs,
+    /// Write output here instead of stdout.
+    #[arg(short, long)]
+    output: Option<PathBuf>,
+}
+
+fn parse_region(s: &str) -> Result<[f64; 4], String> {
+    let v: Vec<f64> = s
+        .split(',')
+        .map(|t| t.trim().parse::<f64>().ok().filter(|v| v.is_finite()))
+        .collect::<Option<_>>()
+        .ok_or_else(|| format!("expected XMIN,YMIN,XMAX,YMAX, got '{s}'"))?;
+    match v[..] {
+        [a, b, c, d] if a <= c && b <= d => Ok([a, b, c, d]),
+        [_, _, _, _] => Err(format!("'{s}': need XMIN <= XMAX and YMIN <= YMAX")),
+        _ => Err(format!("expected XMIN,YMIN,XMAX,YMAX, got '{s}'")),
+    }
+}
+
+fn bad(e: DropError) -> CliError {
+    CliError::input(e.to_string())
+}
+
+fn positive(name: &str, v: f64) -> Result<f64, CliError> {
+    if v.is_finite() && v > 0.0 {
+        Ok(v)
+    } else {
+        Err(CliError::input(format!("--{name} must be positive, got {v}")))
+    }
+}
+
+pub fn run(a: DropcutterArgs) -> Result<(), CliError> {
+    let cutter = Cutter::parse(&a.cutter).map_err(|e| CliError::input(format!("--cutter {e}")))?;
+    if a.five_axis && (a.gcode.is_some() || a.format != FormatArg::Cl) {
+        return Err(CliError::input(
+            "--five-axis writes CL data only (toolpaths and G-code here are 3-axis)",
+        ));
+    }
+    let feeds = Feeds {
+        cut: positive("feed", a.feed)?,
+        plunge: positive("plunge-feed", a.plunge_feed.unwrap_or(a.feed))?,
+    };
+    let opts = ReadOptions {
+        units: match a.units {
+            UnitsArg::Mm => Units::Mm,
+            UnitsArg::Inch => Units::Inch,
+            UnitsArg::Um => Units::Um,
+        },
+        format: None,
+    };
+    let (name, loaded) = match a.file.as_deref().filter(|p| p.as_os_str() != "-") {
+        Some(p) => (
+            p.display().to_string(),
+            microcam::mesh::read_path(p, &opts).map_err(|e| CliError::input(format!("{}: {e}", p.display())))?,
+        ),
+        None => {
+            let mut bytes = Vec::new();
+            std::io::stdin().read_to_end(&mut bytes)?;
+            let m = microcam::mesh::read_bytes(&bytes, &opts).map_err(|e| CliError::input(format!("<stdin>: {e}")))?;
+            ("<stdin>".to_string(), m)
+        }
+    };
+    let dc = DropCutter::new(&loaded.mesh, cutter).map_err(|e| CliError::input(format!("{name}: {e}")))?;
+    let bb = dc.bbox();
+    let floor = a.floor.unwrap_or(bb.min.z);
+    let safe_z = a.safe_z.unwrap_or(bb.max.z + a.clearance);
+    if !(floor.is_finite() && safe_z.is_finite()) {
+        return Err(CliError::input("--floor and --safe-z must be finite"));
+    }
+    if safe_z < bb.max.z {
+        eprintln!(
+            "pathgen: warning: dropcutter: safe Z {safe_z} is below the mesh top {}",
+            bb.max.z
+        );
+    }
+    // The XY passes.
+    let passes: Vec<Vec<P2>> = if let Some(path) = &a.chains {
+        let input = cli::open_input(Some(path))?;
+        let cname = input.name.clone();
+        let (_, chains) = read_chains(input.reader).map_err(|e| CliError::in_file(&cname, e))?;
+        let step = positive("step-forward", a.step_forward.or(a.step_over).unwrap_or(f64::NAN))?;
+        chain_passes(&chains, step).map_err(bad)?
+    } else {
+        let so = a
+            .step_over
+            .ok_or_else(|| CliError::input("--step-over is required for a raster (or give --chains)"))?;
+        let region = a.region.unwrap_or([bb.min.x, bb.min.y, bb.max.x, bb.max.y]);
+        Raster {
+            step_over: so,
+            step_forward: a.step_forward.unwrap_or(so),
+            direction: match a.direction {
+                DirArg::X => Direction::X,
+                DirArg::Y => Direction::Y,
+            },
+            pattern: match a.pattern {
+                PatternArg::Zigzag => Pattern::Zigzag,
+                PatternArg::OneWay => Pattern::OneWay,
+            },
+            region,
+        }
+        .passes()
+        .map_err(bad)?
+    };
+    let mut out = Output::new(a.output.as_deref());
+    let n_points: usize;
+    if a.five_axis {
+        let fa = FiveAxis {
+            lead: a.lead.to_radians(),
+            tilt: a.tilt.to_radians(),
+            axis_length: positive("axis-length", a.axis_length)?,
+        };
+        let mut runs = Vec::new();
+        for p in &passes {
+            runs.extend(fa.pass(&dc, p).map_err(bad)?);
+        }
+        n_points = runs.iter().map(Vec::len).sum();
+        let mut w = ClWriter::new(&mut out);
+        w.comment(&format!(
+            "microcam 5-axis CL data: x y z (tool tip) x1 y1 z1 (point on the tool axis), mm; cutter {cutter}, lead {} deg, tilt {} deg, from {name}",
+            a.lead, a.tilt
+        ))?;
+        write_cldata5(&mut w, &runs, safe_z)?;
+        w.finish()?;
+    } else {
+        let adaptive = match a.chord_tol {
+            Some(t) => {
+                let t = positive("chord-tol", t)?;
+                Some(Adaptive {
+                    chord_tol: t,
+                    min_step: positive("min-step", a.min_step.unwrap_or(t))?,
+                })
+            }
+            None => None,
+        };
+        let flat: Vec<P2> = passes.iter().flatten().copied().collect();
+        let dropped = dc.drop_many(&flat, floor);
+        let mut cl: Vec<Vec<P3>> = Vec::with_capacity(passes.len());
+        let mut at = 0;
+        for p in &passes {
+            let pass = &dropped[at..at + p.len()];
+            at += p.len();
+            cl.push(match &adaptive {
+                Some(ad) => ad.refine(&dc, pass, floor),
+                None => pass.to_vec(),
+            });
+        }
+        n_points = cl.iter().map(Vec::len).sum();
+        match (&a.gcode, a.format) {
+            (Some(d), _) => {
+                let dialect: Dialect = d.parse().map_err(CliError::input)?;
+                let recs = toolpath_records(&cl, safe_z, feeds);
+                write_gcode(
+                    recs.into_iter().map(Ok::<_, CliError>),
+                    FeedUnit::MmPerS,
+                    write_options(dialect, &a.writer),
+                    &name,
+                    &mut out,
+                )?;
+            }
+            (None, FormatArg::Toolpath) => {
+                let mut w = ToolpathWriter::new(&mut out);
+                w.header(&Header {
+                    feed_unit: FeedUnit::MmPerS,
+                    source: Some(name.clone()),
+                })?;
+                for r in toolpath_records(&cl, safe_z, feeds) {
+                    w.record(&r)?;
+                }
+                w.finish()?;
+            }
+            (None, FormatArg::Cl) => {
+                let mut w = ClWriter::new(&mut out);
+                w.comment(&format!(
+                    "microcam CL data: x y z (tool tip), mm; cutter {cutter}, safe z {safe_z}, from {name}"
+                ))?;
+                write_cldata(&mut w, &cl, safe_z)?;
+                w.finish()?;
+            }
+        }
+    }
+    out.commit()?;
+    eprintln!(
+        "pathgen: dropcutter: {} triangles, {} passes, {n_points} CL points",
+        loaded.mesh.triangles.len(),
+        passes.len(),
+    );
+    Ok(())
+}

@@ -1,0 +1,212 @@
+//! End-to-end tests of `pathgen dropcutter` on project-made meshes and the
+//! corpus STL files.
+
+use microcam::corpus;
+use microcam::formats::cldata::read_cldata;
+use std::path::Path;
+use std::process::Command;
+
+fn pathgen() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_pathgen"))
+}
+
+/// Binary STL of triangles.
+fn write_stl(path: &Path, tris: &[[[f64; 3]; 3]]) {
+    let mut b = vec![0u8; 80];
+    b.extend((tris.len() as u32).to_le_bytes());
+    for t in tris {
+        b.extend([0u8; 12]);
+        for v in t {
+            for c in v {
+                b.extend((*c as f32).to_le_bytes());
+            }
+        }
+        b.extend([0u8; 2]);
+    }
+    std::fs::write(path, b).unwrap();
+}
+
+/// Upper half of a UV sphere of radius `r` about the origin.
+fn hemisphere(r: f64, nu: usize, nv: usize) -> Vec<[[f64; 3]; 3]> {
+    let p = |i: usize, j: usize| {
+        let th = std::f64::consts::FRAC_PI_2 * i as f64 / nv as f64;
+        let ph = std::f64::consts::TAU * j as f64 / nu as f64;
+        [r * th.sin() * ph.cos(), r * th.sin() * ph.sin(), r * th.cos()]
+    };
+    let mut t = Vec::new();
+    for i in 0..nv {
+        for j in 0..nu {
+            if i > 0 {
+                t.push([p(i, j), p(i + 1, j), p(i, j + 1)]);
+            }
+            t.push([p(i + 1, j), p(i + 1, j + 1), p(i, j + 1)]);
+        }
+    }
+    t
+}
+
+#[test]
+fn ball_on_a_sphere_gives_the_offset_sphere() {
+    let dir = tempfile::tempdir().unwrap();
+    let stl = dir.path().join("s.stl");
+    write_stl(&stl, &hemisphere(5.0, 128, 32));
+    let out = pathgen()
+        .args([
+            "dropcutter",
+            stl.to_str().unwrap(),
+            "--cutter",
+            "ball:1",
+            "--step-over",
+            "0.5",
+        ])
+        .args(["--region", "-3,-3,3,3"])
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let d = read_cldata(&out.stdout[..]).unwrap();
+    assert_eq!(d.points.len(), 13 * 13);
+    for p in &d.points {
+        let want = (5.5f64 * 5.5 - p.x * p.x - p.y * p.y).sqrt() - 0.5;
+        assert!(p.z <= want + 1e-6 && p.z > want - 0.01, "{p:?} vs {want}");
+    }
+    // Same input, same bytes.
+    let again = pathgen()
+        .args([
+            "dropcutter",
+            stl.to_str().unwrap(),
+            "--cutter",
+            "ball:1",
+            "--step-over",
+            "0.5",
+        ])
+        .args(["--region", "-3,-3,3,3"])
+        .output()
+        .unwrap();
+    assert_eq!(out.stdout, again.stdout);
+}
+
+#[test]
+fn toolpath_gcode_adaptive_and_five_axis_outputs() {
+    let dir = tempfile::tempdir().unwrap();
+    let stl = dir.path().join("s.stl");
+    write_stl(&stl, &hemisphere(5.0, 64, 16));
+    let s = stl.to_str().unwrap();
+    let run = |args: &[&str]| pathgen().arg("dropcutter").arg(s).args(args).output().unwrap();
+    let tp = run(&[
+        "--cutter",
+        "flat:1",
+        "--step-over",
+        "1",
+        "--pattern",
+        "one-way",
+        "--format",
+        "toolpath",
+    ]);
+    assert!(tp.status.success());
+    let text = String::from_utf8(tp.stdout).unwrap();
+    assert!(text.starts_with("{\"schema\":\"microcam.toolpath/1\""));
+    assert!(text.contains("\"type\":\"rapid\"") && text.contains("\"role\":\"plunge\""));
+    let g = run(&["--cutter", "torus:1:0.2", "--step-over", "1", "--gcode", "iso"]);
+    assert!(g.status.success());
+    let g = String::from_utf8(g.stdout).unwrap();
+    assert!(g.contains("G1") && g.contains("G0"));
+    // Adaptive sampling adds points to a coarse raster.
+    let coarse = run(&["--cutter", "ball:1", "--step-over", "2"]);
+    let fine = run(&["--cutter", "ball:1", "--step-over", "2", "--chord-tol", "0.001"]);
+    let (c, f) = (
+        read_cldata(&coarse.stdout[..]).unwrap(),
+        read_cldata(&fine.stdout[..]).unwrap(),
+    );
+    assert!(
+        f.points.len() > 2 * c.points.len(),
+        "{} {}",
+        f.points.len(),
+        c.points.len()
+    );
+    // 5-axis: six numbers a row, axis points `--axis-length` from the tip.
+    let five = run(&[
+        "--cutter",
+        "flat:1",
+        "--step-over",
+        "1",
+        "--region",
+        "-2,-2,2,2",
+        "--five-axis",
+        "--lead",
+        "5",
+    ]);
+    assert!(five.status.success(), "{}", String::from_utf8_lossy(&five.stderr));
+    let d = read_cldata(&five.stdout[..]).unwrap();
+    assert!(d.is_five_axis() && d.points.len() == d.axis.len());
+    for (p, q) in d.points.iter().zip(&d.axis) {
+        assert!(((q - p).norm() - 50.0).abs() < 1e-6);
+    }
+    let ball5 = run(&["--cutter", "ball:1", "--step-over", "1", "--five-axis"]);
+    assert_eq!(ball5.status.code(), Some(2));
+}
+
+#[test]
+fn bad_input_exits_2_and_writes_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let bad = dir.path().join("bad.stl");
+    std::fs::write(&bad, "solid x\n facet normal 0 0 1\n outer loop\n vertex 1 2\n").unwrap();
+    let out_file = dir.path().join("out.cl");
+    let o = pathgen()
+        .args([
+            "dropcutter",
+            bad.to_str().unwrap(),
+            "--cutter",
+            "ball:1",
+            "--step-over",
+            "1",
+            "-o",
+        ])
+        .arg(&out_file)
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("bad.stl"));
+    assert!(!out_file.exists());
+    let stl = dir.path().join("s.stl");
+    write_stl(&stl, &hemisphere(1.0, 8, 4));
+    for args in [
+        vec!["--cutter", "drill:1", "--step-over", "1"],
+        vec!["--cutter", "ball:1"],
+        vec!["--cutter", "ball:1", "--step-over", "0"],
+        vec!["--cutter", "ball:1", "--step-over", "1", "--region", "1,1,0,0"],
+        vec!["--cutter", "ball:1", "--step-over", "1e-9"],
+    ] {
+        let o = pathgen().arg("dropcutter").arg(&stl).args(&args).output().unwrap();
+        assert_eq!(o.status.code(), Some(2), "{args:?}");
+        assert!(o.stdout.is_empty());
+    }
+}
+
+#[test]
+fn every_corpus_stl_drops_or_is_refused() {
+    let files = corpus::files("stl", &[".stl"]);
+    if files.is_empty() {
+        corpus::skip("dropcutter_corpus");
+        return;
+    }
+    for f in &files {
+        let o = pathgen()
+            .arg("dropcutter")
+            .arg(f)
+            .args(["--cutter", "torus:1:0.2", "--step-over", "0.5"])
+            .output()
+            .unwrap();
+        match o.status.code() {
+            Some(0) => {
+                let d = read_cldata(&o.stdout[..]).unwrap();
+                assert!(
+                    !d.points.is_empty() && d.points.iter().all(|p| p.z.is_finite()),
+                    "{f:?}"
+                );
+            }
+            Some(2) => assert!(!o.stderr.is_empty(), "{f:?}"),
+            c => panic!("{f:?}: exit {c:?}"),
+        }
+    }
+    corpus::record("dropcutter_corpus", files.len());
+}
