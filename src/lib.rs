@@ -14,6 +14,8 @@
 //! - [`preview`]: SVG previews of toolpaths.
 //! - [`pmac`]: Turbo PMAC protocol, client, emulator, splitting and upload.
 //! - [`cutter`]: end mill shapes shared by every milling tool.
+//! - [`dexel`]: tri-dexel stock cut by swept tool volumes (3- and 5-axis).
+//! - [`verify`]: CL data in, machined part compared with the design.
 //! - [`mesh`]: triangle meshes (STL, OBJ) and queries on them.
 //! - [`corpus`]: where the shared test corpus lies, for tests and benchmarks.
 //! - [`cli`]: conventions shared by every binary.
@@ -21,6 +23,7 @@
 pub mod cli;
 pub mod corpus;
 pub mod cutter;
+pub mod dexel;
 pub mod dxf;
 pub mod formats;
 pub mod gcode;
