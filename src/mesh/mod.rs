@@ -3,6 +3,26 @@
 //!
 //! A [`Mesh`] is an indexed triangle list in millimetres. Readers, welding,
 //! the topology report, the ray-query BVH and planar sections build on it.
+//!
+//! - [`read`]: one entry point, [`read_path`] / [`read_bytes`], for STL
+//!   (ASCII and binary, [`read_stl`]) and OBJ ([`read_obj`]), with units.
+//! - [`weld`]: merge vertices within a tolerance (spatial hash, linear time).
+//! - [`topology`]: the topology report and the repairs (degenerate and
+//!   duplicate triangles dropped, orientation made consistent).
+//! - [`solids`]: generated closed solids (sphere, torus, cylinder, box).
+//! - [`bvh`]: a bounding-volume hierarchy with ray and nearest-point queries.
+//! - [`slice`]: planar sections at Z levels as closed, nested chains.
+
+pub mod bvh;
+pub mod solids;
+pub mod read;
+pub mod read_obj;
+pub mod read_stl;
+pub mod slice;
+pub mod topology;
+pub mod weld;
+
+pub use read::{Format, Group, LoadedMesh, MeshError, ReadOptions, Units, read_bytes, read_path};
 
 use crate::geometry::{BBox3, P3, V3};
 
@@ -10,19 +30,25 @@ use crate::geometry::{BBox3, P3, V3};
 /// winding gives the outward normal by the right-hand rule.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct Mesh {
+    /// Vertex positions (mm).
     pub vertices: Vec<P3>,
+    /// Triangles as three indices into `vertices`, counter-clockwise seen from outside.
     pub triangles: Vec<[u32; 3]>,
 }
 
 /// One triangle by value, for the geometric queries.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Triangle {
+    /// First corner.
     pub a: P3,
+    /// Second corner.
     pub b: P3,
+    /// Third corner.
     pub c: P3,
 }
 
 impl Triangle {
+    /// A triangle from its corners, in winding order.
     pub fn new(a: P3, b: P3, c: P3) -> Triangle {
         Triangle { a, b, c }
     }
@@ -39,10 +65,12 @@ impl Triangle {
         (l > 0.0 && l.is_finite()).then(|| n / l)
     }
 
+    /// Area (mm²).
     pub fn area(&self) -> f64 {
         0.5 * self.cross().norm()
     }
 
+    /// Box around the three corners.
     pub fn bbox(&self) -> BBox3 {
         let mut b = BBox3::empty();
         b.extend(&self.a);
@@ -61,6 +89,11 @@ impl Mesh {
             self.vertices[b as usize],
             self.vertices[c as usize],
         )
+    }
+
+    /// The triangle on three vertex indices, by value.
+    pub fn triangle_of(&self, t: &[u32; 3]) -> Triangle {
+        Triangle::new(self.vertices[t[0] as usize], self.vertices[t[1] as usize], self.vertices[t[2] as usize])
     }
 
     /// Every triangle by value, in order.

@@ -1,0 +1,187 @@
+use super::*;
+use crate::mesh::solids;
+use proptest::prelude::*;
+
+fn brute_first(m: &Mesh, ray: &Ray) -> Option<f64> {
+    // Möller-Trumbore, for comparison away from edges.
+    let mut best: Option<f64> = None;
+    for t in m.iter_triangles() {
+        let e1 = t.b - t.a;
+        let e2 = t.c - t.a;
+        let p = ray.dir.cross(&e2);
+        let det = e1.dot(&p);
+        if det.abs() < 1e-300 {
+            continue;
+        }
+        let s = ray.origin - t.a;
+        let u = s.dot(&p) / det;
+        let q = s.cross(&e1);
+        let v = ray.dir.dot(&q) / det;
+        let tt = e2.dot(&q) / det;
+        if u >= 0.0 && v >= 0.0 && u + v <= 1.0 && tt >= ray.t_min && tt <= ray.t_max && best.is_none_or(|b| tt < b) {
+            best = Some(tt);
+        }
+    }
+    best
+}
+
+#[test]
+fn rays_hit_an_analytic_sphere_and_box() {
+    let r = 2.0;
+    let m = solids::sphere(P3::origin(), r, 256, 128);
+    let bvh = Bvh::new(&m);
+    // From outside towards the centre: first hit at distance ~ 10 - r
+    // (the mesh is inscribed, so at most the chord sag further).
+    let sag = r * (1.0 - (std::f64::consts::PI / 128.0).cos());
+    for k in 0..50 {
+        let a = k as f64 * 0.37;
+        let b = k as f64 * 0.11 - 2.0;
+        let d = V3::new(a.cos() * b.cos(), a.sin() * b.cos(), b.sin());
+        let ray = Ray::new(P3::origin() + d * 10.0, -d);
+        let h = bvh.first_hit(&ray).unwrap();
+        assert!(h.t >= 10.0 - r - 1e-12 && h.t <= 10.0 - r + sag + 1e-12, "{}", h.t);
+        assert!(h.front);
+        let all = bvh.all_hits(&ray);
+        assert_eq!(all.len(), 2);
+        assert!(!all[1].front);
+        assert!((all[1].t - (10.0 + r)).abs() <= sag + 1e-12);
+    }
+    let bx = solids::cuboid(P3::new(-1.0, -2.0, -3.0), P3::new(1.0, 2.0, 3.0));
+    let bvh = Bvh::new(&bx);
+    let h = bvh.first_hit(&Ray::new(P3::new(0.3, 0.2, 10.0), V3::new(0.0, 0.0, -2.0))).unwrap();
+    assert!((h.t - 3.5).abs() < 1e-15);
+    assert!(bx.triangle(h.triangle as usize).normal().unwrap().z > 0.99);
+    assert!(bvh.first_hit(&Ray::new(P3::new(1.5, 0.0, 10.0), V3::new(0.0, 0.0, -1.0))).is_none());
+    // t range respected.
+    let mut ray = Ray::new(P3::new(0.0, 0.0, 10.0), V3::new(0.0, 0.0, -1.0));
+    ray.t_max = 6.0;
+    assert!(bvh.first_hit(&ray).is_none());
+    ray.t_max = 7.0;
+    assert_eq!(bvh.first_hit(&ray).unwrap().t, 7.0);
+}
+
+#[test]
+fn rays_through_edges_and_vertices_count_once() {
+    // The box's faces are split along diagonals; rays straight down its
+    // grid lines and diagonals pass exactly through edges and vertices.
+    let bx = solids::cuboid(P3::new(0.0, 0.0, 0.0), P3::new(4.0, 4.0, 4.0));
+    let bvh = Bvh::new(&bx);
+    for &(x, y) in &[(0.0, 0.0), (2.0, 2.0), (1.0, 1.0), (4.0, 4.0), (0.0, 2.0), (3.0, 3.0), (4.0, 0.0), (2.0, 0.0)] {
+        for d in [V3::new(0.0, 0.0, -1.0), V3::new(0.0, 0.0, 1.0)] {
+            let ray = Ray::new(P3::new(x, y, 2.0) - d * 10.0, d);
+            let n = bvh.count_hits(&ray);
+            assert!(n % 2 == 0, "({x},{y}) {d:?}: {n} hits");
+        }
+    }
+    // A fine sphere, rays aimed exactly at vertices: even counts.
+    let s = solids::sphere(P3::origin(), 1.0, 32, 16);
+    let bvh = Bvh::new(&s);
+    for (i, v) in s.vertices.iter().enumerate() {
+        let d = (v - P3::new(0.1, 0.2, 0.05)).normalize();
+        let ray = Ray::new(P3::new(0.1, 0.2, 0.05) - d * 5.0, d);
+        assert_eq!(bvh.count_hits(&ray) % 2, 0, "vertex {i}");
+    }
+    assert!(bvh.contains(&P3::new(0.1, 0.2, 0.05)));
+    assert!(!bvh.contains(&P3::new(1.1, 0.2, 0.05)));
+}
+
+#[test]
+fn batch_queries_match_single_ones() {
+    let s = solids::torus(P3::new(0.5, 0.0, 0.0), 3.0, 1.0, 48, 24);
+    let bvh = Bvh::new(&s);
+    let rays: Vec<Ray> = (0..2000)
+        .map(|i| {
+            let a = i as f64 * 0.618;
+            Ray::new(P3::new(a.cos() * 8.0, a.sin() * 8.0, (i % 7) as f64 * 0.3 - 0.95), V3::new(-a.cos(), -a.sin(), 0.01 * (i % 5) as f64))
+        })
+        .collect();
+    let b = bvh.first_hits(&rays);
+    for (r, h) in rays.iter().zip(&b) {
+        assert_eq!(*h, bvh.first_hit(r));
+        let bf = brute_first(&s, r);
+        match (h, bf) {
+            (Some(h), Some(t)) => assert!((h.t - t).abs() < 1e-9, "{} vs {t}", h.t),
+            (None, None) => {}
+            _ => panic!("bvh {h:?} vs brute {bf:?}"),
+        }
+    }
+    let all = bvh.all_hits_batch(&rays);
+    assert!(all.iter().all(|h| h.len() % 2 == 0));
+    let pts: Vec<P3> = rays.iter().map(|r| r.origin).collect();
+    let nb = bvh.nearest_batch(&pts);
+    assert_eq!(nb[3], bvh.nearest(&pts[3]));
+}
+
+fn brute_nearest(m: &Mesh, p: &P3) -> f64 {
+    m.iter_triangles()
+        .map(|t| (closest_on_triangle(p, &t.a, &t.b, &t.c) - p).norm())
+        .fold(f64::INFINITY, f64::min)
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(64))]
+
+    #[test]
+    fn nearest_point_matches_brute_force(x in -6.0f64..6.0, y in -6.0f64..6.0, z in -6.0f64..6.0, seed in 0u32..4) {
+        let m = match seed {
+            0 => solids::sphere(P3::new(0.3, 0.0, 0.0), 2.0, 24, 12),
+            1 => solids::torus(P3::origin(), 3.0, 1.0, 24, 12),
+            2 => solids::cylinder(P3::new(0.0, 0.0, -2.0), P3::new(1.0, 2.0, 3.0), 1.5, 20, 4),
+            _ => solids::cuboid(P3::new(-1.0, -2.0, -0.5), P3::new(1.0, 2.0, 0.5)),
+        };
+        let bvh = Bvh::new(&m);
+        let p = P3::new(x, y, z);
+        let n = bvh.nearest(&p).unwrap();
+        let bf = brute_nearest(&m, &p);
+        prop_assert!((n.distance - bf).abs() < 1e-12, "{} vs {}", n.distance, bf);
+        prop_assert!(((n.point - p).norm() - n.distance).abs() < 1e-12);
+        let t = m.triangle(n.triangle as usize);
+        prop_assert!(((closest_on_triangle(&p, &t.a, &t.b, &t.c) - p).norm() - bf).abs() < 1e-12);
+    }
+
+    #[test]
+    fn random_rays_agree_with_brute_force(ox in -6.0f64..6.0, oy in -6.0f64..6.0, oz in -6.0f64..6.0,
+                                          dx in -1.0f64..1.0, dy in -1.0f64..1.0, dz in -1.0f64..1.0) {
+        let m = solids::sphere(P3::new(0.3, 0.0, 0.0), 2.0, 24, 12);
+        let bvh = Bvh::new(&m);
+        prop_assume!(dx.abs() + dy.abs() + dz.abs() > 1e-3);
+        let ray = Ray::new(P3::new(ox, oy, oz), V3::new(dx, dy, dz));
+        let h = bvh.first_hit(&ray).map(|h| h.t);
+        let b = brute_first(&m, &ray);
+        match (h, b) {
+            (Some(a), Some(b)) => prop_assert!((a - b).abs() < 1e-9),
+            (None, None) => {}
+            _ => prop_assert!(false, "{h:?} vs {b:?}"),
+        }
+        let inside = (P3::new(ox, oy, oz) - P3::new(0.3, 0.0, 0.0)).norm() < 1.9;
+        if inside {
+            prop_assert_eq!(bvh.count_hits(&ray), 1);
+        }
+    }
+}
+
+#[test]
+fn empty_and_large_builds() {
+    let bvh = Bvh::new(&Mesh::default());
+    assert!(bvh.is_empty());
+    assert!(bvh.first_hit(&Ray::new(P3::origin(), V3::x())).is_none());
+    assert!(bvh.nearest(&P3::origin()).is_none());
+    // Big enough for the parallel build path.
+    let m = solids::sphere(P3::origin(), 1.0, 256, 80);
+    assert!(m.triangles.len() > PAR_MIN);
+    let bvh = Bvh::new(&m);
+    let mut ids = bvh.ids.clone();
+    ids.sort();
+    assert!(ids.iter().enumerate().all(|(i, &t)| i as u32 == t));
+    let ray = Ray::new(P3::new(0.0, 0.0, 5.0), V3::new(0.01, 0.02, -1.0));
+    let h = bvh.first_hit(&ray).unwrap();
+    let rr = ray.at(h.t).coords.norm();
+    assert!(rr <= 1.0 + 1e-12 && rr >= (std::f64::consts::PI / 80.0).cos(), "{rr}");
+    // Degenerate mesh: every triangle at one point.
+    let p = P3::new(1.0, 1.0, 1.0);
+    let d = Mesh::from_triangles(&vec![crate::mesh::Triangle::new(p, p, p); 100]);
+    let bvh = Bvh::new(&d);
+    assert!(bvh.first_hit(&Ray::new(P3::origin(), V3::new(1.0, 1.0, 1.0))).is_none());
+    assert!((bvh.nearest(&P3::origin()).unwrap().distance - 3f64.sqrt()).abs() < 1e-12);
+}
+

@@ -1,0 +1,509 @@
+//! Planar sections of a mesh at Z levels, as closed nested loops and as
+//! `microcam.chains/1` chains: the planar-section flow of Bayesteh (2013),
+//! slicing a model at Z steps for the beam to fill level by level.
+//!
+//! The mesh must be welded (shared vertices indexed once), so that a
+//! section point is identified by the mesh edge it lies on and the loops
+//! are linked by topology, not by distances. Vertices exactly at the level
+//! count as below it: the section is the limit from just above the plane.
+//! So a plane through a vertex makes no zero-length piece that matters (the
+//! repeated point is removed), a plane along a facet makes none at all, and
+//! a level at a part's flat bottom gives the bottom face's outline while a
+//! level at its flat top gives nothing.
+//!
+//! Each triangle crossing the plane gives one piece, directed so that the
+//! solid lies on its left (outward normal turned by +90° about Z): outer
+//! boundaries run counter-clockwise, holes clockwise. Open or non-manifold
+//! meshes leave open runs; their ends are joined within a tolerance (with
+//! a warning). Nesting depth decides outer versus hole in the end, whatever
+//! the triangles said: even depth counter-clockwise, odd clockwise.
+
+use std::collections::HashMap;
+
+use super::Mesh;
+use crate::geometry::{P2, P3};
+use crate::model::chain::{Chain, Segment};
+use crate::paths::arcfit;
+use crate::paths::elem::Elem;
+
+/// How to section.
+#[derive(Debug, Clone, Copy)]
+pub struct SliceOptions {
+    /// Open runs whose ends are closer than this are joined (mm).
+    pub join_tol: f64,
+    /// A point this close to the line through its neighbours is dropped
+    /// (straight pieces merged), mm.
+    pub collinear_tol: f64,
+    /// Fit arcs within this (mm) to runs of short pieces; `None` keeps the
+    /// polygon.
+    pub arc_tol: Option<f64>,
+}
+
+impl Default for SliceOptions {
+    fn default() -> Self {
+        SliceOptions {
+            join_tol: 1e-3,
+            collinear_tol: 1e-9,
+            arc_tol: None,
+        }
+    }
+}
+
+/// One closed loop of a section.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Loop {
+    /// Corners in order, the first not repeated at the end.
+    pub points: Vec<P2>,
+    /// How many other loops enclose it (0 = outer boundary).
+    pub depth: usize,
+    /// False when its ends could not be joined within the tolerance (left
+    /// open, written as an open chain).
+    pub closed: bool,
+}
+
+impl Loop {
+    /// Signed area (mm², positive counter-clockwise).
+    pub fn area(&self) -> f64 {
+        polygon_area(&self.points)
+    }
+}
+
+/// The section at one level.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Section {
+    /// The level (mm).
+    pub z: f64,
+    /// Its loops, outer boundaries counter-clockwise and holes clockwise.
+    pub loops: Vec<Loop>,
+    /// What was mended (gaps joined) or could not be, one sentence each.
+    pub warnings: Vec<String>,
+}
+
+/// Signed area of a closed polygon (shoelace).
+pub fn polygon_area(p: &[P2]) -> f64 {
+    let n = p.len();
+    (0..n).map(|i| p[i].x * p[(i + 1) % n].y - p[(i + 1) % n].x * p[i].y).sum::<f64>() * 0.5
+}
+
+/// Levels every `step` from the top of `[zmin, zmax]` down (the first one
+/// step below the top) or from the bottom up (the first at the bottom).
+pub fn step_levels(zmin: f64, zmax: f64, step: f64, from_top: bool) -> Vec<f64> {
+    let mut out = Vec::new();
+    if !(step > 0.0) || !(zmax >= zmin) {
+        return out;
+    }
+    let n = ((zmax - zmin) / step).floor() as usize + 1;
+    let eps = 1e-9 * (zmax - zmin).max(step);
+    for k in 0..n.min(10_000_000) {
+        if from_top {
+            let z = zmax - (k + 1) as f64 * step;
+            if z < zmin - eps {
+                break;
+            }
+            out.push(z.max(zmin));
+        } else {
+            let z = zmin + k as f64 * step;
+            if z >= zmax - eps {
+                break;
+            }
+            out.push(z);
+        }
+    }
+    out
+}
+
+type EdgeKey = (u32, u32);
+
+/// The section of a welded mesh at `z`.
+pub fn section(mesh: &Mesh, z: f64, opts: &SliceOptions) -> Section {
+    let v = &mesh.vertices;
+    let below = |i: u32| v[i as usize].z <= z;
+    // Crossing point of an edge, computed in one canonical order so the two
+    // triangles on the edge get the identical point.
+    let cross = |k: EdgeKey| {
+        let (a, b) = (v[k.0 as usize], v[k.1 as usize]);
+        let (lo, hi) = if a.z <= z { (a, b) } else { (b, a) };
+        let t = (z - lo.z) / (hi.z - lo.z);
+        if t <= 0.0 {
+            P2::new(lo.x, lo.y)
+        } else {
+            P2::new(lo.x + (hi.x - lo.x) * t, lo.y + (hi.y - lo.y) * t)
+        }
+    };
+    let key = |a: u32, b: u32| (a.min(b), a.max(b));
+    // Pieces: (from edge, to edge).
+    let mut pieces: Vec<(EdgeKey, EdgeKey)> = Vec::new();
+    for t in &mesh.triangles {
+        let b = [below(t[0]), below(t[1]), below(t[2])];
+        let nb = b.iter().filter(|&&x| x).count();
+        if nb == 0 || nb == 3 {
+            continue;
+        }
+        let (mut down, mut up) = (None, None);
+        for k in 0..3 {
+            let (p, q) = (t[k], t[(k + 1) % 3]);
+            match (b[k], b[(k + 1) % 3]) {
+                (false, true) => down = Some(key(p, q)),
+                (true, false) => up = Some(key(p, q)),
+                _ => {}
+            }
+        }
+        if let (Some(d), Some(u)) = (down, up) {
+            pieces.push((d, u));
+        }
+    }
+    // Link pieces by shared edges.
+    let mut by_start: HashMap<EdgeKey, Vec<usize>> = HashMap::with_capacity(pieces.len());
+    for (i, p) in pieces.iter().enumerate() {
+        by_start.entry(p.0).or_default().push(i);
+    }
+    let mut by_end: HashMap<EdgeKey, Vec<usize>> = HashMap::new();
+    for (i, p) in pieces.iter().enumerate() {
+        by_end.entry(p.1).or_default().push(i);
+    }
+    let mut used = vec![false; pieces.len()];
+    let mut runs: Vec<(Vec<EdgeKey>, bool)> = Vec::new();
+    for s in 0..pieces.len() {
+        if used[s] {
+            continue;
+        }
+        used[s] = true;
+        let first = pieces[s].0;
+        let mut keys = vec![first, pieces[s].1];
+        let mut closed = false;
+        loop {
+            let end = *keys.last().expect("a run has keys");
+            if end == first {
+                keys.pop();
+                closed = true;
+                break;
+            }
+            let next = by_start.get(&end).and_then(|l| l.iter().copied().find(|&j| !used[j]));
+            match next {
+                Some(j) => {
+                    used[j] = true;
+                    keys.push(pieces[j].1);
+                }
+                None => break,
+            }
+        }
+        // Extend backwards too, for runs started mid-way on an open mesh.
+        if !closed {
+            loop {
+                let prev = by_end.get(&keys[0]).and_then(|l| l.iter().copied().find(|&j| !used[j]));
+                match prev {
+                    Some(j) => {
+                        used[j] = true;
+                        keys.insert(0, pieces[j].0);
+                    }
+                    None => break,
+                }
+            }
+        }
+        runs.push((keys, closed));
+    }
+    let mut warnings = Vec::new();
+    let mut closed_pts: Vec<Vec<P2>> = Vec::new();
+    let mut open_pts: Vec<Vec<P2>> = Vec::new();
+    for (keys, closed) in runs {
+        let pts: Vec<P2> = keys.iter().map(|&k| cross(k)).collect();
+        if closed {
+            closed_pts.push(pts);
+        } else {
+            open_pts.push(pts);
+        }
+    }
+    let (joined, left_open) = join_open(open_pts, opts.join_tol, &mut warnings);
+    closed_pts.extend(joined);
+    let mut loops: Vec<Loop> = Vec::new();
+    for pts in closed_pts {
+        let pts = clean(pts, opts.collinear_tol, true);
+        if pts.len() >= 3 && polygon_area(&pts).abs() > 0.0 {
+            loops.push(Loop {
+                points: pts,
+                depth: 0,
+                closed: true,
+            });
+        }
+    }
+    for pts in left_open {
+        let pts = clean(pts, opts.collinear_tol, false);
+        if pts.len() >= 2 {
+            loops.push(Loop {
+                points: pts,
+                depth: 0,
+                closed: false,
+            });
+        }
+    }
+    nest(&mut loops);
+    Section { z, loops, warnings }
+}
+
+/// Join open runs end to start (or end to end, reversing one) while the
+/// nearest gap is within `tol`; a run whose own ends meet is closed.
+fn join_open(mut runs: Vec<Vec<P2>>, tol: f64, warnings: &mut Vec<String>) -> (Vec<Vec<P2>>, Vec<Vec<P2>>) {
+    let mut closed = Vec::new();
+    let mut open = Vec::new();
+    let mut joins = 0usize;
+    let mut worst = 0.0f64;
+    while let Some(mut cur) = runs.pop() {
+        loop {
+            let end = *cur.last().expect("runs are not empty");
+            let self_gap = (end - cur[0]).norm();
+            // Nearest other run start (or end, reversed).
+            let mut best: Option<(f64, usize, bool)> = None;
+            for (i, r) in runs.iter().enumerate() {
+                for (p, rev) in [(r[0], false), (*r.last().expect("not empty"), true)] {
+                    let d = (p - end).norm();
+                    if best.is_none_or(|b| d < b.0) {
+                        best = Some((d, i, rev));
+                    }
+                }
+            }
+            if self_gap <= tol && best.is_none_or(|b| self_gap <= b.0) {
+                if self_gap > 0.0 {
+                    joins += 1;
+                    worst = worst.max(self_gap);
+                }
+                closed.push(cur);
+                break;
+            }
+            match best {
+                Some((d, i, rev)) if d <= tol => {
+                    let mut r = runs.swap_remove(i);
+                    if rev {
+                        r.reverse();
+                    }
+                    if d > 0.0 {
+                        joins += 1;
+                        worst = worst.max(d);
+                    }
+                    let skip = (d == 0.0) as usize;
+                    cur.extend(r.into_iter().skip(skip));
+                }
+                _ => {
+                    open.push(cur);
+                    break;
+                }
+            }
+        }
+    }
+    if joins > 0 {
+        warnings.push(format!("joined {joins} gaps in the section (largest {worst:.3e} mm): the mesh is open or not manifold here"));
+    }
+    if !open.is_empty() {
+        warnings.push(format!("{} pieces of the section stay open (gaps larger than {tol} mm)", open.len()));
+    }
+    (closed, open)
+}
+
+/// Drop repeated points and points on the line through their neighbours.
+fn clean(pts: Vec<P2>, col_tol: f64, closed: bool) -> Vec<P2> {
+    let mut out: Vec<P2> = Vec::with_capacity(pts.len());
+    for p in pts {
+        if out.last().is_none_or(|q| *q != p) {
+            out.push(p);
+        }
+    }
+    if closed {
+        while out.len() > 1 && out.first() == out.last() {
+            out.pop();
+        }
+    }
+    // Remove collinear points until none is left (each pass is linear).
+    loop {
+        let n = out.len();
+        if n < 3 {
+            return out;
+        }
+        let mut keep = vec![true; n];
+        let mut removed = false;
+        let mut prev = if closed { n - 1 } else { 0 };
+        let range = if closed { 0..n } else { 1..n - 1 };
+        for i in range {
+            let next = (i + 1) % n;
+            let (a, b, c) = (out[prev], out[i], out[next]);
+            let ac = c - a;
+            let l = ac.norm();
+            let off = if l > 0.0 { (b - a).perp(&ac).abs() / l } else { (b - a).norm() };
+            // Only when b lies between a and c: a spike back is a real corner.
+            if off <= col_tol && (b - a).dot(&ac) >= 0.0 && (c - b).dot(&ac) >= 0.0 {
+                keep[i] = false;
+                removed = true;
+            } else {
+                prev = i;
+            }
+        }
+        if !removed {
+            return out;
+        }
+        out = out.into_iter().zip(keep).filter_map(|(p, k)| k.then_some(p)).collect();
+    }
+}
+
+fn inside(p: &P2, poly: &[P2]) -> bool {
+    let mut c = false;
+    let n = poly.len();
+    let mut j = n - 1;
+    for i in 0..n {
+        let (a, b) = (poly[i], poly[j]);
+        if (a.y > p.y) != (b.y > p.y) && p.x < (b.x - a.x) * (p.y - a.y) / (b.y - a.y) + a.x {
+            c = !c;
+        }
+        j = i;
+    }
+    c
+}
+
+/// Depth of each closed loop (loops containing it) and orientation by it.
+fn nest(loops: &mut [Loop]) {
+    let boxes: Vec<(P2, P2)> = loops
+        .iter()
+        .map(|l| {
+            let mut lo = P2::new(f64::INFINITY, f64::INFINITY);
+            let mut hi = P2::new(f64::NEG_INFINITY, f64::NEG_INFINITY);
+            for p in &l.points {
+                lo = P2::new(lo.x.min(p.x), lo.y.min(p.y));
+                hi = P2::new(hi.x.max(p.x), hi.y.max(p.y));
+            }
+            (lo, hi)
+        })
+        .collect();
+    let n = loops.len();
+    let mut depth = vec![0usize; n];
+    for i in 0..n {
+        if !loops[i].closed {
+            continue;
+        }
+        // A point inside loop i near its first edge, so a loop touching
+        // another at a vertex is still placed right.
+        let p = probe(&loops[i].points);
+        for j in 0..n {
+            if i == j || !loops[j].closed {
+                continue;
+            }
+            let (lo, hi) = boxes[j];
+            if p.x < lo.x || p.x > hi.x || p.y < lo.y || p.y > hi.y {
+                continue;
+            }
+            if inside(&p, &loops[j].points) {
+                depth[i] += 1;
+            }
+        }
+    }
+    for (l, d) in loops.iter_mut().zip(depth) {
+        l.depth = d;
+        if l.closed {
+            let ccw = l.area() > 0.0;
+            if ccw != (d % 2 == 0) {
+                l.points.reverse();
+            }
+        }
+    }
+}
+
+/// The midpoint of a loop's longest edge, nudged a hair to the loop's
+/// inside; a point of the loop's own region near its boundary.
+fn probe(p: &[P2]) -> P2 {
+    let n = p.len();
+    let i = (0..n)
+        .max_by(|&a, &b| (p[(a + 1) % n] - p[a]).norm().total_cmp(&(p[(b + 1) % n] - p[b]).norm()))
+        .unwrap_or(0);
+    let (a, b) = (p[i], p[(i + 1) % n]);
+    let m = P2::new(0.5 * (a.x + b.x), 0.5 * (a.y + b.y));
+    let d = b - a;
+    let sgn = if polygon_area(p) > 0.0 { 1.0 } else { -1.0 };
+    let nrm = crate::geometry::V2::new(-d.y, d.x) * (sgn * 1e-7);
+    m + nrm
+}
+
+/// Chains (Z on every point) from sections: one chain per loop, ids from
+/// `first_id`; with `arc_tol`, arcs fitted within it to the polygon.
+pub fn to_chains(sections: &[Section], arc_tol: Option<f64>, first_id: u64) -> Vec<Chain> {
+    let mut out = Vec::new();
+    let mut id = first_id;
+    for s in sections {
+        for l in &s.loops {
+            let segments = loop_segments(l, s.z, arc_tol);
+            if segments.is_empty() {
+                continue;
+            }
+            out.push(Chain {
+                id,
+                layer: Some(if l.depth % 2 == 0 { "outer".into() } else { "hole".into() }),
+                closed: l.closed,
+                segments,
+                points: Vec::new(),
+                repairs: if l.closed { Vec::new() } else { vec!["left open: gap larger than the join tolerance".into()] },
+            });
+            id += 1;
+        }
+    }
+    out
+}
+
+fn loop_segments(l: &Loop, z: f64, arc_tol: Option<f64>) -> Vec<Segment> {
+    let lift = |p: &P2| P3::new(p.x, p.y, z);
+    let mut pts = l.points.clone();
+    if l.closed {
+        // Start at the sharpest corner, so the fit's own seam is a corner.
+        let n = pts.len();
+        let turn = |k: usize| {
+            let (a, b) = (pts[k] - pts[(k + n - 1) % n], pts[(k + 1) % n] - pts[k]);
+            a.perp(&b).atan2(a.dot(&b)).abs()
+        };
+        let s = (0..n).max_by(|&a, &b| turn(a).total_cmp(&turn(b))).unwrap_or(0);
+        pts.rotate_left(s);
+        pts.push(pts[0]);
+    }
+    match arc_tol {
+        Some(tol) if tol > 0.0 && pts.len() > 3 => {
+            let fit = arcfit::fit_points(&pts, tol, z, true);
+            let mut segs: Vec<Segment> = fit
+                .iter()
+                .map(|e| match e {
+                    Elem::Line(li) => Segment::Line {
+                        start: li.start,
+                        end: li.end,
+                    },
+                    Elem::Arc(a) => Segment::Arc {
+                        start: a.start,
+                        end: a.end,
+                        center: a.center,
+                        ccw: a.ccw,
+                    },
+                })
+                .collect();
+            // Snap the seam exactly.
+            if l.closed
+                && let (Some(f), Some(last)) = (segs.first().map(|s| s.start()), segs.last_mut())
+            {
+                match last {
+                    Segment::Line { end, .. } | Segment::Arc { end, .. } => *end = f,
+                }
+            }
+            segs
+        }
+        _ => pts.windows(2).map(|w| Segment::Line { start: lift(&w[0]), end: lift(&w[1]) }).collect(),
+    }
+}
+
+/// Signed area enclosed by a closed chain of lines and XY arcs (mm²).
+pub fn chain_area(c: &Chain) -> f64 {
+    let mut a = 0.0;
+    for s in &c.segments {
+        let (p, q) = (s.start(), s.end());
+        a += 0.5 * (p.x * q.y - q.x * p.y);
+        if let Segment::Arc { start, end, center, ccw } = s {
+            let th = crate::model::chain::arc_sweep(start, end, center, *ccw);
+            let r2 = (start - center).xy().norm_squared();
+            a += 0.5 * r2 * (th - th.sin());
+        }
+    }
+    a
+}
+
+#[cfg(test)]
+#[path = "slice_tests.rs"]
+mod tests;
