@@ -35,3 +35,4 @@ pub mod pmac;
 pub mod preview;
 pub mod sim;
 pub mod source;
+pub mod verify;

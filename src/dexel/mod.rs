@@ -55,7 +55,6 @@ pub struct Family {
     lo: f64,
     hi: f64,
     tp: usize,
-    tq: usize,
     tiles: Vec<Option<Box<Tile>>>,
 }
 
@@ -92,6 +91,7 @@ impl Family {
             return Err(DexelError::TooMany(total));
         }
         let (tp, tq) = (np.div_ceil(TILE), nq.div_ceil(TILE));
+        let tiles = vec![None; tp * tq];
         Ok(Family {
             dir,
             p,
@@ -105,8 +105,7 @@ impl Family {
             lo: min[dir],
             hi: max[dir],
             tp,
-            tq,
-            tiles: vec![None; tp * tq],
+            tiles,
         })
     }
 
