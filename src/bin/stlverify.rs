@@ -10,7 +10,7 @@ use microcam::mesh::read::{ReadOptions as MeshOptions, read_path};
 use microcam::sim::picture::write_png;
 use microcam::sim::stl::{Heights, write_heights_stl};
 use microcam::source::ToolpathSource;
-use microcam::verify::compare::{Design, Sample, Stats, profiles_csv, sample, steps};
+use microcam::verify::compare::{Design, Sample, Stats, points_csv, profiles_csv, sample, steps};
 use microcam::verify::{Job, cl, plot, simulate};
 use serde_json::json;
 use std::io::Write;
@@ -100,6 +100,9 @@ struct Args {
     /// A scallop profile along X at this Y (repeatable).
     #[arg(long, value_name = "Y", allow_hyphen_values = true)]
     profile_y: Vec<f64>,
+    /// Every grid ray as CSV (x, y, design and machined tops, deviation).
+    #[arg(long, value_name = "FILE.csv")]
+    points: Option<PathBuf>,
     /// Profiles as CSV.
     #[arg(long, value_name = "FILE.csv")]
     profiles: Option<PathBuf>,
@@ -176,7 +179,11 @@ fn run(args: Args) -> Result<(), CliError> {
     }
     positive(args.step_forward, "--step-forward")?;
     if args.design.is_none()
-        && (args.svg.is_some() || args.png.is_some() || args.profiles.is_some() || args.profiles_svg.is_some())
+        && (args.svg.is_some()
+            || args.png.is_some()
+            || args.profiles.is_some()
+            || args.profiles_svg.is_some()
+            || args.points.is_some())
     {
         return Err(CliError::input("--svg, --png and --profiles need --design"));
     }
@@ -293,6 +300,9 @@ fn run(args: Args) -> Result<(), CliError> {
                        "max_gouge_mm": s.max_gouge_mm, "rms_mm": s.rms_mm})
             }).collect::<Vec<_>>(),
         });
+        if let Some(p) = args.points.as_deref() {
+            write_file(p, points_csv(&samples).as_bytes())?;
+        }
         if let Some(p) = args.profiles.as_deref() {
             write_file(p, profiles_csv(&profiles).as_bytes())?;
         }

@@ -148,6 +148,23 @@ pub fn profiles_csv(profiles: &[(f64, Vec<Sample>)]) -> String {
     s
 }
 
+/// Grid rays as CSV: `x_mm,y_mm,design_z_mm,machined_z_mm,deviation_mm`.
+pub fn points_csv(samples: &[Sample]) -> String {
+    let mut s = String::from("x_mm,y_mm,design_z_mm,machined_z_mm,deviation_mm\n");
+    let f = |v: Option<f64>| v.filter(|v| v.is_finite()).map_or(String::new(), |v| format!("{v:.6}"));
+    for p in samples {
+        s.push_str(&format!(
+            "{:.6},{:.6},{},{},{}\n",
+            p.x,
+            p.y,
+            f(p.design_z),
+            f(Some(p.machined_z)),
+            f(p.deviation())
+        ));
+    }
+    s
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
