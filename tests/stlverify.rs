@@ -16,7 +16,11 @@ fn thesis() -> Option<PathBuf> {
     let mut v: Vec<PathBuf> = std::fs::read_dir(shared)
         .ok()?
         .filter_map(|e| e.ok().map(|e| e.path()))
-        .filter(|p| p.file_name().and_then(|n| n.to_str()).is_some_and(|n| n.starts_with("001_")))
+        .filter(|p| {
+            p.file_name()
+                .and_then(|n| n.to_str())
+                .is_some_and(|n| n.starts_with("001_"))
+        })
         .collect();
     v.sort();
     v.into_iter().next()
@@ -53,7 +57,10 @@ fn run(args: &[&str]) -> (i32, serde_json::Value) {
 
 /// Area of the union of stadiums (segment, radius) inside [0,25] x [0,50],
 /// by columns: each stadium covers one y-interval per column.
-fn stadium_union_area(segs: &[((f64, f64), (f64, f64))], r: f64) -> f64 {
+/// A straight move of the tool centre in XY: start and end.
+type Seg = ((f64, f64), (f64, f64));
+
+fn stadium_union_area(segs: &[Seg], r: f64) -> f64 {
     let (x0, x1, n) = (0.0, 25.0, 50_000);
     let dx = (x1 - x0) / n as f64;
     let mut area = 0.0;
@@ -108,7 +115,16 @@ fn singh_2014_annexures_end_to_end() {
 
     // Annexure 1: 49 locations at z = -9.5 in two passes (x 10 and 11).
     let (code, r) = run(&[
-        "--stock", STOCK, "--tool", "flat:6", "--flute-length", "10", "--spacing", "0.1", "--stl", &p("a1.stl"),
+        "--stock",
+        STOCK,
+        "--tool",
+        "flat:6",
+        "--flute-length",
+        "10",
+        "--spacing",
+        "0.1",
+        "--stl",
+        &p("a1.stl"),
         &a1.display().to_string(),
     ]);
     assert_eq!(code, 0);
@@ -118,7 +134,11 @@ fn singh_2014_annexures_end_to_end() {
     // sweeps (two passes and the link between them) times the depth.
     let want = 9.5
         * stadium_union_area(
-            &[((10.0, 0.5), (10.0, 12.5)), ((10.0, 12.5), (11.0, 0.5)), ((11.0, 0.5), (11.0, 12.0))],
+            &[
+                ((10.0, 0.5), (10.0, 12.5)),
+                ((10.0, 12.5), (11.0, 0.5)),
+                ((11.0, 0.5), (11.0, 12.0)),
+            ],
             3.0,
         );
     let got = r["removed_volume_mm3"].as_f64().unwrap();
@@ -133,9 +153,29 @@ fn singh_2014_annexures_end_to_end() {
     // height-field STL slants a vertical wall across one cell, so vertical
     // rays there compare the slant); pictures and profiles too.
     let (code, r) = run(&[
-        "--stock", STOCK, "--tool", "flat:6", "--flute-length", "10", "--spacing", "0.1", "--design", &p("a1.stl"),
-        "--region", "7.5,13.5,2,10", "--png", &p("a1.png"), "--svg", &p("a1.svg"), "--profile-y", "10",
-        "--profiles", &p("a1.csv"), "--profiles-svg", &p("a1p.svg"), &a1.display().to_string(),
+        "--stock",
+        STOCK,
+        "--tool",
+        "flat:6",
+        "--flute-length",
+        "10",
+        "--spacing",
+        "0.1",
+        "--design",
+        &p("a1.stl"),
+        "--region",
+        "7.5,13.5,2,10",
+        "--png",
+        &p("a1.png"),
+        "--svg",
+        &p("a1.svg"),
+        "--profile-y",
+        "10",
+        "--profiles",
+        &p("a1.csv"),
+        "--profiles-svg",
+        &p("a1p.svg"),
+        &a1.display().to_string(),
     ]);
     assert_eq!(code, 0, "{r}");
     let v = &r["verification"];
@@ -149,14 +189,27 @@ fn singh_2014_annexures_end_to_end() {
 
     // Annexure 2: 48 five-axis locations, the axis tilting up to ~50°.
     let (code, r) = run(&[
-        "--stock", STOCK, "--tool", "flat:6", "--flute-length", "10", "--spacing", "0.1", "--stl", &p("a2.stl"),
+        "--stock",
+        STOCK,
+        "--tool",
+        "flat:6",
+        "--flute-length",
+        "10",
+        "--spacing",
+        "0.1",
+        "--stl",
+        &p("a2.stl"),
         &a2.display().to_string(),
     ]);
     assert_eq!(code, 0);
     assert_eq!(r["locations"], 48);
     assert_eq!(r["five_axis"], true);
     let fam = &r["removed_volume_by_family_mm3"];
-    let (x, y, z) = (fam["x"].as_f64().unwrap(), fam["y"].as_f64().unwrap(), fam["z"].as_f64().unwrap());
+    let (x, y, z) = (
+        fam["x"].as_f64().unwrap(),
+        fam["y"].as_f64().unwrap(),
+        fam["z"].as_f64().unwrap(),
+    );
     assert!(z > 500.0, "{z}");
     for v in [x, y] {
         assert!((v - z).abs() < 0.01 * z, "families disagree: {x} {y} {z}");
@@ -168,8 +221,19 @@ fn singh_2014_annexures_end_to_end() {
     let box_stl = d.join("box.stl");
     write_box(&box_stl, [0.0, 0.0, -40.0], [25.0, 50.0, 0.0]);
     let (code, r) = run(&[
-        "--stock", STOCK, "--tool", "flat:6", "--flute-length", "10", "--spacing", "0.1", "--design",
-        &box_stl.display().to_string(), "--region", "0,4,10,30", &a2.display().to_string(),
+        "--stock",
+        STOCK,
+        "--tool",
+        "flat:6",
+        "--flute-length",
+        "10",
+        "--spacing",
+        "0.1",
+        "--design",
+        &box_stl.display().to_string(),
+        "--region",
+        "0,4,10,30",
+        &a2.display().to_string(),
     ]);
     assert_eq!(code, 1);
     let v = &r["verification"];

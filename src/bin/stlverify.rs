@@ -266,7 +266,8 @@ fn run(args: Args) -> Result<(), CliError> {
     }
     let mut failed = false;
     if let Some(dp) = args.design.as_deref() {
-        let loaded = read_path(dp, &MeshOptions::default()).map_err(|e| CliError::in_file(&dp.display().to_string(), e))?;
+        let loaded =
+            read_path(dp, &MeshOptions::default()).map_err(|e| CliError::in_file(&dp.display().to_string(), e))?;
         let design = Design::new(&loaded.mesh);
         let r = match args.region.as_deref() {
             Some(s) => numbers::<4>(s, "--region", "X0,X1,Y0,Y1")?,
@@ -310,7 +311,10 @@ fn run(args: Args) -> Result<(), CliError> {
             write_file(p, plot::profiles_svg(&profiles, band).as_bytes())?;
         }
         if let Some(p) = args.svg.as_deref() {
-            write_file(p, plot::map_svg(&samples, &xs, &ys, band, "stlverify deviation map").as_bytes())?;
+            write_file(
+                p,
+                plot::map_svg(&samples, &xs, &ys, band, "stlverify deviation map").as_bytes(),
+            )?;
         }
         if let Some(p) = args.png.as_deref() {
             let (w, h, rgb) = plot::map_rgb(&samples, xs.len(), ys.len(), band);
@@ -320,7 +324,11 @@ fn run(args: Args) -> Result<(), CliError> {
         }
     }
     let mut out = Output::new(args.output.as_deref());
-    writeln!(out, "{}", serde_json::to_string_pretty(&report).map_err(|e| CliError::failure(e.to_string()))?)?;
+    writeln!(
+        out,
+        "{}",
+        serde_json::to_string_pretty(&report).map_err(|e| CliError::failure(e.to_string()))?
+    )?;
     out.commit()?;
     if failed {
         return Err(CliError::failure("points outside the tolerance band (see the report)"));

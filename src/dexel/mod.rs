@@ -137,7 +137,7 @@ impl Family {
         let a = ((lo - o) / h - 0.5).ceil().max(0.0);
         let b = ((hi - o) / h - 0.5).floor() + 1.0;
         let b = b.min(n as f64);
-        if !(a < b) { (0, 0) } else { (a as usize, b as usize) }
+        if a < b { (a as usize, b as usize) } else { (0, 0) }
     }
 
     fn cut(&mut self, sweeps: &[MoveSweep]) -> CutStats {
@@ -185,7 +185,11 @@ impl Family {
             let (j0, j1) = Self::range(self.q0, self.hq, self.nq, s.lo[self.q], s.hi[self.q]);
             let (i0, i1) = (i0.max(ti * TILE), i1.min((ti + 1) * TILE));
             let (j0, j1) = (j0.max(tj * TILE), j1.min((tj + 1) * TILE));
-            let per = if s.coarse.is_some() { s.fine.len() / s.substeps } else { 0 };
+            let per = if s.coarse.is_some() {
+                s.fine.len() / s.substeps
+            } else {
+                0
+            };
             for j in j0..j1 {
                 for i in i0..i1 {
                     let (pp, qq) = self.ray_pos(i, j);

@@ -113,7 +113,8 @@ impl Piece {
             let v = a + b * t - c * u;
             v.dot(&v) <= r2 + EPS * (1.0 + r2)
         };
-        let lin_ok = |t: f64, u: f64, skip: usize| lins.iter().enumerate().all(|(k, l)| k == skip || l.at(t, u) >= -EPS);
+        let lin_ok =
+            |t: f64, u: f64, skip: usize| lins.iter().enumerate().all(|(k, l)| k == skip || l.at(t, u) >= -EPS);
         let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
         let mut take = |t: f64| {
             lo = lo.min(t);
@@ -292,15 +293,16 @@ mod tests {
             s1: 0.2,
             d: V3::new(1.0, 1.0, -0.5),
         };
-        for (o, e) in [
-            (P3::new(0.5, 0.5, 0.0), V3::z()),
-            (P3::new(0.0, 1.1, -0.4), V3::x()),
-        ] {
+        for (o, e) in [(P3::new(0.5, 0.5, 0.0), V3::z()), (P3::new(0.0, 1.1, -0.4), V3::x())] {
             let got = p.interval(&o, &e).unwrap();
             let want = sampled(&p, &o, &e).unwrap();
             assert!((got.0 - want.0).abs() < 0.02 && (got.1 - want.1).abs() < 0.02);
         }
-        let still = Piece { d: V3::zeros(), s1: 1.0, ..p };
+        let still = Piece {
+            d: V3::zeros(),
+            s1: 1.0,
+            ..p
+        };
         let (t0, t1) = still.interval(&P3::new(0.6, 0.0, 0.0), &V3::z()).unwrap();
         assert!((t0 + 0.8).abs() < 1e-9 && (t1 - 0.8).abs() < 1e-9);
         assert!(still.interval(&P3::new(1.01, 0.0, 0.0), &V3::z()).is_none());

@@ -69,7 +69,7 @@ impl Tile {
             }
             return;
         }
-        if !(r[0] <= r[1]) || c1 <= r[0] || c0 >= r[1] {
+        if r[0] > r[1] || c1 <= r[0] || c0 >= r[1] {
             return;
         }
         let mut out = Vec::new();

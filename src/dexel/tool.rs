@@ -249,7 +249,10 @@ mod tests {
     #[test]
     fn turning_axis_splits_and_culling_copy_holds_sub_moves() {
         let tool = ToolShape {
-            cutter: Cutter::Torus { radius: 2.0, corner: 0.5 },
+            cutter: Cutter::Torus {
+                radius: 2.0,
+                corner: 0.5,
+            },
             length: 6.0,
         };
         let a = Location {

@@ -121,7 +121,10 @@ fn rects(hf: &Heights, tol: f64) -> Vec<Rect> {
             let gy = 0.5 * (z(i, j + 1) - z0 + z(i + 1, j + 1) - z(i + 1, j));
             let ok = |a: usize, b: usize| (z(a, b) - (z0 + gx * (a - i) as f64 + gy * (b - j) as f64)).abs() <= tol;
             let (mut w, mut h) = (1, 1);
-            if [(i, j), (i + 1, j), (i, j + 1), (i + 1, j + 1)].iter().all(|&(a, b)| ok(a, b)) {
+            if [(i, j), (i + 1, j), (i, j + 1), (i + 1, j + 1)]
+                .iter()
+                .all(|&(a, b)| ok(a, b))
+            {
                 while i + w < sx && !used[j * sx + i + w] && ok(i + w + 1, j) && ok(i + w + 1, j + 1) {
                     w += 1;
                 }
@@ -311,7 +314,10 @@ mod tests {
             }
         }
         let area = (s.nx - 1) as f64 * (s.ny - 1) as f64 * s.cell * s.cell;
-        assert!((vol - want).abs() <= st.max_deviation_bound_mm * area, "{vol} vs {want}");
+        assert!(
+            (vol - want).abs() <= st.max_deviation_bound_mm * area,
+            "{vol} vs {want}"
+        );
         // Every height within the bound of the mesh, seen from above.
         let mesh = crate::mesh::Mesh::from_triangles(
             &tris
@@ -327,7 +333,14 @@ mod tests {
         for j in 0..s.ny {
             for i in 0..s.nx {
                 let (x, y) = (s.x0 + (i as f64 + 0.5) * s.cell, s.y0 + (j as f64 + 0.5) * s.cell);
-                let ray = crate::mesh::bvh::Ray::new(P3::new(x + if i + 1 == s.nx { -1e-7 } else { 1e-7 }, y + if j + 1 == s.ny { -1.3e-7 } else { 1.3e-7 }, 5.0), -crate::geometry::V3::z());
+                let ray = crate::mesh::bvh::Ray::new(
+                    P3::new(
+                        x + if i + 1 == s.nx { -1e-7 } else { 1e-7 },
+                        y + if j + 1 == s.ny { -1.3e-7 } else { 1.3e-7 },
+                        5.0,
+                    ),
+                    -crate::geometry::V3::z(),
+                );
                 let hit = bvh.first_hit(&ray).expect("a top over every centre");
                 worst = worst.max((5.0 - hit.t - s.z[j * s.nx + i]).abs());
             }

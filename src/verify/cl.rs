@@ -63,7 +63,10 @@ pub fn read_cl<R: BufRead>(r: R) -> Result<(Vec<Location>, bool), ClError> {
             nums.remove(0);
         }
         if nums.len() != 3 && nums.len() != 6 {
-            return Err(bad(ln, format!("{} numbers; expected x y z or x y z x1 y1 z1", nums.len())));
+            return Err(bad(
+                ln,
+                format!("{} numbers; expected x y z or x y z x1 y1 z1", nums.len()),
+            ));
         }
         if nums.iter().any(|v| !v.is_finite()) {
             return Err(bad(ln, "a number is not finite"));
@@ -79,7 +82,7 @@ pub fn read_cl<R: BufRead>(r: R) -> Result<(Vec<Location>, bool), ClError> {
         let axis = if nums.len() == 6 {
             let v = P3::new(nums[3], nums[4], nums[5]) - tip;
             let l = v.norm();
-            if !(l > 1e-9) {
+            if l.is_nan() || l <= 1e-9 {
                 return Err(bad(ln, "the second axis point is on the tool tip"));
             }
             v / l

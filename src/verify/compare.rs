@@ -177,7 +177,16 @@ mod tests {
             design_z: Some(1.0),
             machined_z: 1.0 + d,
         };
-        let v = [mk(0.05), mk(-0.05), mk(0.2), mk(-0.3), Sample { design_z: None, ..mk(0.0) }];
+        let v = [
+            mk(0.05),
+            mk(-0.05),
+            mk(0.2),
+            mk(-0.3),
+            Sample {
+                design_z: None,
+                ..mk(0.0)
+            },
+        ];
         let s = Stats::of(&v, 0.1);
         assert_eq!((s.in_band, s.excess, s.gouge, s.not_compared), (2, 1, 1, 1));
         assert!((s.max_gouge_mm - 0.3).abs() < 1e-12 && (s.max_excess_mm - 0.2).abs() < 1e-12);

@@ -100,8 +100,14 @@ impl SweepIndex {
             if s.hi[0] < min.x || s.lo[0] > max.x || s.hi[1] < min.y || s.lo[1] > max.y {
                 continue;
             }
-            let (i0, i1) = (clampi((s.lo[0] - min.x) / cell, nx), clampi((s.hi[0] - min.x) / cell, nx));
-            let (j0, j1) = (clampi((s.lo[1] - min.y) / cell, ny), clampi((s.hi[1] - min.y) / cell, ny));
+            let (i0, i1) = (
+                clampi((s.lo[0] - min.x) / cell, nx),
+                clampi((s.hi[0] - min.x) / cell, nx),
+            );
+            let (j0, j1) = (
+                clampi((s.lo[1] - min.y) / cell, ny),
+                clampi((s.hi[1] - min.y) / cell, ny),
+            );
             for j in j0..=j1 {
                 for i in i0..=i1 {
                     bins[j * nx + i].push(k as u32);

@@ -11,7 +11,9 @@ const GREY: [u8; 3] = [190, 190, 190];
 
 /// Colour of one deviation against ±band.
 pub fn colour(d: Option<f64>, band: f64) -> [u8; 3] {
-    let Some(d) = d.filter(|d| d.is_finite()) else { return GREY };
+    let Some(d) = d.filter(|d| d.is_finite()) else {
+        return GREY;
+    };
     if d < -band {
         GOUGE
     } else if d > band {
@@ -129,7 +131,7 @@ pub fn profiles_svg(profiles: &[(f64, Vec<Sample>)], band: f64) -> String {
             d1 = d1.max(d);
         }
     }
-    if !(x0 < x1) {
+    if x0.partial_cmp(&x1) != Some(std::cmp::Ordering::Less) {
         x1 = x0 + 1.0;
     }
     let pad = 0.1 * (d1 - d0).max(1e-6);
