@@ -81,6 +81,7 @@ bench: build
 	python3 -c "import manifold3d" 2>/dev/null || python3 -m pip install -q manifold3d
 	scripts/bench/removal --gsim $(BIN)/gsim --passes 6000
 	scripts/bench/upload
+	scripts/bench/stlverify
 	scripts/bench/pathgen
 	scripts/bench/loops
 	scripts/bench/rays

@@ -18,6 +18,8 @@
 //! - [`pocket`]: freeform grid pockets (the Iowa State grid-pocket thesis, 1999).
 //! - [`cutter`]: end mill shapes shared by every milling tool.
 //! - [`dropcutter`]: 3- and 5-axis cutter locations on meshes.
+//! - [`dexel`]: tri-dexel stock cut by swept tool volumes (3- and 5-axis).
+//! - [`verify`]: CL data in, machined part compared with the design.
 //! - [`mesh`]: triangle meshes (STL, OBJ) and queries on them.
 //! - [`probe`]: rotating-wire probe scanning and measurement.
 //! - [`corpus`]: where the shared test corpus lies, for tests and benchmarks.
@@ -26,6 +28,7 @@
 pub mod cli;
 pub mod corpus;
 pub mod cutter;
+pub mod dexel;
 pub mod dropcutter;
 pub mod dxf;
 pub mod feedopt;
@@ -43,3 +46,4 @@ pub mod preview;
 pub mod probe;
 pub mod sim;
 pub mod source;
+pub mod verify;

@@ -9,12 +9,12 @@
 use cavalier_contours::polyline::{PlineSourceMut, Polyline};
 use microcam::cutter::Cutter;
 use microcam::geometry::{Arc3, P2, P3};
+use microcam::machine::Machine;
 use microcam::model::toolpath::{MotionKind, Record};
 use microcam::pocket::layers::Feeds;
 use microcam::pocket::motion::{FitOptions, MotionMode};
 use microcam::pocket::surface::{BezierPatch, Surface};
 use microcam::pocket::{Job, Layers, PocketSpec, Strategy, plan};
-use microcam::machine::Machine;
 use std::process::Command;
 
 const UM: f64 = 1e-3;

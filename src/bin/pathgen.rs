@@ -23,12 +23,12 @@ use microcam::source::ToolpathSource;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-#[path = "pathgen/slice.rs"]
-mod slice;
-#[path = "pathgen/pocket.rs"]
-mod pocket;
 #[path = "pathgen/dropcutter.rs"]
 mod dropcutter;
+#[path = "pathgen/pocket.rs"]
+mod pocket;
+#[path = "pathgen/slice.rs"]
+mod slice;
 
 const EXAMPLES: &str = "\
 Examples:

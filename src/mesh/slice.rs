@@ -22,9 +22,9 @@ use std::collections::HashMap;
 
 use super::Mesh;
 use crate::geometry::{P2, P3};
-use crate::model::chain::{Chain, Segment};
 use crate::laser::arcfit;
 use crate::laser::elem::Elem;
+use crate::model::chain::{Chain, Segment};
 
 /// How to section.
 #[derive(Debug, Clone, Copy)]

@@ -21,8 +21,8 @@ use super::grid::Region;
 use super::motion::{FitOptions, MotionMode, fit_run};
 use super::passes::{Pass, PassKind, lift};
 use crate::geometry::{Line3, P2, P3};
-use crate::model::toolpath::{ArcData, Motion, MotionKind, Record, Role};
 use crate::laser::elem::Elem;
+use crate::model::toolpath::{ArcData, Motion, MotionKind, Record, Role};
 
 /// Feeds (mm/s) and heights (mm) of the job.
 #[derive(Debug, Clone, Copy, PartialEq)]

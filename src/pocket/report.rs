@@ -8,9 +8,9 @@
 use super::layers::Program;
 use crate::formats::push_num;
 use crate::geometry::P3;
+use crate::machine::Machine;
 use crate::model::toolpath::{FeedUnit, Header, MotionKind, Record};
 use crate::sim::beam::CommandTiming;
-use crate::machine::Machine;
 use crate::sim::report::Simulator;
 
 /// Thesis Fig. 35 between two neighbours `g` apart whose heights differ

@@ -2,13 +2,13 @@
 //! simulation ([`super::report::Simulator`]) collected, written at the edge.
 
 use super::beam::{BeamModel, ChainExposure, match_chains};
-use crate::machine::Machine;
 use super::picture::Overlay;
 use super::report::{RemovalStats, TimeStats};
 use super::stock::Stock;
 use super::summary::Summary;
 use super::time::Limit;
 use crate::formats::{push_num, push_str_lit, push_uint};
+use crate::machine::Machine;
 use crate::model::chain::Chain;
 
 /// The report's schema name.
@@ -138,8 +138,16 @@ impl Report {
         b.push_str(",\"beam\":{\"command_timing\":\"");
         b.push_str(m.timing.name());
         b.push('"');
-        field(b, "open_latency_ms", self.machine.shutter_or_instant().open_latency_s() * 1e3);
-        field(b, "close_latency_ms", self.machine.shutter_or_instant().close_latency_s() * 1e3);
+        field(
+            b,
+            "open_latency_ms",
+            self.machine.shutter_or_instant().open_latency_s() * 1e3,
+        );
+        field(
+            b,
+            "close_latency_ms",
+            self.machine.shutter_or_instant().close_latency_s() * 1e3,
+        );
         field(b, "shutter_opens", m.opens as f64);
         field(b, "shutter_open_time_s", m.light_time_s);
         field(b, "intended_length_mm", m.intended_mm());

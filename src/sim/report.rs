@@ -5,7 +5,6 @@
 //! written by [`super::gsim_json`].
 
 use super::beam::{BeamModel, CommandTiming, EXAMPLES};
-use crate::machine::{Controller, Machine};
 use super::picture::Overlay;
 use super::removal::{CutBlock, CutMove, Engine};
 use super::stock::Stock;
@@ -14,6 +13,7 @@ use super::time::{Block, Event, Limit, MoveClass, TimeModel, TimedBlock};
 use crate::cutter::Cutter;
 use crate::formats::{push_num, push_uint};
 use crate::geometry::{Arc3, BBox3, P3, V3};
+use crate::machine::{Controller, Machine};
 use crate::model::toolpath::{Header, MotionKind, Record};
 use std::io::Write;
 use thiserror::Error;

@@ -1,14 +1,23 @@
-//! The simulated stock as a watertight binary STL.
+//! The simulated stock as a watertight binary STL whose size follows the
+//! surface, not the resolution.
 //!
-//! Vertices sit at the cell centres at their heights (the top surface,
-//! two triangles per square of four centres) and at the same points on the
-//! stock's bottom (the bottom surface, same triangulation, facing down);
-//! walls join the outline of the two. Every edge is shared by exactly two
-//! triangles with opposite directions, so the mesh is closed and
-//! consistently oriented (outward normals), which Boolean tools and slicers
-//! require. The part covered is the box between the outermost cell centres,
-//! half a cell inside the stock box on each side.
-
+//! The heights sit at cell centres (gsim's height field, or the tops of
+//! stlverify's Z dexels). Squares of four neighbouring centres are merged
+//! greedily into rectangles whose heights all lie within `tol` of one
+//! plane (flat floors and the untouched top become a few large pieces;
+//! rough regions stay one square each). A vertex is kept where it is the
+//! corner of some rectangle; every rectangle is triangulated through all
+//! kept vertices on its border (two triangles when only its corners are
+//! kept, else a fan from its centre), so neighbours share every edge and
+//! there are no T-junctions. The walls and the bottom use the kept
+//! vertices of the outline. Every edge is shared by exactly two triangles
+//! with opposite directions, so the mesh is closed and consistently
+//! oriented (outward normals), which Boolean tools and slicers require.
+//! No surface point strays more than `2·tol` from the heights (each
+//! rectangle lies within `tol` of its plane, and so do its vertices); the
+//! default `tol` is a quarter of the cell, so half a cell at most.
+//! The part covered is the box between the outermost cell centres, half a
+//! cell inside the stock box on each side.
 use super::stock::Stock;
 use std::io::{self, Write};
 
@@ -42,67 +51,202 @@ fn tri(out: &mut Vec<u8>, a: V, b: V, c: V) {
     out.extend_from_slice(&[0, 0]);
 }
 
-/// Number of triangles [`write_stl`] writes for a stock.
-pub fn triangle_count(s: &Stock) -> u64 {
-    let (nx, ny) = (s.nx as u64, s.ny as u64);
-    if nx < 2 || ny < 2 {
-        return 0;
-    }
-    4 * (nx - 1) * (ny - 1) + 4 * ((nx - 1) + (ny - 1))
+/// A height field to mesh: heights at `(x0 + (i + ½)·dx, y0 + (j + ½)·dy)`,
+/// row-major, above a flat bottom.
+#[derive(Debug, Clone, Copy)]
+pub struct Heights<'a> {
+    pub x0: f64,
+    pub y0: f64,
+    pub dx: f64,
+    pub dy: f64,
+    pub nx: usize,
+    pub ny: usize,
+    pub z: &'a [f64],
+    pub bottom: f64,
 }
 
-/// Write the stock as binary STL. A stock narrower than two cells on an
-/// axis has no centre grid to mesh and is an error.
-pub fn write_stl<W: Write>(s: &Stock, w: &mut W) -> io::Result<()> {
-    if s.nx < 2 || s.ny < 2 {
+impl<'a> From<&'a Stock> for Heights<'a> {
+    fn from(s: &'a Stock) -> Self {
+        Heights {
+            x0: s.x0,
+            y0: s.y0,
+            dx: s.cell,
+            dy: s.cell,
+            nx: s.nx,
+            ny: s.ny,
+            z: &s.z,
+            bottom: s.bottom,
+        }
+    }
+}
+
+/// What [`write_heights_stl`] wrote.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StlStats {
+    pub triangles: u64,
+    /// Triangles one-per-half-square meshing would have written.
+    pub per_cell_triangles: u64,
+    /// Rectangles the top was merged into.
+    pub pieces: u64,
+    /// Guaranteed bound on the vertical distance from any height to the
+    /// mesh, mm.
+    pub max_deviation_bound_mm: f64,
+}
+
+/// A merged rectangle of squares and its plane (in index units).
+struct Rect {
+    i: usize,
+    j: usize,
+    w: usize,
+    h: usize,
+    z0: f64,
+    gx: f64,
+    gy: f64,
+}
+
+/// Greedy merge of squares into near-planar rectangles.
+fn rects(hf: &Heights, tol: f64) -> Vec<Rect> {
+    let (nx, ny) = (hf.nx, hf.ny);
+    let z = |i: usize, j: usize| hf.z[j * nx + i].max(hf.bottom);
+    let (sx, sy) = (nx - 1, ny - 1);
+    let mut used = vec![false; sx * sy];
+    let mut out = Vec::new();
+    for j in 0..sy {
+        for i in 0..sx {
+            if used[j * sx + i] {
+                continue;
+            }
+            let z0 = z(i, j);
+            let gx = 0.5 * (z(i + 1, j) - z0 + z(i + 1, j + 1) - z(i, j + 1));
+            let gy = 0.5 * (z(i, j + 1) - z0 + z(i + 1, j + 1) - z(i + 1, j));
+            let ok = |a: usize, b: usize| (z(a, b) - (z0 + gx * (a - i) as f64 + gy * (b - j) as f64)).abs() <= tol;
+            let (mut w, mut h) = (1, 1);
+            if [(i, j), (i + 1, j), (i, j + 1), (i + 1, j + 1)]
+                .iter()
+                .all(|&(a, b)| ok(a, b))
+            {
+                while i + w < sx && !used[j * sx + i + w] && ok(i + w + 1, j) && ok(i + w + 1, j + 1) {
+                    w += 1;
+                }
+                'rows: while j + h < sy {
+                    for a in i..i + w {
+                        if used[(j + h) * sx + a] {
+                            break 'rows;
+                        }
+                    }
+                    for a in i..=i + w {
+                        if !ok(a, j + h + 1) {
+                            break 'rows;
+                        }
+                    }
+                    h += 1;
+                }
+            }
+            for b in j..j + h {
+                for a in i..i + w {
+                    used[b * sx + a] = true;
+                }
+            }
+            out.push(Rect { i, j, w, h, z0, gx, gy });
+        }
+    }
+    out
+}
+
+/// Write `hf` as binary STL, merging squares within `tol` of a plane. A
+/// grid narrower than two cells on an axis is an error.
+pub fn write_heights_stl<W: Write>(hf: &Heights, tol: f64, title: &str, w: &mut W) -> io::Result<StlStats> {
+    let (nx, ny) = (hf.nx, hf.ny);
+    if nx < 2 || ny < 2 {
         return Err(io::Error::other("stock needs at least 2 x 2 cells for an STL"));
     }
-    let n = triangle_count(s);
-    let n32 = u32::try_from(n).map_err(|_| io::Error::other("too many triangles for STL; use a larger cell"))?;
-    let mut header = [b' '; 80];
-    let title = b"microcam gsim simulated stock (height field, mm)";
-    header[..title.len()].copy_from_slice(title);
-    w.write_all(&header)?;
-    w.write_all(&n32.to_le_bytes())?;
-    let c = s.cell;
-    let top = |i: usize, j: usize| -> V {
-        [
-            s.x0 + (i as f64 + 0.5) * c,
-            s.y0 + (j as f64 + 0.5) * c,
-            s.z[j * s.nx + i].max(s.bottom),
-        ]
-    };
-    let bot = |i: usize, j: usize| -> V { [s.x0 + (i as f64 + 0.5) * c, s.y0 + (j as f64 + 0.5) * c, s.bottom] };
-    let mut buf = Vec::with_capacity(1 << 20);
-    for j in 0..s.ny - 1 {
-        for i in 0..s.nx - 1 {
-            // Top faces up (counter-clockwise seen from above), bottom down.
-            let (a, b, cc, d) = (top(i, j), top(i + 1, j), top(i + 1, j + 1), top(i, j + 1));
-            tri(&mut buf, a, b, cc);
-            tri(&mut buf, a, cc, d);
-            let (a, b, cc, d) = (bot(i, j), bot(i + 1, j), bot(i + 1, j + 1), bot(i, j + 1));
-            tri(&mut buf, a, cc, b);
-            tri(&mut buf, a, d, cc);
-        }
-        if buf.len() >= 1 << 20 {
-            w.write_all(&buf)?;
-            buf.clear();
+    let rs = rects(hf, tol.max(0.0));
+    let mut kept = vec![false; nx * ny];
+    for r in &rs {
+        for (a, b) in [(r.i, r.j), (r.i + r.w, r.j), (r.i, r.j + r.h), (r.i + r.w, r.j + r.h)] {
+            kept[b * nx + a] = true;
         }
     }
-    // Walls: walk the outline counter-clockwise seen from above; each wall
-    // quad (p, q on top, their feet below) faces outward.
-    let mut outline = Vec::with_capacity(2 * (s.nx + s.ny));
-    outline.extend((0..s.nx - 1).map(|i| (i, 0)));
-    outline.extend((0..s.ny - 1).map(|j| (s.nx - 1, j)));
-    outline.extend((1..s.nx).rev().map(|i| (i, s.ny - 1)));
-    outline.extend((1..s.ny).rev().map(|j| (0, j)));
+    let px = |i: usize| hf.x0 + (i as f64 + 0.5) * hf.dx;
+    let py = |j: usize| hf.y0 + (j as f64 + 0.5) * hf.dy;
+    let top = |i: usize, j: usize| -> V { [px(i), py(j), hf.z[j * nx + i].max(hf.bottom)] };
+    let bot = |i: usize, j: usize| -> V { [px(i), py(j), hf.bottom] };
+    let mut buf = Vec::with_capacity(1 << 20);
+    let mut count: u64 = 0;
+    let mut emit = |buf: &mut Vec<u8>, a: V, b: V, c: V| {
+        tri(buf, a, b, c);
+        count += 1;
+    };
+    let mut ring: Vec<(usize, usize)> = Vec::new();
+    for r in &rs {
+        ring.clear();
+        let (i0, j0, i1, j1) = (r.i, r.j, r.i + r.w, r.j + r.h);
+        ring.extend((i0..i1).map(|a| (a, j0)));
+        ring.extend((j0..j1).map(|b| (i1, b)));
+        ring.extend((i0 + 1..=i1).rev().map(|a| (a, j1)));
+        ring.extend((j0 + 1..=j1).rev().map(|b| (i0, b)));
+        ring.retain(|&(a, b)| kept[b * nx + a]);
+        if ring.len() == 4 {
+            let [a, b, c, d] = [ring[0], ring[1], ring[2], ring[3]].map(|(a, b)| top(a, b));
+            emit(&mut buf, a, b, c);
+            emit(&mut buf, a, c, d);
+        } else {
+            let centre = [
+                0.5 * (px(i0) + px(i1)),
+                0.5 * (py(j0) + py(j1)),
+                r.z0 + r.gx * 0.5 * r.w as f64 + r.gy * 0.5 * r.h as f64,
+            ];
+            for k in 0..ring.len() {
+                let (p, q) = (ring[k], ring[(k + 1) % ring.len()]);
+                emit(&mut buf, centre, top(p.0, p.1), top(q.0, q.1));
+            }
+        }
+    }
+    // Walls: the kept outline vertices counter-clockwise seen from above;
+    // each wall quad (p, q on top, their feet below) faces outward.
+    let mut outline = Vec::with_capacity(2 * (nx + ny));
+    outline.extend((0..nx - 1).map(|i| (i, 0)));
+    outline.extend((0..ny - 1).map(|j| (nx - 1, j)));
+    outline.extend((1..nx).rev().map(|i| (i, ny - 1)));
+    outline.extend((1..ny).rev().map(|j| (0, j)));
+    outline.retain(|&(a, b)| kept[b * nx + a]);
     for k in 0..outline.len() {
         let (p, q) = (outline[k], outline[(k + 1) % outline.len()]);
         let (pt, qt, pb, qb) = (top(p.0, p.1), top(q.0, q.1), bot(p.0, p.1), bot(q.0, q.1));
-        tri(&mut buf, pb, qb, qt);
-        tri(&mut buf, pb, qt, pt);
+        emit(&mut buf, pb, qb, qt);
+        emit(&mut buf, pb, qt, pt);
     }
-    w.write_all(&buf)
+    // Bottom: a fan from its centre, facing down.
+    let c = [0.5 * (px(0) + px(nx - 1)), 0.5 * (py(0) + py(ny - 1)), hf.bottom];
+    for k in 0..outline.len() {
+        let (p, q) = (outline[k], outline[(k + 1) % outline.len()]);
+        emit(&mut buf, c, bot(q.0, q.1), bot(p.0, p.1));
+    }
+    let n32 = u32::try_from(count).map_err(|_| io::Error::other("too many triangles for STL; use a larger cell"))?;
+    let mut header = [b' '; 80];
+    let t = title.as_bytes();
+    let l = t.len().min(80);
+    header[..l].copy_from_slice(&t[..l]);
+    w.write_all(&header)?;
+    w.write_all(&n32.to_le_bytes())?;
+    w.write_all(&buf)?;
+    let (ux, uy) = ((nx - 1) as u64, (ny - 1) as u64);
+    Ok(StlStats {
+        triangles: count,
+        per_cell_triangles: 4 * ux * uy + 4 * (ux + uy),
+        pieces: rs.len() as u64,
+        max_deviation_bound_mm: 2.0 * tol.max(0.0),
+    })
+}
+
+/// Write gsim's stock as binary STL, merged within a quarter cell.
+pub fn write_stl<W: Write>(s: &Stock, w: &mut W) -> io::Result<StlStats> {
+    write_heights_stl(
+        &Heights::from(s),
+        0.25 * s.cell,
+        "microcam gsim simulated stock (height field, mm)",
+        w,
+    )
 }
 
 #[cfg(test)]
@@ -133,9 +277,10 @@ mod tests {
             &Cutter::Ball { radius: 0.5 },
         );
         let mut stl = Vec::new();
-        write_stl(&s, &mut stl).unwrap();
+        let st = write_stl(&s, &mut stl).unwrap();
         let tris = parse(&stl);
-        assert_eq!(tris.len() as u64, triangle_count(&s));
+        assert_eq!(tris.len() as u64, st.triangles);
+        assert!(st.triangles * 3 < st.per_cell_triangles, "{st:?}");
         // Every directed edge once, and its reverse once.
         let key = |v: [f32; 3]| v.map(|x| x.to_bits());
         let mut edges: HashMap<([u32; 3], [u32; 3]), i32> = HashMap::new();
@@ -168,7 +313,39 @@ mod tests {
                 want += area * (h(i, j) + h(i + 1, j + 1) + h(i, j + 1)) / 3.0;
             }
         }
-        assert!((vol - want).abs() < 1e-5 * want, "{vol} vs {want}");
+        let area = (s.nx - 1) as f64 * (s.ny - 1) as f64 * s.cell * s.cell;
+        assert!(
+            (vol - want).abs() <= st.max_deviation_bound_mm * area,
+            "{vol} vs {want}"
+        );
+        // Every height within the bound of the mesh, seen from above.
+        let mesh = crate::mesh::Mesh::from_triangles(
+            &tris
+                .iter()
+                .map(|t| {
+                    let [a, b, c] = t.map(|v| P3::new(v[0] as f64, v[1] as f64, v[2] as f64));
+                    crate::mesh::Triangle::new(a, b, c)
+                })
+                .collect::<Vec<_>>(),
+        );
+        let bvh = crate::mesh::bvh::Bvh::new(&mesh);
+        let mut worst: f64 = 0.0;
+        for j in 0..s.ny {
+            for i in 0..s.nx {
+                let (x, y) = (s.x0 + (i as f64 + 0.5) * s.cell, s.y0 + (j as f64 + 0.5) * s.cell);
+                let ray = crate::mesh::bvh::Ray::new(
+                    P3::new(
+                        x + if i + 1 == s.nx { -1e-7 } else { 1e-7 },
+                        y + if j + 1 == s.ny { -1.3e-7 } else { 1.3e-7 },
+                        5.0,
+                    ),
+                    -crate::geometry::V3::z(),
+                );
+                let hit = bvh.first_hit(&ray).expect("a top over every centre");
+                worst = worst.max((5.0 - hit.t - s.z[j * s.nx + i]).abs());
+            }
+        }
+        assert!(worst <= st.max_deviation_bound_mm + 1e-5, "{worst}");
         assert!(want < 3.9 * 2.9 * 1.0, "the cut is in the mesh");
     }
 }

@@ -14,9 +14,9 @@ use microcam::formats::cldata::ClWriter;
 use microcam::formats::toolpath::ToolpathWriter;
 use microcam::gcode::Dialect;
 use microcam::geometry::{P2, P3};
+use microcam::laser::input::read_chains;
 use microcam::mesh::{ReadOptions, Units};
 use microcam::model::toolpath::{FeedUnit, Header};
-use microcam::laser::input::read_chains;
 use std::io::Read;
 use std::path::PathBuf;
 

@@ -8,12 +8,12 @@ use microcam::cli::{self, CliError, Output};
 use microcam::cutter::Cutter;
 use microcam::geometry::P2;
 use microcam::laser::input::read_chains;
+use microcam::machine::Machine;
 use microcam::pocket::layers::Feeds;
 use microcam::pocket::motion::{FitOptions, MotionMode};
 use microcam::pocket::passes::PassKind;
 use microcam::pocket::surface::{BezierPatch, GridSurface, Interp, Surface};
 use microcam::pocket::{Layers, PocketSpec, Strategy, grid, plan};
-use microcam::machine::Machine;
 use std::io::Write;
 use std::path::PathBuf;
 

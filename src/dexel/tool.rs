@@ -1,0 +1,277 @@
+//! A tool as convex pieces, and a move between two cutter locations as
+//! the pieces swept along straight sub-moves.
+//!
+//! Flat end mill: one cylinder. Ball: a ball on a cylinder. Torus: an
+//! inner cylinder, an outer cylinder above the corner, and the corner
+//! (a tube around the axis) as a ring of balls; the ring lies inside the
+//! tube and every point of the tube is within `π·(R - r)/k` of it for `k`
+//! balls (stated as [`MoveSweep::shape_error_mm`]).
+//!
+//! A move whose tool axis turns (5-axis) is split into `n` sub-moves with
+//! the axis fixed at each sub-move's middle direction (spherical
+//! interpolation of the two axes); the axis then errs by at most
+//! `θ/(2n)`, which moves no tool point by more than `θ/(2n)·√(L² + R²)`.
+//! `n` is chosen so that is at most half the sweep tolerance. A grown copy
+//! of the whole move with the middle axis holds every sub-move, so a dexel
+//! it misses (or whose material it does not touch) skips them all.
+
+use super::sweep::Piece;
+use crate::cutter::Cutter;
+use crate::geometry::{P3, V3};
+
+/// One cutter location: tool tip and unit tool axis (tip towards holder).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Location {
+    pub tip: P3,
+    pub axis: V3,
+}
+
+/// The cutting part of a tool: its shape and flute length (mm).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ToolShape {
+    pub cutter: Cutter,
+    pub length: f64,
+}
+
+impl ToolShape {
+    /// Distance from the tip to the farthest point of the tool.
+    pub fn reach(&self) -> f64 {
+        self.length.hypot(self.cutter.radius())
+    }
+
+    /// Number of balls in a torus corner ring for a shape error `tol`.
+    fn ring_count(&self, tol: f64) -> usize {
+        match self.cutter {
+            Cutter::Torus { radius, corner } => {
+                let rho = radius - corner;
+                if rho <= 0.0 {
+                    1
+                } else {
+                    ((std::f64::consts::TAU * rho / tol).ceil() as usize).clamp(8, 2880)
+                }
+            }
+            _ => 0,
+        }
+    }
+
+    /// The convex pieces of the tool at `loc`, each moving by `d`.
+    pub fn pieces(&self, loc: &Location, d: V3, ring: usize, out: &mut Vec<Piece>) {
+        let (p, a, l) = (loc.tip, loc.axis, self.length);
+        let cyl = |r: f64, s0: f64, s1: f64| Piece {
+            c: p,
+            a,
+            r,
+            cylinder: true,
+            s0,
+            s1,
+            d,
+        };
+        match self.cutter {
+            Cutter::Flat { radius } => out.push(cyl(radius, 0.0, l)),
+            Cutter::Ball { radius } => {
+                out.push(Piece {
+                    c: p + a * radius,
+                    a,
+                    r: radius,
+                    cylinder: false,
+                    s0: -radius,
+                    s1: (l - radius).min(radius),
+                    d,
+                });
+                if l > radius {
+                    out.push(cyl(radius, radius, l));
+                }
+            }
+            Cutter::Torus { radius, corner } => {
+                let rho = radius - corner;
+                if rho > 0.0 {
+                    out.push(cyl(rho, 0.0, l));
+                }
+                if l > corner {
+                    out.push(cyl(radius, corner, l));
+                }
+                let (e1, e2) = perpendiculars(&a);
+                let k = ring.max(1);
+                for i in 0..k {
+                    let phi = std::f64::consts::TAU * i as f64 / k as f64;
+                    out.push(Piece {
+                        c: p + a * corner + (e1 * phi.cos() + e2 * phi.sin()) * rho,
+                        a,
+                        r: corner,
+                        cylinder: false,
+                        s0: -corner,
+                        s1: (l - corner).min(0.0),
+                        d,
+                    });
+                }
+            }
+        }
+    }
+}
+
+/// Two unit vectors across `a` (and each other).
+pub fn perpendiculars(a: &V3) -> (V3, V3) {
+    let helper = if a.x.abs() < 0.9 { V3::x() } else { V3::y() };
+    let e1 = a.cross(&helper).normalize();
+    (e1, a.cross(&e1))
+}
+
+/// Spherical interpolation between unit vectors (`a0` when they are
+/// opposite, which no tool path asks for).
+fn slerp(a0: &V3, a1: &V3, u: f64) -> V3 {
+    let c = a0.dot(a1).clamp(-1.0, 1.0);
+    let th = c.acos();
+    if th < 1e-9 {
+        return *a0;
+    }
+    let s = th.sin();
+    if s < 1e-9 {
+        return *a0;
+    }
+    (a0 * ((1.0 - u) * th).sin() / s + a1 * (u * th).sin() / s).normalize()
+}
+
+/// The volume one move sweeps, as pieces.
+#[derive(Debug, Clone)]
+pub struct MoveSweep {
+    /// Grown pieces holding all of `fine` (`None`: `fine` is one sub-move
+    /// and needs no culling copy).
+    pub coarse: Option<Vec<Piece>>,
+    /// Pieces of every sub-move.
+    pub fine: Vec<Piece>,
+    /// Sub-moves the move was split into.
+    pub substeps: usize,
+    /// Box around everything (min, max).
+    pub lo: [f64; 3],
+    pub hi: [f64; 3],
+    /// Largest distance from the true swept solid to the pieces', mm.
+    pub shape_error_mm: f64,
+}
+
+impl MoveSweep {
+    /// The sweep of `tool` from `from` to `to`, within `tol` mm.
+    pub fn new(tool: &ToolShape, from: &Location, to: &Location, tol: f64) -> MoveSweep {
+        let theta = from.axis.dot(&to.axis).clamp(-1.0, 1.0).acos();
+        let reach = tool.reach();
+        let n = if theta < 1e-12 {
+            1
+        } else {
+            ((theta * reach / tol).ceil() as usize).clamp(1, 100_000)
+        };
+        let ring = tool.ring_count(tol);
+        let mut fine = Vec::new();
+        for k in 0..n {
+            let (u0, u1) = (k as f64 / n as f64, (k + 1) as f64 / n as f64);
+            let p0 = from.tip + (to.tip - from.tip) * u0;
+            let p1 = from.tip + (to.tip - from.tip) * u1;
+            let axis = slerp(&from.axis, &to.axis, 0.5 * (u0 + u1));
+            tool.pieces(&Location { tip: p0, axis }, p1 - p0, ring, &mut fine);
+        }
+        let axis_err = if n > 1 { theta / (2.0 * n as f64) * reach } else { 0.0 };
+        let ring_err = if ring > 0 {
+            std::f64::consts::PI * (tool.cutter.radius() - tool.cutter.corner_radius()) / ring as f64
+        } else {
+            0.0
+        };
+        let coarse = (n > 1).then(|| {
+            let mut v = Vec::new();
+            let axis = slerp(&from.axis, &to.axis, 0.5);
+            tool.pieces(&Location { tip: from.tip, axis }, to.tip - from.tip, ring, &mut v);
+            let grow = 0.5 * theta * reach + 1e-9;
+            v.iter().map(|p| p.grown(grow)).collect()
+        });
+        let mut lo = [f64::INFINITY; 3];
+        let mut hi = [f64::NEG_INFINITY; 3];
+        for p in coarse.as_deref().unwrap_or(&fine[..]) {
+            let (l, h) = p.bbox();
+            for k in 0..3 {
+                lo[k] = lo[k].min(l[k]);
+                hi[k] = hi[k].max(h[k]);
+            }
+        }
+        MoveSweep {
+            coarse,
+            fine,
+            substeps: n,
+            lo,
+            hi,
+            shape_error_mm: axis_err + ring_err,
+        }
+    }
+
+    /// The interval the whole move removes from the line `o + t·e` (the
+    /// hull of the pieces' intervals; the pieces of one tool overlap, so
+    /// for a convex tool that is exact per sub-move), judged with the
+    /// culling copy when there is one.
+    pub fn hull(&self, o: &P3, e: &V3) -> Option<(f64, f64)> {
+        let pieces = self.coarse.as_deref().unwrap_or(&self.fine[..]);
+        hull_of(pieces, o, e)
+    }
+}
+
+/// Smallest interval holding every piece's interval on the line.
+pub fn hull_of(pieces: &[Piece], o: &P3, e: &V3) -> Option<(f64, f64)> {
+    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+    for p in pieces {
+        if let Some((a, b)) = p.interval(o, e) {
+            lo = lo.min(a);
+            hi = hi.max(b);
+        }
+    }
+    (lo <= hi).then_some((lo, hi))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn flat_tool_vertical_ray_hits_bottom_and_top() {
+        let tool = ToolShape {
+            cutter: Cutter::Flat { radius: 3.0 },
+            length: 10.0,
+        };
+        let a = Location {
+            tip: P3::new(0.0, 0.0, -9.5),
+            axis: V3::z(),
+        };
+        let b = Location {
+            tip: P3::new(0.0, 5.0, -9.5),
+            axis: V3::z(),
+        };
+        let s = MoveSweep::new(&tool, &a, &b, 0.005);
+        assert_eq!(s.substeps, 1);
+        let (t0, t1) = s.hull(&P3::new(2.9, 2.0, 0.0), &V3::z()).unwrap();
+        assert!((t0 + 9.5).abs() < 1e-9 && (t1 - 0.5).abs() < 1e-9);
+        assert!(s.hull(&P3::new(3.1, 2.0, 0.0), &V3::z()).is_none());
+    }
+
+    #[test]
+    fn turning_axis_splits_and_culling_copy_holds_sub_moves() {
+        let tool = ToolShape {
+            cutter: Cutter::Torus {
+                radius: 2.0,
+                corner: 0.5,
+            },
+            length: 6.0,
+        };
+        let a = Location {
+            tip: P3::new(0.0, 0.0, 0.0),
+            axis: V3::z(),
+        };
+        let b = Location {
+            tip: P3::new(1.0, 0.0, 0.0),
+            axis: V3::new(0.3, 0.0, 1.0).normalize(),
+        };
+        let s = MoveSweep::new(&tool, &a, &b, 0.05);
+        assert!(s.substeps > 10);
+        assert!(s.shape_error_mm <= 0.05 + 1e-12);
+        for i in 0..40 {
+            let o = P3::new(-3.0 + 0.2 * i as f64, 0.37, 0.0);
+            if let Some((f0, f1)) = hull_of(&s.fine, &o, &V3::z()) {
+                let (c0, c1) = s.hull(&o, &V3::z()).unwrap();
+                assert!(c0 <= f0 && c1 >= f1);
+            }
+        }
+    }
+}

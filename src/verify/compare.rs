@@ -1,0 +1,198 @@
+//! Rays on a grid: the design's and the machined part's top surface at
+//! each point, and what the differences say (Singh 2014: rays cast along
+//! Z over a region at a step forward and a step over, excess material
+//! and gouges judged against a ±band).
+
+use super::Simulation;
+use crate::geometry::{P3, V3};
+use crate::mesh::bvh::{Bvh, Ray};
+use rayon::prelude::*;
+
+/// One comparison point.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Sample {
+    pub x: f64,
+    pub y: f64,
+    /// Top of the design (`None`: the ray misses it).
+    pub design_z: Option<f64>,
+    /// Top of the machined part.
+    pub machined_z: f64,
+}
+
+impl Sample {
+    /// Machined minus design: positive is excess material (under-cut),
+    /// negative a gouge (over-cut).
+    pub fn deviation(&self) -> Option<f64> {
+        self.design_z.map(|d| self.machined_z - d)
+    }
+}
+
+/// The design mesh ready for vertical rays.
+pub struct Design {
+    bvh: Bvh,
+    top: f64,
+}
+
+impl Design {
+    /// Index `mesh` for rays.
+    pub fn new(mesh: &crate::mesh::Mesh) -> Design {
+        let b = mesh.bbox();
+        Design {
+            bvh: Bvh::new(mesh),
+            top: if b.max.z.is_finite() { b.max.z } else { 0.0 },
+        }
+    }
+
+    /// Top of the design over (x, y): the first hit of a ray cast down.
+    pub fn top_at(&self, x: f64, y: f64) -> Option<f64> {
+        let z0 = self.top + 1.0;
+        let ray = Ray::new(P3::new(x, y, z0), -V3::z());
+        self.bvh.first_hit(&ray).map(|h| z0 - h.t)
+    }
+}
+
+/// Points `x0, x0 + step, ...` up to `x1` (inclusive within rounding).
+pub fn steps(x0: f64, x1: f64, step: f64) -> Vec<f64> {
+    let n = ((x1 - x0) / step + 1e-9).floor().max(0.0) as usize;
+    (0..=n).map(|k| x0 + k as f64 * step).collect()
+}
+
+/// Sample every point of the grid (row by row, y outer, x inner).
+pub fn sample(sim: &Simulation, design: &Design, xs: &[f64], ys: &[f64]) -> Vec<Sample> {
+    let pts: Vec<(f64, f64)> = ys.iter().flat_map(|&y| xs.iter().map(move |&x| (x, y))).collect();
+    pts.par_iter()
+        .map(|&(x, y)| Sample {
+            x,
+            y,
+            design_z: design.top_at(x, y),
+            machined_z: sim.top_at(x, y).unwrap_or(f64::NAN),
+        })
+        .collect()
+}
+
+/// What the comparison found.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Stats {
+    pub band_mm: f64,
+    pub points: usize,
+    /// Points where the design or the stock has no surface.
+    pub not_compared: usize,
+    pub in_band: usize,
+    /// Points above the band (excess material, under-cut).
+    pub excess: usize,
+    /// Points below the band (gouge, over-cut).
+    pub gouge: usize,
+    /// Largest excess and gouge (both ≥ 0), mm.
+    pub max_excess_mm: f64,
+    pub max_gouge_mm: f64,
+    /// Root mean square of the deviations, mm.
+    pub rms_mm: f64,
+    pub mean_mm: f64,
+}
+
+impl Stats {
+    /// Tally `samples` against `±band`.
+    pub fn of(samples: &[Sample], band: f64) -> Stats {
+        let mut s = Stats {
+            band_mm: band,
+            points: samples.len(),
+            ..Stats::default()
+        };
+        let (mut sum, mut sum2, mut n) = (0.0, 0.0, 0usize);
+        for p in samples {
+            let Some(d) = p.deviation().filter(|d| d.is_finite()) else {
+                s.not_compared += 1;
+                continue;
+            };
+            n += 1;
+            sum += d;
+            sum2 += d * d;
+            if d > band {
+                s.excess += 1;
+            } else if d < -band {
+                s.gouge += 1;
+            } else {
+                s.in_band += 1;
+            }
+            s.max_excess_mm = s.max_excess_mm.max(d);
+            s.max_gouge_mm = s.max_gouge_mm.max(-d);
+        }
+        if n > 0 {
+            s.mean_mm = sum / n as f64;
+            s.rms_mm = (sum2 / n as f64).sqrt();
+        }
+        s
+    }
+
+    /// True when no compared point is outside the band.
+    pub fn passed(&self) -> bool {
+        self.excess == 0 && self.gouge == 0
+    }
+}
+
+/// Profiles as CSV: `y_mm,x_mm,design_z_mm,machined_z_mm,deviation_mm`.
+pub fn profiles_csv(profiles: &[(f64, Vec<Sample>)]) -> String {
+    let mut s = String::from("y_mm,x_mm,design_z_mm,machined_z_mm,deviation_mm\n");
+    let f = |v: Option<f64>| v.filter(|v| v.is_finite()).map_or(String::new(), |v| format!("{v:.6}"));
+    for (y, pts) in profiles {
+        for p in pts {
+            s.push_str(&format!(
+                "{y:.6},{:.6},{},{},{}\n",
+                p.x,
+                f(p.design_z),
+                f(Some(p.machined_z)),
+                f(p.deviation())
+            ));
+        }
+    }
+    s
+}
+
+/// Grid rays as CSV: `x_mm,y_mm,design_z_mm,machined_z_mm,deviation_mm`.
+pub fn points_csv(samples: &[Sample]) -> String {
+    let mut s = String::from("x_mm,y_mm,design_z_mm,machined_z_mm,deviation_mm\n");
+    let f = |v: Option<f64>| v.filter(|v| v.is_finite()).map_or(String::new(), |v| format!("{v:.6}"));
+    for p in samples {
+        s.push_str(&format!(
+            "{:.6},{:.6},{},{},{}\n",
+            p.x,
+            p.y,
+            f(p.design_z),
+            f(Some(p.machined_z)),
+            f(p.deviation())
+        ));
+    }
+    s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn stats_classify_and_measure() {
+        let mk = |d: f64| Sample {
+            x: 0.0,
+            y: 0.0,
+            design_z: Some(1.0),
+            machined_z: 1.0 + d,
+        };
+        let v = [
+            mk(0.05),
+            mk(-0.05),
+            mk(0.2),
+            mk(-0.3),
+            Sample {
+                design_z: None,
+                ..mk(0.0)
+            },
+        ];
+        let s = Stats::of(&v, 0.1);
+        assert_eq!((s.in_band, s.excess, s.gouge, s.not_compared), (2, 1, 1, 1));
+        assert!((s.max_gouge_mm - 0.3).abs() < 1e-12 && (s.max_excess_mm - 0.2).abs() < 1e-12);
+        let want = ((0.0025 + 0.0025 + 0.04 + 0.09) / 4.0f64).sqrt();
+        assert!((s.rms_mm - want).abs() < 1e-12);
+        assert!(!s.passed());
+        assert_eq!(steps(0.0, 4.0, 0.1).len(), 41);
+    }
+}

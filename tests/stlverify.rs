@@ -1,0 +1,298 @@
+//! stlverify end to end on Singh 2014's own inputs: the CL data of its
+//! Annexure 1 (3-axis) and Annexure 2 (5-axis), stock 25 x 50 x 40 mm,
+//! flat end mill R 3 mm, L 10 mm. The annexures are read in place from
+//! the thesis text beside the shared corpus; without it the test skips.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn bin() -> PathBuf {
+    PathBuf::from(env!("CARGO_BIN_EXE_stlverify"))
+}
+
+/// The thesis text, if the shared folder is present.
+fn thesis() -> Option<PathBuf> {
+    let shared = microcam::corpus::dir()?.parent()?.join("seeds");
+    let mut v: Vec<PathBuf> = std::fs::read_dir(shared)
+        .ok()?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| {
+            p.file_name()
+                .and_then(|n| n.to_str())
+                .is_some_and(|n| n.starts_with("001_"))
+        })
+        .collect();
+    v.sort();
+    v.into_iter().next()
+}
+
+/// The lines of the text between the heading `from` and the line starting
+/// with `to`.
+fn section(text: &str, from: &str, to: &str) -> String {
+    let mut on = false;
+    let mut out = String::new();
+    for l in text.lines() {
+        if l.trim() == from {
+            on = true;
+            continue;
+        }
+        if on && l.starts_with(to) {
+            break;
+        }
+        if on {
+            out.push_str(l);
+            out.push('\n');
+        }
+    }
+    out
+}
+
+fn run(args: &[&str]) -> (i32, serde_json::Value) {
+    let out = Command::new(bin()).args(args).output().unwrap();
+    let code = out.status.code().unwrap_or(-1);
+    let v = serde_json::from_slice(&out.stdout)
+        .unwrap_or_else(|_| panic!("{args:?}: {}", String::from_utf8_lossy(&out.stderr)));
+    (code, v)
+}
+
+/// Area of the union of stadiums (segment, radius) inside [0,25] x [0,50],
+/// by columns: each stadium covers one y-interval per column.
+/// A straight move of the tool centre in XY: start and end.
+type Seg = ((f64, f64), (f64, f64));
+
+fn stadium_union_area(segs: &[Seg], r: f64) -> f64 {
+    let (x0, x1, n) = (0.0, 25.0, 50_000);
+    let dx = (x1 - x0) / n as f64;
+    let mut area = 0.0;
+    for k in 0..n {
+        let x = x0 + (k as f64 + 0.5) * dx;
+        let mut ivs: Vec<(f64, f64)> = Vec::new();
+        for &(p, q) in segs {
+            let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+            for i in 0..=2000 {
+                let u = i as f64 / 2000.0;
+                let (cx, cy) = (p.0 + (q.0 - p.0) * u, p.1 + (q.1 - p.1) * u);
+                let h2 = r * r - (x - cx) * (x - cx);
+                if h2 >= 0.0 {
+                    lo = lo.min(cy - h2.sqrt());
+                    hi = hi.max(cy + h2.sqrt());
+                }
+            }
+            if lo <= hi {
+                ivs.push((lo.max(0.0), hi.min(50.0)));
+            }
+        }
+        ivs.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let (mut len, mut end) = (0.0, f64::NEG_INFINITY);
+        for (a, b) in ivs {
+            if b <= end {
+                continue;
+            }
+            len += b - a.max(end);
+            end = b;
+        }
+        area += len * dx;
+    }
+    area
+}
+
+const STOCK: &str = "0,0,-40,25,50,0";
+
+#[test]
+fn singh_2014_annexures_end_to_end() {
+    let Some(path) = thesis() else {
+        microcam::corpus::skip("stlverify_annexures");
+        return;
+    };
+    let text = std::fs::read_to_string(&path).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let a1 = d.join("annexure1.txt");
+    let a2 = d.join("annexure2.txt");
+    std::fs::write(&a1, section(&text, "ANNEXURE 1", "ANNEXURE 2")).unwrap();
+    std::fs::write(&a2, section(&text, "ANNEXURE 2", "REFER")).unwrap();
+    let p = |n: &str| d.join(n).display().to_string();
+
+    // Annexure 1: 49 locations at z = -9.5 in two passes (x 10 and 11).
+    let (code, r) = run(&[
+        "--stock",
+        STOCK,
+        "--tool",
+        "flat:6",
+        "--flute-length",
+        "10",
+        "--spacing",
+        "0.1",
+        "--stl",
+        &p("a1.stl"),
+        &a1.display().to_string(),
+    ]);
+    assert_eq!(code, 0);
+    assert_eq!(r["locations"], 49);
+    assert_eq!(r["five_axis"], false);
+    // Independent figure: the union of the three stadiums the tool centre
+    // sweeps (two passes and the link between them) times the depth.
+    let want = 9.5
+        * stadium_union_area(
+            &[
+                ((10.0, 0.5), (10.0, 12.5)),
+                ((10.0, 12.5), (11.0, 0.5)),
+                ((11.0, 0.5), (11.0, 12.0)),
+            ],
+            3.0,
+        );
+    let got = r["removed_volume_mm3"].as_f64().unwrap();
+    assert!((got - want).abs() < 0.005 * want, "removed {got} mm³, want {want}");
+    let stl = &r["stl"];
+    assert!(stl["triangles"].as_u64().unwrap() * 20 <= stl["per_cell_triangles"].as_u64().unwrap());
+    let bytes = std::fs::read(d.join("a1.stl")).unwrap();
+    assert_eq!(bytes.len() as u64, 84 + 50 * stl["triangles"].as_u64().unwrap());
+
+    // The machined part verifies against its own STL with the thesis' ray
+    // grid (0.1 x 0.25 mm, ±0.1 mm) over the slot floor (at the walls a
+    // height-field STL slants a vertical wall across one cell, so vertical
+    // rays there compare the slant); pictures and profiles too.
+    let (code, r) = run(&[
+        "--stock",
+        STOCK,
+        "--tool",
+        "flat:6",
+        "--flute-length",
+        "10",
+        "--spacing",
+        "0.1",
+        "--design",
+        &p("a1.stl"),
+        "--region",
+        "7.5,13.5,2,10",
+        "--png",
+        &p("a1.png"),
+        "--svg",
+        &p("a1.svg"),
+        "--profile-y",
+        "10",
+        "--profiles",
+        &p("a1.csv"),
+        "--profiles-svg",
+        &p("a1p.svg"),
+        &a1.display().to_string(),
+    ]);
+    assert_eq!(code, 0, "{r}");
+    let v = &r["verification"];
+    assert_eq!(v["gouge"], 0);
+    assert_eq!(v["excess"], 0);
+    assert_eq!(v["points"], 61 * 33);
+    assert_eq!(v["not_compared"], 0);
+    for f in ["a1.png", "a1.svg", "a1.csv", "a1p.svg"] {
+        assert!(std::fs::metadata(d.join(f)).unwrap().len() > 100, "{f}");
+    }
+
+    // Annexure 2: 48 five-axis locations, the axis tilting up to ~50°.
+    let (code, r) = run(&[
+        "--stock",
+        STOCK,
+        "--tool",
+        "flat:6",
+        "--flute-length",
+        "10",
+        "--spacing",
+        "0.1",
+        "--stl",
+        &p("a2.stl"),
+        &a2.display().to_string(),
+    ]);
+    assert_eq!(code, 0);
+    assert_eq!(r["locations"], 48);
+    assert_eq!(r["five_axis"], true);
+    let fam = &r["removed_volume_by_family_mm3"];
+    let (x, y, z) = (
+        fam["x"].as_f64().unwrap(),
+        fam["y"].as_f64().unwrap(),
+        fam["z"].as_f64().unwrap(),
+    );
+    assert!(z > 500.0, "{z}");
+    for v in [x, y] {
+        assert!((v - z).abs() < 0.01 * z, "families disagree: {x} {y} {z}");
+    }
+    assert!(r["sub_moves"].as_u64().unwrap() > 48);
+    assert!(r["sweep_shape_error_mm"].as_f64().unwrap() <= 0.05 + 1e-12);
+    // A design that is the uncut stock top: everything cut is a gouge, so
+    // the job fails with exit 1.
+    let box_stl = d.join("box.stl");
+    write_box(&box_stl, [0.0, 0.0, -40.0], [25.0, 50.0, 0.0]);
+    let (code, r) = run(&[
+        "--stock",
+        STOCK,
+        "--tool",
+        "flat:6",
+        "--flute-length",
+        "10",
+        "--spacing",
+        "0.1",
+        "--design",
+        &box_stl.display().to_string(),
+        "--region",
+        "0,4,10,30",
+        &a2.display().to_string(),
+    ]);
+    assert_eq!(code, 1);
+    let v = &r["verification"];
+    assert_eq!(v["points"], 41 * 81);
+    assert!(v["gouge"].as_u64().unwrap() > 100);
+    assert_eq!(v["excess"], 0);
+    microcam::corpus::record("stlverify_annexures", 2);
+}
+
+/// A closed box as ASCII STL (12 triangles, outward normals).
+fn write_box(path: &Path, lo: [f64; 3], hi: [f64; 3]) {
+    let c = |i: usize| {
+        [
+            if i & 1 == 0 { lo[0] } else { hi[0] },
+            if i & 2 == 0 { lo[1] } else { hi[1] },
+            if i & 4 == 0 { lo[2] } else { hi[2] },
+        ]
+    };
+    let faces = [
+        [0, 2, 3, 1],
+        [4, 5, 7, 6],
+        [0, 1, 5, 4],
+        [2, 6, 7, 3],
+        [0, 4, 6, 2],
+        [1, 3, 7, 5],
+    ];
+    let mut s = String::from("solid box\n");
+    for f in faces {
+        for t in [[f[0], f[1], f[2]], [f[0], f[2], f[3]]] {
+            s.push_str("facet normal 0 0 0\nouter loop\n");
+            for i in t {
+                let v = c(i);
+                s.push_str(&format!("vertex {} {} {}\n", v[0], v[1], v[2]));
+            }
+            s.push_str("endloop\nendfacet\n");
+        }
+    }
+    s.push_str("endsolid box\n");
+    std::fs::write(path, s).unwrap();
+}
+
+#[test]
+fn bad_input_exits_2_and_names_the_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let f = dir.path().join("bad.cl");
+    std::fs::write(&f, "1 2 3\n4 5 6\n7 8\n").unwrap();
+    let out = Command::new(bin())
+        .args(["--stock", "0,0,-1,10,10,0", "--tool", "flat:2"])
+        .arg(&f)
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    let e = String::from_utf8_lossy(&out.stderr);
+    assert!(e.contains("bad.cl:3"), "{e}");
+    assert!(out.stdout.is_empty());
+    let out = Command::new(bin())
+        .args(["--stock", "0,0,-1,10,10,0", "--tool", "flat:2", "--svg", "x.svg"])
+        .arg(&f)
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+}
