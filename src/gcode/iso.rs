@@ -15,11 +15,16 @@
 //! What it cannot honour (cutter compensation, canned cycles, inverse-time
 //! feed, rotary axes) is an error naming the line.
 
+#[path = "arcs.rs"]
+mod arcs;
+#[path = "cycles.rs"]
+mod cycles;
+
 use super::expr::{Cursor, ParamRef, Params};
 use super::oword::{self, OKeyword, OLine};
-use super::{GcodeError, LineInterpreter, ReadOptions, make_arc};
-use crate::geometry::{P2, P3, Plane, V3, planar};
-use crate::model::toolpath::{Motion, MotionKind, Record, arc_end_tolerance};
+use super::{GcodeError, LineInterpreter, ReadOptions};
+use crate::geometry::{P3, Plane, V3};
+use crate::model::toolpath::{Motion, MotionKind, Record};
 use std::collections::HashMap;
 use std::collections::VecDeque;
 use std::rc::Rc;
@@ -32,6 +37,8 @@ enum MotionMode {
     Feed,
     Cw,
     Ccw,
+    /// A canned cycle, by its G code times ten (G81 -> 810).
+    Cycle(u16),
 }
 
 /// Codes of one block, G and M codes kept as ten times their value
@@ -96,7 +103,7 @@ const NORMALISE: [u8; 256] = {
 /// Modal group of a G code (times ten), or `None` when unknown.
 fn g_group(code: u16) -> Option<u8> {
     Some(match code {
-        0 | 10 | 20 | 30 | 330 | 331 | 382..=385 | 730 | 760 | 800..=890 => 1,
+        0 | 10 | 20 | 30 | 330 | 331 | 382..=385 | 730 | 740 | 760 | 800..=890 => 1,
         40 | 100 | 280 | 281 | 300 | 301 | 530 | 920..=923 => 0,
         170 | 171 | 180 | 181 | 190 | 191 => 2,
         900 | 910 => 3,
@@ -168,6 +175,8 @@ pub struct IsoInterpreter {
     capture: Option<Capture>,
     /// Loop iterations run so far, to stop runaway loops.
     iterations: u64,
+    /// Canned-cycle settings carried from block to block.
+    cycle: cycles::CycleState,
 }
 
 /// Lines of a control structure read so far, from its opening line.
@@ -233,6 +242,7 @@ impl IsoInterpreter {
             subs: HashMap::new(),
             capture: None,
             iterations: 0,
+            cycle: cycles::CycleState::new(),
         }
     }
 
@@ -577,6 +587,7 @@ impl IsoInterpreter {
         }
         let mut groups_g = [false; 16];
         let mut groups_m = [false; 11];
+        let mut g80 = false;
         while let Some(ch) = c.peek() {
             if ch == b'#' {
                 let r = c.param_ref(&self.params).map_err(err)?;
@@ -607,7 +618,12 @@ impl IsoInterpreter {
                         return Err(err(format!("{}{v} is not a valid code", ch as char)));
                     }
                     let code = t as u16;
-                    if ch == b'G' {
+                    if ch == b'G' && code == 800 {
+                        // LinuxCNC lets G80 share a line with another motion
+                        // code (CAM preambles write `G0 G80`): the other wins.
+                        g80 = true;
+                        b.other_g = true;
+                    } else if ch == b'G' {
                         let g = g_group(code).ok_or_else(|| err(format!("unknown G code {}", fmt_code('G', code))))?;
                         // Non-modal group 0 codes may share a line with each
                         // other only when they are different (G4 with G92...).
@@ -645,6 +661,13 @@ impl IsoInterpreter {
                 }
             }
         }
+        if g80 && !groups_g[1] {
+            if b.ng == b.g.len() {
+                return Err(err("too many G codes on one line".into()));
+            }
+            b.g[b.ng] = 800;
+            b.ng += 1;
+        }
         Ok(())
     }
 
@@ -671,7 +694,7 @@ impl IsoInterpreter {
             let unsupported = match code {
                 330 | 331 => Some("spindle-synchronised motion (G33)"),
                 382..=385 => Some("probing (G38.x)"),
-                730 | 760 | 810..=890 => Some("canned cycles (G73, G76, G81-G89)"),
+                760 => Some("the lathe threading cycle (G76)"),
                 410 | 411 | 420 | 421 => Some("cutter radius compensation (G41/G42)"),
                 930 => Some("inverse time feed (G93)"),
                 950 => Some("feed per revolution (G95)"),
@@ -715,17 +738,23 @@ impl IsoInterpreter {
             self.beam = false;
         }
         let axes_used = b.other_g && self.modal_settings(b, lineno, out)?;
-        for code in &b.g[..b.ng] {
+        let before = self.motion;
+        for &code in &b.g[..b.ng] {
             match code {
                 0 => self.motion = Some(MotionMode::Rapid),
                 10 => self.motion = Some(MotionMode::Feed),
                 20 => self.motion = Some(MotionMode::Cw),
                 30 => self.motion = Some(MotionMode::Ccw),
                 800 => self.motion = None,
+                c if cycles::is_cycle(c) => self.motion = Some(MotionMode::Cycle(c)),
                 _ => {}
             }
         }
-        self.motion_step(b, axes_used, lineno, out)
+        if self.motion != before && !matches!(self.motion, Some(MotionMode::Cycle(_))) {
+            // Leaving the cycles: the next cycle takes a new initial level.
+            self.cycle.initial_level = None;
+        }
+        self.motion_step(b, before, axes_used, lineno, out)
     }
 
     /// Steps 12-21 of the order of execution: dwell, plane, units,
@@ -764,6 +793,11 @@ impl IsoInterpreter {
             self.incremental = false;
         } else if b.has_g(910) {
             self.incremental = true;
+        }
+        if b.has_g(980) {
+            self.cycle.r_plane_retract = false;
+        } else if b.has_g(990) {
+            self.cycle.r_plane_retract = true;
         }
         if b.has_g(901) {
             self.arc_absolute = true;
@@ -804,6 +838,7 @@ impl IsoInterpreter {
     fn motion_step(
         &mut self,
         b: &Block,
+        before: Option<MotionMode>,
         axes_used: bool,
         lineno: u64,
         out: &mut VecDeque<Record>,
@@ -816,6 +851,10 @@ impl IsoInterpreter {
         if !axes_used {
             let explicit_motion = b.g[..b.ng].iter().any(|c| matches!(c, 0 | 10 | 20 | 30));
             match self.motion {
+                Some(MotionMode::Cycle(code)) if has_axes || b.has_g(code) => {
+                    let same = before == Some(MotionMode::Cycle(code));
+                    self.canned_cycle(b, code, same, lineno, out)?;
+                }
                 Some(m @ (MotionMode::Cw | MotionMode::Ccw)) if has_axes || (explicit_motion && arc_words) => {
                     self.arc(b, m == MotionMode::Ccw, lineno, out)?;
                 }
@@ -876,80 +915,6 @@ impl IsoInterpreter {
             (MotionKind::Line, Some(self.feed_mm_per_min(lineno)?))
         };
         out.push_back(Record::Move(Motion::from_block(kind, to, feed, self.beam, lineno)));
-        self.pos = to;
-        Ok(())
-    }
-
-    fn arc(&mut self, b: &Block, ccw: bool, lineno: u64, out: &mut VecDeque<Record>) -> Result<(), GcodeError> {
-        let err = |msg: String| GcodeError::at(lineno, msg);
-        let feed = self.feed_mm_per_min(lineno)?;
-        let to = self.target(b, b.has_g(530), lineno)?;
-        let plane = self.plane;
-        let u = self.unit();
-        let start2 = plane.project(&self.pos);
-        let end2 = plane.project(&to);
-        let turns = b.word(b'P').unwrap_or(1.0);
-        if turns < 1.0 || turns.fract() != 0.0 || turns > 1e6 {
-            return Err(err(format!(
-                "arc P word must be a whole number of turns of at least 1, got {turns}"
-            )));
-        }
-        let extra_turns = turns as u32 - 1;
-        // Offset words of the plane, in (first, second) order, and the one
-        // that belongs to the normal axis (an error if given).
-        let (first, second, normal_word) = match plane {
-            Plane::Xy => (b'I', b'J', b'K'),
-            Plane::Xz => (b'K', b'I', b'J'),
-            Plane::Yz => (b'J', b'K', b'I'),
-        };
-        let center = if let Some(r) = b.word(b'R') {
-            if b.word(b'I').is_some() || b.word(b'J').is_some() || b.word(b'K').is_some() {
-                return Err(err("arc has both R and I/J/K words".into()));
-            }
-            if (end2 - start2).norm() < 1e-9 {
-                return Err(err("radius-format arc (R) cannot make a full circle: use I/J/K".into()));
-            }
-            planar::center_from_radius(&start2, &end2, r * u, ccw).ok_or_else(|| {
-                err(format!(
-                    "arc radius R{r} is too small to reach the end point ({:.6} mm away)",
-                    (end2 - start2).norm()
-                ))
-            })?
-        } else {
-            if b.word(first).is_none() && b.word(second).is_none() {
-                return Err(err(format!(
-                    "arc needs R or at least one of {} {} in plane {}",
-                    first as char,
-                    second as char,
-                    plane.name().to_uppercase()
-                )));
-            }
-            if b.word(normal_word).is_some() {
-                return Err(err(format!(
-                    "{} word given for an arc in plane {}",
-                    normal_word as char,
-                    plane.name().to_uppercase()
-                )));
-            }
-            let i = b.word(first).unwrap_or(0.0) * u;
-            let j = b.word(second).unwrap_or(0.0) * u;
-            if self.arc_absolute {
-                let off = plane.project(&P3::from(self.offset()));
-                P2::new(i + off.x, j + off.y)
-            } else {
-                P2::new(start2.x + i, start2.y + j)
-            }
-        };
-        let r = (start2 - center).norm();
-        let tol = arc_end_tolerance(r);
-        let arc = make_arc(&self.pos, &to, center, ccw, plane, extra_turns, tol, lineno)?;
-        out.push_back(Record::Move(Motion::from_block(
-            MotionKind::Arc(arc),
-            to,
-            Some(feed),
-            self.beam,
-            lineno,
-        )));
         self.pos = to;
         Ok(())
     }
@@ -1111,6 +1076,7 @@ impl LineInterpreter for IsoInterpreter {
 mod tests {
     use super::*;
     use crate::gcode::{Dialect, read_str};
+    use crate::geometry::P2;
 
     fn read(text: &str) -> Result<Vec<Record>, GcodeError> {
         let opts = ReadOptions {
@@ -1233,7 +1199,7 @@ mod tests {
     fn what_we_cannot_honour_is_an_error_naming_the_line() {
         let cases = [
             ("G1 X1 F10\nG41 D1\n", 2, "cutter radius compensation"),
-            ("G81 X1 Y1 Z-1 R1\n", 1, "canned cycles"),
+            ("G81 X1 Y1 Z-1 R1\n", 1, "no feed rate"),
             ("O100 call\n", 1, "before its definition"),
             ("o1 while [1]\no1 endwhile\n", 1, "endless"),
             ("o1 if [1]\nG0 X1\n", 2, "ends inside o1 if"),
