@@ -290,3 +290,204 @@ impl Emit<'_> {
         });
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use crate::gcode::{Dialect, ReadOptions, read_str};
+    use crate::model::toolpath::{MotionKind, Record};
+    use proptest::prelude::*;
+
+    /// (rapid, x, y, z) of every move, and dwell seconds as (false, -1, s, 0).
+    fn trace(text: &str) -> Vec<(bool, f64, f64, f64)> {
+        let opts = ReadOptions {
+            dialect: Some(Dialect::Iso),
+            ..Default::default()
+        };
+        let (_, recs) = read_str(text, &opts).unwrap_or_else(|e| panic!("{e}\n{text}"));
+        recs.iter()
+            .filter_map(|r| match r {
+                Record::Move(m) => Some((m.kind == MotionKind::Rapid, m.to.x, m.to.y, m.to.z)),
+                Record::Dwell { seconds, .. } => Some((false, -1.0, *seconds, 0.0)),
+                _ => None,
+            })
+            .collect()
+    }
+
+    fn same(a: &[(bool, f64, f64, f64)], b: &[(bool, f64, f64, f64)]) -> bool {
+        a.len() == b.len()
+            && a.iter().zip(b).all(|(p, q)| {
+                p.0 == q.0 && (p.1 - q.1).abs() < 1e-9 && (p.2 - q.2).abs() < 1e-9 && (p.3 - q.3).abs() < 1e-9
+            })
+    }
+
+    #[test]
+    fn drilling_matches_rs274_move_for_move() {
+        // Expected moves printed by LinuxCNC 2.9's rs274 for these programs.
+        let got = trace("G0 Z5\nG81 X1 Y1 Z-1 R2 F10\nX2\nG91 X1 L3\n");
+        let want = [
+            (true, 0.0, 0.0, 5.0),
+            (true, 1.0, 1.0, 5.0),
+            (true, 1.0, 1.0, 2.0),
+            (false, 1.0, 1.0, -1.0),
+            (true, 1.0, 1.0, 2.0),
+            (true, 2.0, 1.0, 2.0),
+            (false, 2.0, 1.0, -1.0),
+            (true, 2.0, 1.0, 2.0),
+            (true, 2.0, 1.0, 7.0),
+            (true, 3.0, 1.0, 7.0),
+            (false, 3.0, 1.0, 6.0),
+            (true, 3.0, 1.0, 7.0),
+            (true, 4.0, 1.0, 7.0),
+            (false, 4.0, 1.0, 6.0),
+            (true, 4.0, 1.0, 7.0),
+            (true, 5.0, 1.0, 7.0),
+            (false, 5.0, 1.0, 6.0),
+            (true, 5.0, 1.0, 7.0),
+        ];
+        assert!(same(&got, &want), "{got:?}");
+        let got = trace("G0 Z5\nG98 G83 X1 Y1 Z-2 R2 Q1.5 F10\n");
+        let want = [
+            (true, 0.0, 0.0, 5.0),
+            (true, 1.0, 1.0, 5.0),
+            (true, 1.0, 1.0, 2.0),
+            (false, 1.0, 1.0, 0.5),
+            (true, 1.0, 1.0, 2.0),
+            (true, 1.0, 1.0, 0.754),
+            (false, 1.0, 1.0, -1.0),
+            (true, 1.0, 1.0, 2.0),
+            (true, 1.0, 1.0, -0.746),
+            (false, 1.0, 1.0, -2.0),
+            (true, 1.0, 1.0, 5.0),
+        ];
+        assert!(same(&got, &want), "{got:?}");
+        // G18: positions in Z/X, drills along Y.
+        let got = trace("G0 Z5\nG18 G81 X1 Y1 Z-1 R2 F10\n");
+        let want = [
+            (true, 0.0, 0.0, 5.0),
+            (true, 0.0, 2.0, 5.0),
+            (true, 1.0, 2.0, -1.0),
+            (false, 1.0, 1.0, -1.0),
+            (true, 1.0, 2.0, -1.0),
+        ];
+        assert!(same(&got, &want), "{got:?}");
+    }
+
+    #[test]
+    fn cycle_errors_name_the_line() {
+        let cases = [
+            ("G0 Z5\nG81 X1 Z-1 F10\n", 2, "needs an R word"),
+            ("G0 Z5\nG81 X1 R1 F10\n", 2, "needs a Z word"),
+            ("G0 Z5\nG81 X1 Z3 R2 F10\n", 2, "below the bottom"),
+            ("G0 Z5\nG81 X1 Z-1 R2 L0 F10\n", 2, "L must be"),
+            ("G0 Z5\nG83 X1 Z-1 R2 F10\n", 2, "needs a Q"),
+            ("G0 Z5\nG82 X1 Z-1 R2 F10\n", 2, "needs a P"),
+            ("G0 Z5\nG86 X1 Z-1 R2 P1 F10\n", 2, "spindle turning"),
+            ("G0 Z5\nG88 X1 Z-1 R2 P1 F10\n", 2, "G88 is not supported"),
+            ("G0 Z5\nG81 X1 Z-1 R2 F10\nG80\nX2\n", 4, "no motion mode"),
+        ];
+        let opts = ReadOptions {
+            dialect: Some(Dialect::Iso),
+            ..Default::default()
+        };
+        for (text, line, needle) in cases {
+            let e = read_str(text, &opts).unwrap_err();
+            assert_eq!(e.line(), line, "{text:?}: {e}");
+            assert!(e.to_string().contains(needle), "{text:?}: {e}");
+        }
+    }
+
+    /// The cycle block written out by hand as G0/G1/G4 lines, following
+    /// the cycle's definition (not the reader's code).
+    #[allow(clippy::too_many_arguments)]
+    fn hand_expanded(
+        code: u32,
+        incremental: bool,
+        r_plane: bool,
+        z0: f64,
+        xy: (f64, f64),
+        r: f64,
+        z: f64,
+        q: f64,
+        l: u32,
+    ) -> String {
+        let mut s = format!("G90 G0 X0 Y0 Z{z0}\nF100\n");
+        let r_abs = if incremental { z0 + r } else { r };
+        let bottom = if incremental { r_abs + z } else { z };
+        let mut level = z0;
+        let mut zc = z0;
+        if z0 < r_abs {
+            s += &format!("G0 Z{r_abs}\n");
+            level = r_abs;
+            zc = r_abs;
+        }
+        let clear = if r_plane { r_abs } else { level };
+        let (mut x, mut y) = (0.0, 0.0);
+        for _ in 0..l {
+            if incremental {
+                x += xy.0;
+                y += xy.1;
+            } else {
+                (x, y) = xy;
+            }
+            s += &format!("G0 X{x} Y{y}\n");
+            if zc != r_abs {
+                s += &format!("G0 Z{r_abs}\n");
+            }
+            match code {
+                81 => s += &format!("G1 Z{bottom}\nG0 Z{clear}\n"),
+                82 => s += &format!("G1 Z{bottom}\nG4 P0.5\nG0 Z{clear}\n"),
+                85 => s += &format!("G1 Z{bottom}\nG1 Z{r_abs}\nG0 Z{clear}\n"),
+                89 => s += &format!("G1 Z{bottom}\nG4 P0.5\nG1 Z{clear}\n"),
+                73 | 83 => {
+                    let mut d = r_abs - q;
+                    while d > bottom {
+                        s += &format!("G1 Z{d}\n");
+                        if code == 83 {
+                            s += &format!("G0 Z{r_abs}\n");
+                        }
+                        s += &format!("G0 Z{}\n", d + 0.254);
+                        d -= q;
+                    }
+                    s += &format!("G1 Z{bottom}\nG0 Z{clear}\n");
+                }
+                _ => unreachable!(),
+            }
+            zc = clear;
+        }
+        s
+    }
+
+    proptest! {
+        #[test]
+        fn cycles_with_repeats_match_a_hand_expanded_program(
+            code in prop_oneof![Just(81u32), Just(82), Just(73), Just(83), Just(85), Just(89)],
+            incremental: bool,
+            r_plane: bool,
+            z0 in -5i32..10,
+            xy in (-20i32..20, -20i32..20),
+            r in 0i32..8,
+            depth in 1i32..12,
+            q in 1i32..5,
+            l in 1u32..4,
+        ) {
+            // Whole tenths keep the printed programs exact.
+            let z0 = z0 as f64 / 2.0;
+            let xy = (xy.0 as f64 / 4.0, xy.1 as f64 / 4.0);
+            let (r, z) = if incremental {
+                (r as f64 / 2.0 - 2.0, -(depth as f64) / 2.0)
+            } else {
+                (r as f64 / 2.0, r as f64 / 2.0 - depth as f64 / 2.0)
+            };
+            let q = q as f64 / 2.0;
+            let mode = if incremental { "G91" } else { "G90" };
+            let retract = if r_plane { "G99" } else { "G98" };
+            let program = format!(
+                "G90 G0 X0 Y0 Z{z0}\nF100\n{mode} {retract} G{code} X{} Y{} R{r} Z{z} Q{q} P0.5 L{l}\n",
+                xy.0, xy.1
+            );
+            let want = trace(&hand_expanded(code, incremental, r_plane, z0, xy, r, z, q, l));
+            let got = trace(&program);
+            prop_assert!(same(&got, &want), "{program}\n got {got:?}\nwant {want:?}");
+        }
+    }
+}
