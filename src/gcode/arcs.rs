@@ -114,9 +114,6 @@ impl IsoInterpreter {
         let feed = self.feed_mm_per_min(lineno)?;
         let to = self.target(b, b.has_g(530), lineno)?;
         let plane = self.plane;
-        let u = self.unit();
-        let start2 = plane.project(&self.pos);
-        let end2 = plane.project(&to);
         let turns = b.word(b'P').unwrap_or(1.0);
         if turns < 1.0 || turns.fract() != 0.0 || turns > 1e6 {
             return Err(err(format!(
@@ -124,6 +121,47 @@ impl IsoInterpreter {
             )));
         }
         let extra_turns = turns as u32 - 1;
+        let end2 = plane.project(&to);
+        if self.comp.active() {
+            if b.has_g(530) {
+                return Err(err("G53 cannot be used with cutter radius compensation on".into()));
+            }
+            let start2 = self.comp_arc_start();
+            let center = self.arc_center(b, start2, end2, ccw, lineno)?;
+            let turn = if ccw { turns as i32 } else { -(turns as i32) };
+            let r = b.word(b'R').map(|r| r * self.unit());
+            return self.comp_arc(to, turn, center, r, lineno, out);
+        }
+        if self.comp.exit {
+            return Err(err(
+                "the first move after G40 (cutter radius compensation off) cannot be an arc".into(),
+            ));
+        }
+        let start2 = plane.project(&self.pos);
+        let center = self.arc_center(b, start2, end2, ccw, lineno)?;
+        let arc = ArcData {
+            center: plane.lift(&center, plane.normal_coord(&self.pos)),
+            ccw,
+            plane,
+            extra_turns,
+        };
+        out.push_back(Record::Move(Motion::from_block(
+            MotionKind::Arc(arc),
+            to,
+            Some(feed),
+            self.beam,
+            lineno,
+        )));
+        self.pos = to;
+        Ok(())
+    }
+
+    /// The centre (in the plane) of the block's arc from `start2` to
+    /// `end2`, with LinuxCNC's checks.
+    fn arc_center(&self, b: &super::Block, start2: P2, end2: P2, ccw: bool, lineno: u64) -> Result<P2, GcodeError> {
+        let err = |msg: String| GcodeError::at(lineno, msg);
+        let plane = self.plane;
+        let u = self.unit();
         let tol = ArcTolerances::new(self.inch);
         // Offset words of the plane, in (first, second) order, and the one
         // that belongs to the normal axis (an error if given).
@@ -177,21 +215,7 @@ impl IsoInterpreter {
             }
             center
         };
-        let arc = ArcData {
-            center: plane.lift(&center, plane.normal_coord(&self.pos)),
-            ccw,
-            plane,
-            extra_turns,
-        };
-        out.push_back(Record::Move(Motion::from_block(
-            MotionKind::Arc(arc),
-            to,
-            Some(feed),
-            self.beam,
-            lineno,
-        )));
-        self.pos = to;
-        Ok(())
+        Ok(center)
     }
 }
 

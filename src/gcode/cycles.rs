@@ -91,6 +91,9 @@ impl IsoInterpreter {
                     .into(),
             ));
         }
+        if self.comp.side.is_some() {
+            return Err(err(format!("{name}: canned cycles cannot be used with cutter radius compensation on")));
+        }
         if self.feed_mm_per_min <= 0.0 {
             return Err(err(format!("{name} with no feed rate set (F is zero or missing)")));
         }
@@ -252,6 +255,7 @@ impl IsoInterpreter {
             }
         }
         self.pos = pos;
+        self.comp.exit = false;
         self.cycle.r = r_word;
         self.cycle.bottom = bottom_word;
         self.cycle.p = p;

@@ -17,11 +17,14 @@
 
 #[path = "arcs.rs"]
 mod arcs;
+#[path = "comp.rs"]
+mod comp;
 #[path = "cycles.rs"]
 mod cycles;
 
 use super::expr::{Cursor, ParamRef, Params};
 use super::oword::{self, OKeyword, OLine};
+use super::tooltable::ToolTable;
 use super::{GcodeError, LineInterpreter, ReadOptions};
 use crate::geometry::{P3, Plane, V3};
 use crate::model::toolpath::{Motion, MotionKind, Record};
@@ -30,6 +33,12 @@ use std::collections::VecDeque;
 use std::rc::Rc;
 
 const MM_PER_INCH: f64 = 25.4;
+
+/// True when radii `r0` and `r1` (mm) differ by no more than LinuxCNC
+/// accepts from an I/J/K arc in any program (the inch limits are the wider).
+pub(crate) fn spiral_accepted(r0: f64, r1: f64) -> bool {
+    arcs::ArcTolerances::new(true).radii_agree(r0, r1)
+}
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum MotionMode {
@@ -126,7 +135,7 @@ fn m_group(code: u16) -> Option<u8> {
     Some(match code {
         0 | 10 | 20 | 300 | 600 => 4,
         30 | 40 | 50 => 7,
-        60 => 6,
+        60 | 610 => 6,
         70 | 80 | 90 => 8,
         480 | 490 | 500 | 510 | 520 | 530 => 9,
         620..=680 | 700..=730 => 5,
@@ -177,6 +186,12 @@ pub struct IsoInterpreter {
     iterations: u64,
     /// Canned-cycle settings carried from block to block.
     cycle: cycles::CycleState,
+    /// Cutter radius compensation state and held-back moves.
+    comp: comp::CompState,
+    tool_table: Option<std::sync::Arc<ToolTable>>,
+    /// Tool in the spindle (M6, M61), and the one a T word selected.
+    tool_current: u32,
+    tool_selected: Option<u32>,
 }
 
 /// Lines of a control structure read so far, from its opening line.
@@ -243,6 +258,10 @@ impl IsoInterpreter {
             capture: None,
             iterations: 0,
             cycle: cycles::CycleState::new(),
+            comp: comp::CompState::new(),
+            tool_table: opts.tool_table.clone(),
+            tool_current: 0,
+            tool_selected: None,
         }
     }
 
@@ -695,13 +714,11 @@ impl IsoInterpreter {
                 330 | 331 => Some("spindle-synchronised motion (G33)"),
                 382..=385 => Some("probing (G38.x)"),
                 760 => Some("the lathe threading cycle (G76)"),
-                410 | 411 | 420 | 421 => Some("cutter radius compensation (G41/G42)"),
                 930 => Some("inverse time feed (G93)"),
                 950 => Some("feed per revolution (G95)"),
                 171 | 181 | 191 => Some("the planes G17.1-G19.1"),
                 70 | 80 => Some("lathe diameter/radius modes (G7/G8)"),
                 960 => Some("constant surface speed (G96)"),
-                431 | 432 => Some("dynamic tool length offsets (G43.1/G43.2)"),
                 _ => None,
             };
             if let Some(what) = unsupported {
@@ -725,12 +742,16 @@ impl IsoInterpreter {
             }
             if self.spindle_rpm != Some(s) {
                 self.spindle_rpm = Some(s);
-                out.push_back(Record::Spindle {
-                    rpm: s,
-                    block: Some(lineno),
-                });
+                self.emit(
+                    out,
+                    Record::Spindle {
+                        rpm: s,
+                        block: Some(lineno),
+                    },
+                );
             }
         }
+        self.tools(b, lineno)?;
         if b.has_m(30) || b.has_m(40) {
             self.beam = true;
         }
@@ -757,6 +778,50 @@ impl IsoInterpreter {
         self.motion_step(b, before, axes_used, lineno, out)
     }
 
+    /// A non-motion record, behind any compensated move held back.
+    fn emit(&mut self, out: &mut VecDeque<Record>, r: Record) {
+        if self.comp.holding() {
+            self.comp.hold(r);
+        } else {
+            out.push_back(r);
+        }
+    }
+
+    /// T (select), M6 (change) and M61 (set the tool number).
+    fn tools(&mut self, b: &Block, lineno: u64) -> Result<(), GcodeError> {
+        let err = |msg: String| GcodeError::at(lineno, msg);
+        let whole = |letter: char, v: f64| {
+            if v.fract() == 0.0 && (0.0..=1e9).contains(&v) {
+                Ok(v as u32)
+            } else {
+                Err(err(format!("{letter}{v}: a tool number must be a whole number of at least 0")))
+            }
+        };
+        if let Some(t) = b.word(b'T') {
+            let t = whole('T', t)?;
+            if let Some(table) = &self.tool_table
+                && t != 0
+                && table.get(t).is_none()
+            {
+                return Err(err(format!("tool T{t} is not in the tool table")));
+            }
+            self.tool_selected = Some(t);
+        }
+        if b.has_m(60) {
+            if self.comp.side.is_some() {
+                return Err(err("cannot change tools with cutter radius compensation on (G40 first)".into()));
+            }
+            if let Some(t) = self.tool_selected {
+                self.tool_current = t;
+            }
+        }
+        if b.has_m(610) {
+            let q = b.word(b'Q').ok_or_else(|| err("M61 needs a Q word (the tool number)".into()))?;
+            self.tool_current = whole('Q', q)?;
+        }
+        Ok(())
+    }
+
     /// Steps 12-21 of the order of execution: dwell, plane, units,
     /// coordinate system, distance modes, and the non-modal G10/G28/G30/G92
     /// family. True when the block's axis words were used up by one of those.
@@ -767,11 +832,15 @@ impl IsoInterpreter {
             if p < 0.0 {
                 return Err(err(format!("negative dwell time P{p}")));
             }
-            out.push_back(Record::Dwell {
-                seconds: p,
-                block: Some(lineno),
-            });
+            self.emit(
+                out,
+                Record::Dwell {
+                    seconds: p,
+                    block: Some(lineno),
+                },
+            );
         }
+        let plane = self.plane;
         if b.has_g(170) {
             self.plane = Plane::Xy;
         } else if b.has_g(180) {
@@ -779,10 +848,32 @@ impl IsoInterpreter {
         } else if b.has_g(190) {
             self.plane = Plane::Yz;
         }
+        if self.plane != plane && self.comp.side.is_some() {
+            return Err(err("cannot change planes with cutter radius compensation on".into()));
+        }
         if b.has_g(200) {
             self.inch = true;
         } else if b.has_g(210) {
             self.inch = false;
+        }
+        if b.has_g(400) {
+            self.comp_off(out);
+        } else if b.has_g(410) || b.has_g(420) || b.has_g(411) || b.has_g(421) {
+            let side = if b.has_g(410) || b.has_g(411) {
+                comp::Side::Left
+            } else {
+                comp::Side::Right
+            };
+            self.comp_on(b, side, b.has_g(411) || b.has_g(421), lineno)?;
+        }
+        if self.comp.side.is_some()
+            && [280, 281, 300, 301, 920, 921, 922, 923, 100, 530]
+                .iter()
+                .any(|&c| b.has_g(c))
+        {
+            return Err(err(
+                "G10, G28, G30, G53 and G92 cannot be used with cutter radius compensation on (G40 first)".into(),
+            ));
         }
         for (i, code) in [540u16, 550, 560, 570, 580, 590, 591, 592, 593].iter().enumerate() {
             if b.has_g(*code) {
@@ -871,6 +962,8 @@ impl IsoInterpreter {
         if b.has_m(20) || b.has_m(300) {
             self.beam = false;
             self.ended = true;
+            // The program end turns compensation off.
+            self.comp_off(out);
         }
         Ok(())
     }
@@ -879,7 +972,8 @@ impl IsoInterpreter {
     fn target(&self, b: &Block, g53: bool, lineno: u64) -> Result<P3, GcodeError> {
         let u = self.unit();
         let off = self.offset();
-        let mut to = self.pos;
+        let base = self.base_point();
+        let mut to = base;
         for (k, letter) in [b'X', b'Y', b'Z'].into_iter().enumerate() {
             if let Some(v) = b.word(letter) {
                 to[k] = if g53 {
@@ -888,7 +982,7 @@ impl IsoInterpreter {
                     }
                     v * u
                 } else if self.incremental {
-                    self.pos[k] + v * u
+                    base[k] + v * u
                 } else {
                     v * u + off[k]
                 };
@@ -909,6 +1003,13 @@ impl IsoInterpreter {
     }
 
     fn straight(&mut self, rapid: bool, to: P3, lineno: u64, out: &mut VecDeque<Record>) -> Result<(), GcodeError> {
+        if self.comp.active() {
+            if !rapid {
+                self.feed_mm_per_min(lineno)?;
+            }
+            return self.comp_straight(rapid, to, lineno, out);
+        }
+        self.comp.exit = false;
         let (kind, feed) = if rapid {
             (MotionKind::Rapid, None)
         } else {
@@ -1042,6 +1143,7 @@ impl LineInterpreter for IsoInterpreter {
             // A '%' before any code opens the program; one after code ends it.
             if self.any_code_seen || self.percent_seen {
                 self.ended = true;
+                self.comp.dequeue(out);
             }
             self.percent_seen = true;
             return Ok(());
@@ -1051,7 +1153,8 @@ impl LineInterpreter for IsoInterpreter {
         self.execute(&b, lineno, out)
     }
 
-    fn finish(&mut self, lineno: u64, _out: &mut VecDeque<Record>) -> Result<(), GcodeError> {
+    fn finish(&mut self, lineno: u64, out: &mut VecDeque<Record>) -> Result<(), GcodeError> {
+        self.comp.dequeue(out);
         match &self.capture {
             Some(cap) if !self.ended => Err(GcodeError::at(
                 lineno,
