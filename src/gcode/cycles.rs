@@ -163,6 +163,9 @@ impl IsoInterpreter {
             inc = [0.0, 0.0];
             aa = b.word(la).map_or(current[axes.0], |v| v * u + off[axes.0]);
             bb = b.word(lb).map_or(current[axes.1], |v| v * u + off[axes.1]);
+            if b.polar.iter().any(Option::is_some) {
+                (aa, bb) = self.polar_xy(b, current, false, lineno)?;
+            }
             r = r_word * u + off[axes.2];
             bottom = bottom_word * u + off[axes.2];
         }
@@ -193,7 +196,17 @@ impl IsoInterpreter {
         }
         let clear = if self.cycle.r_plane_retract { r } else { level };
         let beam = self.beam;
+        let polar_steps = self.incremental && b.polar.iter().any(Option::is_some);
+        if polar_steps && (b.word(la).is_some() || b.word(lb).is_some() || self.plane != crate::geometry::Plane::Xy) {
+            return Err(err(format!("{name}: polar coordinates (@ ^) replace X and Y, in the XY plane only")));
+        }
         for _ in 0..repeats {
+            if polar_steps {
+                // Each repeat turns by ^ and moves out by @ about the origin.
+                let mut p = pos;
+                (p[axes.0], p[axes.1]) = (aa, bb);
+                (aa, bb) = self.polar_xy(b, p, true, lineno)?;
+            }
             aa += inc[0];
             bb += inc[1];
             let now = pos[axes.2];

@@ -59,6 +59,8 @@ struct Block {
     nm: usize,
     /// Value of each letter word A..Z (G, M, N, O not stored here).
     w: [Option<f64>; 26],
+    /// Polar coordinates: `@` radius and `^` angle (degrees).
+    polar: [Option<f64>; 2],
     /// Any G code other than G0-G3: most blocks of a large program have
     /// none, and then the modal settings need no looking at.
     other_g: bool,
@@ -72,6 +74,7 @@ impl Block {
             m: [0; 8],
             nm: 0,
             w: [None; 26],
+            polar: [None; 2],
             other_g: false,
         }
     }
@@ -112,7 +115,7 @@ const NORMALISE: [u8; 256] = {
 /// Modal group of a G code (times ten), or `None` when unknown.
 fn g_group(code: u16) -> Option<u8> {
     Some(match code {
-        0 | 10 | 20 | 30 | 330 | 331 | 382..=385 | 730 | 740 | 760 | 800..=890 => 1,
+        0 | 10 | 20 | 30 | 50..=53 | 330 | 331 | 382..=385 | 700 | 710..=712 | 720..=722 | 730 | 740 | 760 | 800..=890 => 1,
         40 | 100 | 280 | 281 | 300 | 301 | 530 | 920..=923 => 0,
         170 | 171 | 180 | 181 | 190 | 191 => 2,
         900 | 910 => 3,
@@ -620,6 +623,18 @@ impl IsoInterpreter {
                 self.assigns.push((r, v));
                 continue;
             }
+            if ch == b'@' || ch == b'^' {
+                c.pos += 1;
+                let v = c
+                    .real_value(&self.params)
+                    .map_err(|e| err(format!("{} word: {e}", ch as char)))?;
+                let slot = &mut b.polar[usize::from(ch == b'^')];
+                if slot.is_some() {
+                    return Err(err(format!("{} word repeated on one line", ch as char)));
+                }
+                *slot = Some(v);
+                continue;
+            }
             if !ch.is_ascii_uppercase() {
                 return Err(err(format!(
                     "expected a word letter, found '{}'",
@@ -706,14 +721,13 @@ impl IsoInterpreter {
                 )));
             }
         }
-        if b.word(b'E').is_some() {
-            return Err(err("E word is not supported".into()));
-        }
         for code in b.g[..b.ng].iter().filter(|_| b.other_g) {
             let unsupported = match code {
                 330 | 331 => Some("spindle-synchronised motion (G33)"),
                 382..=385 => Some("probing (G38.x)"),
                 760 => Some("the lathe threading cycle (G76)"),
+                700..=722 => Some("the lathe turning cycles (G70-G72)"),
+                50..=53 => Some("splines (G5, G5.1, G5.2, G5.3): LinuxCNC hands them to its motion planner as NURBS"),
                 930 => Some("inverse time feed (G93)"),
                 950 => Some("feed per revolution (G95)"),
                 171 | 181 | 191 => Some("the planes G17.1-G19.1"),
@@ -724,6 +738,15 @@ impl IsoInterpreter {
             if let Some(what) = unsupported {
                 return Err(err(format!("{} is not supported: {what}", fmt_code('G', *code))));
             }
+        }
+        if b.word(b'E').is_some() {
+            return Err(err("E word is not supported".into()));
+        }
+        if let Some(m) = b.m[..b.nm].iter().find(|m| (620..=680).contains(*m)) {
+            return Err(err(format!(
+                "{} is not supported: HAL pin input/output (M62-M68) acts on the machine's HAL, which a simulation has not",
+                fmt_code('M', *m)
+            )));
         }
         // Parameters take their new values once the whole line is read.
         for (r, v) in self.assigns.drain(..) {
@@ -935,7 +958,10 @@ impl IsoInterpreter {
         out: &mut VecDeque<Record>,
     ) -> Result<(), GcodeError> {
         let err = |msg: String| GcodeError::at(lineno, msg);
-        let has_axes = b.word(b'X').is_some() || b.word(b'Y').is_some() || b.word(b'Z').is_some();
+        let has_axes = b.word(b'X').is_some()
+            || b.word(b'Y').is_some()
+            || b.word(b'Z').is_some()
+            || b.polar.iter().any(Option::is_some);
         let g53 = b.has_g(530);
         let arc_words =
             b.word(b'I').is_some() || b.word(b'J').is_some() || b.word(b'K').is_some() || b.word(b'R').is_some();
@@ -968,6 +994,31 @@ impl IsoInterpreter {
         Ok(())
     }
 
+    /// The X and Y (machine frame, mm) that a block's polar words `@`
+    /// (radius) and `^` (angle, degrees) give, from `base` (machine frame):
+    /// about the origin of the coordinate system in use, absolute in G90,
+    /// added to `base`'s own radius and angle in G91, as LinuxCNC does.
+    fn polar_xy(&self, b: &Block, base: P3, incremental: bool, lineno: u64) -> Result<(f64, f64), GcodeError> {
+        let err = |m: &str| GcodeError::at(lineno, m.to_string());
+        if b.word(b'X').is_some() || b.word(b'Y').is_some() {
+            return Err(err("X and Y words cannot be used with polar coordinates (@ ^)"));
+        }
+        if self.plane != Plane::Xy {
+            return Err(err("polar coordinates (@ ^) work in the XY plane (G17) only"));
+        }
+        let u = self.unit();
+        let off = self.offset();
+        let (x, y) = ((base.x - off.x) / u, (base.y - off.y) / u);
+        let (r0, a0) = (x.hypot(y), y.atan2(x));
+        let [r, a] = b.polar;
+        let (r, a) = if incremental {
+            (r0 + r.unwrap_or(0.0), a0 + a.unwrap_or(0.0).to_radians())
+        } else {
+            (r.unwrap_or(r0), a.map_or(a0, f64::to_radians))
+        };
+        Ok((r * a.cos() * u + off.x, r * a.sin() * u + off.y))
+    }
+
     /// End point of a move in the machine frame (mm).
     fn target(&self, b: &Block, g53: bool, lineno: u64) -> Result<P3, GcodeError> {
         let u = self.unit();
@@ -987,6 +1038,9 @@ impl IsoInterpreter {
                     v * u + off[k]
                 };
             }
+        }
+        if b.polar.iter().any(Option::is_some) {
+            (to.x, to.y) = self.polar_xy(b, base, self.incremental, lineno)?;
         }
         Ok(to)
     }
