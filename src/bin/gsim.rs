@@ -139,6 +139,11 @@ struct Args {
     /// The tool table's lengths are inches (default: millimetres).
     #[arg(long, requires = "tool_table")]
     tool_table_inch: bool,
+    /// Folders searched for `name.ngc` when an ISO program calls a
+    /// subroutine `o<name>` it does not define (as LinuxCNC's
+    /// SUBROUTINE_PATH); repeat the option or separate folders with ':'.
+    #[arg(long, value_name = "DIR[:DIR...]")]
+    subroutine_path: Vec<String>,
     /// Height-field cell size, mm (default: tool diameter / 50).
     #[arg(long)]
     cell_mm: Option<f64>,
@@ -238,6 +243,13 @@ fn run(args: Args) -> Result<(), CliError> {
         line_counter_var: args.line_counter_var.to_ascii_uppercase(),
         start,
         tool_table,
+        subroutine_path: args
+            .subroutine_path
+            .iter()
+            .flat_map(|p| p.split(':'))
+            .filter(|p| !p.is_empty())
+            .map(PathBuf::from)
+            .collect(),
     };
     let input = cli::open_input(args.file.as_deref())?;
     let source = ToolpathSource::open(input, &opts)?;

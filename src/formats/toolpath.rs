@@ -4,9 +4,7 @@ use super::{
     FormatError, LineSource, check_schema, parse_json, point_from, push_num, push_point3, push_str_lit, push_uint,
 };
 use crate::geometry::{P3, Plane};
-use crate::model::toolpath::{
-    ArcData, FeedUnit, Header, Motion, MotionKind, Record, Role, ShutterSwitch,
-};
+use crate::model::toolpath::{ArcData, FeedUnit, Header, Motion, MotionKind, Record, Role, ShutterSwitch};
 use serde::Deserialize;
 use std::io::{BufRead, Write};
 

@@ -48,7 +48,11 @@ enum Kind {
     Straight(V2),
     /// An arc: centre, signed turns (+ counter-clockwise), and the sweep of
     /// the programmed arc (0: a corner arc, whose end never moves).
-    Arc { center: P2, turn: i32, sweep: f64 },
+    Arc {
+        center: P2,
+        turn: i32,
+        sweep: f64,
+    },
     Other,
 }
 
@@ -226,7 +230,13 @@ impl IsoInterpreter {
 
     /// G41/G42 (`side`), from the block's D word: a tool number (G41,
     /// G42) or a diameter (G41.1, G42.1).
-    pub(super) fn comp_on(&mut self, b: &super::Block, side: Side, dynamic: bool, lineno: u64) -> Result<(), GcodeError> {
+    pub(super) fn comp_on(
+        &mut self,
+        b: &super::Block,
+        side: Side,
+        dynamic: bool,
+        lineno: u64,
+    ) -> Result<(), GcodeError> {
         let err = |m: String| GcodeError::at(lineno, m);
         let name = match (side, dynamic) {
             (Side::Left, false) => "G41",
@@ -291,7 +301,11 @@ impl IsoInterpreter {
     }
 
     fn comp_record(&self, kind: MotionKind, to: P3, rapid: bool, lineno: u64) -> Result<Record, GcodeError> {
-        let feed = if rapid { None } else { Some(self.feed_mm_per_min(lineno)?) };
+        let feed = if rapid {
+            None
+        } else {
+            Some(self.feed_mm_per_min(lineno)?)
+        };
         Ok(Record::Move(Motion::from_block(kind, to, feed, self.beam, lineno)))
     }
 
@@ -422,13 +436,21 @@ impl IsoInterpreter {
                             if !(-1.0..=1.0).contains(&l) {
                                 return Err(gouge());
                             }
-                            if pturn > 0 { -l.acos() + th + PI } else { l.acos() + th + PI }
+                            if pturn > 0 {
+                                -l.acos() + th + PI
+                            } else {
+                                l.acos() + th + PI
+                            }
                         } else {
                             let l = (d + r) / oldrad;
                             if !(-1.0..=1.0).contains(&l) {
                                 return Err(gouge());
                             }
-                            if pturn > 0 { l.acos() + th + PI } else { -l.acos() + th + PI }
+                            if pturn > 0 {
+                                l.acos() + th + PI
+                            } else {
+                                -l.acos() + th + PI
+                            }
                         };
                         pc + dir(a) * oldrad
                     }
@@ -450,7 +472,11 @@ impl IsoInterpreter {
     /// The start of the programmed arc of the next compensated move: the
     /// tool position for the entry move, else the last programmed point.
     pub(super) fn comp_arc_start(&self) -> P2 {
-        let p = if self.comp.first { self.pos } else { self.comp.programmed };
+        let p = if self.comp.first {
+            self.pos
+        } else {
+            self.comp.programmed
+        };
         self.comp.plane.project(&p)
     }
 
@@ -523,10 +549,18 @@ impl IsoInterpreter {
         let op = plane.project(&self.comp.programmed);
         let arc_radius = (center - pp).norm();
         let mut theta = angle(c - op);
-        theta = if side == Side::Left { theta - FRAC_PI_2 } else { theta + FRAC_PI_2 };
+        theta = if side == Side::Left {
+            theta - FRAC_PI_2
+        } else {
+            theta + FRAC_PI_2
+        };
         let mut delta = angle(center - op);
         let alpha = if turn > 0 { delta - FRAC_PI_2 } else { delta + FRAC_PI_2 };
-        let mut beta = if side == Side::Left { theta - alpha } else { alpha - theta };
+        let mut beta = if side == Side::Left {
+            theta - alpha
+        } else {
+            alpha - theta
+        };
         if beta > 1.5 * PI {
             beta -= TAU;
         } else if beta < -FRAC_PI_2 {
@@ -563,7 +597,14 @@ impl IsoInterpreter {
                         if !(-1.0..=1.0).contains(&l) {
                             return Err(gouge());
                         }
-                        (dist, if turn > 0 { theta + PI - l.asin() } else { theta + PI + l.asin() })
+                        (
+                            dist,
+                            if turn > 0 {
+                                theta + PI - l.asin()
+                            } else {
+                                theta + PI + l.asin()
+                            },
+                        )
                     };
                     center + dir(a) * dist
                 }
@@ -572,7 +613,9 @@ impl IsoInterpreter {
                     let newrad = if ins { arc_radius - r } else { arc_radius + r };
                     let cc = (pc - center).norm();
                     if oldrad == 0.0 || cc == 0.0 {
-                        return Err(err("arc to arc motion is invalid because the arcs have the same center"));
+                        return Err(err(
+                            "arc to arc motion is invalid because the arcs have the same center",
+                        ));
                     }
                     let a = (oldrad * oldrad + cc * cc - newrad * newrad) / (2.0 * oldrad * cc);
                     if !(-1.0..=1.0).contains(&a) {

@@ -92,7 +92,9 @@ impl IsoInterpreter {
             ));
         }
         if self.comp.side.is_some() {
-            return Err(err(format!("{name}: canned cycles cannot be used with cutter radius compensation on")));
+            return Err(err(format!(
+                "{name}: canned cycles cannot be used with cutter radius compensation on"
+            )));
         }
         if self.feed_mm_per_min <= 0.0 {
             return Err(err(format!("{name} with no feed rate set (F is zero or missing)")));
@@ -105,7 +107,11 @@ impl IsoInterpreter {
         let r_word = match b.word(b'R') {
             Some(r) => r,
             None if same => self.cycle.r,
-            None => return Err(err(format!("{name} needs an R word (retract level) on its first block"))),
+            None => {
+                return Err(err(format!(
+                    "{name} needs an R word (retract level) on its first block"
+                )));
+            }
         };
         let bottom_word = match b.word(lc) {
             Some(z) => z,
@@ -121,7 +127,11 @@ impl IsoInterpreter {
         let repeats = match b.word(b'L') {
             None => 1,
             Some(l) if l.fract() == 0.0 && (1.0..=1e6).contains(&l) => l as u32,
-            Some(l) => return Err(err(format!("{name} L must be a whole number of repeats of at least 1, got {l}"))),
+            Some(l) => {
+                return Err(err(format!(
+                    "{name} L must be a whole number of repeats of at least 1, got {l}"
+                )));
+            }
         };
         let needs_p = matches!(code, 820 | 860 | 890);
         let p = match b.word(b'P') {
@@ -134,7 +144,9 @@ impl IsoInterpreter {
         }
         let q = match b.word(b'Q') {
             Some(q) => q,
-            None if matches!(code, 730 | 830) && !same => return Err(err(format!("{name} needs a Q word (peck depth)"))),
+            None if matches!(code, 730 | 830) && !same => {
+                return Err(err(format!("{name} needs a Q word (peck depth)")));
+            }
             None => self.cycle.q,
         };
         let mut ijk = self.cycle.ijk;
@@ -198,7 +210,9 @@ impl IsoInterpreter {
         let beam = self.beam;
         let polar_steps = self.incremental && b.polar.iter().any(Option::is_some);
         if polar_steps && (b.word(la).is_some() || b.word(lb).is_some() || self.plane != crate::geometry::Plane::Xy) {
-            return Err(err(format!("{name}: polar coordinates (@ ^) replace X and Y, in the XY plane only")));
+            return Err(err(format!(
+                "{name}: polar coordinates (@ ^) replace X and Y, in the XY plane only"
+            )));
         }
         for _ in 0..repeats {
             if polar_steps {

@@ -115,7 +115,21 @@ const NORMALISE: [u8; 256] = {
 /// Modal group of a G code (times ten), or `None` when unknown.
 fn g_group(code: u16) -> Option<u8> {
     Some(match code {
-        0 | 10 | 20 | 30 | 50..=53 | 330 | 331 | 382..=385 | 700 | 710..=712 | 720..=722 | 730 | 740 | 760 | 800..=890 => 1,
+        0
+        | 10
+        | 20
+        | 30
+        | 50..=53
+        | 330
+        | 331
+        | 382..=385
+        | 700
+        | 710..=712
+        | 720..=722
+        | 730
+        | 740
+        | 760
+        | 800..=890 => 1,
         40 | 100 | 280 | 281 | 300 | 301 | 530 | 920..=923 => 0,
         170 | 171 | 180 | 181 | 190 | 191 => 2,
         900 | 910 => 3,
@@ -192,6 +206,8 @@ pub struct IsoInterpreter {
     /// Cutter radius compensation state and held-back moves.
     comp: comp::CompState,
     tool_table: Option<std::sync::Arc<ToolTable>>,
+    /// Folders searched for subroutine files.
+    sub_path: Vec<std::path::PathBuf>,
     /// Tool in the spindle (M6, M61), and the one a T word selected.
     tool_current: u32,
     tool_selected: Option<u32>,
@@ -263,6 +279,7 @@ impl IsoInterpreter {
             cycle: cycles::CycleState::new(),
             comp: comp::CompState::new(),
             tool_table: opts.tool_table.clone(),
+            sub_path: opts.subroutine_path.clone(),
             tool_current: 0,
             tool_selected: None,
         }
@@ -513,11 +530,15 @@ impl IsoInterpreter {
                 format!("subroutine calls nested deeper than {MAX_CALL_DEPTH}"),
             ));
         }
+        if !self.subs.contains_key(&ol.label) {
+            self.load_sub_file(&ol.label, lineno, out, depth)?;
+        }
         let body = self.subs.get(&ol.label).cloned().ok_or_else(|| {
             GcodeError::at(
                 lineno,
                 format!(
-                    "o{} is called before its definition (define subroutines before calling them; no external files are read)",
+                    "o{} is called before its definition (define subroutines before calling them, or give the folder of {}.ngc with --subroutine-path)",
+                    label_text(&ol.label),
                     label_text(&ol.label)
                 ),
             )
@@ -550,6 +571,32 @@ impl IsoInterpreter {
                 format!("break/continue o{} escaped its subroutine", label_text(&l)),
             )),
         }
+    }
+
+    /// Define subroutine `label` from `label.ngc` in the first folder of
+    /// the subroutine path that has it, as LinuxCNC does: the file's lines
+    /// are run (they hold the `sub ... endsub`), so the definition exists
+    /// after. Nothing when no folder has the file.
+    fn load_sub_file(
+        &mut self,
+        label: &[u8],
+        lineno: u64,
+        out: &mut VecDeque<Record>,
+        depth: u32,
+    ) -> Result<(), GcodeError> {
+        let name = format!("{}.ngc", label_text(label));
+        let Some(path) = self.sub_path.iter().map(|d| d.join(&name)).find(|p| p.is_file()) else {
+            return Ok(());
+        };
+        let text = std::fs::read(&path).map_err(|e| GcodeError::Io { line: lineno, source: e })?;
+        let lines: Vec<(u64, String)> = String::from_utf8_lossy(&text)
+            .lines()
+            .enumerate()
+            .map(|(k, l)| (k as u64 + 1, l.trim_end_matches('\r').to_string()))
+            .collect();
+        self.exec_block(&lines, out, depth + 1)
+            .map_err(|e| GcodeError::at(lineno, format!("in {}: {e}", path.display())))?;
+        Ok(())
     }
 
     fn unit(&self) -> f64 {
@@ -817,7 +864,9 @@ impl IsoInterpreter {
             if v.fract() == 0.0 && (0.0..=1e9).contains(&v) {
                 Ok(v as u32)
             } else {
-                Err(err(format!("{letter}{v}: a tool number must be a whole number of at least 0")))
+                Err(err(format!(
+                    "{letter}{v}: a tool number must be a whole number of at least 0"
+                )))
             }
         };
         if let Some(t) = b.word(b'T') {
@@ -832,14 +881,18 @@ impl IsoInterpreter {
         }
         if b.has_m(60) {
             if self.comp.side.is_some() {
-                return Err(err("cannot change tools with cutter radius compensation on (G40 first)".into()));
+                return Err(err(
+                    "cannot change tools with cutter radius compensation on (G40 first)".into(),
+                ));
             }
             if let Some(t) = self.tool_selected {
                 self.tool_current = t;
             }
         }
         if b.has_m(610) {
-            let q = b.word(b'Q').ok_or_else(|| err("M61 needs a Q word (the tool number)".into()))?;
+            let q = b
+                .word(b'Q')
+                .ok_or_else(|| err("M61 needs a Q word (the tool number)".into()))?;
             self.tool_current = whole('Q', q)?;
         }
         Ok(())
@@ -1427,6 +1480,25 @@ mod tests {
                 [99.0, 1.0, 2.0],
             ]
         );
+    }
+
+    #[test]
+    fn subroutines_come_from_files_on_the_subroutine_path() {
+        let dir = std::env::temp_dir().join(format!("microcam-subpath-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        std::fs::write(dir.join("side.ngc"), "o<side> sub\nG1 X#1 F10\no<side> endsub\n").unwrap();
+        let mut opts = ReadOptions {
+            dialect: Some(Dialect::Iso),
+            ..Default::default()
+        };
+        let text = "o<side> call [3]\no<side> call [4]\n";
+        let e = read_str(text, &opts).unwrap_err();
+        assert!(e.to_string().contains("--subroutine-path") && e.line() == 1, "{e}");
+        opts.subroutine_path = vec![dir.join("missing"), dir.clone()];
+        let (_, recs) = read_str(text, &opts).unwrap();
+        let xs: Vec<f64> = recs.iter().filter_map(Record::motion).map(|m| m.to.x).collect();
+        assert_eq!(xs, vec![3.0, 4.0]);
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]

@@ -98,6 +98,9 @@ pub struct ReadOptions {
     /// LinuxCNC tool table, for cutter radius compensation by D word and
     /// tool changes (ISO programs). `None`: no table.
     pub tool_table: Option<std::sync::Arc<tooltable::ToolTable>>,
+    /// Folders searched, in order, for `name.ngc` when an ISO program
+    /// calls `o<name>` it does not define (LinuxCNC's SUBROUTINE_PATH).
+    pub subroutine_path: Vec<std::path::PathBuf>,
 }
 
 impl Default for ReadOptions {
@@ -108,6 +111,7 @@ impl Default for ReadOptions {
             line_counter_var: "P400".into(),
             start: P3::origin(),
             tool_table: None,
+            subroutine_path: Vec::new(),
         }
     }
 }

@@ -554,6 +554,7 @@ impl Controller {
             line_counter_var: "Q8191".into(),
             start: self.pos,
             tool_table: None,
+            subroutine_path: Vec::new(),
         };
         self.runs += 1;
         let id = self.runs;
