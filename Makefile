@@ -17,7 +17,9 @@ build:
 test: build unit conformance checks
 
 unit:
+	rm -rf target/corpus-tally
 	$(CARGO) test --release
+	scripts/corpus-tally
 
 golden:
 	$(CARGO) test --release --test golden
@@ -38,7 +40,7 @@ checks: fig3-20 removal-check dxf-check
 # dxf2chains against ezdxf on random drawings of every entity type and on
 # the corpus (installs ezdxf when missing).
 dxf-check: build
-	python3 scripts/dxf-ezdxf-check --bin $(BIN)/dxf2chains --corpus testdata/dxf
+	python3 scripts/dxf-ezdxf-check --bin $(BIN)/dxf2chains
 
 # Seed 000 Fig. 3-20: achieved feed against segment length under the PMAC model.
 fig3-20: build

@@ -14,9 +14,9 @@ use thiserror::Error;
 /// A cutter description that does not make a tool.
 #[derive(Debug, Error, Clone, PartialEq)]
 pub enum CutterError {
-    #[error("'{0}': expected flat:D, ball:D or torus:D:RC in mm")]
+    #[error("cutter '{0}': expected flat:D, ball:D or torus:D:RC in mm")]
     Syntax(String),
-    #[error("'{0}': the corner radius is above the tool radius")]
+    #[error("cutter '{0}': the corner radius is above the tool radius")]
     CornerTooLarge(String),
 }
 

@@ -88,7 +88,7 @@ fn devices_and_symlinks_are_written_in_place() {
     let target = dir.path().join("out.jsonl");
     let f = std::fs::File::create(&target).unwrap();
     let status = Command::new(GSIM)
-        .args(["--moves", "-o", "/dev/stdout", "testdata/gcode/heart.ngc"])
+        .args(["--moves", "-o", "/dev/stdout", "testdata/gcode/badge.ngc"])
         .current_dir(env!("CARGO_MANIFEST_DIR"))
         .stdout(f)
         .status()
@@ -115,7 +115,7 @@ fn devices_and_symlinks_are_written_in_place() {
         std::os::unix::fs::symlink(&real, &link).unwrap();
         let o = run(
             GSIM,
-            &["--moves", "-o", link.to_str().unwrap(), "testdata/gcode/heart.ngc"],
+            &["--moves", "-o", link.to_str().unwrap(), "testdata/gcode/badge.ngc"],
             None,
         );
         assert_eq!(o.status.code(), Some(0));
@@ -126,7 +126,7 @@ fn devices_and_symlinks_are_written_in_place() {
 
 #[test]
 fn identical_input_gives_identical_output() {
-    let prog = Path::new("testdata/gcode/genes-encoder.ngc").to_str().unwrap();
+    let prog = Path::new("testdata/gcode/encoder-disc.ngc").to_str().unwrap();
     let a = run(GSIM, &["--moves", prog], None);
     let b = run(GSIM, &["--moves", prog], None);
     assert_eq!(a.status.code(), Some(0));
@@ -139,7 +139,7 @@ fn identical_input_gives_identical_output() {
 
 #[test]
 fn iso_to_pmac_and_back_keeps_the_path() {
-    let prog = "testdata/gcode/nc_files-tort.ngc";
+    let prog = "testdata/gcode/badge.ngc";
     let direct = run(GSIM, &[prog], None);
     let pmac = run(PATHGEN, &["emit", "--dialect", "pmac", "--decimals", "6", prog], None);
     assert_eq!(pmac.status.code(), Some(0), "{}", String::from_utf8_lossy(&pmac.stderr));

@@ -1,7 +1,9 @@
-//! Every DXF file of the corpus (copied into testdata/dxf/) through the
-//! library: each either converts into chains that the chains reader accepts
-//! back, byte-identically on a second run, or fails with a located error.
-//! Files with a known feature are checked for it.
+//! Every DXF file of the shared corpus (real drawings from other programs,
+//! read in place: see `microcam::corpus`) and every sample of our own
+//! through the library: each either converts into chains that the chains
+//! reader accepts back, byte-identically on a second run, or fails with a
+//! located error. Files with a known feature are checked for it. Without
+//! the corpus the corpus tests skip, saying so.
 
 use microcam::dxf::{self, ImportOptions, UnitSource, chain};
 use microcam::formats::chains::{ChainsReader, ChainsWriter};
@@ -9,8 +11,23 @@ use microcam::model::chain::{Chain, ChainsHeader, Segment};
 use std::io::{BufReader, Cursor};
 use std::path::{Path, PathBuf};
 
-fn dir() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("testdata/dxf")
+/// The corpus's dxf folder, or `None` after noting that `test` skipped.
+fn corpus(test: &str) -> Option<PathBuf> {
+    match microcam::corpus::dir() {
+        Some(d) => Some(d.join("dxf")),
+        None => {
+            microcam::corpus::skip(test);
+            None
+        }
+    }
+}
+
+fn corpus_dir() -> PathBuf {
+    microcam::corpus::dir().expect("corpus present").join("dxf")
+}
+
+fn own(rel: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("testdata").join(rel)
 }
 
 struct Run {
@@ -21,14 +38,19 @@ struct Run {
 }
 
 fn convert(name: &str, opts: &ImportOptions) -> Result<Run, String> {
-    let f = std::fs::File::open(dir().join(name)).unwrap();
+    convert_path(&corpus_dir().join(name), opts)
+}
+
+fn convert_path(path: &Path, opts: &ImportOptions) -> Result<Run, String> {
+    let name = path.file_name().unwrap().to_string_lossy().into_owned();
+    let f = std::fs::File::open(path).unwrap();
     let mut imp = dxf::import(Box::new(BufReader::new(f)), opts).map_err(|e| e.to_string())?;
     let segs = std::mem::take(&mut imp.sink.segments);
     let (chains, report) = chain::build(segs, &imp.sink.points, &imp.sink.layers, 0.001);
     let chains: Vec<Chain> = chains.iter().collect();
     let mut w = ChainsWriter::new(Vec::new());
     w.header(&ChainsHeader {
-        source: Some(name.into()),
+        source: Some(name.clone()),
     })
     .unwrap();
     for c in &chains {
@@ -54,41 +76,35 @@ fn radius(s: &Segment) -> Option<f64> {
     }
 }
 
-#[test]
-fn every_corpus_file_converts_or_fails_cleanly() {
-    let mut names: Vec<String> = std::fs::read_dir(dir())
-        .unwrap()
-        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
-        .collect();
-    names.sort();
-    assert!(names.len() >= 30, "corpus copied into testdata/dxf");
-    for name in names {
-        let expect_error = name.starts_with("bad-") || name.starts_with("nothing-decimal-comma");
-        match convert(&name, &ImportOptions::default()) {
-            Err(e) => {
-                assert!(expect_error, "{name}: {e}");
-                assert!(
-                    e.starts_with("line ") || e.starts_with("byte "),
-                    "{name}: error not located: {e}"
-                );
-            }
-            Ok(r) => {
-                assert!(!expect_error, "{name} should fail");
-                // The pipe format's own reader accepts every chain back.
-                let back: Vec<Chain> = ChainsReader::new(Cursor::new(&r.text))
-                    .unwrap()
-                    .collect::<Result<_, _>>()
-                    .unwrap_or_else(|e| panic!("{name}: chains reader rejects our output: {e}"));
-                assert_eq!(back.len(), r.chains.len());
-                // Identical input, identical output.
-                assert_eq!(run(&name).text, r.text, "{name}: output differs between runs");
-                for c in &r.chains {
-                    for w in c.segments.windows(2) {
-                        assert_eq!(w[0].end(), w[1].start(), "{name}: chain {} not snapped", c.id);
-                    }
-                    if c.closed {
-                        assert_eq!(c.segments.last().unwrap().end(), c.segments[0].start());
-                    }
+/// One file through the library: converts cleanly (chains read back,
+/// identical on a second run, snapped) or fails at a located line or byte.
+fn check_file(path: &Path, expect_error: bool) {
+    let name = path.display();
+    match convert_path(path, &ImportOptions::default()) {
+        Err(e) => {
+            assert!(expect_error, "{name}: {e}");
+            assert!(
+                e.starts_with("line ") || e.starts_with("byte "),
+                "{name}: error not located: {e}"
+            );
+        }
+        Ok(r) => {
+            assert!(!expect_error, "{name} should fail");
+            // The pipe format's own reader accepts every chain back.
+            let back: Vec<Chain> = ChainsReader::new(Cursor::new(&r.text))
+                .unwrap()
+                .collect::<Result<_, _>>()
+                .unwrap_or_else(|e| panic!("{name}: chains reader rejects our output: {e}"));
+            assert_eq!(back.len(), r.chains.len());
+            // Identical input, identical output.
+            let again = convert_path(path, &ImportOptions::default()).unwrap();
+            assert_eq!(again.text, r.text, "{name}: output differs between runs");
+            for c in &r.chains {
+                for w in c.segments.windows(2) {
+                    assert_eq!(w[0].end(), w[1].start(), "{name}: chain {} not snapped", c.id);
+                }
+                if c.closed {
+                    assert_eq!(c.segments.last().unwrap().end(), c.segments[0].start());
                 }
             }
         }
@@ -96,7 +112,43 @@ fn every_corpus_file_converts_or_fails_cleanly() {
 }
 
 #[test]
+fn every_corpus_file_converts_or_fails_cleanly() {
+    let Some(dir) = corpus("dxf_every_corpus_file") else {
+        return;
+    };
+    let files = microcam::corpus::files("dxf", &[".dxf"]);
+    assert!(files.len() >= 30, "{}: expected the DXF corpus", dir.display());
+    for path in &files {
+        let name = path.file_name().unwrap().to_string_lossy();
+        check_file(path, name.starts_with("nothing-decimal-comma"));
+    }
+    microcam::corpus::record("dxf_every_corpus_file", files.len());
+}
+
+#[test]
+fn every_own_sample_and_broken_file_converts_or_fails_cleanly() {
+    let mut n = 0;
+    for sub in ["samples", "dxf"] {
+        let mut paths: Vec<PathBuf> = std::fs::read_dir(own(sub))
+            .unwrap()
+            .map(|e| e.unwrap().path())
+            .collect();
+        paths.sort();
+        for path in paths {
+            let name = path.file_name().unwrap().to_string_lossy().into_owned();
+            check_file(&path, name.starts_with("bad-") || name.starts_with("decimal-comma"));
+            n += 1;
+        }
+    }
+    assert!(n >= 13, "{n} files");
+}
+
+#[test]
 fn stir_mirrored_arcs_land_where_autocad_draws_them() {
+    if corpus("stir_mirrored_arcs_land_where_autocad_draws_them").is_none() {
+        return;
+    }
+    microcam::corpus::record("stir_mirrored_arcs_land_where_autocad_draws_them", 1);
     let r = run("Stir_1.dxf");
     assert_eq!(r.report.closed, 14);
     assert_eq!(r.report.open, 0);
@@ -120,6 +172,10 @@ fn stir_mirrored_arcs_land_where_autocad_draws_them() {
 
 #[test]
 fn duplicate_lines_halve() {
+    if corpus("duplicate_lines_halve").is_none() {
+        return;
+    }
+    microcam::corpus::record("duplicate_lines_halve", 1);
     let r = run("1997_simplified_doppelte_linien.dxf");
     assert_eq!(r.imp.sink.used.get("LINE"), Some(&908));
     assert_eq!(r.report.duplicates, 454);
@@ -130,6 +186,10 @@ fn duplicate_lines_halve() {
 
 #[test]
 fn inch_file_scales_by_25_4() {
+    if corpus("inch_file_scales_by_25_4").is_none() {
+        return;
+    }
+    microcam::corpus::record("inch_file_scales_by_25_4", 1);
     let inch = run("fc_mounting.dxf");
     let plain = run("fc_mounting_R12.dxf");
     assert_eq!(inch.imp.unit_source, UnitSource::Header(1));
@@ -151,6 +211,10 @@ fn inch_file_scales_by_25_4() {
 
 #[test]
 fn splines_and_ellipses_come_out_as_arcs() {
+    if corpus("splines_and_ellipses_come_out_as_arcs").is_none() {
+        return;
+    }
+    microcam::corpus::record("splines_and_ellipses_come_out_as_arcs", 1);
     for name in [
         "Inkspace_dxf_export_kreis_splines.dxf",
         "ellipse-reverse.dxf",
@@ -178,6 +242,10 @@ fn splines_and_ellipses_come_out_as_arcs() {
 
 #[test]
 fn inserts_nested_and_mirrored() {
+    if corpus("inserts_nested_and_mirrored").is_none() {
+        return;
+    }
+    microcam::corpus::record("inserts_nested_and_mirrored", 1);
     let r = run("transform-insert.dxf");
     assert_eq!(r.imp.sink.used.get("INSERT"), Some(&6));
     assert_eq!((r.report.closed, r.report.open), (3, 0));
@@ -191,6 +259,10 @@ fn inserts_nested_and_mirrored() {
 
 #[test]
 fn binary_files_read() {
+    if corpus("binary_files_read").is_none() {
+        return;
+    }
+    microcam::corpus::record("binary_files_read", 1);
     let r = run("bin_dxf_r12.dxf");
     assert!(r.imp.binary);
     assert_eq!(r.imp.sink.used.get("LINE"), Some(&3));
@@ -201,6 +273,10 @@ fn binary_files_read() {
 
 #[test]
 fn skipped_types_are_counted() {
+    if corpus("skipped_types_are_counted").is_none() {
+        return;
+    }
+    microcam::corpus::record("skipped_types_are_counted", 1);
     let r = run("FLH-001.dxf");
     assert_eq!(r.imp.skipped.get("SOLID"), Some(&22));
     assert_eq!(r.imp.skipped.get("TEXT"), Some(&12));
@@ -208,6 +284,10 @@ fn skipped_types_are_counted() {
 
 #[test]
 fn decimal_commas_fail_at_their_line() {
+    if corpus("decimal_commas_fail_at_their_line").is_none() {
+        return;
+    }
+    microcam::corpus::record("decimal_commas_fail_at_their_line", 1);
     let e = convert("nothing-decimal-comma-separated.dxf", &ImportOptions::default())
         .err()
         .unwrap();
@@ -216,12 +296,65 @@ fn decimal_commas_fail_at_their_line() {
 
 #[test]
 fn every_prefix_of_a_file_fails_cleanly_or_converts() {
-    // Truncation anywhere: never a panic.
-    for name in ["Stir_1.dxf", "bin_dxf_r12.dxf", "lwpoly-bulge.dxf"] {
-        let bytes = std::fs::read(dir().join(name)).unwrap();
-        for cut in (0..bytes.len()).step_by(97) {
+    // Truncation anywhere: never a panic, never accepted.
+    for name in ["samples/part.dxf", "samples/part-bin.dxf", "samples/blocks.dxf"] {
+        let bytes = std::fs::read(own(name)).unwrap();
+        for cut in (0..bytes.len()).step_by(7) {
             let r = dxf::import(Box::new(Cursor::new(bytes[..cut].to_vec())), &ImportOptions::default());
             assert!(r.is_err(), "{name} cut at {cut} accepted");
         }
     }
+}
+
+#[test]
+fn own_samples_have_their_features() {
+    let run_own = |rel: &str| convert_path(&own(rel), &ImportOptions::default()).unwrap();
+    // The part: outline, 4 holes, slot, ellipse, spline pocket (closed),
+    // the engraving (open) and a pierce point.
+    let r = run_own("samples/part.dxf");
+    assert_eq!((r.report.closed, r.report.open), (8, 1));
+    assert_eq!(r.imp.sink.curves, 2, "spline and ellipse");
+    assert!(r.imp.sink.curve_pieces < r.imp.sink.curve_chords);
+    assert_eq!(r.imp.sink.points.len(), 1);
+    // Inches: 25.4 mm per unit from the header; --units overrides it.
+    let r = run_own("samples/part-inch.dxf");
+    assert_eq!(r.imp.unit_source, UnitSource::Header(1));
+    let hole = r
+        .chains
+        .iter()
+        .find_map(|c| (c.segments.len() == 1).then(|| radius(&c.segments[0])).flatten())
+        .unwrap();
+    assert!((hole - 0.0625 * 25.4).abs() < 1e-9, "{hole}");
+    // Blocks: nested, mirrored in X and in Y, rotated, arrayed.
+    let r = run_own("samples/blocks.dxf");
+    assert_eq!(r.imp.sink.used.get("INSERT"), Some(&5));
+    assert_eq!((r.report.closed, r.report.open), (14, 0));
+    // Duplicates: 4 removed (drawn reversed), a zero-length piece, a gap.
+    let r = run_own("samples/duplicates.dxf");
+    assert_eq!(r.report.duplicates, 4);
+    assert_eq!((r.report.closed, r.report.open), (2, 0));
+    // OCS (0,0,-1): the circle drawn at OCS x = -5 lies at world x = +5.
+    let r = run_own("samples/ocs-mirror.dxf");
+    let c = r
+        .chains
+        .iter()
+        .find_map(|c| match c.segments.as_slice() {
+            [Segment::Arc { center, .. }] => Some(*center),
+            _ => None,
+        })
+        .unwrap();
+    assert!((c.x - 5.0).abs() < 1e-9 && (c.y - 2.0).abs() < 1e-9, "{c:?}");
+    // TEXT and SOLID are counted as skipped.
+    let r = run_own("samples/text-skipped.dxf");
+    assert_eq!(r.imp.skipped.get("TEXT"), Some(&1));
+    assert_eq!(r.imp.skipped.get("SOLID"), Some(&1));
+    // Binary.
+    let r = run_own("samples/part-bin.dxf");
+    assert!(r.imp.binary);
+    assert_eq!(r.imp.sink.used.get("LINE"), Some(&3));
+    // Decimal commas fail at their line.
+    let e = convert_path(&own("samples/decimal-comma.dxf"), &ImportOptions::default())
+        .err()
+        .unwrap();
+    assert!(e.starts_with("line ") && e.contains("decimal comma"), "{e}");
 }

@@ -3,6 +3,13 @@
 //! binaries first on PATH. Its stdout (and, when the command fails or writes
 //! to stderr, its stderr and exit status) must equal testdata/golden/<name>.out
 //! byte for byte. `UPDATE_GOLDEN=1 cargo test --test golden` rewrites them.
+//!
+//! Cases in `*.corpus.tsv` files run on real files written by other
+//! programs, read in place from the shared corpus (see `microcam::corpus`):
+//! they run with the corpus folder as the working directory (so commands
+//! name `dxf/Stir_1.dxf`, and messages quote that short name) and `$ROOT`
+//! set to the repository root. Without the corpus they are skipped, and
+//! the count says so.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -24,38 +31,79 @@ fn render(out: &std::process::Output) -> String {
     s
 }
 
-#[test]
-fn golden_outputs_match() {
-    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
-    let dir = root.join("testdata/golden");
-    let mut tsvs: Vec<_> = std::fs::read_dir(&dir)
+struct Case {
+    name: String,
+    cmd: String,
+    corpus: bool,
+}
+
+fn cases(dir: &Path) -> Vec<Case> {
+    let mut tsvs: Vec<_> = std::fs::read_dir(dir)
         .expect("testdata/golden")
         .filter_map(|e| e.ok().map(|e| e.path()))
         .filter(|p| p.extension().is_some_and(|x| x == "tsv"))
         .collect();
     tsvs.sort();
-    let cases: String = tsvs
-        .iter()
-        .map(|p| std::fs::read_to_string(p).expect("read .tsv"))
-        .collect();
+    let mut out = Vec::new();
+    for p in tsvs {
+        let corpus = p.to_string_lossy().ends_with(".corpus.tsv");
+        let text = std::fs::read_to_string(&p).expect("read .tsv");
+        for line in text.lines() {
+            let line = line.trim_end();
+            if line.is_empty() || line.starts_with('#') {
+                continue;
+            }
+            let (name, cmd) = line
+                .split_once('\t')
+                .unwrap_or_else(|| panic!("{}: no TAB in {line:?}", p.display()));
+            out.push(Case {
+                name: name.to_string(),
+                cmd: cmd.to_string(),
+                corpus,
+            });
+        }
+    }
+    out
+}
+
+#[test]
+fn golden_outputs_match() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let dir = root.join("testdata/golden");
     let update = std::env::var_os("UPDATE_GOLDEN").is_some_and(|v| v != "0");
     let path = format!("{}:{}", bin_dir().display(), std::env::var("PATH").unwrap_or_default());
+    let corpus = microcam::corpus::dir();
     let mut failures = Vec::new();
-    let mut count = 0;
-    for line in cases.lines() {
-        let line = line.trim_end();
-        if line.is_empty() || line.starts_with('#') {
-            continue;
-        }
-        let (name, cmd) = line
-            .split_once('\t')
-            .unwrap_or_else(|| panic!("golden .tsv: no TAB in {line:?}"));
+    let (mut count, mut corpus_ran, mut corpus_skipped) = (0, 0, 0);
+    let mut names = std::collections::HashSet::new();
+    for case in cases(&dir) {
+        assert!(
+            names.insert(case.name.clone()),
+            "golden case {} listed twice",
+            case.name
+        );
+        let cwd = if case.corpus {
+            match &corpus {
+                Some(c) => {
+                    corpus_ran += 1;
+                    c.clone()
+                }
+                None => {
+                    corpus_skipped += 1;
+                    continue;
+                }
+            }
+        } else {
+            root.to_path_buf()
+        };
         count += 1;
+        let (name, cmd) = (&case.name, &case.cmd);
         let out = Command::new("sh")
             .arg("-c")
             .arg(cmd)
-            .current_dir(root)
+            .current_dir(&cwd)
             .env("PATH", &path)
+            .env("ROOT", root)
             .output()
             .expect("run sh");
         let got = render(&out);
@@ -83,6 +131,11 @@ fn golden_outputs_match() {
             Err(_) => failures.push(format!("{name}: missing {} (run with UPDATE_GOLDEN=1)", file.display())),
         }
     }
+    if corpus_skipped > 0 {
+        microcam::corpus::skip("golden");
+    } else {
+        microcam::corpus::record("golden", corpus_ran);
+    }
     assert!(count > 0, "no golden cases");
     assert!(
         failures.is_empty(),
@@ -90,4 +143,21 @@ fn golden_outputs_match() {
         failures.len(),
         failures.join("\n")
     );
+}
+
+/// Every `.out` file belongs to a listed case: a renamed or removed case
+/// must not leave its old output behind.
+#[test]
+fn no_orphan_golden_outputs() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("testdata/golden");
+    let names: std::collections::HashSet<String> = cases(&dir).into_iter().map(|c| c.name).collect();
+    let mut orphans: Vec<String> = std::fs::read_dir(&dir)
+        .unwrap()
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.extension().is_some_and(|x| x == "out"))
+        .filter_map(|p| p.file_stem().map(|s| s.to_string_lossy().into_owned()))
+        .filter(|n| !names.contains(n))
+        .collect();
+    orphans.sort();
+    assert!(orphans.is_empty(), "golden outputs with no case: {orphans:?}");
 }

@@ -1502,8 +1502,8 @@ mod tests {
     }
 
     #[test]
-    fn the_heart_program_from_camotics_reads() {
-        let text = include_str!("../../testdata/gcode/heart.ngc");
+    fn the_badge_sample_reads_in_every_plane() {
+        let text = include_str!("../../testdata/gcode/badge.ngc");
         let recs = read(text).unwrap();
         let arcs = recs
             .iter()
@@ -1517,6 +1517,6 @@ mod tests {
                 )
             })
             .count();
-        assert!(arcs > 30, "{arcs} arcs");
+        assert_eq!(arcs, 8, "{arcs} arcs");
     }
 }
