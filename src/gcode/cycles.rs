@@ -223,7 +223,9 @@ impl IsoInterpreter {
             }
             aa += inc[0];
             bb += inc[1];
-            let now = pos[axes.2];
+            // Still below R (a lower R before): cross at the clearance
+            // level, as rs274 does.
+            let now = if pos[axes.2] < r { clear } else { pos[axes.2] };
             e.go(&mut pos, Some(aa), Some(bb), now, true, beam);
             if now != r {
                 e.go(&mut pos, None, None, r, true, beam);
@@ -389,6 +391,21 @@ mod tests {
             (true, 1.0, 1.0, -0.746),
             (false, 1.0, 1.0, -2.0),
             (true, 1.0, 1.0, 5.0),
+        ];
+        assert!(same(&got, &want), "{got:?}");
+        // A tool below the new R (a lower R before) crosses at the
+        // clearance level (G98: the initial level) rather than rising first.
+        let got = trace("G0 X0 Y0 Z5\nG81 X5 Y5 Z-2 R1 F300\nG98 X15 Y5 Z-2 R2\n");
+        let want = [
+            (true, 0.0, 0.0, 5.0),
+            (true, 5.0, 5.0, 5.0),
+            (true, 5.0, 5.0, 1.0),
+            (false, 5.0, 5.0, -2.0),
+            (true, 5.0, 5.0, 1.0),
+            (true, 15.0, 5.0, 5.0),
+            (true, 15.0, 5.0, 2.0),
+            (false, 15.0, 5.0, -2.0),
+            (true, 15.0, 5.0, 5.0),
         ];
         assert!(same(&got, &want), "{got:?}");
         // G18: positions in Z/X, drills along Y.
