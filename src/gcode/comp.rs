@@ -385,8 +385,7 @@ impl IsoInterpreter {
             };
             end = pp + dir(alpha + gamma) * r;
             let mid = op + dir(alpha + gamma) * r;
-            let concave = beta < -SMALL
-                || beta > PI + SMALL
+            let concave = !(-SMALL..=PI + SMALL).contains(&beta)
                 || (beta > PI - SMALL
                     && self
                         .comp
@@ -578,7 +577,7 @@ impl IsoInterpreter {
         };
         let new_end = pp + dir(gamma) * r;
         let sweep = find_turn(op, center, turn, pp);
-        if beta < -SMALL || beta > PI + SMALL || ((beta - PI).abs() < SMALL && !ins) {
+        if !(-SMALL..=PI + SMALL).contains(&beta) || ((beta - PI).abs() < SMALL && !ins) {
             // Concave: meet the previous offset path.
             let mid = match self.comp.front_arc() {
                 None => {
@@ -720,7 +719,7 @@ mod tests {
             &sq.replace('?', "1"),
             &[
                 T(-5.0, -5.0, 0.0),
-                F(-0.7071, 0.7071, 0.0),
+                F(-std::f64::consts::FRAC_1_SQRT_2, std::f64::consts::FRAC_1_SQRT_2, 0.0),
                 A(0.0, 1.0, 0.0, 0.0, false),
                 F(9.0, 1.0, 0.0),
                 F(9.0, 9.0, 0.0),
@@ -783,7 +782,7 @@ mod tests {
             "G0 X-5 Y0\nG41.1 D2 G2 X0 Y5 I5 J0 F10\nG1 X10\nG40 G0 X20\n",
             &[
                 T(-5.0, 0.0, 0.0),
-                A(0.0, 6.0, 0.0, 0.9167, false),
+                A(0.0, 6.0, 0.0, 0.916_7, false),
                 F(10.0, 6.0, 0.0),
                 T(20.0, 5.0, 0.0),
             ],

@@ -588,7 +588,10 @@ impl IsoInterpreter {
         let Some(path) = self.sub_path.iter().map(|d| d.join(&name)).find(|p| p.is_file()) else {
             return Ok(());
         };
-        let text = std::fs::read(&path).map_err(|e| GcodeError::Io { line: lineno, source: e })?;
+        let text = std::fs::read(&path).map_err(|e| GcodeError::Io {
+            line: lineno,
+            source: e,
+        })?;
         let lines: Vec<(u64, String)> = String::from_utf8_lossy(&text)
             .lines()
             .enumerate()
