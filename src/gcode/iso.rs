@@ -130,7 +130,7 @@ fn g_group(code: u16) -> Option<u8> {
         | 740
         | 760
         | 800..=890 => 1,
-        40 | 100 | 280 | 281 | 300 | 301 | 530 | 920..=923 => 0,
+        40 | 100 | 280 | 281 | 300 | 301 | 520 | 530 | 920..=923 => 0,
         170 | 171 | 180 | 181 | 190 | 191 => 2,
         900 | 910 => 3,
         901 | 911 => 4,
@@ -946,7 +946,7 @@ impl IsoInterpreter {
             self.comp_on(b, side, b.has_g(411) || b.has_g(421), lineno)?;
         }
         if self.comp.side.is_some()
-            && [280, 281, 300, 301, 920, 921, 922, 923, 100, 530]
+            && [280, 281, 300, 301, 520, 920, 921, 922, 923, 100, 530]
                 .iter()
                 .any(|&c| b.has_g(c))
         {
@@ -989,6 +989,16 @@ impl IsoInterpreter {
             }
         } else if b.has_g(920) {
             self.set_g92(b, lineno)?;
+            axes_used = true;
+        } else if b.has_g(520) {
+            // G52: a local offset. LinuxCNC keeps it in the G92 offsets and
+            // sets each named axis' offset to the value given.
+            let u = self.unit();
+            for (k, letter) in [b'X', b'Y', b'Z'].into_iter().enumerate() {
+                if let Some(v) = b.word(letter) {
+                    self.g92[k] = v * u;
+                }
+            }
             axes_used = true;
         } else if b.has_g(921) {
             self.g92 = V3::zeros();
@@ -1399,6 +1409,14 @@ mod tests {
         assert!(close(&m[1].to, [15.0, 0.0, 0.0]));
         assert!(close(&m[2].to, [1.0, 0.0, 0.0]));
         assert!(close(&m[3].to, [101.0, 0.0, 0.0]));
+    }
+
+    #[test]
+    fn g52_sets_the_g92_offsets_as_linuxcnc() {
+        // rs274: G52 X10 Y5 then G0 X1 Y1 is machine (11, 6); G52 X2 keeps Y.
+        let m = moves("G0 X1 Y1\nG52 X10 Y5\nG0 X1 Y1\nG52 X2\nG0 X0\nG92 X0\nG0 X1\nG52 X0 Y0\nG0 X0 Y0\n");
+        let to: Vec<[f64; 2]> = m.iter().map(|m| [m.to.x, m.to.y]).collect();
+        assert_eq!(to, vec![[1.0, 1.0], [11.0, 6.0], [2.0, 6.0], [3.0, 6.0], [0.0, 0.0]]);
     }
 
     #[test]
