@@ -530,6 +530,15 @@ impl IsoInterpreter {
                 format!("subroutine calls nested deeper than {MAX_CALL_DEPTH}"),
             ));
         }
+        // The arguments first: reading a subroutine file reuses the line buffer.
+        let mut args = Vec::new();
+        let mut c = Cursor::new(&self.norm[ol.rest..]);
+        while !c.at_end() {
+            if args.len() >= 30 {
+                return Err(GcodeError::at(lineno, "more than 30 subroutine arguments"));
+            }
+            args.push(c.real_value(&self.params).map_err(|e| GcodeError::at(lineno, e))?);
+        }
         if !self.subs.contains_key(&ol.label) {
             self.load_sub_file(&ol.label, lineno, out, depth)?;
         }
@@ -543,14 +552,6 @@ impl IsoInterpreter {
                 ),
             )
         })?;
-        let mut args = Vec::new();
-        let mut c = Cursor::new(&self.norm[ol.rest..]);
-        while !c.at_end() {
-            if args.len() >= 30 {
-                return Err(GcodeError::at(lineno, "more than 30 subroutine arguments"));
-            }
-            args.push(c.real_value(&self.params).map_err(|e| GcodeError::at(lineno, e))?);
-        }
         let saved: Vec<f64> = (1..=30)
             .map(|i| self.params.get(&ParamRef::Num(i)).unwrap_or(0.0))
             .collect();
