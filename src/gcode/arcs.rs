@@ -208,8 +208,7 @@ impl IsoInterpreter {
             }
             if !tol.radii_agree(r0, r1) {
                 return Err(err(format!(
-                    "arc end is not on the circle: radius to start {r0:.6} mm, to end {r1:.6} mm \
-                     (difference {:.6} mm, more than LinuxCNC accepts)",
+                    "arc end is not on the circle: radius to start {r0:.6} mm, to end {r1:.6} mm (difference {:.6} mm)",
                     (r0 - r1).abs()
                 )));
             }
