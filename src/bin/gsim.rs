@@ -132,6 +132,18 @@ struct Args {
     /// Cutter for material removal: flat:D, ball:D or torus:D:RC (mm).
     #[arg(long, requires = "stock")]
     tool: Option<String>,
+    /// LinuxCNC tool table (.tbl) for ISO programs: cutter radius
+    /// compensation by D word (G41/G42) takes the tool's diameter from it.
+    #[arg(long, value_name = "FILE.tbl")]
+    tool_table: Option<PathBuf>,
+    /// The tool table's lengths are inches (default: millimetres).
+    #[arg(long, requires = "tool_table")]
+    tool_table_inch: bool,
+    /// Folders searched for `name.ngc` when an ISO program calls a
+    /// subroutine `o<name>` it does not define (as LinuxCNC's
+    /// SUBROUTINE_PATH); repeat the option or separate folders with ':'.
+    #[arg(long, value_name = "DIR[:DIR...]")]
+    subroutine_path: Vec<String>,
     /// Height-field cell size, mm (default: tool diameter / 50).
     #[arg(long)]
     cell_mm: Option<f64>,
@@ -216,11 +228,28 @@ fn run(args: Args) -> Result<(), CliError> {
         .transpose()?;
     let st = parse_numbers::<3>(&args.start, "--start", "X,Y,Z")?;
     let start = P3::new(st[0], st[1], st[2]);
+    let tool_table = match args.tool_table.as_deref() {
+        Some(p) => {
+            let text = std::fs::read_to_string(p).map_err(|e| CliError::in_file(&p.display().to_string(), e))?;
+            let t = microcam::gcode::tooltable::ToolTable::parse(&text, args.tool_table_inch)
+                .map_err(|e| CliError::input(format!("{}: {e}", p.display())))?;
+            Some(std::sync::Arc::new(t))
+        }
+        None => None,
+    };
     let opts = ReadOptions {
         dialect,
         shutter_var: args.shutter_var.to_ascii_uppercase(),
         line_counter_var: args.line_counter_var.to_ascii_uppercase(),
         start,
+        tool_table,
+        subroutine_path: args
+            .subroutine_path
+            .iter()
+            .flat_map(|p| p.split(':'))
+            .filter(|p| !p.is_empty())
+            .map(PathBuf::from)
+            .collect(),
     };
     let input = cli::open_input(args.file.as_deref())?;
     let source = ToolpathSource::open(input, &opts)?;

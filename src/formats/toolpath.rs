@@ -4,9 +4,7 @@ use super::{
     FormatError, LineSource, check_schema, parse_json, point_from, push_num, push_point3, push_str_lit, push_uint,
 };
 use crate::geometry::{P3, Plane};
-use crate::model::toolpath::{
-    ArcData, FeedUnit, Header, Motion, MotionKind, Record, Role, ShutterSwitch, arc_end_tolerance,
-};
+use crate::model::toolpath::{ArcData, FeedUnit, Header, Motion, MotionKind, Record, Role, ShutterSwitch};
 use serde::Deserialize;
 use std::io::{BufRead, Write};
 
@@ -234,13 +232,14 @@ fn decode(w: WireRecord, line: u64, pos: Option<P3>) -> Result<Record, FormatErr
     })
 }
 
-/// An arc's start and end must be the same distance from its centre, and
+/// An arc's start and end must be the same distance from its centre (within
+/// what the G-code readers accept: LinuxCNC's spirals), and
 /// the centre must lie in the start point's plane.
 fn check_arc(start: &P3, to: &P3, center: &P3, plane: Plane, line: u64) -> Result<(), FormatError> {
     let c = plane.project(center);
     let r0 = (plane.project(start) - c).norm();
     let r1 = (plane.project(to) - c).norm();
-    if (r0 - r1).abs() > arc_end_tolerance(r0.max(r1)) {
+    if !crate::gcode::arc_radii_accepted(r0, r1) {
         return Err(FormatError::invalid(
             line,
             format!("arc radius at start {r0} differs from radius at end {r1}"),

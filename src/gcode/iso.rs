@@ -15,16 +15,30 @@
 //! What it cannot honour (cutter compensation, canned cycles, inverse-time
 //! feed, rotary axes) is an error naming the line.
 
+#[path = "arcs.rs"]
+mod arcs;
+#[path = "comp.rs"]
+mod comp;
+#[path = "cycles.rs"]
+mod cycles;
+
 use super::expr::{Cursor, ParamRef, Params};
 use super::oword::{self, OKeyword, OLine};
-use super::{GcodeError, LineInterpreter, ReadOptions, make_arc};
-use crate::geometry::{P2, P3, Plane, V3, planar};
-use crate::model::toolpath::{Motion, MotionKind, Record, arc_end_tolerance};
+use super::tooltable::ToolTable;
+use super::{GcodeError, LineInterpreter, ReadOptions};
+use crate::geometry::{P3, Plane, V3};
+use crate::model::toolpath::{Motion, MotionKind, Record};
 use std::collections::HashMap;
 use std::collections::VecDeque;
 use std::rc::Rc;
 
 const MM_PER_INCH: f64 = 25.4;
+
+/// True when radii `r0` and `r1` (mm) differ by no more than LinuxCNC
+/// accepts from an I/J/K arc in any program (the inch limits are the wider).
+pub(crate) fn spiral_accepted(r0: f64, r1: f64) -> bool {
+    arcs::ArcTolerances::new(true).radii_agree(r0, r1)
+}
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum MotionMode {
@@ -32,6 +46,8 @@ enum MotionMode {
     Feed,
     Cw,
     Ccw,
+    /// A canned cycle, by its G code times ten (G81 -> 810).
+    Cycle(u16),
 }
 
 /// Codes of one block, G and M codes kept as ten times their value
@@ -43,6 +59,8 @@ struct Block {
     nm: usize,
     /// Value of each letter word A..Z (G, M, N, O not stored here).
     w: [Option<f64>; 26],
+    /// Polar coordinates: `@` radius and `^` angle (degrees).
+    polar: [Option<f64>; 2],
     /// Any G code other than G0-G3: most blocks of a large program have
     /// none, and then the modal settings need no looking at.
     other_g: bool,
@@ -56,6 +74,7 @@ impl Block {
             m: [0; 8],
             nm: 0,
             w: [None; 26],
+            polar: [None; 2],
             other_g: false,
         }
     }
@@ -96,8 +115,22 @@ const NORMALISE: [u8; 256] = {
 /// Modal group of a G code (times ten), or `None` when unknown.
 fn g_group(code: u16) -> Option<u8> {
     Some(match code {
-        0 | 10 | 20 | 30 | 330 | 331 | 382..=385 | 730 | 760 | 800..=890 => 1,
-        40 | 100 | 280 | 281 | 300 | 301 | 530 | 920..=923 => 0,
+        0
+        | 10
+        | 20
+        | 30
+        | 50..=53
+        | 330
+        | 331
+        | 382..=385
+        | 700
+        | 710..=712
+        | 720..=722
+        | 730
+        | 740
+        | 760
+        | 800..=890 => 1,
+        40 | 100 | 280 | 281 | 300 | 301 | 520 | 530 | 920..=923 => 0,
         170 | 171 | 180 | 181 | 190 | 191 => 2,
         900 | 910 => 3,
         901 | 911 => 4,
@@ -119,7 +152,7 @@ fn m_group(code: u16) -> Option<u8> {
     Some(match code {
         0 | 10 | 20 | 300 | 600 => 4,
         30 | 40 | 50 => 7,
-        60 => 6,
+        60 | 610 => 6,
         70 | 80 | 90 => 8,
         480 | 490 | 500 | 510 | 520 | 530 => 9,
         620..=680 | 700..=730 => 5,
@@ -168,6 +201,16 @@ pub struct IsoInterpreter {
     capture: Option<Capture>,
     /// Loop iterations run so far, to stop runaway loops.
     iterations: u64,
+    /// Canned-cycle settings carried from block to block.
+    cycle: cycles::CycleState,
+    /// Cutter radius compensation state and held-back moves.
+    comp: comp::CompState,
+    tool_table: Option<std::sync::Arc<ToolTable>>,
+    /// Folders searched for subroutine files.
+    sub_path: Vec<std::path::PathBuf>,
+    /// Tool in the spindle (M6, M61), and the one a T word selected.
+    tool_current: u32,
+    tool_selected: Option<u32>,
 }
 
 /// Lines of a control structure read so far, from its opening line.
@@ -233,6 +276,12 @@ impl IsoInterpreter {
             subs: HashMap::new(),
             capture: None,
             iterations: 0,
+            cycle: cycles::CycleState::new(),
+            comp: comp::CompState::new(),
+            tool_table: opts.tool_table.clone(),
+            sub_path: opts.subroutine_path.clone(),
+            tool_current: 0,
+            tool_selected: None,
         }
     }
 
@@ -481,15 +530,7 @@ impl IsoInterpreter {
                 format!("subroutine calls nested deeper than {MAX_CALL_DEPTH}"),
             ));
         }
-        let body = self.subs.get(&ol.label).cloned().ok_or_else(|| {
-            GcodeError::at(
-                lineno,
-                format!(
-                    "o{} is called before its definition (define subroutines before calling them; no external files are read)",
-                    label_text(&ol.label)
-                ),
-            )
-        })?;
+        // The arguments first: reading a subroutine file reuses the line buffer.
         let mut args = Vec::new();
         let mut c = Cursor::new(&self.norm[ol.rest..]);
         while !c.at_end() {
@@ -498,6 +539,19 @@ impl IsoInterpreter {
             }
             args.push(c.real_value(&self.params).map_err(|e| GcodeError::at(lineno, e))?);
         }
+        if !self.subs.contains_key(&ol.label) {
+            self.load_sub_file(&ol.label, lineno, out, depth)?;
+        }
+        let body = self.subs.get(&ol.label).cloned().ok_or_else(|| {
+            GcodeError::at(
+                lineno,
+                format!(
+                    "o{} is called before its definition (define subroutines before calling them, or give the folder of {}.ngc with --subroutine-path)",
+                    label_text(&ol.label),
+                    label_text(&ol.label)
+                ),
+            )
+        })?;
         let saved: Vec<f64> = (1..=30)
             .map(|i| self.params.get(&ParamRef::Num(i)).unwrap_or(0.0))
             .collect();
@@ -518,6 +572,35 @@ impl IsoInterpreter {
                 format!("break/continue o{} escaped its subroutine", label_text(&l)),
             )),
         }
+    }
+
+    /// Define subroutine `label` from `label.ngc` in the first folder of
+    /// the subroutine path that has it, as LinuxCNC does: the file's lines
+    /// are run (they hold the `sub ... endsub`), so the definition exists
+    /// after. Nothing when no folder has the file.
+    fn load_sub_file(
+        &mut self,
+        label: &[u8],
+        lineno: u64,
+        out: &mut VecDeque<Record>,
+        depth: u32,
+    ) -> Result<(), GcodeError> {
+        let name = format!("{}.ngc", label_text(label));
+        let Some(path) = self.sub_path.iter().map(|d| d.join(&name)).find(|p| p.is_file()) else {
+            return Ok(());
+        };
+        let text = std::fs::read(&path).map_err(|e| GcodeError::Io {
+            line: lineno,
+            source: e,
+        })?;
+        let lines: Vec<(u64, String)> = String::from_utf8_lossy(&text)
+            .lines()
+            .enumerate()
+            .map(|(k, l)| (k as u64 + 1, l.trim_end_matches('\r').to_string()))
+            .collect();
+        self.exec_block(&lines, out, depth + 1)
+            .map_err(|e| GcodeError::at(lineno, format!("in {}: {e}", path.display())))?;
+        Ok(())
     }
 
     fn unit(&self) -> f64 {
@@ -577,6 +660,7 @@ impl IsoInterpreter {
         }
         let mut groups_g = [false; 16];
         let mut groups_m = [false; 11];
+        let mut g80 = false;
         while let Some(ch) = c.peek() {
             if ch == b'#' {
                 let r = c.param_ref(&self.params).map_err(err)?;
@@ -588,6 +672,18 @@ impl IsoInterpreter {
                 c.pos += 1;
                 let v = c.real_value(&self.params).map_err(err)?;
                 self.assigns.push((r, v));
+                continue;
+            }
+            if ch == b'@' || ch == b'^' {
+                c.pos += 1;
+                let v = c
+                    .real_value(&self.params)
+                    .map_err(|e| err(format!("{} word: {e}", ch as char)))?;
+                let slot = &mut b.polar[usize::from(ch == b'^')];
+                if slot.is_some() {
+                    return Err(err(format!("{} word repeated on one line", ch as char)));
+                }
+                *slot = Some(v);
                 continue;
             }
             if !ch.is_ascii_uppercase() {
@@ -607,7 +703,12 @@ impl IsoInterpreter {
                         return Err(err(format!("{}{v} is not a valid code", ch as char)));
                     }
                     let code = t as u16;
-                    if ch == b'G' {
+                    if ch == b'G' && code == 800 {
+                        // LinuxCNC lets G80 share a line with another motion
+                        // code (CAM preambles write `G0 G80`): the other wins.
+                        g80 = true;
+                        b.other_g = true;
+                    } else if ch == b'G' {
                         let g = g_group(code).ok_or_else(|| err(format!("unknown G code {}", fmt_code('G', code))))?;
                         // Non-modal group 0 codes may share a line with each
                         // other only when they are different (G4 with G92...).
@@ -645,6 +746,13 @@ impl IsoInterpreter {
                 }
             }
         }
+        if g80 && !groups_g[1] {
+            if b.ng == b.g.len() {
+                return Err(err("too many G codes on one line".into()));
+            }
+            b.g[b.ng] = 800;
+            b.ng += 1;
+        }
         Ok(())
     }
 
@@ -664,26 +772,32 @@ impl IsoInterpreter {
                 )));
             }
         }
-        if b.word(b'E').is_some() {
-            return Err(err("E word is not supported".into()));
-        }
         for code in b.g[..b.ng].iter().filter(|_| b.other_g) {
             let unsupported = match code {
                 330 | 331 => Some("spindle-synchronised motion (G33)"),
                 382..=385 => Some("probing (G38.x)"),
-                730 | 760 | 810..=890 => Some("canned cycles (G73, G76, G81-G89)"),
-                410 | 411 | 420 | 421 => Some("cutter radius compensation (G41/G42)"),
+                760 => Some("the lathe threading cycle (G76)"),
+                700..=722 => Some("the lathe turning cycles (G70-G72)"),
+                50..=53 => Some("splines (G5, G5.1, G5.2, G5.3): LinuxCNC hands them to its motion planner as NURBS"),
                 930 => Some("inverse time feed (G93)"),
                 950 => Some("feed per revolution (G95)"),
                 171 | 181 | 191 => Some("the planes G17.1-G19.1"),
                 70 | 80 => Some("lathe diameter/radius modes (G7/G8)"),
                 960 => Some("constant surface speed (G96)"),
-                431 | 432 => Some("dynamic tool length offsets (G43.1/G43.2)"),
                 _ => None,
             };
             if let Some(what) = unsupported {
                 return Err(err(format!("{} is not supported: {what}", fmt_code('G', *code))));
             }
+        }
+        if b.word(b'E').is_some() {
+            return Err(err("E word is not supported".into()));
+        }
+        if let Some(m) = b.m[..b.nm].iter().find(|m| (620..=680).contains(*m)) {
+            return Err(err(format!(
+                "{} is not supported: HAL pin input/output (M62-M68) acts on the machine's HAL, which a simulation has not",
+                fmt_code('M', *m)
+            )));
         }
         // Parameters take their new values once the whole line is read.
         for (r, v) in self.assigns.drain(..) {
@@ -702,12 +816,16 @@ impl IsoInterpreter {
             }
             if self.spindle_rpm != Some(s) {
                 self.spindle_rpm = Some(s);
-                out.push_back(Record::Spindle {
-                    rpm: s,
-                    block: Some(lineno),
-                });
+                self.emit(
+                    out,
+                    Record::Spindle {
+                        rpm: s,
+                        block: Some(lineno),
+                    },
+                );
             }
         }
+        self.tools(b, lineno)?;
         if b.has_m(30) || b.has_m(40) {
             self.beam = true;
         }
@@ -715,17 +833,73 @@ impl IsoInterpreter {
             self.beam = false;
         }
         let axes_used = b.other_g && self.modal_settings(b, lineno, out)?;
-        for code in &b.g[..b.ng] {
+        let before = self.motion;
+        for &code in &b.g[..b.ng] {
             match code {
                 0 => self.motion = Some(MotionMode::Rapid),
                 10 => self.motion = Some(MotionMode::Feed),
                 20 => self.motion = Some(MotionMode::Cw),
                 30 => self.motion = Some(MotionMode::Ccw),
                 800 => self.motion = None,
+                c if cycles::is_cycle(c) => self.motion = Some(MotionMode::Cycle(c)),
                 _ => {}
             }
         }
-        self.motion_step(b, axes_used, lineno, out)
+        if self.motion != before && !matches!(self.motion, Some(MotionMode::Cycle(_))) {
+            // Leaving the cycles: the next cycle takes a new initial level.
+            self.cycle.initial_level = None;
+        }
+        self.motion_step(b, before, axes_used, lineno, out)
+    }
+
+    /// A non-motion record, behind any compensated move held back.
+    fn emit(&mut self, out: &mut VecDeque<Record>, r: Record) {
+        if self.comp.holding() {
+            self.comp.hold(r);
+        } else {
+            out.push_back(r);
+        }
+    }
+
+    /// T (select), M6 (change) and M61 (set the tool number).
+    fn tools(&mut self, b: &Block, lineno: u64) -> Result<(), GcodeError> {
+        let err = |msg: String| GcodeError::at(lineno, msg);
+        let whole = |letter: char, v: f64| {
+            if v.fract() == 0.0 && (0.0..=1e9).contains(&v) {
+                Ok(v as u32)
+            } else {
+                Err(err(format!(
+                    "{letter}{v}: a tool number must be a whole number of at least 0"
+                )))
+            }
+        };
+        if let Some(t) = b.word(b'T') {
+            let t = whole('T', t)?;
+            if let Some(table) = &self.tool_table
+                && t != 0
+                && table.get(t).is_none()
+            {
+                return Err(err(format!("tool T{t} is not in the tool table")));
+            }
+            self.tool_selected = Some(t);
+        }
+        if b.has_m(60) {
+            if self.comp.side.is_some() {
+                return Err(err(
+                    "cannot change tools with cutter radius compensation on (G40 first)".into(),
+                ));
+            }
+            if let Some(t) = self.tool_selected {
+                self.tool_current = t;
+            }
+        }
+        if b.has_m(610) {
+            let q = b
+                .word(b'Q')
+                .ok_or_else(|| err("M61 needs a Q word (the tool number)".into()))?;
+            self.tool_current = whole('Q', q)?;
+        }
+        Ok(())
     }
 
     /// Steps 12-21 of the order of execution: dwell, plane, units,
@@ -738,11 +912,15 @@ impl IsoInterpreter {
             if p < 0.0 {
                 return Err(err(format!("negative dwell time P{p}")));
             }
-            out.push_back(Record::Dwell {
-                seconds: p,
-                block: Some(lineno),
-            });
+            self.emit(
+                out,
+                Record::Dwell {
+                    seconds: p,
+                    block: Some(lineno),
+                },
+            );
         }
+        let plane = self.plane;
         if b.has_g(170) {
             self.plane = Plane::Xy;
         } else if b.has_g(180) {
@@ -750,10 +928,32 @@ impl IsoInterpreter {
         } else if b.has_g(190) {
             self.plane = Plane::Yz;
         }
+        if self.plane != plane && self.comp.side.is_some() {
+            return Err(err("cannot change planes with cutter radius compensation on".into()));
+        }
         if b.has_g(200) {
             self.inch = true;
         } else if b.has_g(210) {
             self.inch = false;
+        }
+        if b.has_g(400) {
+            self.comp_off(out);
+        } else if b.has_g(410) || b.has_g(420) || b.has_g(411) || b.has_g(421) {
+            let side = if b.has_g(410) || b.has_g(411) {
+                comp::Side::Left
+            } else {
+                comp::Side::Right
+            };
+            self.comp_on(b, side, b.has_g(411) || b.has_g(421), lineno)?;
+        }
+        if self.comp.side.is_some()
+            && [280, 281, 300, 301, 520, 920, 921, 922, 923, 100, 530]
+                .iter()
+                .any(|&c| b.has_g(c))
+        {
+            return Err(err(
+                "G10, G28, G30, G53 and G92 cannot be used with cutter radius compensation on (G40 first)".into(),
+            ));
         }
         for (i, code) in [540u16, 550, 560, 570, 580, 590, 591, 592, 593].iter().enumerate() {
             if b.has_g(*code) {
@@ -764,6 +964,11 @@ impl IsoInterpreter {
             self.incremental = false;
         } else if b.has_g(910) {
             self.incremental = true;
+        }
+        if b.has_g(980) {
+            self.cycle.r_plane_retract = false;
+        } else if b.has_g(990) {
+            self.cycle.r_plane_retract = true;
         }
         if b.has_g(901) {
             self.arc_absolute = true;
@@ -786,6 +991,16 @@ impl IsoInterpreter {
         } else if b.has_g(920) {
             self.set_g92(b, lineno)?;
             axes_used = true;
+        } else if b.has_g(520) {
+            // G52: a local offset. LinuxCNC keeps it in the G92 offsets and
+            // sets each named axis' offset to the value given.
+            let u = self.unit();
+            for (k, letter) in [b'X', b'Y', b'Z'].into_iter().enumerate() {
+                if let Some(v) = b.word(letter) {
+                    self.g92[k] = v * u;
+                }
+            }
+            axes_used = true;
         } else if b.has_g(921) {
             self.g92 = V3::zeros();
             self.g92_saved = None;
@@ -804,18 +1019,26 @@ impl IsoInterpreter {
     fn motion_step(
         &mut self,
         b: &Block,
+        before: Option<MotionMode>,
         axes_used: bool,
         lineno: u64,
         out: &mut VecDeque<Record>,
     ) -> Result<(), GcodeError> {
         let err = |msg: String| GcodeError::at(lineno, msg);
-        let has_axes = b.word(b'X').is_some() || b.word(b'Y').is_some() || b.word(b'Z').is_some();
+        let has_axes = b.word(b'X').is_some()
+            || b.word(b'Y').is_some()
+            || b.word(b'Z').is_some()
+            || b.polar.iter().any(Option::is_some);
         let g53 = b.has_g(530);
         let arc_words =
             b.word(b'I').is_some() || b.word(b'J').is_some() || b.word(b'K').is_some() || b.word(b'R').is_some();
         if !axes_used {
             let explicit_motion = b.g[..b.ng].iter().any(|c| matches!(c, 0 | 10 | 20 | 30));
             match self.motion {
+                Some(MotionMode::Cycle(code)) if has_axes || b.has_g(code) => {
+                    let same = before == Some(MotionMode::Cycle(code));
+                    self.canned_cycle(b, code, same, lineno, out)?;
+                }
                 Some(m @ (MotionMode::Cw | MotionMode::Ccw)) if has_axes || (explicit_motion && arc_words) => {
                     self.arc(b, m == MotionMode::Ccw, lineno, out)?;
                 }
@@ -832,15 +1055,43 @@ impl IsoInterpreter {
         if b.has_m(20) || b.has_m(300) {
             self.beam = false;
             self.ended = true;
+            // The program end turns compensation off.
+            self.comp_off(out);
         }
         Ok(())
+    }
+
+    /// The X and Y (machine frame, mm) that a block's polar words `@`
+    /// (radius) and `^` (angle, degrees) give, from `base` (machine frame):
+    /// about the origin of the coordinate system in use, absolute in G90,
+    /// added to `base`'s own radius and angle in G91, as LinuxCNC does.
+    fn polar_xy(&self, b: &Block, base: P3, incremental: bool, lineno: u64) -> Result<(f64, f64), GcodeError> {
+        let err = |m: &str| GcodeError::at(lineno, m.to_string());
+        if b.word(b'X').is_some() || b.word(b'Y').is_some() {
+            return Err(err("X and Y words cannot be used with polar coordinates (@ ^)"));
+        }
+        if self.plane != Plane::Xy {
+            return Err(err("polar coordinates (@ ^) work in the XY plane (G17) only"));
+        }
+        let u = self.unit();
+        let off = self.offset();
+        let (x, y) = ((base.x - off.x) / u, (base.y - off.y) / u);
+        let (r0, a0) = (x.hypot(y), y.atan2(x));
+        let [r, a] = b.polar;
+        let (r, a) = if incremental {
+            (r0 + r.unwrap_or(0.0), a0 + a.unwrap_or(0.0).to_radians())
+        } else {
+            (r.unwrap_or(r0), a.map_or(a0, f64::to_radians))
+        };
+        Ok((r * a.cos() * u + off.x, r * a.sin() * u + off.y))
     }
 
     /// End point of a move in the machine frame (mm).
     fn target(&self, b: &Block, g53: bool, lineno: u64) -> Result<P3, GcodeError> {
         let u = self.unit();
         let off = self.offset();
-        let mut to = self.pos;
+        let base = self.base_point();
+        let mut to = base;
         for (k, letter) in [b'X', b'Y', b'Z'].into_iter().enumerate() {
             if let Some(v) = b.word(letter) {
                 to[k] = if g53 {
@@ -849,11 +1100,14 @@ impl IsoInterpreter {
                     }
                     v * u
                 } else if self.incremental {
-                    self.pos[k] + v * u
+                    base[k] + v * u
                 } else {
                     v * u + off[k]
                 };
             }
+        }
+        if b.polar.iter().any(Option::is_some) {
+            (to.x, to.y) = self.polar_xy(b, base, self.incremental, lineno)?;
         }
         Ok(to)
     }
@@ -870,86 +1124,19 @@ impl IsoInterpreter {
     }
 
     fn straight(&mut self, rapid: bool, to: P3, lineno: u64, out: &mut VecDeque<Record>) -> Result<(), GcodeError> {
+        if self.comp.active() {
+            if !rapid {
+                self.feed_mm_per_min(lineno)?;
+            }
+            return self.comp_straight(rapid, to, lineno, out);
+        }
+        self.comp.exit = false;
         let (kind, feed) = if rapid {
             (MotionKind::Rapid, None)
         } else {
             (MotionKind::Line, Some(self.feed_mm_per_min(lineno)?))
         };
         out.push_back(Record::Move(Motion::from_block(kind, to, feed, self.beam, lineno)));
-        self.pos = to;
-        Ok(())
-    }
-
-    fn arc(&mut self, b: &Block, ccw: bool, lineno: u64, out: &mut VecDeque<Record>) -> Result<(), GcodeError> {
-        let err = |msg: String| GcodeError::at(lineno, msg);
-        let feed = self.feed_mm_per_min(lineno)?;
-        let to = self.target(b, b.has_g(530), lineno)?;
-        let plane = self.plane;
-        let u = self.unit();
-        let start2 = plane.project(&self.pos);
-        let end2 = plane.project(&to);
-        let turns = b.word(b'P').unwrap_or(1.0);
-        if turns < 1.0 || turns.fract() != 0.0 || turns > 1e6 {
-            return Err(err(format!(
-                "arc P word must be a whole number of turns of at least 1, got {turns}"
-            )));
-        }
-        let extra_turns = turns as u32 - 1;
-        // Offset words of the plane, in (first, second) order, and the one
-        // that belongs to the normal axis (an error if given).
-        let (first, second, normal_word) = match plane {
-            Plane::Xy => (b'I', b'J', b'K'),
-            Plane::Xz => (b'K', b'I', b'J'),
-            Plane::Yz => (b'J', b'K', b'I'),
-        };
-        let center = if let Some(r) = b.word(b'R') {
-            if b.word(b'I').is_some() || b.word(b'J').is_some() || b.word(b'K').is_some() {
-                return Err(err("arc has both R and I/J/K words".into()));
-            }
-            if (end2 - start2).norm() < 1e-9 {
-                return Err(err("radius-format arc (R) cannot make a full circle: use I/J/K".into()));
-            }
-            planar::center_from_radius(&start2, &end2, r * u, ccw).ok_or_else(|| {
-                err(format!(
-                    "arc radius R{r} is too small to reach the end point ({:.6} mm away)",
-                    (end2 - start2).norm()
-                ))
-            })?
-        } else {
-            if b.word(first).is_none() && b.word(second).is_none() {
-                return Err(err(format!(
-                    "arc needs R or at least one of {} {} in plane {}",
-                    first as char,
-                    second as char,
-                    plane.name().to_uppercase()
-                )));
-            }
-            if b.word(normal_word).is_some() {
-                return Err(err(format!(
-                    "{} word given for an arc in plane {}",
-                    normal_word as char,
-                    plane.name().to_uppercase()
-                )));
-            }
-            let i = b.word(first).unwrap_or(0.0) * u;
-            let j = b.word(second).unwrap_or(0.0) * u;
-            if self.arc_absolute {
-                let off = plane.project(&P3::from(self.offset()));
-                P2::new(i + off.x, j + off.y)
-            } else {
-                P2::new(start2.x + i, start2.y + j)
-            }
-        };
-        let r = (start2 - center).norm();
-        let tol = arc_end_tolerance(r);
-        let arc = make_arc(&self.pos, &to, center, ccw, plane, extra_turns, tol, lineno)?;
-        out.push_back(Record::Move(Motion::from_block(
-            MotionKind::Arc(arc),
-            to,
-            Some(feed),
-            self.beam,
-            lineno,
-        )));
         self.pos = to;
         Ok(())
     }
@@ -1077,6 +1264,7 @@ impl LineInterpreter for IsoInterpreter {
             // A '%' before any code opens the program; one after code ends it.
             if self.any_code_seen || self.percent_seen {
                 self.ended = true;
+                self.comp.dequeue(out);
             }
             self.percent_seen = true;
             return Ok(());
@@ -1086,7 +1274,8 @@ impl LineInterpreter for IsoInterpreter {
         self.execute(&b, lineno, out)
     }
 
-    fn finish(&mut self, lineno: u64, _out: &mut VecDeque<Record>) -> Result<(), GcodeError> {
+    fn finish(&mut self, lineno: u64, out: &mut VecDeque<Record>) -> Result<(), GcodeError> {
+        self.comp.dequeue(out);
         match &self.capture {
             Some(cap) if !self.ended => Err(GcodeError::at(
                 lineno,
@@ -1111,6 +1300,7 @@ impl LineInterpreter for IsoInterpreter {
 mod tests {
     use super::*;
     use crate::gcode::{Dialect, read_str};
+    use crate::geometry::P2;
 
     fn read(text: &str) -> Result<Vec<Record>, GcodeError> {
         let opts = ReadOptions {
@@ -1223,6 +1413,14 @@ mod tests {
     }
 
     #[test]
+    fn g52_sets_the_g92_offsets_as_linuxcnc() {
+        // rs274: G52 X10 Y5 then G0 X1 Y1 is machine (11, 6); G52 X2 keeps Y.
+        let m = moves("G0 X1 Y1\nG52 X10 Y5\nG0 X1 Y1\nG52 X2\nG0 X0\nG92 X0\nG0 X1\nG52 X0 Y0\nG0 X0 Y0\n");
+        let to: Vec<[f64; 2]> = m.iter().map(|m| [m.to.x, m.to.y]).collect();
+        assert_eq!(to, vec![[1.0, 1.0], [11.0, 6.0], [2.0, 6.0], [3.0, 6.0], [0.0, 0.0]]);
+    }
+
+    #[test]
     fn absolute_arc_centres() {
         let m = moves("G90.1 G0 X1 Y0\nG3 X-1 Y0 I0 J0 F10\n");
         let MotionKind::Arc(a) = m[1].kind else { panic!() };
@@ -1233,7 +1431,7 @@ mod tests {
     fn what_we_cannot_honour_is_an_error_naming_the_line() {
         let cases = [
             ("G1 X1 F10\nG41 D1\n", 2, "cutter radius compensation"),
-            ("G81 X1 Y1 Z-1 R1\n", 1, "canned cycles"),
+            ("G81 X1 Y1 Z-1 R1\n", 1, "no feed rate"),
             ("O100 call\n", 1, "before its definition"),
             ("o1 while [1]\no1 endwhile\n", 1, "endless"),
             ("o1 if [1]\nG0 X1\n", 2, "ends inside o1 if"),
@@ -1304,6 +1502,25 @@ mod tests {
                 [99.0, 1.0, 2.0],
             ]
         );
+    }
+
+    #[test]
+    fn subroutines_come_from_files_on_the_subroutine_path() {
+        let dir = std::env::temp_dir().join(format!("microcam-subpath-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        std::fs::write(dir.join("side.ngc"), "o<side> sub\nG1 X#1 F10\no<side> endsub\n").unwrap();
+        let mut opts = ReadOptions {
+            dialect: Some(Dialect::Iso),
+            ..Default::default()
+        };
+        let text = "o<side> call [3]\no<side> call [4]\n";
+        let e = read_str(text, &opts).unwrap_err();
+        assert!(e.to_string().contains("--subroutine-path") && e.line() == 1, "{e}");
+        opts.subroutine_path = vec![dir.join("missing"), dir.clone()];
+        let (_, recs) = read_str(text, &opts).unwrap();
+        let xs: Vec<f64> = recs.iter().filter_map(Record::motion).map(|m| m.to.x).collect();
+        assert_eq!(xs, vec![3.0, 4.0]);
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]

@@ -11,6 +11,7 @@ pub mod expr;
 pub mod iso;
 pub mod oword;
 pub mod pmac;
+pub mod tooltable;
 pub mod writer;
 
 use crate::geometry::{P2, P3, Plane};
@@ -94,6 +95,12 @@ pub struct ReadOptions {
     pub line_counter_var: String,
     /// Where the machine is when the program starts.
     pub start: P3,
+    /// LinuxCNC tool table, for cutter radius compensation by D word and
+    /// tool changes (ISO programs). `None`: no table.
+    pub tool_table: Option<std::sync::Arc<tooltable::ToolTable>>,
+    /// Folders searched, in order, for `name.ngc` when an ISO program
+    /// calls `o<name>` it does not define (LinuxCNC's SUBROUTINE_PATH).
+    pub subroutine_path: Vec<std::path::PathBuf>,
 }
 
 impl Default for ReadOptions {
@@ -103,6 +110,8 @@ impl Default for ReadOptions {
             shutter_var: "M33".into(),
             line_counter_var: "P400".into(),
             start: P3::origin(),
+            tool_table: None,
+            subroutine_path: Vec::new(),
         }
     }
 }
@@ -196,6 +205,15 @@ fn strip_comments_for_detect(l: &str) -> String {
         }
     }
     out
+}
+
+/// True when an arc whose start and end lie `r0` and `r1` mm from its
+/// centre is one a reader accepts: within the model's arc end tolerance, or
+/// a spiral within what LinuxCNC accepts from an inch or a millimetre
+/// program (the ISO reader keeps such arcs as written). Readers of the
+/// toolpath model use this, so what `gsim --moves` writes reads back.
+pub fn arc_radii_accepted(r0: f64, r1: f64) -> bool {
+    (r0 - r1).abs() <= crate::model::toolpath::arc_end_tolerance(r0.max(r1)) || iso::spiral_accepted(r0, r1)
 }
 
 /// Build arc data from an in-plane centre, checking that the start and

@@ -553,6 +553,8 @@ impl Controller {
             shutter_var: "Q8190".into(),
             line_counter_var: "Q8191".into(),
             start: self.pos,
+            tool_table: None,
+            subroutine_path: Vec::new(),
         };
         self.runs += 1;
         let id = self.runs;
