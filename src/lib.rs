@@ -22,6 +22,7 @@
 //! - [`verify`]: CL data in, machined part compared with the design.
 //! - [`mesh`]: triangle meshes (STL, OBJ) and queries on them.
 //! - [`probe`]: rotating-wire probe scanning and measurement.
+//! - [`slice`]: planar sections of meshes at Z levels as closed, nested chains.
 //! - [`corpus`]: where the shared test corpus lies, for tests and benchmarks.
 //! - [`cli`]: conventions shared by every binary.
 
@@ -45,5 +46,6 @@ pub mod pocket;
 pub mod preview;
 pub mod probe;
 pub mod sim;
+pub mod slice;
 pub mod source;
 pub mod verify;

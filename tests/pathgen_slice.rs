@@ -4,8 +4,8 @@
 use microcam::formats::chains::ChainsReader;
 use microcam::geometry::P3;
 use microcam::mesh::read_stl::{write_ascii, write_binary};
-use microcam::mesh::slice::chain_area;
 use microcam::mesh::solids;
+use microcam::slice::chain_area;
 use std::process::{Command, Output};
 
 const PATHGEN: &str = env!("CARGO_BIN_EXE_pathgen");

@@ -163,9 +163,8 @@ fn run(args: Args) -> Result<(), CliError> {
         .transpose()?;
     let opts = ReadOptions {
         dialect,
-        shutter_var: "M33".into(),
-        line_counter_var: "P400".into(),
         start,
+        ..ReadOptions::default()
     };
     let input = cli::open_input(args.file.as_deref())?;
     let source = ToolpathSource::open(input, &opts)?;

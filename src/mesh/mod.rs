@@ -11,13 +11,11 @@
 //!   duplicate triangles dropped, orientation made consistent).
 //! - [`solids`]: generated closed solids (sphere, torus, cylinder, box).
 //! - [`bvh`]: a bounding-volume hierarchy with ray and nearest-point queries.
-//! - [`slice`]: planar sections at Z levels as closed, nested chains.
 
 pub mod bvh;
 pub mod read;
 pub mod read_obj;
 pub mod read_stl;
-pub mod slice;
 pub mod solids;
 pub mod topology;
 pub mod weld;

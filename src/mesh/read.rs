@@ -304,7 +304,7 @@ mod robustness {
                     let bb = p.mesh.bbox();
                     if !bb.is_empty() {
                         let z = 0.5 * (bb.min.z + bb.max.z);
-                        let _ = crate::mesh::slice::section(&p.mesh, z, &Default::default());
+                        let _ = crate::slice::section(&p.mesh, z, &Default::default());
                     }
                 }
             }

@@ -133,12 +133,7 @@ pub fn program_locations(src: ToolpathSource, sag: f64) -> Result<Vec<Location>,
 
 /// Default reading options for programs (start at the origin).
 pub fn program_options() -> ReadOptions {
-    ReadOptions {
-        dialect: None,
-        shutter_var: "M33".into(),
-        line_counter_var: "P400".into(),
-        start: P3::origin(),
-    }
+    ReadOptions::default()
 }
 
 #[cfg(test)]

@@ -4,10 +4,10 @@
 use clap::{Args as ClapArgs, ValueEnum};
 use microcam::cli::{self, CliError, Output};
 use microcam::formats::chains::ChainsWriter;
-use microcam::mesh::slice::{self, SliceOptions};
 use microcam::mesh::topology::{Prepared, prepare};
 use microcam::mesh::{Format, LoadedMesh, ReadOptions, Units, read_bytes};
 use microcam::model::chain::ChainsHeader;
+use microcam::slice::{self, SliceOptions};
 use std::io::{Read, Write};
 use std::path::PathBuf;
 

@@ -20,7 +20,7 @@
 
 use std::collections::HashMap;
 
-use super::Mesh;
+use crate::mesh::Mesh;
 use crate::geometry::{P2, P3};
 use crate::laser::arcfit;
 use crate::laser::elem::Elem;
