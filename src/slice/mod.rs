@@ -20,10 +20,10 @@
 
 use std::collections::HashMap;
 
-use crate::mesh::Mesh;
 use crate::geometry::{P2, P3};
 use crate::laser::arcfit;
 use crate::laser::elem::Elem;
+use crate::mesh::Mesh;
 use crate::model::chain::{Chain, Segment};
 
 /// How to section.
@@ -544,5 +544,4 @@ pub fn chain_area(c: &Chain) -> f64 {
 }
 
 #[cfg(test)]
-#[path = "slice_tests.rs"]
 mod tests;
