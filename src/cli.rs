@@ -262,3 +262,26 @@ pub fn read_to_string(input: &mut Input) -> Result<String, CliError> {
         .map_err(|e| CliError::input(format!("{}: {e}", input.name)))?;
     Ok(s)
 }
+
+/// `N` comma-separated finite numbers for option `opt` (`form` names them
+/// in the message, e.g. `"X,Y,Z"`). NaN and infinities are bad input: no
+/// coordinate or size means them.
+///
+/// ```
+/// use microcam::cli::parse_numbers;
+/// assert_eq!(parse_numbers::<3>("1, -2,3.5", "--start", "X,Y,Z").unwrap(), [1.0, -2.0, 3.5]);
+/// assert!(parse_numbers::<3>("1,2", "--start", "X,Y,Z").is_err());
+/// assert!(parse_numbers::<2>("nan,1", "--at", "X,Y").is_err());
+/// ```
+pub fn parse_numbers<const N: usize>(s: &str, opt: &str, form: &str) -> Result<[f64; N], CliError> {
+    let v: Vec<f64> = s
+        .split(',')
+        .map(|x| x.trim().parse::<f64>())
+        .collect::<Result<_, _>>()
+        .map_err(|e| CliError::input(format!("{opt} '{s}': {e}")))?;
+    if let Some(bad) = v.iter().find(|x| !x.is_finite()) {
+        return Err(CliError::input(format!("{opt} '{s}': {bad} is not a finite number")));
+    }
+    v.try_into()
+        .map_err(|_| CliError::input(format!("{opt} '{s}': {N} numbers {form}")))
+}

@@ -151,17 +151,6 @@ struct Args {
     #[arg(long, default_value = "0,0,0", allow_hyphen_values = true)]
     start: String,
 }
-
-fn numbers<const N: usize>(s: &str, opt: &str) -> Result<[f64; N], CliError> {
-    let v: Vec<f64> = s
-        .split(',')
-        .map(|x| x.trim().parse::<f64>())
-        .collect::<Result<_, _>>()
-        .map_err(|e| CliError::input(format!("{opt} '{s}': {e}")))?;
-    v.try_into()
-        .map_err(|_| CliError::input(format!("{opt} '{s}': expected {N} comma-separated numbers")))
-}
-
 fn main() -> std::process::ExitCode {
     let args = Args::parse();
     cli::run("feedopt", || run(args))
@@ -169,8 +158,8 @@ fn main() -> std::process::ExitCode {
 
 fn run(a: Args) -> Result<(), CliError> {
     let cutter = Cutter::parse(&a.tool).map_err(|e| CliError::input(format!("--tool: {e}")))?;
-    let b = numbers::<6>(&a.stock, "--stock")?;
-    let st = numbers::<3>(&a.start, "--start")?;
+    let b = microcam::cli::parse_numbers::<6>(&a.stock, "--stock", "X0,Y0,Z0,X1,Y1,Z1")?;
+    let st = microcam::cli::parse_numbers::<3>(&a.start, "--start", "X,Y,Z")?;
     let mut machine = Machine::load(&a.machine).map_err(|e| CliError::input(e.to_string()))?;
     machine
         .apply(&Overrides {

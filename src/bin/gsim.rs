@@ -186,21 +186,9 @@ fn main() -> ExitCode {
     let args = Args::parse();
     cli::run("gsim", || run(args))
 }
-
-/// `N` comma-separated numbers for option `opt`.
-fn parse_numbers<const N: usize>(s: &str, opt: &str, form: &str) -> Result<[f64; N], CliError> {
-    let v: Vec<f64> = s
-        .split(',')
-        .map(|x| x.trim().parse::<f64>())
-        .collect::<Result<_, _>>()
-        .map_err(|e| CliError::input(format!("{opt} '{s}': {e}")))?;
-    v.try_into()
-        .map_err(|_| CliError::input(format!("{opt} '{s}': {N} numbers {form}")))
-}
-
 /// `--limits`: six comma-separated numbers.
 fn parse_limits(s: &str) -> Result<[f64; 6], CliError> {
-    parse_numbers::<6>(s, "--limits", "XMIN,XMAX,YMIN,YMAX,ZMIN,ZMAX")
+    microcam::cli::parse_numbers::<6>(s, "--limits", "XMIN,XMAX,YMIN,YMAX,ZMIN,ZMAX")
 }
 
 /// All chains of a drawing.
@@ -226,7 +214,7 @@ fn run(args: Args) -> Result<(), CliError> {
         .as_deref()
         .map(|d| d.parse::<Dialect>().map_err(CliError::input))
         .transpose()?;
-    let st = parse_numbers::<3>(&args.start, "--start", "X,Y,Z")?;
+    let st = microcam::cli::parse_numbers::<3>(&args.start, "--start", "X,Y,Z")?;
     let start = P3::new(st[0], st[1], st[2]);
     let tool_table = match args.tool_table.as_deref() {
         Some(p) => {
@@ -311,7 +299,7 @@ fn run(args: Args) -> Result<(), CliError> {
         }
         if let (Some(st), Some(tool)) = (args.stock.as_deref(), args.tool.as_deref()) {
             let cutter = Cutter::parse(tool).map_err(|e| CliError::input(format!("--tool: {e}")))?;
-            let b = parse_numbers::<6>(st, "--stock", "X0,Y0,Z0,X1,Y1,Z1")?;
+            let b = microcam::cli::parse_numbers::<6>(st, "--stock", "X0,Y0,Z0,X1,Y1,Z1")?;
             let cell = args.cell_mm.unwrap_or(cutter.radius() / 25.0);
             let stock = Stock::new(P3::new(b[0], b[1], b[2]), P3::new(b[3], b[4], b[5]), cell)
                 .map_err(|e| CliError::input(format!("--stock: {e}")))?;

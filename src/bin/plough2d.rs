@@ -112,17 +112,6 @@ fn main() -> ExitCode {
     let args = Args::parse();
     cli::run("plough2d", || run(args))
 }
-
-fn numbers<const N: usize>(s: &str, opt: &str) -> Result<[f64; N], CliError> {
-    let v: Vec<f64> = s
-        .split(',')
-        .map(|x| x.trim().parse::<f64>())
-        .collect::<Result<_, _>>()
-        .map_err(|e| CliError::input(format!("{opt} '{s}': {e}")))?;
-    v.try_into()
-        .map_err(|_| CliError::input(format!("{opt} '{s}': {N} comma-separated numbers")))
-}
-
 fn run(args: Args) -> Result<(), CliError> {
     if let Some(feed) = args.write_pocket {
         if !(feed.is_finite() && feed > 0.0) {
@@ -137,8 +126,8 @@ fn run(args: Args) -> Result<(), CliError> {
         .stock
         .as_deref()
         .ok_or_else(|| CliError::input("--stock X0,Y0,X1,Y1 is required"))?;
-    let stock = numbers::<4>(stock, "--stock")?;
-    let st = numbers::<3>(&args.start, "--start")?;
+    let stock = microcam::cli::parse_numbers::<4>(stock, "--stock", "X0,Y0,X1,Y1")?;
+    let st = microcam::cli::parse_numbers::<3>(&args.start, "--start", "X,Y,Z")?;
     let start = P3::new(st[0], st[1], st[2]);
     let params = Params {
         stock_mm: stock,

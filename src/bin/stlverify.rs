@@ -124,22 +124,6 @@ fn main() -> ExitCode {
     let args = Args::parse();
     cli::run("stlverify", || run(args))
 }
-
-fn numbers<const N: usize>(s: &str, opt: &str, form: &str) -> Result<[f64; N], CliError> {
-    let v: Vec<f64> = s
-        .split(',')
-        .map(|x| x.trim().parse::<f64>())
-        .collect::<Result<_, _>>()
-        .map_err(|e| CliError::input(format!("{opt} '{s}': {e}")))?;
-    let a: [f64; N] = v
-        .try_into()
-        .map_err(|_| CliError::input(format!("{opt} '{s}': {N} numbers {form}")))?;
-    if a.iter().any(|x| !x.is_finite()) {
-        return Err(CliError::input(format!("{opt} '{s}': numbers must be finite")));
-    }
-    Ok(a)
-}
-
 fn positive(v: f64, opt: &str) -> Result<f64, CliError> {
     if v.is_finite() && v > 0.0 {
         Ok(v)
@@ -171,7 +155,7 @@ fn run(args: Args) -> Result<(), CliError> {
     if !(stl_tol.is_finite() && stl_tol >= 0.0) {
         return Err(CliError::input("--stl-tol must be zero or positive"));
     }
-    let b = numbers::<6>(&args.stock, "--stock", "X0,Y0,Z0,X1,Y1,Z1")?;
+    let b = microcam::cli::parse_numbers::<6>(&args.stock, "--stock", "X0,Y0,Z0,X1,Y1,Z1")?;
     let (smin, smax) = (P3::new(b[0], b[1], b[2]), P3::new(b[3], b[4], b[5]));
     let band = args.band;
     if !(band.is_finite() && band >= 0.0) {
@@ -270,7 +254,7 @@ fn run(args: Args) -> Result<(), CliError> {
             read_path(dp, &MeshOptions::default()).map_err(|e| CliError::in_file(&dp.display().to_string(), e))?;
         let design = Design::new(&loaded.mesh);
         let r = match args.region.as_deref() {
-            Some(s) => numbers::<4>(s, "--region", "X0,X1,Y0,Y1")?,
+            Some(s) => microcam::cli::parse_numbers::<4>(s, "--region", "X0,X1,Y0,Y1")?,
             None => [smin.x, smax.x, smin.y, smax.y],
         };
         if !(r[0] <= r[1] && r[2] <= r[3]) {
