@@ -325,10 +325,10 @@ fn own_samples_have_their_features() {
         .find_map(|c| (c.segments.len() == 1).then(|| radius(&c.segments[0])).flatten())
         .unwrap();
     assert!((hole - 0.0625 * 25.4).abs() < 1e-9, "{hole}");
-    // Blocks: nested, mirrored in X and in Y, rotated, arrayed.
+    // Blocks: nested, mirrored in X and in Y, rotated, scaled.
     let r = run_own("samples/blocks.dxf");
     assert_eq!(r.imp.sink.used.get("INSERT"), Some(&5));
-    assert_eq!((r.report.closed, r.report.open), (14, 0));
+    assert_eq!((r.report.closed, r.report.open), (9, 0));
     // Duplicates: 4 removed (drawn reversed), a zero-length piece, a gap.
     let r = run_own("samples/duplicates.dxf");
     assert_eq!(r.report.duplicates, 4);
