@@ -1,4 +1,4 @@
-//! End-to-end tests of plough2d: the seed-like pocket at Bayesteh 2013's
+//! End-to-end tests of plough2d: the thesis-like pocket at Bayesteh 2013's
 //! five feeds, both dialects, the outputs, and bad input.
 
 use std::path::Path;

@@ -100,7 +100,7 @@ struct Args {
     /// Final stock with the path, PNG.
     #[arg(long, value_name = "FILE.png")]
     png: Option<PathBuf>,
-    /// Print the seed-like pocket program at this feed (mm/s) and exit.
+    /// Print the thesis-like pocket program at this feed (mm/s) and exit.
     #[arg(long, value_name = "FEED_MM_S", conflicts_with = "file")]
     write_pocket: Option<f64>,
     /// Dialect of --write-pocket.

@@ -8,7 +8,7 @@
 //!
 //! - back off by `R_o` against the move that touched (less if that move was
 //!   shorter: retracing it is then sure to be free);
-//! - move to `S = P1 + R_s u - R_o n` (the seed's circle-line intersections,
+//! - move to `S = P1 + R_s u - R_o n` (the thesis' circle-line intersections,
 //!   eqs. 4.2-4.7, are exactly these two points);
 //! - approach along `n` for at most `R_o + R_s`.
 //!

@@ -72,7 +72,7 @@ pub struct RemovalStats {
     pub rapid_lines: Vec<u64>,
 }
 
-/// Per-step chip volume (seed 000 §3.1): moves are cut in steps of feed
+/// Per-step chip volume (Bayesteh (2013) §3.1): moves are cut in steps of feed
 /// per tooth × `scale`.
 #[derive(Debug, Clone, PartialEq)]
 pub struct StepPlan {
