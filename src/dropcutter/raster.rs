@@ -4,7 +4,7 @@
 
 use super::DropError;
 use crate::geometry::P2;
-use crate::model::chain::{Chain, Segment, arc_sweep};
+use crate::model::chain::Chain;
 
 /// Axis the raster lines run along.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -132,25 +132,16 @@ pub fn chain_passes(chains: &[Chain], step: f64) -> Result<Vec<Vec<P2>>, DropErr
     for c in chains {
         let mut pass: Vec<P2> = Vec::new();
         for s in &c.segments {
-            let pts: Vec<P2> = match s {
-                Segment::Line { start, end } => sample_line(start.xy(), end.xy(), step),
-                Segment::Arc {
-                    start,
-                    end,
-                    center,
-                    ccw,
-                } => {
-                    let r = (start - center).xy().norm();
-                    let sweep = arc_sweep(start, end, center, *ccw);
-                    let a0 = (start.y - center.y).atan2(start.x - center.x);
-                    let n = ((r * sweep.abs()) / step).ceil().max(1.0) as usize;
+            let pts: Vec<P2> = match s.arc_xy() {
+                None => sample_line(s.start().xy(), s.end().xy(), step),
+                Some(arc) => {
+                    let n = ((arc.radius * arc.sweep.abs()) / step).ceil().max(1.0) as usize;
                     (0..=n)
                         .map(|i| {
                             if i == n {
-                                end.xy()
+                                s.end().xy()
                             } else {
-                                let a = a0 + sweep * i as f64 / n as f64;
-                                P2::new(center.x + r * a.cos(), center.y + r * a.sin())
+                                arc.point_at_angle(arc.start_angle + arc.sweep * i as f64 / n as f64)
                             }
                         })
                         .collect()
@@ -170,6 +161,7 @@ pub fn chain_passes(chains: &[Chain], step: f64) -> Result<Vec<Vec<P2>>, DropErr
 mod tests {
     use super::*;
     use crate::geometry::P3;
+    use crate::model::chain::Segment;
 
     #[test]
     fn zigzag_is_one_pass_covering_the_region() {

@@ -1,7 +1,7 @@
 //! The chain model: ordered, connected runs of exact lines and arcs taken
 //! from a drawing.
 
-use crate::geometry::P3;
+use crate::geometry::{P2, P3};
 
 /// One exact segment of a chain, in travel order.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -51,6 +51,26 @@ impl Segment {
         }
     }
 
+    /// An arc's XY geometry as centre, radius, start angle and signed sweep
+    /// (radians, positive counter-clockwise; a full turn when it closes);
+    /// `None` for a line. The one place chains' arcs are taken apart.
+    pub fn arc_xy(&self) -> Option<ArcXy> {
+        match self {
+            Segment::Line { .. } => None,
+            Segment::Arc {
+                start,
+                end,
+                center,
+                ccw,
+            } => Some(ArcXy {
+                center: P2::new(center.x, center.y),
+                radius: (start - center).xy().norm(),
+                start_angle: (start.y - center.y).atan2(start.x - center.x),
+                sweep: arc_sweep(start, end, center, *ccw),
+            }),
+        }
+    }
+
     /// Length in XY (mm): the arc length for arcs.
     pub fn length(&self) -> f64 {
         match self {
@@ -62,6 +82,27 @@ impl Segment {
                 ccw,
             } => (start - center).xy().norm() * arc_sweep(start, end, center, *ccw).abs(),
         }
+    }
+}
+
+/// An XY arc as [`Segment::arc_xy`] gives it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ArcXy {
+    pub center: P2,
+    pub radius: f64,
+    /// Angle of the start point about the centre (radians).
+    pub start_angle: f64,
+    /// Signed sweep (radians, positive counter-clockwise).
+    pub sweep: f64,
+}
+
+impl ArcXy {
+    /// The point at angle `a` on the circle.
+    pub fn point_at_angle(&self, a: f64) -> P2 {
+        P2::new(
+            self.center.x + self.radius * a.cos(),
+            self.center.y + self.radius * a.sin(),
+        )
     }
 }
 

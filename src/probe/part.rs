@@ -10,7 +10,7 @@
 
 use super::ProbeError;
 use crate::geometry::P2;
-use crate::model::chain::{Chain, Segment, arc_sweep};
+use crate::model::chain::{Chain, Segment};
 use std::f64::consts::TAU;
 
 /// One boundary piece of a part.
@@ -235,20 +235,13 @@ impl Part {
                             prims.push(Prim::Line { a, b });
                         }
                     }
-                    Segment::Arc {
-                        start,
-                        end,
-                        center,
-                        ccw,
-                    } => {
-                        let c = P2::new(center.x, center.y);
-                        let r = (start - center).xy().norm();
-                        let a0 = (start.y - center.y).atan2(start.x - center.x);
+                    Segment::Arc { .. } => {
+                        let Some(arc) = s.arc_xy() else { continue };
                         prims.push(Prim::Arc {
-                            c,
-                            r,
-                            a0,
-                            sweep: arc_sweep(&start, &end, &center, ccw),
+                            c: arc.center,
+                            r: arc.radius,
+                            a0: arc.start_angle,
+                            sweep: arc.sweep,
                         });
                     }
                 }
