@@ -364,30 +364,16 @@ pub fn connect(from: P3, din: V2, to: P3, dout: V2, r: f64, shape: Shape, plane:
     let mut mid = to_elems(&dp, s2, h0, g2, plane, nz);
     // Snap unextended ends exactly onto the given points.
     if !ext0 && let Some(first) = mid.first_mut() {
-        set_start(first, from);
+        first.set_start(from);
     }
     if !ext1 && let Some(last) = mid.last_mut() {
-        set_end(last, to);
+        last.set_end(to);
     }
     out.append(&mut mid);
     if ext1 {
         out.push(Elem::line(plane.lift(&g2, nz), to));
     }
     Some(out)
-}
-
-fn set_start(e: &mut Elem, p: P3) {
-    match e {
-        Elem::Line(l) => l.start = p,
-        Elem::Arc(a) => a.start = p,
-    }
-}
-
-fn set_end(e: &mut Elem, p: P3) {
-    match e {
-        Elem::Line(l) => l.end = p,
-        Elem::Arc(a) => a.end = p,
-    }
 }
 
 #[cfg(test)]

@@ -36,6 +36,23 @@ impl Elem {
         }
     }
 
+    /// Move the start point to `p` (snapping a piece onto its neighbour;
+    /// an arc keeps its centre).
+    pub fn set_start(&mut self, p: P3) {
+        match self {
+            Elem::Line(l) => l.start = p,
+            Elem::Arc(a) => a.start = p,
+        }
+    }
+
+    /// Move the end point to `p` (an arc keeps its centre).
+    pub fn set_end(&mut self, p: P3) {
+        match self {
+            Elem::Line(l) => l.end = p,
+            Elem::Arc(a) => a.end = p,
+        }
+    }
+
     pub fn length(&self) -> f64 {
         match self {
             Elem::Line(l) => l.length(),

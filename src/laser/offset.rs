@@ -103,16 +103,9 @@ pub fn from_polyline(pl: &Polyline<f64>, z: f64) -> Vec<Elem> {
     // Snap joints exactly: each piece starts where the previous ended.
     for i in 1..out.len() {
         let e = out[i - 1].end();
-        set_start(&mut out[i], e);
+        out[i].set_start(e);
     }
     out
-}
-
-fn set_start(e: &mut Elem, p: P3) {
-    match e {
-        Elem::Line(l) => l.start = p,
-        Elem::Arc(a) => a.start = p,
-    }
 }
 
 /// Signed area of a closed polyline (positive counter-clockwise).

@@ -211,10 +211,10 @@ fn bezier_span(span: &[P3], plane: Plane, o: &FitOptions) -> Option<Vec<Elem>> {
     }
     // Exact ends: the span's points, not their round trip.
     if let Some(f) = out.first_mut() {
-        set_start(f, span[0]);
+        f.set_start(span[0]);
     }
     if let Some(l) = out.last_mut() {
-        set_end(l, span[n - 1]);
+        l.set_end(span[n - 1]);
     }
     Some(out)
 }
@@ -256,20 +256,6 @@ fn seg_dist(p: &P2, a: &P2, b: &P2) -> f64 {
         0.0
     };
     (p - (a + d * t)).norm()
-}
-
-fn set_start(e: &mut Elem, p: P3) {
-    match e {
-        Elem::Line(l) => l.start = p,
-        Elem::Arc(a) => a.start = p,
-    }
-}
-
-fn set_end(e: &mut Elem, p: P3) {
-    match e {
-        Elem::Line(l) => l.end = p,
-        Elem::Arc(a) => a.end = p,
-    }
 }
 
 /// Largest distance of the run's points from the fitted elements.
