@@ -5,7 +5,7 @@
 CARGO ?= cargo
 BIN   := target/release
 
-.PHONY: modgraph samples-check pocket-compare dropcutter-check bench-order all build test unit golden update-golden conformance checks fig3-20 removal-check dxf-check lint demo bench fuzz-smoke clean
+.PHONY: demo-check modgraph samples-check pocket-compare dropcutter-check bench-order all build test unit golden update-golden conformance checks fig3-20 removal-check dxf-check lint demo bench fuzz-smoke clean
 
 all: build
 
@@ -35,7 +35,7 @@ conformance: build
 	python3 scripts/pmac-conformance --emu $(BIN)/pmac-emu
 
 # Checks against independent references, and of the repository itself.
-checks: fig3-20 removal-check dxf-check dropcutter-check modgraph samples-check
+checks: fig3-20 removal-check dxf-check dropcutter-check modgraph samples-check demo-check
 
 # The module layering (docs/architecture.md): no module uses one above it.
 modgraph:
@@ -73,6 +73,11 @@ lint:
 
 demo: build
 	scripts/demo
+
+# The demo's index page in a real headless browser (Debian's chromium): it
+# loads and every picture it references exists and renders.
+demo-check: demo
+	scripts/demo-check
 
 # Benchmarks, each side by side with its anchor in one run.
 bench: build
