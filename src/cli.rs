@@ -55,6 +55,11 @@ impl From<io::Error> for CliError {
 /// `tool: message` on stderr for errors. A closed stdout (`| head`) is not
 /// an error worth a message.
 pub fn run(tool: &str, body: impl FnOnce() -> Result<(), CliError>) -> ExitCode {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    if let Err(e) = check_numeric_arguments(&args) {
+        eprintln!("{tool}: {}", e.message);
+        return ExitCode::from(e.status);
+    }
     match body() {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) if e.broken_pipe => ExitCode::from(e.status),
@@ -63,6 +68,54 @@ pub fn run(tool: &str, body: impl FnOnce() -> Result<(), CliError>) -> ExitCode 
             ExitCode::from(e.status)
         }
     }
+}
+
+/// Largest magnitude a number on the command line may have. Nothing a
+/// micro-machining tool is asked (millimetres, seconds, rpm, counts) comes
+/// near it; anything beyond is a typo or an attack, and would overflow the
+/// arithmetic downstream into infinities.
+pub const MAX_ARGUMENT_MAGNITUDE: f64 = 1e12;
+
+/// Refuse, for every tool at once, command-line values that are numbers no
+/// computation can use: NaN, infinities, and magnitudes beyond
+/// [`MAX_ARGUMENT_MAGNITUDE`], alone or inside a comma/semicolon list
+/// (`--stock 0,0,nan,1,1,1`). Rust's float parser accepts `nan`, `inf` and
+/// `1e999`, so without this each flag would need its own guard; flags that
+/// need a tighter range (a step that must be positive, a count of moves)
+/// still check it where they are used.
+pub fn check_numeric_arguments(args: &[String]) -> Result<(), CliError> {
+    let mut flag: Option<&str> = None;
+    for a in args {
+        let (name, value) = match a.split_once('=') {
+            Some((n, v)) if n.starts_with("--") => (Some(n), v),
+            _ if a.starts_with("--") => {
+                flag = Some(a.as_str());
+                continue;
+            }
+            _ => (flag, a.as_str()),
+        };
+        flag = None;
+        let pieces: Vec<&str> = value.split([',', ';']).map(str::trim).collect();
+        let numbers: Vec<f64> = pieces.iter().filter_map(|p| p.parse::<f64>().ok()).collect();
+        if numbers.len() != pieces.len() || numbers.is_empty() {
+            continue; // not a number (a path, a name, a tool spec)
+        }
+        if pieces.iter().all(|p| p.parse::<i128>().is_ok()) {
+            continue; // integers (seeds, counts): clap's integer types check their own range
+        }
+        if let Some(bad) = numbers.iter().find(|x| !x.is_finite() || x.abs() > MAX_ARGUMENT_MAGNITUDE) {
+            let what = if bad.is_nan() {
+                "not a number".to_string()
+            } else if bad.is_infinite() {
+                "infinite".to_string()
+            } else {
+                format!("beyond ±{MAX_ARGUMENT_MAGNITUDE:e}")
+            };
+            let whose = name.map(|n| format!("{n} ")).unwrap_or_default();
+            return Err(CliError::input(format!("{whose}'{value}': {what}; numbers must be finite and within ±{MAX_ARGUMENT_MAGNITUDE:e}")));
+        }
+    }
+    Ok(())
 }
 
 /// An input named on the command line: a path, or `-`/absent for stdin.
@@ -284,4 +337,36 @@ pub fn parse_numbers<const N: usize>(s: &str, opt: &str, form: &str) -> Result<[
     }
     v.try_into()
         .map_err(|_| CliError::input(format!("{opt} '{s}': {N} numbers {form}")))
+}
+
+#[cfg(test)]
+mod numeric_argument_tests {
+    use super::check_numeric_arguments;
+
+    fn check(args: &[&str]) -> Result<(), String> {
+        let v: Vec<String> = args.iter().map(|s| s.to_string()).collect();
+        check_numeric_arguments(&v).map_err(|e| e.message)
+    }
+
+    #[test]
+    fn finite_numbers_names_and_paths_pass() {
+        assert!(check(&["--feed", "2.5", "--stock", "0,0,-1,4,3,0", "--tool", "ball:2", "part.ngc"]).is_ok());
+        assert!(check(&["--start=-5,0,0", "--polygon", "0,0;4,0;4,3", "-", "--shutter-var", "M33"]).is_ok());
+        assert!(check(&["--seed", "18446744073709551615", "--levels", "-1e11"]).is_ok());
+    }
+
+    #[test]
+    fn non_finite_and_huge_numbers_are_refused_with_the_flag_named() {
+        for (args, flag) in [
+            (&["--feed", "nan"][..], "--feed"),
+            (&["--radius", "inf"][..], "--radius"),
+            (&["--stock", "0,0,-inf,1,1,0"][..], "--stock"),
+            (&["--duration=1e308"][..], "--duration"),
+            (&["--turns", "1e999"][..], "--turns"),
+            (&["--z", "-1e13"][..], "--z"),
+        ] {
+            let e = check(args).unwrap_err();
+            assert!(e.contains(flag), "{e}");
+        }
+    }
 }

@@ -51,6 +51,11 @@ pub fn parse_points(text: &str) -> Result<Vec<P2>, (usize, &'static str)> {
             .map(|t| t.parse::<f64>().ok().filter(|v| v.is_finite()))
             .collect::<Option<_>>()
             .ok_or((i + 1, "expected numbers 'x y'"))?;
+        // Beyond a kilometre nothing here is a drawing any stage can cut,
+        // and squared distances would overflow into infinities.
+        if v.iter().any(|x| x.abs() > 1e9) {
+            return Err((i + 1, "coordinate beyond ±1e9 mm"));
+        }
         if v.len() < 2 {
             return Err((i + 1, "expected 'x y'"));
         }

@@ -176,7 +176,14 @@ pub fn coverage(design: &Part, contacts: &[Contact], re: f64, rs: f64) -> Covera
     loops.dedup();
     loops.sort_unstable();
     loops.dedup();
-    let h = re / 4.0;
+    // A quarter of the tip radius, but never more than a million samples:
+    // the work stays bounded by the contour, whatever the tip.
+    let contour_len: f64 = loops
+        .iter()
+        .flat_map(|&l| design.loops[l].clone())
+        .map(|i| design.prims[i].length())
+        .sum();
+    let h = (re / 4.0).max(contour_len / 1e6);
     // The reach of a feature "larger than R_s".
     let rf = re.max(rs / 2.0);
     let mut cov = Coverage {

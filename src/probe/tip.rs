@@ -33,6 +33,14 @@ impl Probe {
                 return Err(ProbeError::Param(format!("{name} must be a positive number, got {v}")));
             }
         }
+        // A rotating-wire tip is tens of microns across (Bayesteh 2013: a
+        // 0.102 mm wire); below a micron the touch model is meaningless and
+        // the coverage sampling (a quarter of the radius) degenerates.
+        if effective_diameter_mm < 1e-3 {
+            return Err(ProbeError::Param(format!(
+                "effective diameter must be at least 0.001 mm, got {effective_diameter_mm}"
+            )));
+        }
         Ok(Probe {
             effective_diameter_mm,
             rpm,
