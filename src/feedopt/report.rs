@@ -366,22 +366,20 @@ pub fn profiles_rgb(rows: &[SeriesRow]) -> (usize, usize, Vec<u8>) {
                 let from = prev.map_or(y, |(px, py)| if px + 1 >= x { py } else { y });
                 if let Some((px, py)) = prev.filter(|&(px, _)| px + 1 < x) {
                     // A gap of several columns: a straight line across it.
-                    for c in px + 1..x {
+                    for (c, (l, u)) in lo.iter_mut().zip(hi.iter_mut()).enumerate().take(x).skip(px + 1) {
                         let t = (c - px) as f64 / (x - px) as f64;
                         let yc = (py as f64 + (y as f64 - py as f64) * t).round() as usize;
-                        lo[c] = lo[c].min(yc);
-                        hi[c] = hi[c].max(yc);
+                        *l = (*l).min(yc);
+                        *u = (*u).max(yc);
                     }
                 }
                 lo[x] = lo[x].min(y.min(from));
                 hi[x] = hi[x].max(y.max(from));
                 prev = Some((x, y));
             }
-            for x in 0..w {
-                if lo[x] <= hi[x] {
-                    for y in lo[x]..=hi[x] {
-                        put(&mut rgb, x, y, colour);
-                    }
+            for (x, (&a, &b)) in lo.iter().zip(&hi).enumerate() {
+                for y in a..=b {
+                    put(&mut rgb, x, y, colour);
                 }
             }
         }
