@@ -1,6 +1,20 @@
 //! Command-line conventions every binary shares: `-` for stdin/stdout,
 //! outputs that appear whole or not at all, exit codes (0 ok, 1 failure,
 //! 2 bad usage or bad input) and error reports that name the file and line.
+//!
+//! All outputs of a run appear together or not at all: inside [`run`], an
+//! [`Output::commit`] only stages the output (flushed, checked), and the
+//! staged outputs are released when the tool's body succeeds — stdout
+//! first (a closed or broken stdout then fails the run before any file
+//! appears), then the files, renamed into place in the order they were
+//! committed. When the body fails, nothing staged appears and the hidden
+//! temporary files are removed, also on SIGINT, SIGTERM and SIGHUP
+//! ([`cleanup`]). Man pages and completions come from each tool's clap
+//! definition ([`generate`]).
+
+pub mod cleanup;
+pub mod generate;
+pub use generate::parse;
 
 use std::fs::File;
 use std::io::{self, BufRead, BufReader, Read, Seek, SeekFrom, Write};
@@ -55,7 +69,19 @@ impl From<io::Error> for CliError {
 /// `tool: message` on stderr for errors. A closed stdout (`| head`) is not
 /// an error worth a message.
 pub fn run(tool: &str, body: impl FnOnce() -> Result<(), CliError>) -> ExitCode {
-    match body() {
+    /// Drops whatever is still staged when the body fails or unwinds, so
+    /// temporary files go with it.
+    struct Discard;
+    impl Drop for Discard {
+        fn drop(&mut self) {
+            drop(take_staged());
+        }
+    }
+    *staged() = Some(Vec::new());
+    let discard = Discard;
+    let outcome = body().and_then(|()| release(take_staged().unwrap_or_default()));
+    drop(discard);
+    match outcome {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) if e.broken_pipe => ExitCode::from(e.status),
         Err(e) => {
@@ -111,6 +137,8 @@ enum Sink {
     File {
         path: PathBuf,
         tmp: io::BufWriter<tempfile::NamedTempFile>,
+        /// Removes the temporary file on a signal while it exists.
+        guard: cleanup::Guard,
     },
     Stdout {
         mem: Vec<u8>,
@@ -164,6 +192,7 @@ impl Output {
                 match tempfile::NamedTempFile::new_in(dir) {
                     Ok(t) => Sink::File {
                         path: target.clone(),
+                        guard: cleanup::register(t.path()),
                         tmp: io::BufWriter::with_capacity(1 << 20, t),
                     },
                     Err(e) => Sink::Broken(format!("{}: {e}", path.display())),
@@ -173,15 +202,36 @@ impl Output {
         Output { sink }
     }
 
-    /// Make the output appear at its destination.
+    /// Make the output appear at its destination. Inside [`run`] it is
+    /// staged: checked and flushed now, released when the run succeeds
+    /// (with every other output of the run), discarded when it fails.
+    /// Outside [`run`] it appears now.
     pub fn commit(self) -> Result<(), CliError> {
+        let s = self.stage()?;
+        let mut group = staged();
+        if let Some(g) = group.as_mut() {
+            g.push(s);
+            return Ok(());
+        }
+        drop(group);
+        s.release()
+    }
+
+    /// Make the output appear now, whatever else the run does (progress
+    /// that must survive a later failure).
+    pub fn commit_now(self) -> Result<(), CliError> {
+        self.stage()?.release()
+    }
+
+    /// Everything that can fail before the output appears.
+    fn stage(self) -> Result<Staged, CliError> {
         match self.sink {
             Sink::Broken(msg) => Err(CliError::failure(msg)),
             Sink::Special(mut w) => {
                 w.flush()?;
-                Ok(())
+                Ok(Staged::Done)
             }
-            Sink::File { path, tmp } => {
+            Sink::File { path, tmp, guard } => {
                 let tmp = tmp
                     .into_inner()
                     .map_err(|e| CliError::failure(format!("{}: {}", path.display(), e.error())))?;
@@ -203,27 +253,125 @@ impl Output {
                         .set_permissions(perms)
                         .map_err(|e| CliError::failure(format!("{}: {e}", path.display())))?;
                 }
-                tmp.persist(&path)
-                    .map_err(|e| CliError::failure(format!("{}: {e}", path.display())))?;
-                Ok(())
+                Ok(Staged::File { path, tmp, guard })
             }
-            Sink::Stdout { mem, spill } => {
-                let stdout = io::stdout();
-                let mut lock = stdout.lock();
-                if let Some(mut f) = spill {
-                    f.write_all(&mem)?;
-                    f.seek(SeekFrom::Start(0))?;
-                    // A plain File lets io::copy use the kernel's
-                    // copy_file_range/splice/sendfile where it can.
-                    io::copy(&mut f, &mut lock)?;
-                } else {
-                    lock.write_all(&mem)?;
-                }
-                lock.flush()?;
-                Ok(())
-            }
+            Sink::Stdout { mem, spill } => Ok(Staged::Stdout { mem, spill }),
         }
     }
+}
+
+/// An output ready to appear.
+enum Staged {
+    /// Already at its destination (a device or FIFO).
+    Done,
+    File {
+        path: PathBuf,
+        tmp: tempfile::NamedTempFile,
+        guard: cleanup::Guard,
+    },
+    Stdout {
+        mem: Vec<u8>,
+        spill: Option<File>,
+    },
+}
+
+impl Staged {
+    fn release(self) -> Result<(), CliError> {
+        match self {
+            Staged::Done => Ok(()),
+            Staged::File { path, tmp, guard } => {
+                tmp.persist(&path)
+                    .map_err(|e| CliError::failure(format!("{}: {e}", path.display())))?;
+                drop(guard);
+                Ok(())
+            }
+            Staged::Stdout { mem, spill } => write_stdout(&mem, spill),
+        }
+    }
+}
+
+/// The outputs staged by the running tool (`None` outside [`run`]).
+static STAGED: std::sync::Mutex<Option<Vec<Staged>>> = std::sync::Mutex::new(None);
+
+fn staged() -> std::sync::MutexGuard<'static, Option<Vec<Staged>>> {
+    STAGED.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+fn take_staged() -> Option<Vec<Staged>> {
+    staged().take()
+}
+
+/// Release a successful run's outputs: stdout first, then the files in
+/// commit order. On the first failure the rest are dropped (their temporary
+/// files removed).
+fn release(outputs: Vec<Staged>) -> Result<(), CliError> {
+    let (out, files): (Vec<_>, Vec<_>) = outputs.into_iter().partition(|s| matches!(s, Staged::Stdout { .. }));
+    for s in out.into_iter().chain(files) {
+        s.release()?;
+    }
+    Ok(())
+}
+
+/// True when this process was started with stdout closed (`tool >&-`).
+/// The Rust runtime then opens /dev/null read-write on descriptor 1 (so no
+/// file the tool opens lands there); a shell's `>/dev/null` opens it
+/// write-only. Output that would go there has nowhere to go.
+pub fn stdout_closed() -> bool {
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::MetadataExt;
+        // SAFETY: fcntl F_GETFL on a descriptor only reads its flags.
+        let flags = unsafe { libc::fcntl(1, libc::F_GETFL) };
+        if flags < 0 {
+            return true;
+        }
+        if flags & libc::O_ACCMODE != libc::O_RDWR {
+            return false;
+        }
+        let Ok(null) = std::fs::metadata("/dev/null") else { return false };
+        // SAFETY: fstat on descriptor 1 fills a plain struct.
+        let mut st: libc::stat = unsafe { std::mem::zeroed() };
+        if unsafe { libc::fstat(1, &mut st) } != 0 {
+            return true;
+        }
+        (st.st_mode & libc::S_IFMT) == libc::S_IFCHR && u64::from(st.st_rdev) == null.rdev()
+    }
+    #[cfg(not(unix))]
+    false
+}
+
+/// Write held-back output to stdout: the spilled part by the kernel's
+/// file-to-file copy (`io::copy` between two `File`s uses copy_file_range,
+/// sendfile or splice on Linux), then the in-memory tail in one write.
+fn write_stdout(mem: &[u8], spill: Option<File>) -> Result<(), CliError> {
+    if stdout_closed() {
+        return Err(CliError::failure(
+            "standard output is closed: the output had nowhere to go (nothing written)",
+        ));
+    }
+    let stdout = io::stdout();
+    let mut lock = stdout.lock();
+    lock.flush()?;
+    #[cfg(unix)]
+    {
+        use std::os::fd::AsFd;
+        if let Ok(fd) = lock.as_fd().try_clone_to_owned() {
+            let mut out = File::from(fd);
+            if let Some(mut f) = spill {
+                f.seek(SeekFrom::Start(0))?;
+                io::copy(&mut f, &mut out)?;
+            }
+            out.write_all(mem)?;
+            return Ok(());
+        }
+    }
+    if let Some(mut f) = spill {
+        f.seek(SeekFrom::Start(0))?;
+        io::copy(&mut f, &mut lock)?;
+    }
+    lock.write_all(mem)?;
+    lock.flush()?;
+    Ok(())
 }
 
 impl Write for Output {

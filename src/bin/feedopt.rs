@@ -156,7 +156,7 @@ struct Args {
     start: String,
 }
 fn main() -> std::process::ExitCode {
-    let args = Args::parse();
+    let args = microcam::cli::parse::<Args>();
     cli::run("feedopt", || run(args))
 }
 
