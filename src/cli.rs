@@ -313,31 +313,39 @@ fn release(outputs: Vec<Staged>) -> Result<(), CliError> {
 }
 
 /// True when this process was started with stdout closed (`tool >&-`).
-/// The Rust runtime then opens /dev/null read-write on descriptor 1 (so no
-/// file the tool opens lands there); a shell's `>/dev/null` opens it
-/// write-only. Output that would go there has nowhere to go.
+///
+/// The Rust runtime reopens a closed descriptor 1 on /dev/null before
+/// `main` (so no file the tool opens lands there), after which a closed
+/// stdout cannot be told from a redirection to /dev/null. So a constructor
+/// ([`stdout_at_start`], run from `.init_array` before the runtime starts)
+/// looks first and remembers. Output that would go there has nowhere to go.
 pub fn stdout_closed() -> bool {
-    #[cfg(unix)]
+    #[cfg(target_os = "linux")]
     {
-        use std::os::unix::fs::MetadataExt;
-        // SAFETY: fcntl F_GETFL on a descriptor only reads its flags.
-        let flags = unsafe { libc::fcntl(1, libc::F_GETFL) };
-        if flags < 0 {
-            return true;
-        }
-        if flags & libc::O_ACCMODE != libc::O_RDWR {
-            return false;
-        }
-        let Ok(null) = std::fs::metadata("/dev/null") else { return false };
-        // SAFETY: fstat on descriptor 1 fills a plain struct.
-        let mut st: libc::stat = unsafe { std::mem::zeroed() };
-        if unsafe { libc::fstat(1, &mut st) } != 0 {
-            return true;
-        }
-        (st.st_mode & libc::S_IFMT) == libc::S_IFCHR && u64::from(st.st_rdev) == null.rdev()
+        stdout_at_start::CLOSED.load(std::sync::atomic::Ordering::Relaxed)
     }
-    #[cfg(not(unix))]
+    #[cfg(not(target_os = "linux"))]
     false
+}
+
+/// Whether descriptor 1 was open when the process started (Linux:
+/// `.init_array` constructors run before the Rust runtime's own set-up).
+#[cfg(target_os = "linux")]
+mod stdout_at_start {
+    use std::sync::atomic::{AtomicBool, Ordering};
+
+    pub static CLOSED: AtomicBool = AtomicBool::new(false);
+
+    extern "C" fn check() {
+        // SAFETY: F_GETFD only asks whether the descriptor is open.
+        if unsafe { libc::fcntl(1, libc::F_GETFD) } == -1 {
+            CLOSED.store(true, Ordering::Relaxed);
+        }
+    }
+
+    #[used]
+    #[unsafe(link_section = ".init_array")]
+    static CHECK: extern "C" fn() = check;
 }
 
 /// Write held-back output to stdout: the spilled part by the kernel's

@@ -303,9 +303,12 @@ fn writing_to_a_closed_stdout_fails_with_a_message() {
         assert!(err.contains("standard output is closed"), "{cmd}: {err}");
         assert!(!svg.exists(), "{cmd}: the SVG appeared without the program");
     }
-    // To /dev/null is a destination, not a closed stdout.
-    let o = sh(r#""$1" --moves "$3" >/dev/null"#);
-    assert_eq!(o.status.code(), Some(0));
+    // To /dev/null is a destination, not a closed stdout, also opened
+    // read-write (as Python's subprocess.DEVNULL does).
+    for cmd in [r#""$1" --moves "$3" >/dev/null"#, r#""$1" --moves "$3" 1<>/dev/null"#] {
+        let o = sh(cmd);
+        assert_eq!(o.status.code(), Some(0), "{cmd}: {}", String::from_utf8_lossy(&o.stderr));
+    }
 }
 
 #[test]
