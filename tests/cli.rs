@@ -179,11 +179,24 @@ fn all_outputs_of_a_run_appear_together_or_not_at_all() {
     let bad = "/nonexistent-dir/x.svg";
     for args in [
         vec!["--blocks", &p("b.csv"), "--svg", bad, "-o", &p("r.json"), "-"],
-        vec!["--svg", &p("s.svg"), "--blocks", &p("b.csv"), "-o", "/nonexistent-dir/r.json", "-"],
+        vec![
+            "--svg",
+            &p("s.svg"),
+            "--blocks",
+            &p("b.csv"),
+            "-o",
+            "/nonexistent-dir/r.json",
+            "-",
+        ],
         vec!["--moves", "--svg", &p("s.svg"), "-o", "/nonexistent-dir/m.jsonl", "-"],
     ] {
         let o = run(GSIM, &args, Some(prog));
-        assert_eq!(o.status.code(), Some(1), "{args:?}: {}", String::from_utf8_lossy(&o.stderr));
+        assert_eq!(
+            o.status.code(),
+            Some(1),
+            "{args:?}: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
         assert!(String::from_utf8_lossy(&o.stderr).contains("nonexistent-dir"));
         assert!(listing(d).is_empty(), "{args:?} left {:?}", listing(d));
     }
@@ -212,7 +225,11 @@ fn all_outputs_of_a_run_appear_together_or_not_at_all() {
     assert_eq!(o.status.code(), Some(1), "{}", String::from_utf8_lossy(&o.stderr));
     assert!(listing(e.path()).is_empty(), "{:?}", listing(e.path()));
     args.extend(["--png".into(), q("p.png"), "-".into()]);
-    let o = run(FEEDOPT, &args.iter().map(String::as_str).collect::<Vec<_>>(), Some(prog));
+    let o = run(
+        FEEDOPT,
+        &args.iter().map(String::as_str).collect::<Vec<_>>(),
+        Some(prog),
+    );
     assert_eq!(o.status.code(), Some(0), "{}", String::from_utf8_lossy(&o.stderr));
     assert_eq!(listing(e.path()), ["o.ngc", "p.png", "r.json", "s.csv"]);
 }
@@ -266,7 +283,9 @@ fn interrupted(bin: &str, args: &[&str], head: &[u8], signal: &str) -> (Vec<Stri
 #[test]
 fn an_interrupted_run_leaves_no_hidden_temporary_file() {
     use std::os::unix::process::ExitStatusExt;
-    let prog: String = (0..200_000).map(|i| format!("G1 X{} Y{} F600\n", i % 100, i % 37)).collect();
+    let prog: String = (0..200_000)
+        .map(|i| format!("G1 X{} Y{} F600\n", i % 100, i % 37))
+        .collect();
     let moves = run(GSIM, &["--moves", "-"], Some(&prog));
     assert_eq!(moves.status.code(), Some(0));
     let toolpath = moves.stdout;
@@ -288,7 +307,15 @@ fn writing_to_a_closed_stdout_fails_with_a_message() {
     let svg = dir.path().join("s.svg");
     let sh = |cmd: &str| {
         Command::new("sh")
-            .args(["-c", cmd, "sh", GSIM, PATHGEN, prog.to_str().unwrap(), svg.to_str().unwrap()])
+            .args([
+                "-c",
+                cmd,
+                "sh",
+                GSIM,
+                PATHGEN,
+                prog.to_str().unwrap(),
+                svg.to_str().unwrap(),
+            ])
             .output()
             .unwrap()
     };
@@ -307,7 +334,12 @@ fn writing_to_a_closed_stdout_fails_with_a_message() {
     // read-write (as Python's subprocess.DEVNULL does).
     for cmd in [r#""$1" --moves "$3" >/dev/null"#, r#""$1" --moves "$3" 1<>/dev/null"#] {
         let o = sh(cmd);
-        assert_eq!(o.status.code(), Some(0), "{cmd}: {}", String::from_utf8_lossy(&o.stderr));
+        assert_eq!(
+            o.status.code(),
+            Some(0),
+            "{cmd}: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
     }
 }
 
@@ -316,18 +348,37 @@ fn make_install_puts_binaries_man_pages_and_completions_under_a_prefix() {
     let prefix = tempfile::tempdir().unwrap();
     let bin_dir = Path::new(GSIM).parent().unwrap();
     let o = Command::new(Path::new(env!("CARGO_MANIFEST_DIR")).join("scripts/install"))
-        .args(["--prefix", prefix.path().to_str().unwrap(), "--bin-dir", bin_dir.to_str().unwrap()])
+        .args([
+            "--prefix",
+            prefix.path().to_str().unwrap(),
+            "--bin-dir",
+            bin_dir.to_str().unwrap(),
+        ])
         .output()
         .unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let p = |s: &str| prefix.path().join(s);
     let read = |s: &str| std::fs::read_to_string(p(s)).unwrap_or_else(|e| panic!("{s}: {e}"));
     for t in [
-        "dxf2chains", "pathgen", "gsim", "feedopt", "plough2d", "stlverify", "probescan", "pmac-send", "pmac-emu",
+        "dxf2chains",
+        "pathgen",
+        "gsim",
+        "feedopt",
+        "plough2d",
+        "stlverify",
+        "probescan",
+        "pmac-send",
+        "pmac-emu",
     ] {
         let v = Command::new(p(&format!("bin/{t}"))).arg("--version").output().unwrap();
-        assert!(v.status.success() && String::from_utf8_lossy(&v.stdout).starts_with(t), "{t} --version");
-        assert!(read(&format!("share/man/man1/{t}.1")).contains(&format!(".TH {t}")), "{t}.1");
+        assert!(
+            v.status.success() && String::from_utf8_lossy(&v.stdout).starts_with(t),
+            "{t} --version"
+        );
+        assert!(
+            read(&format!("share/man/man1/{t}.1")).contains(&format!(".TH {t}")),
+            "{t}.1"
+        );
         assert!(read(&format!("share/bash-completion/completions/{t}")).contains("complete"));
         assert!(read(&format!("share/zsh/site-functions/_{t}")).contains(&format!("#compdef {t}")));
         assert!(read(&format!("share/fish/vendor_completions.d/{t}.fish")).contains(&format!("complete -c {t}")));

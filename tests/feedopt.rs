@@ -405,7 +405,10 @@ fn the_png_shows_chip_and_feed_profiles_before_and_after() {
     let d = dir("png");
     let p = write(&d, "p.pmc", &Pocket::default().program(Dialect::Pmac));
     let png = d.join("profile.png");
-    ok(&feedopt(&["--png", png.to_str().unwrap(), "-o", d.join("o.pmc").to_str().unwrap()], &p));
+    ok(&feedopt(
+        &["--png", png.to_str().unwrap(), "-o", d.join("o.pmc").to_str().unwrap()],
+        &p,
+    ));
     let (w, h, rgb) = decode_png(&std::fs::read(&png).unwrap());
     assert_eq!((w, h), (900, 520));
     let (before, after) = ([150u8, 150, 150], [31u8, 95, 191]);

@@ -131,20 +131,32 @@ mod tests {
             Some(0)
         );
         let page = std::fs::read_to_string(d.path().join("demo-tool.1")).unwrap();
-        assert!(page.contains(".TH demo-tool") && page.contains("Does a demo."), "{page}");
+        assert!(
+            page.contains(".TH demo-tool") && page.contains("Does a demo."),
+            "{page}"
+        );
         let sub = std::fs::read_to_string(d.path().join("demo-tool-contour.1")).unwrap();
         assert!(sub.contains("offset"), "{sub}");
         assert_eq!(
-            answer(Demo::command(), &argv(&["demo-tool", "--generate-completions", "all", dir])),
+            answer(
+                Demo::command(),
+                &argv(&["demo-tool", "--generate-completions", "all", dir])
+            ),
             Some(0)
         );
         let bash = std::fs::read_to_string(d.path().join("demo-tool.bash")).unwrap();
         assert!(bash.contains("complete") && bash.contains("--offset"));
         assert!(d.path().join("_demo-tool").exists() && d.path().join("demo-tool.fish").exists());
         assert_eq!(
-            answer(Demo::command(), &argv(&["demo-tool", "--generate-completions", "tcsh", dir])),
+            answer(
+                Demo::command(),
+                &argv(&["demo-tool", "--generate-completions", "tcsh", dir])
+            ),
             Some(2)
         );
-        assert_eq!(answer(Demo::command(), &argv(&["demo-tool", "--generate-man"])), Some(2));
+        assert_eq!(
+            answer(Demo::command(), &argv(&["demo-tool", "--generate-man"])),
+            Some(2)
+        );
     }
 }

@@ -418,7 +418,8 @@ mod tests {
         let (w, h, rgb) = profiles_rgb(&rows);
         assert_eq!((w, h, rgb.len()), (PNG_WIDTH, PNG_HEIGHT, PNG_WIDTH * PNG_HEIGHT * 3));
         let px = |x: usize, y: usize| [rgb[(y * w + x) * 3], rgb[(y * w + x) * 3 + 1], rgb[(y * w + x) * 3 + 2]];
-        let column = |x: usize, y0: usize, y1: usize, c: [u8; 3]| (y0..y1).filter(|&y| px(x, y) == c).collect::<Vec<_>>();
+        let column =
+            |x: usize, y0: usize, y1: usize, c: [u8; 3]| (y0..y1).filter(|&y| px(x, y) == c).collect::<Vec<_>>();
         // Feed panel: before is flat at 1 µm (2/3 of the 1.5 µm top), after
         // falls from the top at the left to meet it at the right.
         let (left, right) = (45, w - 45);
