@@ -1,6 +1,20 @@
 //! Command-line conventions every binary shares: `-` for stdin/stdout,
 //! outputs that appear whole or not at all, exit codes (0 ok, 1 failure,
 //! 2 bad usage or bad input) and error reports that name the file and line.
+//!
+//! All outputs of a run appear together or not at all: inside [`run`], an
+//! [`Output::commit`] only stages the output (flushed, checked), and the
+//! staged outputs are released when the tool's body succeeds — stdout
+//! first (a closed or broken stdout then fails the run before any file
+//! appears), then the files, renamed into place in the order they were
+//! committed. When the body fails, nothing staged appears and the hidden
+//! temporary files are removed, also on SIGINT, SIGTERM and SIGHUP
+//! ([`cleanup`]). Man pages and completions come from each tool's clap
+//! definition ([`generate`]).
+
+pub mod cleanup;
+pub mod generate;
+pub use generate::parse;
 
 use std::fs::File;
 use std::io::{self, BufRead, BufReader, Read, Seek, SeekFrom, Write};
@@ -60,7 +74,19 @@ pub fn run(tool: &str, body: impl FnOnce() -> Result<(), CliError>) -> ExitCode 
         eprintln!("{tool}: {}", e.message);
         return ExitCode::from(e.status);
     }
-    match body() {
+    /// Drops whatever is still staged when the body fails or unwinds, so
+    /// temporary files go with it.
+    struct Discard;
+    impl Drop for Discard {
+        fn drop(&mut self) {
+            drop(take_staged());
+        }
+    }
+    *staged() = Some(Vec::new());
+    let discard = Discard;
+    let outcome = body().and_then(|()| release(take_staged().unwrap_or_default()));
+    drop(discard);
+    match outcome {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) if e.broken_pipe => ExitCode::from(e.status),
         Err(e) => {
@@ -164,6 +190,8 @@ enum Sink {
     File {
         path: PathBuf,
         tmp: io::BufWriter<tempfile::NamedTempFile>,
+        /// Removes the temporary file on a signal while it exists.
+        guard: cleanup::Guard,
     },
     Stdout {
         mem: Vec<u8>,
@@ -217,6 +245,7 @@ impl Output {
                 match tempfile::NamedTempFile::new_in(dir) {
                     Ok(t) => Sink::File {
                         path: target.clone(),
+                        guard: cleanup::register(t.path()),
                         tmp: io::BufWriter::with_capacity(1 << 20, t),
                     },
                     Err(e) => Sink::Broken(format!("{}: {e}", path.display())),
@@ -226,15 +255,36 @@ impl Output {
         Output { sink }
     }
 
-    /// Make the output appear at its destination.
+    /// Make the output appear at its destination. Inside [`run`] it is
+    /// staged: checked and flushed now, released when the run succeeds
+    /// (with every other output of the run), discarded when it fails.
+    /// Outside [`run`] it appears now.
     pub fn commit(self) -> Result<(), CliError> {
+        let s = self.stage()?;
+        let mut group = staged();
+        if let Some(g) = group.as_mut() {
+            g.push(s);
+            return Ok(());
+        }
+        drop(group);
+        s.release()
+    }
+
+    /// Make the output appear now, whatever else the run does (progress
+    /// that must survive a later failure).
+    pub fn commit_now(self) -> Result<(), CliError> {
+        self.stage()?.release()
+    }
+
+    /// Everything that can fail before the output appears.
+    fn stage(self) -> Result<Staged, CliError> {
         match self.sink {
             Sink::Broken(msg) => Err(CliError::failure(msg)),
             Sink::Special(mut w) => {
                 w.flush()?;
-                Ok(())
+                Ok(Staged::Done)
             }
-            Sink::File { path, tmp } => {
+            Sink::File { path, tmp, guard } => {
                 let tmp = tmp
                     .into_inner()
                     .map_err(|e| CliError::failure(format!("{}: {}", path.display(), e.error())))?;
@@ -256,27 +306,133 @@ impl Output {
                         .set_permissions(perms)
                         .map_err(|e| CliError::failure(format!("{}: {e}", path.display())))?;
                 }
-                tmp.persist(&path)
-                    .map_err(|e| CliError::failure(format!("{}: {e}", path.display())))?;
-                Ok(())
+                Ok(Staged::File { path, tmp, guard })
             }
-            Sink::Stdout { mem, spill } => {
-                let stdout = io::stdout();
-                let mut lock = stdout.lock();
-                if let Some(mut f) = spill {
-                    f.write_all(&mem)?;
-                    f.seek(SeekFrom::Start(0))?;
-                    // A plain File lets io::copy use the kernel's
-                    // copy_file_range/splice/sendfile where it can.
-                    io::copy(&mut f, &mut lock)?;
-                } else {
-                    lock.write_all(&mem)?;
-                }
-                lock.flush()?;
-                Ok(())
-            }
+            Sink::Stdout { mem, spill } => Ok(Staged::Stdout { mem, spill }),
         }
     }
+}
+
+/// An output ready to appear.
+enum Staged {
+    /// Already at its destination (a device or FIFO).
+    Done,
+    File {
+        path: PathBuf,
+        tmp: tempfile::NamedTempFile,
+        guard: cleanup::Guard,
+    },
+    Stdout {
+        mem: Vec<u8>,
+        spill: Option<File>,
+    },
+}
+
+impl Staged {
+    fn release(self) -> Result<(), CliError> {
+        match self {
+            Staged::Done => Ok(()),
+            Staged::File { path, tmp, guard } => {
+                tmp.persist(&path)
+                    .map_err(|e| CliError::failure(format!("{}: {e}", path.display())))?;
+                drop(guard);
+                Ok(())
+            }
+            Staged::Stdout { mem, spill } => write_stdout(&mem, spill),
+        }
+    }
+}
+
+/// The outputs staged by the running tool (`None` outside [`run`]).
+static STAGED: std::sync::Mutex<Option<Vec<Staged>>> = std::sync::Mutex::new(None);
+
+fn staged() -> std::sync::MutexGuard<'static, Option<Vec<Staged>>> {
+    STAGED.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+fn take_staged() -> Option<Vec<Staged>> {
+    staged().take()
+}
+
+/// Release a successful run's outputs: stdout first, then the files in
+/// commit order. On the first failure the rest are dropped (their temporary
+/// files removed).
+fn release(outputs: Vec<Staged>) -> Result<(), CliError> {
+    let (out, files): (Vec<_>, Vec<_>) = outputs.into_iter().partition(|s| matches!(s, Staged::Stdout { .. }));
+    for s in out.into_iter().chain(files) {
+        s.release()?;
+    }
+    Ok(())
+}
+
+/// True when this process was started with stdout closed (`tool >&-`).
+///
+/// The Rust runtime reopens a closed descriptor 1 on /dev/null before
+/// `main` (so no file the tool opens lands there), after which a closed
+/// stdout cannot be told from a redirection to /dev/null. So a constructor
+/// ([`stdout_at_start`], run from `.init_array` before the runtime starts)
+/// looks first and remembers. Output that would go there has nowhere to go.
+pub fn stdout_closed() -> bool {
+    #[cfg(target_os = "linux")]
+    {
+        stdout_at_start::CLOSED.load(std::sync::atomic::Ordering::Relaxed)
+    }
+    #[cfg(not(target_os = "linux"))]
+    false
+}
+
+/// Whether descriptor 1 was open when the process started (Linux:
+/// `.init_array` constructors run before the Rust runtime's own set-up).
+#[cfg(target_os = "linux")]
+mod stdout_at_start {
+    use std::sync::atomic::{AtomicBool, Ordering};
+
+    pub static CLOSED: AtomicBool = AtomicBool::new(false);
+
+    extern "C" fn check() {
+        // SAFETY: F_GETFD only asks whether the descriptor is open.
+        if unsafe { libc::fcntl(1, libc::F_GETFD) } == -1 {
+            CLOSED.store(true, Ordering::Relaxed);
+        }
+    }
+
+    #[used]
+    #[unsafe(link_section = ".init_array")]
+    static CHECK: extern "C" fn() = check;
+}
+
+/// Write held-back output to stdout: the spilled part by the kernel's
+/// file-to-file copy (`io::copy` between two `File`s uses copy_file_range,
+/// sendfile or splice on Linux), then the in-memory tail in one write.
+fn write_stdout(mem: &[u8], spill: Option<File>) -> Result<(), CliError> {
+    if stdout_closed() {
+        return Err(CliError::failure(
+            "standard output is closed: the output had nowhere to go (nothing written)",
+        ));
+    }
+    let stdout = io::stdout();
+    let mut lock = stdout.lock();
+    lock.flush()?;
+    #[cfg(unix)]
+    {
+        use std::os::fd::AsFd;
+        if let Ok(fd) = lock.as_fd().try_clone_to_owned() {
+            let mut out = File::from(fd);
+            if let Some(mut f) = spill {
+                f.seek(SeekFrom::Start(0))?;
+                io::copy(&mut f, &mut out)?;
+            }
+            out.write_all(mem)?;
+            return Ok(());
+        }
+    }
+    if let Some(mut f) = spill {
+        f.seek(SeekFrom::Start(0))?;
+        io::copy(&mut f, &mut lock)?;
+    }
+    lock.write_all(mem)?;
+    lock.flush()?;
+    Ok(())
 }
 
 impl Write for Output {

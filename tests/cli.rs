@@ -155,3 +155,236 @@ fn iso_to_pmac_and_back_keeps_the_path() {
         assert!((a - b).abs() <= 1e-4 * a.abs().max(1.0), "{k}: {a} vs {b}");
     }
 }
+
+const FEEDOPT: &str = env!("CARGO_BIN_EXE_feedopt");
+
+/// Files in `dir`, hidden ones included, sorted.
+fn listing(dir: &Path) -> Vec<String> {
+    let mut v: Vec<String> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    v.sort();
+    v
+}
+
+#[test]
+fn all_outputs_of_a_run_appear_together_or_not_at_all() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let p = |n: &str| d.join(n).to_str().unwrap().to_string();
+    let prog = "G21 G90\nG0 X1 Y1\nG1 X5 F300\nG1 Y4\n";
+    // gsim: the block CSV and the report are fine, the SVG cannot be
+    // written: neither appears.
+    let bad = "/nonexistent-dir/x.svg";
+    for args in [
+        vec!["--blocks", &p("b.csv"), "--svg", bad, "-o", &p("r.json"), "-"],
+        vec![
+            "--svg",
+            &p("s.svg"),
+            "--blocks",
+            &p("b.csv"),
+            "-o",
+            "/nonexistent-dir/r.json",
+            "-",
+        ],
+        vec!["--moves", "--svg", &p("s.svg"), "-o", "/nonexistent-dir/m.jsonl", "-"],
+    ] {
+        let o = run(GSIM, &args, Some(prog));
+        assert_eq!(
+            o.status.code(),
+            Some(1),
+            "{args:?}: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+        assert!(String::from_utf8_lossy(&o.stderr).contains("nonexistent-dir"));
+        assert!(listing(d).is_empty(), "{args:?} left {:?}", listing(d));
+    }
+    // The same run with every destination writable: all of them appear.
+    let o = run(
+        GSIM,
+        &["--blocks", &p("b.csv"), "--svg", &p("s.svg"), "-o", &p("r.json"), "-"],
+        Some(prog),
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_eq!(listing(d), ["b.csv", "r.json", "s.svg"]);
+    // feedopt: program, report, CSV and PNG together, or nothing when the
+    // last one cannot be written.
+    let prog = "G21 G90\nS60000 M3\nG0 X-1 Y0 Z1\nG1 Z-0.05 F120\nG1 X1 F120\nG0 Z1\nM30\n";
+    let e = tempfile::tempdir().unwrap();
+    let q = |n: &str| e.path().join(n).to_str().unwrap().to_string();
+    let base = ["--tool", "flat:0.5", "--stock", "-2,-2,-1,2,2,0", "--cell-mm", "0.02"];
+    let mut args: Vec<String> = base.iter().map(|s| s.to_string()).collect();
+    for (k, v) in [("-o", q("o.ngc")), ("--report", q("r.json")), ("--csv", q("s.csv"))] {
+        args.push(k.into());
+        args.push(v);
+    }
+    let mut bad = args.clone();
+    bad.extend(["--png".into(), "/nonexistent-dir/p.png".into(), "-".into()]);
+    let o = run(FEEDOPT, &bad.iter().map(String::as_str).collect::<Vec<_>>(), Some(prog));
+    assert_eq!(o.status.code(), Some(1), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(listing(e.path()).is_empty(), "{:?}", listing(e.path()));
+    args.extend(["--png".into(), q("p.png"), "-".into()]);
+    let o = run(
+        FEEDOPT,
+        &args.iter().map(String::as_str).collect::<Vec<_>>(),
+        Some(prog),
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_eq!(listing(e.path()), ["o.ngc", "p.png", "r.json", "s.csv"]);
+}
+
+/// Start `bin args` writing `-o dir/out`, feed it `head` on stdin, wait
+/// until its hidden temporary file exists, send `signal`, and return what
+/// is left in `dir` and how the process ended.
+fn interrupted(bin: &str, args: &[&str], head: &[u8], signal: &str) -> (Vec<String>, std::process::ExitStatus) {
+    use std::io::Write;
+    use std::os::unix::process::CommandExt;
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out");
+    let mut cmd = Command::new(bin);
+    // A test run in the background inherits SIGINT ignored; the tool
+    // rightly keeps an ignored signal ignored, so give it the default.
+    // SAFETY: signal() is async-signal-safe, as pre_exec requires.
+    unsafe {
+        cmd.pre_exec(|| {
+            libc::signal(libc::SIGINT, libc::SIG_DFL);
+            libc::signal(libc::SIGTERM, libc::SIG_DFL);
+            Ok(())
+        });
+    }
+    let mut child = cmd
+        .args(args)
+        .args(["-o", out.to_str().unwrap(), "-"])
+        .stdin(Stdio::piped())
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let mut stdin = child.stdin.take().unwrap();
+    stdin.write_all(head).unwrap();
+    stdin.flush().unwrap();
+    let t0 = std::time::Instant::now();
+    while listing(dir.path()).is_empty() {
+        assert!(t0.elapsed().as_secs() < 30, "{bin}: no temporary file appeared");
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    // The run is under way (stdin still open: it waits for more input).
+    let k = Command::new("kill")
+        .args([signal, &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(k.success());
+    let status = child.wait().unwrap();
+    drop(stdin);
+    (listing(dir.path()), status)
+}
+
+#[test]
+fn an_interrupted_run_leaves_no_hidden_temporary_file() {
+    use std::os::unix::process::ExitStatusExt;
+    let prog: String = (0..200_000)
+        .map(|i| format!("G1 X{} Y{} F600\n", i % 100, i % 37))
+        .collect();
+    let moves = run(GSIM, &["--moves", "-"], Some(&prog));
+    assert_eq!(moves.status.code(), Some(0));
+    let toolpath = moves.stdout;
+    for (signal, number) in [("-INT", 2), ("-TERM", 15)] {
+        let (left, status) = interrupted(GSIM, &["--moves"], prog.as_bytes(), signal);
+        assert!(left.is_empty(), "gsim {signal}: left {left:?}");
+        assert_eq!(status.signal(), Some(number), "gsim ends by the signal");
+        let (left, status) = interrupted(PATHGEN, &["emit", "--dialect", "pmac"], &toolpath, signal);
+        assert!(left.is_empty(), "pathgen emit {signal}: left {left:?}");
+        assert_eq!(status.signal(), Some(number));
+    }
+}
+
+#[test]
+fn writing_to_a_closed_stdout_fails_with_a_message() {
+    let dir = tempfile::tempdir().unwrap();
+    let prog = dir.path().join("p.ngc");
+    std::fs::write(&prog, "G21 G90\nG1 X5 F300\n").unwrap();
+    let svg = dir.path().join("s.svg");
+    let sh = |cmd: &str| {
+        Command::new("sh")
+            .args([
+                "-c",
+                cmd,
+                "sh",
+                GSIM,
+                PATHGEN,
+                prog.to_str().unwrap(),
+                svg.to_str().unwrap(),
+            ])
+            .output()
+            .unwrap()
+    };
+    for cmd in [
+        r#""$1" --moves "$3" >&-"#,
+        r#""$1" --moves --svg "$4" "$3" >&-"#,
+        r#""$1" --moves "$3" | "$2" emit --dialect iso >&-"#,
+    ] {
+        let o = sh(cmd);
+        assert_eq!(o.status.code(), Some(1), "{cmd}");
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(err.contains("standard output is closed"), "{cmd}: {err}");
+        assert!(!svg.exists(), "{cmd}: the SVG appeared without the program");
+    }
+    // To /dev/null is a destination, not a closed stdout, also opened
+    // read-write (as Python's subprocess.DEVNULL does).
+    for cmd in [r#""$1" --moves "$3" >/dev/null"#, r#""$1" --moves "$3" 1<>/dev/null"#] {
+        let o = sh(cmd);
+        assert_eq!(
+            o.status.code(),
+            Some(0),
+            "{cmd}: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+    }
+}
+
+#[test]
+fn make_install_puts_binaries_man_pages_and_completions_under_a_prefix() {
+    let prefix = tempfile::tempdir().unwrap();
+    let bin_dir = Path::new(GSIM).parent().unwrap();
+    let o = Command::new(Path::new(env!("CARGO_MANIFEST_DIR")).join("scripts/install"))
+        .args([
+            "--prefix",
+            prefix.path().to_str().unwrap(),
+            "--bin-dir",
+            bin_dir.to_str().unwrap(),
+        ])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let p = |s: &str| prefix.path().join(s);
+    let read = |s: &str| std::fs::read_to_string(p(s)).unwrap_or_else(|e| panic!("{s}: {e}"));
+    for t in [
+        "dxf2chains",
+        "pathgen",
+        "gsim",
+        "feedopt",
+        "plough2d",
+        "stlverify",
+        "probescan",
+        "pmac-send",
+        "pmac-emu",
+    ] {
+        let v = Command::new(p(&format!("bin/{t}"))).arg("--version").output().unwrap();
+        assert!(
+            v.status.success() && String::from_utf8_lossy(&v.stdout).starts_with(t),
+            "{t} --version"
+        );
+        assert!(
+            read(&format!("share/man/man1/{t}.1")).contains(&format!(".TH {t}")),
+            "{t}.1"
+        );
+        assert!(read(&format!("share/bash-completion/completions/{t}")).contains("complete"));
+        assert!(read(&format!("share/zsh/site-functions/_{t}")).contains(&format!("#compdef {t}")));
+        assert!(read(&format!("share/fish/vendor_completions.d/{t}.fish")).contains(&format!("complete -c {t}")));
+    }
+    // A page per subcommand, and the flags of the real definition.
+    assert!(read("share/man/man1/pathgen-contour.1").contains("offset"));
+    assert!(read("share/man/man1/feedopt.1").contains("png"));
+    assert!(read("share/bash-completion/completions/gsim").contains("--moves"));
+}

@@ -335,3 +335,103 @@ fn force_figures_and_series_are_reported() {
     assert_eq!(r2["target"], "force");
     assert!(r2["cycle_time_after_s"].as_f64() < r2["cycle_time_before_s"].as_f64());
 }
+
+/// Decode an 8-bit RGB PNG whose IDAT holds stored (uncompressed) deflate
+/// blocks, checking every chunk's CRC and the zlib Adler-32: (width,
+/// height, pixels).
+fn decode_png(b: &[u8]) -> (usize, usize, Vec<u8>) {
+    fn crc(data: &[u8]) -> u32 {
+        let mut c = !0u32;
+        for &x in data {
+            c ^= x as u32;
+            for _ in 0..8 {
+                c = if c & 1 != 0 { 0xEDB8_8320 ^ (c >> 1) } else { c >> 1 };
+            }
+        }
+        !c
+    }
+    assert_eq!(&b[..8], b"\x89PNG\r\n\x1a\n");
+    let (mut i, mut w, mut h, mut z) = (8, 0, 0, Vec::new());
+    let mut end = false;
+    while i < b.len() {
+        let n = u32::from_be_bytes(b[i..i + 4].try_into().unwrap()) as usize;
+        let kind = &b[i + 4..i + 8];
+        let data = &b[i + 8..i + 8 + n];
+        let c = u32::from_be_bytes(b[i + 8 + n..i + 12 + n].try_into().unwrap());
+        assert_eq!(crc(&b[i + 4..i + 8 + n]), c, "CRC of {}", String::from_utf8_lossy(kind));
+        match kind {
+            b"IHDR" => {
+                w = u32::from_be_bytes(data[0..4].try_into().unwrap()) as usize;
+                h = u32::from_be_bytes(data[4..8].try_into().unwrap()) as usize;
+                assert_eq!(&data[8..], &[8, 2, 0, 0, 0], "8-bit RGB, no interlace");
+            }
+            b"IDAT" => z.extend_from_slice(data),
+            b"IEND" => end = true,
+            _ => {}
+        }
+        i += 12 + n;
+    }
+    assert!(end && w > 0 && h > 0);
+    assert_eq!(z[0] & 0x0f, 8, "zlib deflate");
+    let (mut k, mut raw) = (2, Vec::new());
+    loop {
+        let fin = z[k] & 1;
+        assert_eq!(z[k] >> 1 & 3, 0, "stored blocks");
+        let n = u16::from_le_bytes([z[k + 1], z[k + 2]]) as usize;
+        assert_eq!(!(n as u16), u16::from_le_bytes([z[k + 3], z[k + 4]]));
+        raw.extend_from_slice(&z[k + 5..k + 5 + n]);
+        k += 5 + n;
+        if fin == 1 {
+            break;
+        }
+    }
+    let (mut s1, mut s2) = (1u32, 0u32);
+    for &x in &raw {
+        s1 = (s1 + x as u32) % 65_521;
+        s2 = (s2 + s1) % 65_521;
+    }
+    assert_eq!(u32::from_be_bytes(z[k..k + 4].try_into().unwrap()), (s2 << 16) | s1);
+    assert_eq!(raw.len(), h * (3 * w + 1));
+    let mut rgb = Vec::with_capacity(w * h * 3);
+    for row in raw.chunks(3 * w + 1) {
+        assert_eq!(row[0], 0, "filter none");
+        rgb.extend_from_slice(&row[1..]);
+    }
+    (w, h, rgb)
+}
+
+#[test]
+fn the_png_shows_chip_and_feed_profiles_before_and_after() {
+    let d = dir("png");
+    let p = write(&d, "p.pmc", &Pocket::default().program(Dialect::Pmac));
+    let png = d.join("profile.png");
+    ok(&feedopt(
+        &["--png", png.to_str().unwrap(), "-o", d.join("o.pmc").to_str().unwrap()],
+        &p,
+    ));
+    let (w, h, rgb) = decode_png(&std::fs::read(&png).unwrap());
+    assert_eq!((w, h), (900, 520));
+    let (before, after) = ([150u8, 150, 150], [31u8, 95, 191]);
+    let count = |y0: usize, y1: usize, c: [u8; 3]| {
+        (y0..y1)
+            .flat_map(|y| (0..w).map(move |x| (x, y)))
+            .filter(|&(x, y)| rgb[(y * w + x) * 3..(y * w + x) * 3 + 3] == c)
+            .count()
+    };
+    for (panel, (y0, y1)) in [("chip", (0, h / 2)), ("feed", (h / 2, h))] {
+        // A profile spans the path: drawn in most of the 818 columns.
+        assert!(count(y0, y1, after) > 400, "{panel}: blue profile drawn");
+        assert!(count(y0, y1, before) > 100, "{panel}: grey profile drawn");
+    }
+    // The feeds after lie at or above the nominal 1 µm/tooth, which the
+    // grey line marks: in every column, blue is never below grey.
+    let col = |x: usize, c: [u8; 3]| (h / 2..h).find(|&y| rgb[(y * w + x) * 3..(y * w + x) * 3 + 3] == c);
+    let mut compared = 0;
+    for x in 42..w - 42 {
+        if let (Some(b), Some(a)) = (col(x, before), col(x, after)) {
+            assert!(a <= b, "column {x}: feed after below the nominal");
+            compared += 1;
+        }
+    }
+    assert!(compared > 50);
+}

@@ -79,7 +79,7 @@ struct Args {
 }
 
 fn main() -> ExitCode {
-    let args = Args::parse();
+    let args = microcam::cli::parse::<Args>();
     cli::run("dxf2chains", || run(args))
 }
 

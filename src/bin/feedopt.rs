@@ -16,7 +16,7 @@ const EXAMPLES: &str = "\
 Examples:
   feedopt --tool flat:0.794 --stock -2,-2,-1,2,2,0 --report r.json pocket.ngc > fast.ngc
   feedopt --mode split --rpm 60000 --tool flat:0.794 --stock -2,-2,-1,2,2,0 \\
-          --report r.json --csv steps.csv --svg profile.svg pocket.pmc > fast.pmc
+          --report r.json --csv steps.csv --svg profile.svg --png profile.png pocket.pmc > fast.pmc
   feedopt --force --target force --tool flat:0.794 --stock -2,-2,-1,2,2,0 pocket.ngc
 
 The program (ISO or Turbo PMAC text) is simulated on a height-field stock in
@@ -82,6 +82,10 @@ struct Args {
     /// Chip-volume and feed profiles along the path as SVG.
     #[arg(long, value_name = "FILE.svg")]
     svg: Option<PathBuf>,
+    /// Chip-volume and feed profiles along the path as PNG (upper panel
+    /// chip volume per tooth, lower feed per tooth; grey before, blue after).
+    #[arg(long, value_name = "FILE.png")]
+    png: Option<PathBuf>,
     /// One feed per block, or sub-blocks.
     #[arg(long, value_enum, default_value = "per-block")]
     mode: ModeArg,
@@ -152,7 +156,7 @@ struct Args {
     start: String,
 }
 fn main() -> std::process::ExitCode {
-    let args = Args::parse();
+    let args = microcam::cli::parse::<Args>();
     cli::run("feedopt", || run(args))
 }
 
@@ -235,6 +239,12 @@ fn run(a: Args) -> Result<(), CliError> {
     if let Some(p) = &a.svg {
         let mut o = Output::new(Some(p));
         o.write_all(report::profiles_svg(&out.series, &name).as_bytes())?;
+        files.push(o);
+    }
+    if let Some(p) = &a.png {
+        let mut o = Output::new(Some(p));
+        let (w, h, rgb) = report::profiles_rgb(&out.series);
+        microcam::sim::picture::write_png(&mut o, w, h, &rgb)?;
         files.push(o);
     }
     for n in &out.report.notes {

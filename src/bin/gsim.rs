@@ -183,7 +183,7 @@ struct Args {
 }
 
 fn main() -> ExitCode {
-    let args = Args::parse();
+    let args = microcam::cli::parse::<Args>();
     cli::run("gsim", || run(args))
 }
 /// `--limits`: six comma-separated numbers.

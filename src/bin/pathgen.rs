@@ -536,7 +536,7 @@ struct WriterArgs {
 }
 
 fn main() -> ExitCode {
-    let cli = Cli::parse();
+    let cli = microcam::cli::parse::<Cli>();
     cli::run("pathgen", || match cli.command {
         Command::Emit(a) => emit(a),
         Command::Contour(a) => contour_cmd(*a),

@@ -109,7 +109,7 @@ struct Args {
 }
 
 fn main() -> ExitCode {
-    let args = Args::parse();
+    let args = microcam::cli::parse::<Args>();
     cli::run("plough2d", || run(args))
 }
 fn run(args: Args) -> Result<(), CliError> {

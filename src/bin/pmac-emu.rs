@@ -76,7 +76,7 @@ struct Args {
 }
 
 fn main() -> ExitCode {
-    let args = Args::parse();
+    let args = microcam::cli::parse::<Args>();
     cli::run("pmac-emu", || run(args))
 }
 

@@ -159,7 +159,7 @@ struct Args {
 }
 
 fn main() -> ExitCode {
-    let args = Args::parse();
+    let args = microcam::cli::parse::<Args>();
     cli::run("probescan", || run(args))
 }
 

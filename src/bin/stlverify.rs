@@ -121,7 +121,7 @@ struct Args {
 }
 
 fn main() -> ExitCode {
-    let args = Args::parse();
+    let args = microcam::cli::parse::<Args>();
     cli::run("stlverify", || run(args))
 }
 fn positive(v: f64, opt: &str) -> Result<f64, CliError> {

@@ -203,4 +203,26 @@ mod tests {
             Coefficients::from_json(r#"{"ktc_n_mm2":1,"krc_n_mm2":1,"kte_n_mm":1,"kre_n_mm":-1}"#, "k.json").is_err()
         );
     }
+
+    #[test]
+    fn the_force_never_falls_as_the_feed_rises() {
+        // Why the model cannot predict a lower mean force after feedopt,
+        // whose feeds are never below the nominal f_min (docs/feedopt.md).
+        let m = ForceModel {
+            k: Coefficients::default(),
+            flutes: 2,
+        };
+        for ae in [0.01, 0.1, 0.397, 0.794] {
+            for b in [0.01, 0.1] {
+                let e = Engagement::new(ae * b, b, 0.397);
+                let mut last = (0.0, 0.0);
+                for k in 0..=50 {
+                    let fz = 0.001 + 0.0005 * k as f64 / 50.0;
+                    let now = (m.mean_n(&e, fz), m.peak_n(&e, fz));
+                    assert!(now.0 >= last.0 && now.1 >= last.1, "ae {ae} b {b} fz {fz}");
+                    last = now;
+                }
+            }
+        }
+    }
 }

@@ -298,3 +298,146 @@ pub fn profiles_svg(rows: &[SeriesRow], title: &str) -> String {
     b.push_str("</svg>\n");
     b
 }
+
+/// Size of the profile picture, pixels: two stacked panels.
+pub const PNG_WIDTH: usize = 900;
+/// Height of the profile picture, pixels.
+pub const PNG_HEIGHT: usize = 520;
+/// Colours of the profile picture: the program before (grey) and after
+/// (blue), the frames (black), on white.
+pub const PNG_BEFORE: [u8; 3] = [150, 150, 150];
+pub const PNG_AFTER: [u8; 3] = [31, 95, 191];
+pub const PNG_FRAME: [u8; 3] = [0, 0, 0];
+
+/// The same two profiles as [`profiles_svg`] as RGB pixels (rows top
+/// first, [`PNG_WIDTH`] × [`PNG_HEIGHT`]): chip volume per tooth along the
+/// path in the upper panel, feed per tooth in the lower one, each scaled to
+/// its largest value before or after, path length 0 at the left. Write it
+/// with [`crate::sim::picture::write_png`].
+///
+/// Each series is drawn column by column (the span of its values in the
+/// column, joined to the previous column), so the cost is linear in the
+/// steps however long the path.
+pub fn profiles_rgb(rows: &[SeriesRow]) -> (usize, usize, Vec<u8>) {
+    let (w, h) = (PNG_WIDTH, PNG_HEIGHT);
+    let (pad, panel) = (40usize, h / 2);
+    let mut rgb = vec![255u8; w * h * 3];
+    let put = |rgb: &mut [u8], x: usize, y: usize, c: [u8; 3]| {
+        if x < w && y < h {
+            let k = (y * w + x) * 3;
+            rgb[k..k + 3].copy_from_slice(&c);
+        }
+    };
+    let s_max = rows.last().map_or(1.0, |r| r.s_mm).max(1e-9);
+    let chip = |r: &SeriesRow, after: bool| r.area_mm2 * if after { r.fz_after_mm } else { r.fz_before_mm };
+    let feed = |r: &SeriesRow, after: bool| if after { r.fz_after_mm } else { r.fz_before_mm };
+    let (x0, x1) = (pad, w - pad - 1);
+    for p in 0..2 {
+        let (y0, y1) = (p * panel + 24, p * panel + panel - 24);
+        for x in x0..=x1 {
+            put(&mut rgb, x, y0, PNG_FRAME);
+            put(&mut rgb, x, y1, PNG_FRAME);
+        }
+        for y in y0..=y1 {
+            put(&mut rgb, x0, y, PNG_FRAME);
+            put(&mut rgb, x1, y, PNG_FRAME);
+        }
+        let value = |r: &SeriesRow, after: bool| if p == 0 { chip(r, after) } else { feed(r, after) };
+        let vmax = rows
+            .iter()
+            .map(|r| value(r, false).max(value(r, true)))
+            .filter(|v| v.is_finite())
+            .fold(0.0, f64::max)
+            .max(1e-30);
+        // Inside the frame: columns x0+1..x1, rows y0+1..y1 (bottom = 0).
+        let (cols, span) = ((x1 - x0 - 1) as f64, (y1 - y0 - 2) as f64);
+        for (after, colour) in [(false, PNG_BEFORE), (true, PNG_AFTER)] {
+            // Per column: the lowest and highest pixel row of the series.
+            let mut lo = vec![usize::MAX; w];
+            let mut hi = vec![0usize; w];
+            let mut prev: Option<(usize, usize)> = None;
+            for r in rows {
+                let v = value(r, after);
+                let v = if v.is_finite() { (v / vmax).clamp(0.0, 1.0) } else { 0.0 };
+                let x = x0 + 1 + (cols * (r.s_mm / s_max).clamp(0.0, 1.0)).round() as usize;
+                let y = y1 - 1 - (span * v).round() as usize;
+                let x = x.min(x1 - 1);
+                // Join to the previous point: its row counts in this column.
+                let from = prev.map_or(y, |(px, py)| if px + 1 >= x { py } else { y });
+                if let Some((px, py)) = prev.filter(|&(px, _)| px + 1 < x) {
+                    // A gap of several columns: a straight line across it.
+                    for (c, (l, u)) in lo.iter_mut().zip(hi.iter_mut()).enumerate().take(x).skip(px + 1) {
+                        let t = (c - px) as f64 / (x - px) as f64;
+                        let yc = (py as f64 + (y as f64 - py as f64) * t).round() as usize;
+                        *l = (*l).min(yc);
+                        *u = (*u).max(yc);
+                    }
+                }
+                lo[x] = lo[x].min(y.min(from));
+                hi[x] = hi[x].max(y.max(from));
+                prev = Some((x, y));
+            }
+            for (x, (&a, &b)) in lo.iter().zip(&hi).enumerate() {
+                for y in a..=b {
+                    put(&mut rgb, x, y, colour);
+                }
+            }
+        }
+    }
+    (w, h, rgb)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::P3;
+
+    fn row(s: f64, area: f64, before: f64, after: f64) -> SeriesRow {
+        SeriesRow {
+            line: Some(1),
+            end: P3::origin(),
+            s_mm: s,
+            area_mm2: area,
+            cutting: true,
+            fz_before_mm: before,
+            fz_after_mm: after,
+            force_before_n: None,
+            force_after_n: None,
+        }
+    }
+
+    #[test]
+    fn the_picture_draws_both_profiles_in_both_panels() {
+        // A chip that rises along the path; the feed after falls with it.
+        let rows: Vec<SeriesRow> = (0..=1000)
+            .map(|k| {
+                let t = k as f64 / 1000.0;
+                row(t * 5.0, 0.01 + 0.02 * t, 0.001, 0.0015 - 0.0005 * t)
+            })
+            .collect();
+        let (w, h, rgb) = profiles_rgb(&rows);
+        assert_eq!((w, h, rgb.len()), (PNG_WIDTH, PNG_HEIGHT, PNG_WIDTH * PNG_HEIGHT * 3));
+        let px = |x: usize, y: usize| [rgb[(y * w + x) * 3], rgb[(y * w + x) * 3 + 1], rgb[(y * w + x) * 3 + 2]];
+        let column =
+            |x: usize, y0: usize, y1: usize, c: [u8; 3]| (y0..y1).filter(|&y| px(x, y) == c).collect::<Vec<_>>();
+        // Feed panel: before is flat at 1 µm (2/3 of the 1.5 µm top), after
+        // falls from the top at the left to meet it at the right.
+        let (left, right) = (45, w - 45);
+        let before_l = column(left, h / 2, h, PNG_BEFORE);
+        let after_l = column(left, h / 2, h, PNG_AFTER);
+        let after_r = column(right, h / 2, h, PNG_AFTER);
+        assert!(!before_l.is_empty() && !after_l.is_empty() && !after_r.is_empty());
+        assert!(after_l[0] < before_l[0], "after above before at the start");
+        assert!(after_r[0] > after_l[0] + 50, "after falls along the path");
+        // Chip panel: both rise left to right.
+        let top = |x: usize, c: [u8; 3]| column(x, 0, h / 2, c).first().copied().unwrap_or(0);
+        assert!(top(right, PNG_BEFORE) + 50 < top(left, PNG_BEFORE));
+        assert!(top(right, PNG_AFTER) < top(left, PNG_AFTER));
+        // Frames, and white outside them.
+        assert_eq!(px(40, 100), PNG_FRAME);
+        assert_eq!(px(5, 5), [255, 255, 255]);
+        // No rows draws frames only; never panics.
+        let (_, _, empty) = profiles_rgb(&[]);
+        assert!(!empty.chunks(3).any(|c| c == PNG_AFTER));
+    }
+}
