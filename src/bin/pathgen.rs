@@ -288,7 +288,9 @@ fn non_negative(name: &str, v: f64) -> Result<f64, CliError> {
     if v.is_finite() && v >= 0.0 {
         Ok(v)
     } else {
-        Err(CliError::input(format!("--{name} must be a finite number >= 0, got {v}")))
+        Err(CliError::input(format!(
+            "--{name} must be a finite number >= 0, got {v}"
+        )))
     }
 }
 
@@ -865,7 +867,7 @@ fn cleanup_note(st: &microcam::laser::cleanup::CleanStats, m: &LaserSetup, o: &C
     if fixed > 0 {
         eprintln!(
             "pathgen: cleanup: {fixed} piece(s) shorter than the least block at V ({:.6} mm) merged into their \
-             neighbours or refitted ({} pieces -> {}); largest deviation {:.6} mm (--cleanup-tol {} mm)",
+             neighbours or refitted ({} pieces -> {}); largest deviation {:.3e} mm (--cleanup-tol {} mm)",
             m.min_block(),
             st.pieces_in,
             st.pieces_out,
@@ -1051,8 +1053,13 @@ fn cone_cmd(a: ConeArgs) -> Result<(), CliError> {
             continue;
         }
         let c = P3::new(a.center.0, a.center.1, z);
-        let path = patterns::archimedean_limited(c, step, step, r, false, tol, budget)
-            .map_err(|n| a.out.too_big("cone", n * f64::from(levels), &format!("{how} within --tolerance {tol}")))?;
+        let path = patterns::archimedean_limited(c, step, step, r, false, tol, budget).map_err(|n| {
+            a.out.too_big(
+                "cone",
+                n * f64::from(levels),
+                &format!("{how} within --tolerance {tol}"),
+            )
+        })?;
         budget = budget.saturating_sub(path.len());
         paths.push(all_cut(path));
     }

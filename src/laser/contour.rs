@@ -263,7 +263,12 @@ pub fn cut_paths(chains: &[Chain], m: &LaserSetup, o: &ContourOptions) -> Vec<(V
 }
 
 /// One chain's cut paths (see [`cut_paths`]) and a warning when its offset vanishes.
-fn chain_paths(c: &Chain, depth: usize, m: &LaserSetup, o: &ContourOptions) -> (Vec<Vec<Elem>>, CleanStats, Option<Warning>) {
+fn chain_paths(
+    c: &Chain,
+    depth: usize,
+    m: &LaserSetup,
+    o: &ContourOptions,
+) -> (Vec<Vec<Elem>>, CleanStats, Option<Warning>) {
     // Inside/outside are relative to the part: a hole (a chain inside
     // an odd number of others) is material's outside, so swap.
     let side = match (o.side, depth % 2 == 1) {

@@ -233,7 +233,9 @@ impl LaserSetup {
     /// boundary: none needed.
     pub fn switch_tail(&self) -> f64 {
         match self.controller {
-            Controller::Pmac => self.open_lead() + 0.5 * self.feed * self.cut_ta() as f64 / 1000.0 + 2.0 * self.block_margin(),
+            Controller::Pmac => {
+                self.open_lead() + 0.5 * self.feed * self.cut_ta() as f64 / 1000.0 + 2.0 * self.block_margin()
+            }
             Controller::Lookahead => 0.0,
         }
     }
