@@ -188,7 +188,7 @@ fn fix(items: &mut Vec<Item>, s: usize, o: &CleanOptions) -> bool {
         if (n0.start() - old[first].start()).norm() > 1e-9 || (n1.end() - old[first + count - 1].end()).norm() > 1e-9 {
             continue;
         }
-        if new.iter().any(|e| !(e.length() > short_len) || !e.length().is_finite()) {
+        if new.iter().any(|e| e.length() <= short_len || !e.length().is_finite()) {
             continue;
         }
         let carried = items[lo + first..lo + first + count]
@@ -223,7 +223,7 @@ pub fn clean_path(path: Vec<Elem>, closed: bool, o: &CleanOptions) -> (Vec<Elem>
         pieces_in: path.len(),
         ..Default::default()
     };
-    if st.short == 0 || !(o.tol > 0.0) || path.len() < 2 {
+    if st.short == 0 || o.tol.is_nan() || o.tol <= 0.0 || path.len() < 2 {
         st.left = st.short;
         st.pieces_out = path.len();
         return (path, st);
