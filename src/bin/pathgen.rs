@@ -9,13 +9,15 @@ use microcam::gcode::{Dialect, ReadOptions};
 use microcam::geometry::P2;
 use microcam::geometry::{P3, Plane};
 use microcam::laser::arcfit;
-use microcam::laser::contour::{ContourOptions, Direction, OrderMode, Warning, contour, contour_streamed};
+use microcam::laser::contour::{
+    ContourOptions, DEFAULT_CLEANUP_TOL, Direction, OrderMode, Warning, contour, contour_streamed, estimated_moves,
+};
 use microcam::laser::elem::Elem;
 use microcam::laser::input::read_chains;
 use microcam::laser::offset::Side;
 use microcam::laser::patterns;
 use microcam::laser::plan::{Tagged, all_cut, plan_paths};
-use microcam::laser::setup::LaserSetup;
+use microcam::laser::setup::{DEFAULT_DECIMALS, LaserSetup};
 use microcam::machine::{Controller, Machine, pmac};
 use microcam::model::chain::{Chain, ChainsHeader, Segment};
 use microcam::model::toolpath::{FeedUnit, Header, Record};
@@ -274,6 +276,32 @@ fn positive(name: &str, v: f64) -> Result<f64, CliError> {
     }
 }
 
+fn finite(name: &str, v: f64) -> Result<f64, CliError> {
+    if v.is_finite() {
+        Ok(v)
+    } else {
+        Err(CliError::input(format!("--{name} must be a finite number, got {v}")))
+    }
+}
+
+fn non_negative(name: &str, v: f64) -> Result<f64, CliError> {
+    if v.is_finite() && v >= 0.0 {
+        Ok(v)
+    } else {
+        Err(CliError::input(format!(
+            "--{name} must be a finite number >= 0, got {v}"
+        )))
+    }
+}
+
+fn at_least_one(name: &str, v: u32) -> Result<u32, CliError> {
+    if v >= 1 {
+        Ok(v)
+    } else {
+        Err(CliError::input(format!("--{name} must be at least 1, got {v}")))
+    }
+}
+
 const CONTOUR_EXAMPLES: &str = "\
 Examples:
   pathgen contour part.chains > part.jsonl                 cut on the lines
@@ -384,6 +412,7 @@ impl MachineArgs {
             cut_ta_ms: self
                 .cut_ta
                 .unwrap_or((2.0 * close_delay).clamp(1.0, ta.max(self.td.unwrap_or(ta)).max(1.0))),
+            decimals: DEFAULT_DECIMALS,
         };
         if let Some(a) = self.accel {
             if !(a.is_finite() && a > 0.0) {
@@ -410,6 +439,38 @@ struct GenOutput {
     /// Write output here instead of stdout.
     #[arg(short, long)]
     output: Option<PathBuf>,
+    /// Refuse (exit 2) a job estimated to make more moves than this.
+    #[arg(long, default_value_t = DEFAULT_MAX_MOVES, value_name = "N")]
+    max_moves: u64,
+}
+
+/// Default of `--max-moves`: 10 million moves, about 1 GB of toolpath text.
+const DEFAULT_MAX_MOVES: u64 = 10_000_000;
+
+impl GenOutput {
+    /// The machine for a generator: the profile and flags, with the block
+    /// margin taken from the decimals the program is written with.
+    fn setup(&self, machine: &MachineArgs) -> Result<LaserSetup, CliError> {
+        let mut m = machine.machine(self.gcode.as_deref())?;
+        m.decimals = self.writer.decimals.unwrap_or(DEFAULT_DECIMALS);
+        Ok(m)
+    }
+
+    /// Refuse a job whose estimated size passes `--max-moves`.
+    fn check_size(&self, what: &str, moves: f64, how: &str) -> Result<(), CliError> {
+        if moves.is_nan() || moves > self.max_moves as f64 {
+            return Err(self.too_big(what, moves, how));
+        }
+        Ok(())
+    }
+
+    fn too_big(&self, what: &str, moves: f64, how: &str) -> CliError {
+        CliError::input(format!(
+            "{what}: {how} makes about {moves:.3e} moves, more than --max-moves {}; ask for less, or raise \
+             --max-moves",
+            self.max_moves
+        ))
+    }
 }
 
 #[derive(ClapArgs)]
@@ -447,6 +508,11 @@ struct ContourArgs {
     /// Chain order: input, nearest (the thesis'), optimized (nearest + 2-opt/Or-opt).
     #[arg(long, value_parser = ["input", "nearest", "optimized"], default_value = "optimized")]
     order: String,
+    /// Largest deviation (mm) allowed when pieces shorter than the
+    /// controller's least block at V are merged into their neighbours or
+    /// refitted as arcs; 0 keeps every piece as it is.
+    #[arg(long, default_value_t = DEFAULT_CLEANUP_TOL, value_name = "MM")]
+    cleanup_tol: f64,
     #[command(flatten)]
     machine: MachineArgs,
     #[command(flatten)]
@@ -717,17 +783,19 @@ fn write_streamed(
 }
 
 fn contour_cmd(a: ContourArgs) -> Result<(), CliError> {
-    let m = a.machine.machine(a.out.gcode.as_deref())?;
+    let m = a.out.setup(&a.machine)?;
     let side = a.side;
-    let distance = a.offset.unwrap_or(0.5 * a.beam_diameter);
-    if !(distance.is_finite() && distance >= 0.0) {
-        return Err(CliError::input(format!("offset must be >= 0, got {distance}")));
-    }
+    let beam = non_negative("beam-diameter", a.beam_diameter)?;
+    let distance = match a.offset {
+        Some(d) => non_negative("offset", d)?,
+        None => 0.5 * beam,
+    };
     let o = ContourOptions {
         side,
         distance,
-        levels: a.levels.max(1),
-        level_step: a.level_step,
+        levels: at_least_one("levels", a.levels)?,
+        level_step: finite("level-step", a.level_step)?,
+        cleanup_tol: non_negative("cleanup-tol", a.cleanup_tol)?,
         array: a.array,
         pitch: a.pitch,
         start_near: a.start_near.map(|(x, y)| P2::new(x, y)),
@@ -749,17 +817,31 @@ fn contour_cmd(a: ContourArgs) -> Result<(), CliError> {
     let t0 = std::time::Instant::now();
     let (header, chains) = read_chains(input.reader).map_err(|e| CliError::in_file(&name, e))?;
     let source = header.source.or(Some(name.clone()));
+    a.out.check_size(
+        "contour",
+        estimated_moves(&chains, &o),
+        &format!(
+            "{} chains x {} levels x {}x{} copies",
+            chains.len(),
+            o.levels,
+            o.array.0,
+            o.array.1
+        ),
+    )?;
+    warn_travel(&chains, &a.machine.machine);
     let t1 = std::time::Instant::now();
     if a.out.svg.is_some() {
         // The preview needs the whole job.
         let job = contour(&chains, &m, &o);
         warn_all(&job.warnings);
+        cleanup_note(&job.cleanup, &m, &o);
         return write_generated(&job.records, &a.out, source, &m);
     }
     let (mut short, mut total) = (0, 0);
     let mut warnings = Vec::new();
+    let mut cleanup = Default::default();
     write_streamed(&a.out, source, |sink| {
-        warnings = contour_streamed(&chains, &m, &o, |chunk| {
+        (warnings, cleanup) = contour_streamed(&chains, &m, &o, |chunk| {
             let (s, t) = microcam::laser::audit::stretched_blocks(&chunk, &m, P3::origin());
             short += s;
             total += t;
@@ -767,6 +849,7 @@ fn contour_cmd(a: ContourArgs) -> Result<(), CliError> {
         });
     })?;
     warn_all(&warnings);
+    cleanup_note(&cleanup, &m, &o);
     short_note(short, total, &m);
     if timing {
         eprintln!(
@@ -776,6 +859,74 @@ fn contour_cmd(a: ContourArgs) -> Result<(), CliError> {
         );
     }
     Ok(())
+}
+
+/// What the cleanup of short pieces did, on stderr.
+fn cleanup_note(st: &microcam::laser::cleanup::CleanStats, m: &LaserSetup, o: &ContourOptions) {
+    let fixed = st.short - st.left;
+    if fixed > 0 {
+        eprintln!(
+            "pathgen: cleanup: {fixed} piece(s) shorter than the least block at V ({:.6} mm) merged into their \
+             neighbours or refitted ({} pieces -> {}); largest deviation {:.3e} mm (--cleanup-tol {} mm)",
+            m.min_block(),
+            st.pieces_in,
+            st.pieces_out,
+            st.max_dev,
+            o.cleanup_tol
+        );
+    }
+    if st.left > 0 {
+        eprintln!(
+            "pathgen: warning: {} piece(s) shorter than the least block at V ({:.6} mm) could not be removed \
+             within --cleanup-tol {} mm",
+            st.left,
+            m.min_block(),
+            o.cleanup_tol
+        );
+    }
+}
+
+/// Largest drawing (mm) taken as plausible when the machine profile gives
+/// no travel: no micro-machining stage moves a metre.
+const TRAVEL_FALLBACK_MM: f64 = 1000.0;
+
+/// Warn when the drawing is larger than the machine can travel: most
+/// often a DXF drawn in other units than the millimetres assumed.
+fn warn_travel(chains: &[Chain], machine: &str) {
+    let mut lo = [f64::INFINITY; 2];
+    let mut hi = [f64::NEG_INFINITY; 2];
+    for s in chains.iter().flat_map(|c| &c.segments) {
+        for p in [s.start(), s.end()] {
+            for k in 0..2 {
+                lo[k] = lo[k].min(p[k]);
+                hi[k] = hi[k].max(p[k]);
+            }
+        }
+    }
+    let size = [hi[0] - lo[0], hi[1] - lo[1]];
+    if !(size[0].is_finite() && size[1].is_finite()) {
+        return;
+    }
+    let profile = Machine::load(machine).ok();
+    let travel = profile
+        .as_ref()
+        .and_then(|p| p.limits_min_mm.zip(p.limits_max_mm))
+        .map(|(a, b)| [b[0] - a[0], b[1] - a[1]]);
+    let (limit, whose) = match travel {
+        Some(t) => (t, format!("the machine's travel ({} x {} mm)", t[0], t[1])),
+        None => (
+            [TRAVEL_FALLBACK_MM; 2],
+            format!("{TRAVEL_FALLBACK_MM} mm, more than a laser stage travels (the profile gives no travel)"),
+        ),
+    };
+    if size[0] > limit[0] || size[1] > limit[1] {
+        eprintln!(
+            "pathgen: warning: the drawing is {:.3} x {:.3} mm, larger than {whose}; chains are in mm, \
+             converted by dxf2chains from the DXF's unit ($INSUNITS, millimetres when absent): if the drawing \
+             is in another unit, give it with `dxf2chains --units`",
+            size[0], size[1]
+        );
+    }
 }
 
 fn finish_pattern(paths: Vec<Tagged>, m: &LaserSetup, out: &GenOutput, what: &str) -> Result<(), CliError> {
@@ -797,24 +948,33 @@ fn finish_pattern(paths: Vec<Tagged>, m: &LaserSetup, out: &GenOutput, what: &st
 }
 
 fn helix_cmd(a: HelixArgs) -> Result<(), CliError> {
-    let m = a.machine.machine(a.out.gcode.as_deref())?;
+    let m = a.out.setup(&a.machine)?;
     let r = positive("radius", a.radius)?;
-    if !a.pitch.is_finite() {
-        return Err(CliError::input("--pitch must be finite"));
-    }
-    let c = P3::new(a.center.0, a.center.1, a.z);
-    let path = patterns::helix(c, r, a.pitch, a.turns.max(1), !a.cw);
+    let pitch = finite("pitch", a.pitch)?;
+    let turns = at_least_one("turns", a.turns)?;
+    // One arc per turn, a rapid, a lead-in and a lead-out.
+    a.out
+        .check_size("helix", f64::from(turns) + 4.0, &format!("--turns {turns}"))?;
+    let c = P3::new(a.center.0, a.center.1, finite("z", a.z)?);
+    let path = patterns::helix(c, r, pitch, turns, !a.cw);
     finish_pattern(vec![all_cut(path)], &m, &a.out, "helix")
 }
 
 fn spiral_cmd(a: SpiralArgs) -> Result<(), CliError> {
-    let m = a.machine.machine(a.out.gcode.as_deref())?;
+    let m = a.out.setup(&a.machine)?;
     let step = positive("step", a.step)?;
-    let c = P3::new(a.center.0, a.center.1, a.z);
+    let tol = positive("tolerance", a.tolerance)?;
+    let c = P3::new(a.center.0, a.center.1, finite("z", a.z)?);
     let path = if a.kind == "square" {
         let size = positive(
             "size",
             a.size.ok_or_else(|| CliError::input("square spiral needs --size"))?,
+        )?;
+        // Each leg and the loop at its corner (a few pieces).
+        a.out.check_size(
+            "spiral",
+            5.0 * patterns::square_spiral_legs(step, size),
+            &format!("--size {size} at --step {step}"),
         )?;
         patterns::square_spiral(c, step, size, a.inward)
     } else {
@@ -827,13 +987,18 @@ fn spiral_cmd(a: SpiralArgs) -> Result<(), CliError> {
         if !(inner.is_finite() && inner >= 0.0 && inner < r) {
             return Err(CliError::input(format!("--inner must be in [0, radius), got {inner}")));
         }
-        patterns::archimedean(c, inner, step, r, a.inward, positive("tolerance", a.tolerance)?)
+        let how = format!("--radius {r} at --step {step}");
+        a.out
+            .check_size("spiral", patterns::archimedean_pieces(inner, step, r), &how)?;
+        let max = usize::try_from(a.out.max_moves).unwrap_or(usize::MAX);
+        patterns::archimedean_limited(c, inner, step, r, a.inward, tol, max)
+            .map_err(|n| a.out.too_big("spiral", n, &format!("{how} within --tolerance {tol}")))?
     };
     finish_pattern(vec![all_cut(path)], &m, &a.out, "spiral")
 }
 
 fn zigzag_cmd(a: ZigzagArgs) -> Result<(), CliError> {
-    let m = a.machine.machine(a.out.gcode.as_deref())?;
+    let m = a.out.setup(&a.machine)?;
     let (plane, along_second) = match (a.plane.as_str(), a.along.as_str()) {
         ("xy", "x") => (Plane::Xy, false),
         ("xy", "y") => (Plane::Xy, true),
@@ -848,29 +1013,55 @@ fn zigzag_cmd(a: ZigzagArgs) -> Result<(), CliError> {
         plane,
         along_second,
         length: positive("length", a.length)?,
-        width: a.width.max(0.0),
+        width: non_negative("width", a.width)?,
         step: positive("step", a.step)?,
-        corner_radius: a.corner_radius.max(0.0),
+        corner_radius: non_negative("corner-radius", a.corner_radius)?,
     };
+    // Each cut line and its turnaround (a few pieces).
+    a.out.check_size(
+        "zigzag",
+        5.0 * patterns::zigzag_lines(z.width, z.step),
+        &format!("--width {} at --step {}", z.width, z.step),
+    )?;
     let path = patterns::zigzag(&z, &m);
     finish_pattern(vec![path], &m, &a.out, "zigzag")
 }
 
 fn cone_cmd(a: ConeArgs) -> Result<(), CliError> {
-    let m = a.machine.machine(a.out.gcode.as_deref())?;
+    let m = a.out.setup(&a.machine)?;
     let h = positive("height", a.height)?;
     let (d1, d2) = (positive("d1", a.d1)?, positive("d2", a.d2)?);
-    let step = positive("step", a.step.unwrap_or(a.beam_diameter))?;
+    let beam = non_negative("beam-diameter", a.beam_diameter)?;
+    let step = positive("step", a.step.unwrap_or(beam))?;
     let tol = positive("tolerance", a.tolerance)?;
+    let levels = at_least_one("levels", a.levels)?;
+    let z0 = finite("z", a.z)?;
+    // At least the widest section's spiral on every level.
+    let how = format!("--levels {levels} at --step {step}");
+    let widest = 0.5 * d1.max(d2);
+    a.out.check_size(
+        "cone",
+        f64::from(levels) * patterns::archimedean_pieces(step, step, widest.max(step)),
+        &how,
+    )?;
+    let mut budget = usize::try_from(a.out.max_moves).unwrap_or(usize::MAX);
     let mut paths = Vec::new();
-    for (z, d) in patterns::cone_levels(a.z, d1, d2, h, a.levels) {
-        let r = 0.5 * d - 0.5 * a.beam_diameter;
+    for (z, d) in patterns::cone_levels(z0, d1, d2, h, levels) {
+        let r = 0.5 * d - 0.5 * beam;
         if r <= step {
             eprintln!("pathgen: warning: cone: section at z={z} (diameter {d}) is narrower than the beam; skipped");
             continue;
         }
         let c = P3::new(a.center.0, a.center.1, z);
-        paths.push(all_cut(patterns::archimedean(c, step, step, r, false, tol)));
+        let path = patterns::archimedean_limited(c, step, step, r, false, tol, budget).map_err(|n| {
+            a.out.too_big(
+                "cone",
+                n * f64::from(levels),
+                &format!("{how} within --tolerance {tol}"),
+            )
+        })?;
+        budget = budget.saturating_sub(path.len());
+        paths.push(all_cut(path));
     }
     finish_pattern(paths, &m, &a.out, "cone")
 }
@@ -943,6 +1134,7 @@ fn arcfit_cmd(a: ArcfitArgs) -> Result<(), CliError> {
 
 fn audit_cmd(a: AuditArgs) -> Result<(), CliError> {
     let m = a.machine.machine(None)?;
+    positive("precision", a.precision)?;
     let input = cli::open_input(a.file.as_deref())?;
     let source = ToolpathSource::open(input, &ReadOptions::default())?;
     let unit = source.header.feed_unit;

@@ -20,7 +20,7 @@ fn perp(v: &V2) -> V2 {
 }
 
 /// The arc (or line) leaving `p` along unit tangent `t` and ending at `q`.
-fn arc_from_tangent(p: P2, t: V2, q: P2, z: f64) -> Elem {
+pub(crate) fn arc_from_tangent(p: P2, t: V2, q: P2, z: f64) -> Elem {
     let d = q - p;
     let n = perp(&t);
     let dn = d.dot(&n);

@@ -1,5 +1,6 @@
 //! `pathgen contour`: chains -> offset paths -> ordered, planned moves.
 
+use super::cleanup::{CleanOptions, CleanStats, clean_path};
 use super::elem::Elem;
 use super::offset::{Side, offset_chain, to_polyline};
 use super::order;
@@ -47,7 +48,14 @@ pub struct ContourOptions {
     pub order: OrderMode,
     /// Where the machine starts (for ordering).
     pub origin: P2,
+    /// Largest deviation (mm) the cleanup may make to remove pieces shorter
+    /// than the machine's least block ([`super::cleanup`]); 0 turns it off.
+    pub cleanup_tol: f64,
 }
+
+/// Default of [`ContourOptions::cleanup_tol`]: 1 µm, a fifth of the
+/// default beam radius (5 µm) and ten times the 4-decimal rounding.
+pub const DEFAULT_CLEANUP_TOL: f64 = 0.001;
 
 impl Default for ContourOptions {
     fn default() -> Self {
@@ -62,6 +70,7 @@ impl Default for ContourOptions {
             direction: Direction::Keep,
             order: OrderMode::Optimized,
             origin: P2::origin(),
+            cleanup_tol: DEFAULT_CLEANUP_TOL,
         }
     }
 }
@@ -78,6 +87,8 @@ pub struct Warning {
 pub struct Job {
     pub records: Vec<Record>,
     pub warnings: Vec<Warning>,
+    /// What the cleanup of short pieces did (once per path, not per copy).
+    pub cleanup: CleanStats,
 }
 
 /// Signed area enclosed by a closed path (positive counter-clockwise):
@@ -209,12 +220,22 @@ fn nesting(chains: &[Chain]) -> Vec<(usize, usize)> {
         .collect()
 }
 
+/// Least number of moves a contour job makes: every chain's pieces plus
+/// its rapid, lead-in and two lead-out moves, for every level and copy.
+/// pathgen refuses a job past its `--max-moves` on this figure before
+/// allocating anything for it.
+pub fn estimated_moves(chains: &[Chain], o: &ContourOptions) -> f64 {
+    let per_pass: f64 = chains.iter().map(|c| c.segments.len() as f64 + 4.0).sum();
+    per_pass * f64::from(o.levels.max(1)) * f64::from(o.array.0.max(1)) * f64::from(o.array.1.max(1))
+}
+
 /// Plan a whole contour job.
 pub fn contour(chains: &[Chain], m: &LaserSetup, o: &ContourOptions) -> Job {
-    let (items, plan, warnings) = prepare(chains, m, o);
+    let (items, plan, warnings, cleanup) = prepare(chains, m, o);
     let mut job = Job {
         records: vec![super::plan::ramps_record(m)],
         warnings,
+        cleanup,
     };
     job.warnings
         .extend(plan_in_chunks(&items, &plan, m, usize::MAX, |recs| {
@@ -224,53 +245,93 @@ pub fn contour(chains: &[Chain], m: &LaserSetup, o: &ContourOptions) -> Job {
     job
 }
 
-/// Offsets, nesting and order: the paths to plan, as (item, shift) in
-/// cutting order, and the warnings so far.
-fn prepare(chains: &[Chain], m: &LaserSetup, o: &ContourOptions) -> (Vec<Item>, Vec<(usize, V3)>, Vec<Warning>) {
+/// The paths [`contour`] cuts for each chain, before ordering and
+/// planning: offset on the side the chain's nesting gives it (a hole gets
+/// the other side), cleaned of pieces shorter than the machine's least
+/// block, in the travel sense asked for. Tests and reports use this to
+/// know what must be cut.
+pub fn cut_paths(chains: &[Chain], m: &LaserSetup, o: &ContourOptions) -> Vec<(Vec<Vec<Elem>>, CleanStats)> {
     let nest = nesting(chains);
-    let per_chain: Vec<(Vec<Vec<Elem>>, Option<Warning>)> = chains
+    chains
         .par_iter()
         .zip(&nest)
         .map(|(c, &(_, depth))| {
-            // Inside/outside are relative to the part: a hole (a chain inside
-            // an odd number of others) is material's outside, so swap.
-            let side = match (o.side, depth % 2 == 1) {
-                (Side::Inside, true) => Side::Outside,
-                (Side::Outside, true) => Side::Inside,
-                (s, _) => s,
-            };
-            let mut paths = offset_chain(c, side, o.distance);
-            // A chain of zero-length pieces has nothing to cut.
-            paths.retain(|p| !p.is_empty());
-            for p in &mut paths {
-                let closed = !p.is_empty() && (p[0].start() - p[p.len() - 1].end()).norm() < 1e-9;
-                if !closed {
-                    continue;
-                }
-                let a = signed_area(p);
-                if (o.direction == Direction::Ccw && a < 0.0) || (o.direction == Direction::Cw && a > 0.0) {
-                    reverse_path(p);
-                }
-                match &o.start_near {
-                    Some(q) => start_near(p, q),
-                    None => start_at_corner(p, m.tangent_cos()),
-                }
-            }
-            let warn = (paths.is_empty() && !c.segments.is_empty()).then(|| Warning {
-                chain: c.id,
-                message: format!(
-                    "offset {} mm {} makes the chain vanish; dropped",
-                    o.distance,
-                    format!("{side:?}").to_lowercase()
-                ),
-            });
-            (paths, warn)
+            let (paths, st, _) = chain_paths(c, depth, m, o);
+            (paths, st)
         })
+        .collect()
+}
+
+/// One chain's cut paths (see [`cut_paths`]) and a warning when its offset vanishes.
+fn chain_paths(
+    c: &Chain,
+    depth: usize,
+    m: &LaserSetup,
+    o: &ContourOptions,
+) -> (Vec<Vec<Elem>>, CleanStats, Option<Warning>) {
+    // Inside/outside are relative to the part: a hole (a chain inside
+    // an odd number of others) is material's outside, so swap.
+    let side = match (o.side, depth % 2 == 1) {
+        (Side::Inside, true) => Side::Outside,
+        (Side::Outside, true) => Side::Inside,
+        (s, _) => s,
+    };
+    let mut paths = offset_chain(c, side, o.distance);
+    // A chain of zero-length pieces has nothing to cut.
+    paths.retain(|p| !p.is_empty());
+    let clean = CleanOptions {
+        min_len: m.min_block(),
+        tol: o.cleanup_tol,
+    };
+    let mut stats = CleanStats::default();
+    for p in &mut paths {
+        let closed = !p.is_empty() && (p[0].start() - p[p.len() - 1].end()).norm() < 1e-9;
+        let (q, st) = clean_path(std::mem::take(p), closed, &clean);
+        *p = q;
+        stats.add(&st);
+        if !closed {
+            continue;
+        }
+        let a = signed_area(p);
+        if (o.direction == Direction::Ccw && a < 0.0) || (o.direction == Direction::Cw && a > 0.0) {
+            reverse_path(p);
+        }
+        match &o.start_near {
+            Some(q) => start_near(p, q),
+            None => start_at_corner(p, m.tangent_cos()),
+        }
+    }
+    let warn = (paths.is_empty() && !c.segments.is_empty()).then(|| Warning {
+        chain: c.id,
+        message: format!(
+            "offset {} mm {} makes the chain vanish; dropped",
+            o.distance,
+            format!("{side:?}").to_lowercase()
+        ),
+    });
+    (paths, stats, warn)
+}
+
+/// Offsets, nesting and order: the paths to plan, as (item, shift) in
+/// cutting order, the warnings so far and what the cleanup did.
+#[allow(clippy::type_complexity)]
+fn prepare(
+    chains: &[Chain],
+    m: &LaserSetup,
+    o: &ContourOptions,
+) -> (Vec<Item>, Vec<(usize, V3)>, Vec<Warning>, CleanStats) {
+    let nest = nesting(chains);
+    let per_chain: Vec<(Vec<Vec<Elem>>, CleanStats, Option<Warning>)> = chains
+        .par_iter()
+        .zip(&nest)
+        .map(|(c, &(_, depth))| chain_paths(c, depth, m, o))
         .collect();
     let mut warnings = Vec::new();
     let mut items: Vec<Item> = Vec::new();
-    for (i, (paths, warn)) in per_chain.into_iter().enumerate() {
+    let mut cleanup = CleanStats::default();
+    for (i, (paths, st, warn)) in per_chain.into_iter().enumerate() {
         warnings.extend(warn);
+        cleanup.add(&st);
         for path in paths {
             items.push(Item {
                 chain: chains[i].id,
@@ -293,7 +354,7 @@ fn prepare(chains: &[Chain], m: &LaserSetup, o: &ContourOptions) -> (Vec<Item>, 
             }
         }
     }
-    (items, plan, warnings)
+    (items, plan, warnings, cleanup)
 }
 
 /// Plan `plan` (item, shift) in chunks of `chunk` paths, each chunk on
@@ -356,16 +417,16 @@ pub fn contour_streamed(
     m: &LaserSetup,
     o: &ContourOptions,
     sink: impl FnMut(Vec<Record>) -> bool,
-) -> Vec<Warning> {
-    let (items, plan, mut warnings) = prepare(chains, m, o);
+) -> (Vec<Warning>, CleanStats) {
+    let (items, plan, mut warnings, cleanup) = prepare(chains, m, o);
     let mut sink = sink;
     if !sink(vec![super::plan::ramps_record(m)]) {
-        return warnings;
+        return (warnings, cleanup);
     }
     // About 64k moves per chunk for 100-segment chains: big enough to keep
     // both cores busy, small enough that writing overlaps planning.
     warnings.extend(plan_in_chunks(&items, &plan, m, 512, sink));
-    warnings
+    (warnings, cleanup)
 }
 
 /// Items in cutting order: clusters (an outer chain with all it contains)

@@ -8,6 +8,7 @@
 pub mod arcfit;
 pub mod arcfit_seed;
 pub mod audit;
+pub mod cleanup;
 pub mod contour;
 pub mod dubins;
 pub mod elem;

@@ -66,6 +66,22 @@ pub fn square_spiral(center: P3, step: f64, size: f64, inward: bool) -> Vec<Elem
 /// at `r_max`; inward runs the circle first and the spiral in. The spiral
 /// is exact to within `tol` as biarcs, tangent-continuous throughout.
 pub fn archimedean(center: P3, a: f64, step: f64, r_max: f64, inward: bool, tol: f64) -> Vec<Elem> {
+    archimedean_limited(center, a, step, r_max, inward, tol, usize::MAX).unwrap_or_default()
+}
+
+/// [`archimedean`], giving up once it has made more than `max` pieces:
+/// `Err` then carries the number of pieces the whole spiral would take,
+/// extrapolated from the part made (the work is bounded by `max`, however
+/// small `step` or `tol`).
+pub fn archimedean_limited(
+    center: P3,
+    a: f64,
+    step: f64,
+    r_max: f64,
+    inward: bool,
+    tol: f64,
+    max: usize,
+) -> Result<Vec<Elem>, f64> {
     let b = step / TAU;
     let z = center.z;
     let pt = |th: f64| {
@@ -80,6 +96,7 @@ pub fn archimedean(center: P3, a: f64, step: f64, r_max: f64, inward: bool, tol:
     let mut out = Vec::new();
     let mut th = 0.0;
     let mut dth: f64 = 0.25;
+    let mut spans = 0usize;
     // Adaptive spans: grow while the biarc stays within tol of the true
     // spiral at interior samples, halve when it does not.
     let fits = |t0: f64, t1: f64| -> Option<Vec<Elem>> {
@@ -105,6 +122,12 @@ pub fn archimedean(center: P3, a: f64, step: f64, r_max: f64, inward: bool, tol:
         out.extend(piece);
         th += d;
         dth = (2.0 * d).min(1.0);
+        // Every span counts, even one whose biarc came out empty, so the
+        // loop ends whatever the numbers.
+        spans += 1;
+        if out.len().max(spans) > max {
+            return Err(out.len().max(spans) as f64 * (th_end / th).max(1.0));
+        }
     }
     // The closing circle at r_max, starting where the spiral ends.
     let end = out.last().map_or(P3::new(center.x + r_max, center.y, z), |e| e.end());
@@ -117,7 +140,7 @@ pub fn archimedean(center: P3, a: f64, step: f64, r_max: f64, inward: bool, tol:
             *e = e.reversed();
         }
     }
-    out
+    Ok(out)
 }
 
 /// Zigzag hatching of a `width` x `length` rectangle from `origin`: cut
@@ -178,6 +201,24 @@ pub fn zigzag(z: &Zigzag, m: &LaserSetup) -> Tagged {
         out.push((Elem::line(a, b), Role::Cut));
     }
     out
+}
+
+/// Least number of pieces an Archimedean spiral from radius `a` to
+/// `r_max`, `step` apart, is made of: the fit's spans never exceed 1 rad,
+/// so at least two arcs per radian (the estimate pathgen refuses
+/// impossible requests with before making anything).
+pub fn archimedean_pieces(a: f64, step: f64, r_max: f64) -> f64 {
+    2.0 * ((r_max - a).max(0.0) / (step / TAU)).ceil() + 1.0
+}
+
+/// Cut lines of a zigzag `width` across, `step` apart.
+pub fn zigzag_lines(width: f64, step: f64) -> f64 {
+    (width / step).floor() + 1.0
+}
+
+/// Legs of a square spiral out to `size`, legs growing by `step`.
+pub fn square_spiral_legs(step: f64, size: f64) -> f64 {
+    2.0 * (size / step).ceil() + 2.0
 }
 
 /// One pass of a cone (Bayesteh (2013) eqs. 6.4-6.6): the cone angle from the

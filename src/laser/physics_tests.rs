@@ -4,7 +4,7 @@
 //! cuts, every chain cut once per pass, offsets at the right distance.
 
 use super::audit::{Audit, audit};
-use super::contour::{ContourOptions, contour};
+use super::contour::{ContourOptions, contour, cut_paths};
 use super::elem::Elem;
 use super::offset::{Side, chain_elems};
 use super::setup::LaserSetup;
@@ -161,7 +161,11 @@ fn plate_outside_two_levels_two_copies() {
     let job = contour(&chains, &m, &o);
     let a = audit(&job.records, &m, P3::origin());
     check_physics(&a, &m, 1e-6);
-    // Every chain is cut once per pass: 4 passes of each (holes swap to inside).
+    assert_eq!(a.stretched_moves, 0);
+    // Every chain is cut once per pass: 4 passes of each (holes swap to
+    // inside); the plate has no piece shorter than the least block, so the
+    // cleanup leaves the offsets as they are.
+    assert_eq!(job.cleanup.short, 0);
     for c in &chains {
         let hole = c.id == 2 || c.id == 3;
         let side = match (c.closed, hole) {
@@ -301,18 +305,27 @@ fn random_drawings_obey_the_machine() {
                 },
             );
             let a = audit(&job.records, &m, P3::origin());
-            let drawing: Vec<Elem> = chains
-                .iter()
-                .flat_map(|c| super::offset::offset_chain(c, if c.closed { side } else { Side::On }, 0.02))
-                .flatten()
-                .collect();
+            let o = ContourOptions {
+                side,
+                distance: 0.02,
+                ..Default::default()
+            };
+            let paths = cut_paths(&chains, &m, &o);
+            let drawing: Vec<Elem> = paths.iter().flat_map(|(p, _)| p.iter().flatten().copied()).collect();
             only_short_drawing_pieces_stretched(&job.records, &m, &drawing);
+            // Whatever the cleanup could not remove is all that is stretched.
+            let left: usize = paths.iter().map(|(_, st)| st.left).sum();
+            assert!(
+                a.stretched_moves <= left,
+                "seed {seed} {side:?}: {} stretched",
+                a.stretched_moves
+            );
             // Switches next to drawing pieces only a few ms long at V may
             // act off by up to V·1 ms; pathgen says so.
             let off = job.warnings.iter().any(|w| w.message.contains("shutter switch"));
             check_physics(&a, &m, if off { m.feed / 1000.0 + 1e-6 } else { 1e-6 });
-            for c in &chains {
-                let want = offset_length(c, if c.closed { side } else { Side::On }, 0.02);
+            for (c, (p, _)) in chains.iter().zip(&paths) {
+                let want: f64 = p.iter().flatten().map(Elem::length).sum();
                 let got = a.cut_length.get(&c.id).copied().unwrap_or(0.0);
                 assert!(
                     (got - want).abs() < 1e-9,
@@ -440,4 +453,147 @@ fn degenerate_chains_are_dropped_not_panicked_on() {
         check_physics(&a, &m, 1e-6);
         assert_eq!(a.cut_length.keys().copied().collect::<Vec<_>>(), vec![3], "{side:?}");
     }
+}
+
+/// Nesting depth of chain `i`, brute force and independent of the
+/// planner's grid: the closed chains whose winding number is non-zero at
+/// up to 16 of chain `i`'s vertices. `None` when some other closed chain
+/// has some of those vertices inside and some outside (the two cross:
+/// neither is inside the other, and which side is "outside" is moot).
+fn depth_brute(
+    chains: &[Chain],
+    plines: &[Option<cavalier_contours::polyline::Polyline<f64>>],
+    i: usize,
+) -> Option<usize> {
+    use cavalier_contours::polyline::PlineSource;
+    let segs = &chains[i].segments;
+    let stride = segs.len().div_ceil(16).max(1);
+    let pts: Vec<P3> = segs.iter().step_by(stride).map(|s| s.start()).collect();
+    let mut depth = 0;
+    for (j, p) in plines.iter().enumerate() {
+        let Some(p) = p else { continue };
+        if j == i {
+            continue;
+        }
+        let inside = pts
+            .iter()
+            .filter(|q| p.winding_number(cavalier_contours::core::math::Vector2::new(q.x, q.y)) != 0)
+            .count();
+        if inside == pts.len() {
+            depth += 1;
+        } else if inside > 0 {
+            return None;
+        }
+    }
+    Some(depth)
+}
+
+/// The corpus drawings (as dxf2chains makes them), planned on every side
+/// with the default machine and a 5 µm offset: the physics hold, no block
+/// is stretched, every chain is cut exactly as [`cut_paths`] says, and a
+/// hole (a chain inside an odd number of others) is offset to the other
+/// side: an outside cut encloses more than the part's contour and less
+/// than a hole, an inside cut the reverse.
+#[test]
+fn corpus_drawings_obey_the_machine_on_every_side() {
+    use crate::dxf::{ImportOptions, chain, import};
+    let files = crate::corpus::files("dxf", &[".dxf"]);
+    if files.is_empty() {
+        crate::corpus::skip("corpus_drawings_obey_the_machine_on_every_side");
+        return;
+    }
+    let m = LaserSetup::default();
+    let mut cases = 0;
+    let mut failures: Vec<String> = Vec::new();
+    let mut holes = 0;
+    let mut planar_drawings = 0;
+    for path in &files {
+        let name = path.file_name().unwrap().to_string_lossy().into_owned();
+        let f = std::fs::File::open(path).unwrap();
+        let Ok(mut imp) = import(Box::new(std::io::BufReader::new(f)), &ImportOptions::default()) else {
+            continue;
+        };
+        let segs = std::mem::take(&mut imp.sink.segments);
+        let (built, _) = chain::build(segs, &imp.sink.points, &imp.sink.layers, 0.001);
+        let chains: Vec<Chain> = built.iter().collect();
+        if chains.is_empty() {
+            continue;
+        }
+        let plines: Vec<_> = chains
+            .iter()
+            .map(|c| c.closed.then(|| super::offset::to_polyline(c)))
+            .collect();
+        let depth: Vec<Option<usize>> = (0..chains.len()).map(|i| depth_brute(&chains, &plines, i)).collect();
+        // A chain crossing itself has no inside to offset from.
+        let crosses: Vec<bool> = plines
+            .iter()
+            .map(|p| {
+                use cavalier_contours::polyline::PlineSource;
+                p.as_ref().is_some_and(|p| p.scan_for_self_intersect())
+            })
+            .collect();
+        // Chains in 3-D (z varying along them) get no corner loops out of
+        // the XY plane: the physics are checked on planar drawings only.
+        let planar = chains.iter().all(|c| {
+            let z = c.segments.first().map_or(0.0, |s| s.start().z);
+            c.segments.iter().all(|s| s.start().z == z && s.end().z == z)
+        });
+        planar_drawings += usize::from(planar);
+        for side in [Side::On, Side::Outside, Side::Inside] {
+            let o = ContourOptions {
+                side,
+                distance: 0.005,
+                ..Default::default()
+            };
+            let job = contour(&chains, &m, &o);
+            let a = audit(&job.records, &m, P3::origin());
+            let off = job.warnings.iter().any(|w| w.message.contains("shutter switch"));
+            let physics = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+                check_physics(&a, &m, if off { m.feed / 1000.0 + 1e-6 } else { 1e-6 })
+            }));
+            if planar && physics.is_err() {
+                failures.push(format!("{name} {side:?}: physics"));
+            }
+            if a.stretched_moves != 0 || job.cleanup.left != 0 || job.cleanup.max_dev > o.cleanup_tol {
+                failures.push(format!(
+                    "{name} {side:?}: {} stretched blocks, {} short pieces left, deviation {}",
+                    a.stretched_moves, job.cleanup.left, job.cleanup.max_dev
+                ));
+            }
+            let paths = cut_paths(&chains, &m, &o);
+            for (i, (c, (p, _))) in chains.iter().zip(&paths).enumerate() {
+                let want: f64 = p.iter().flatten().map(Elem::length).sum();
+                let got = a.cut_length.get(&c.id).copied().unwrap_or(0.0);
+                if (got - want).abs() > 1e-6 {
+                    failures.push(format!("{name} {side:?} chain {}: cut {got} mm, want {want}", c.id));
+                }
+                let Some(d) = depth[i] else { continue };
+                if side == Side::On || !c.closed || p.len() != 1 || crosses[i] {
+                    continue;
+                }
+                let drawn = super::contour::signed_area(&chain_elems(c)).abs();
+                let cut = super::contour::signed_area(&p[0]).abs();
+                let hole = d % 2 == 1;
+                holes += usize::from(hole);
+                let grows = (side == Side::Outside) != hole;
+                if (cut > drawn) != grows {
+                    failures.push(format!(
+                        "{name} {side:?} chain {} (depth {d}): cut encloses {cut} mm², drawn {drawn} mm²",
+                        c.id
+                    ));
+                }
+            }
+            cases += 1;
+        }
+    }
+    assert!(
+        failures.is_empty(),
+        "{} failures:\n{}",
+        failures.len(),
+        failures.join("\n")
+    );
+    // The corpus has nested drawings: holes were checked.
+    assert!(holes > 10, "{holes} holes checked");
+    assert!(planar_drawings >= 20, "{planar_drawings} planar drawings");
+    crate::corpus::record("corpus_drawings_obey_the_machine_on_every_side", cases);
 }

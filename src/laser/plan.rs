@@ -16,7 +16,7 @@
 
 use super::dubins::corner_loop;
 use super::elem::{Elem, MIN_PIECE};
-use super::setup::{BLOCK_MARGIN, LaserSetup};
+use super::setup::LaserSetup;
 use crate::geometry::{P3, Plane, V2};
 use crate::machine::Controller;
 use crate::model::toolpath::{Motion, MotionKind, Record, Role};
@@ -344,7 +344,8 @@ fn time_shutter_pmac(pieces: Vec<Piece>, m: &LaserSetup, notes: &mut Vec<Note>) 
     let cmd = commanded_on(&pieces, &lens, m, notes);
     let v = m.feed;
     let tac = m.cut_ta();
-    let ms = |len: f64| (len - BLOCK_MARGIN) / v * 1000.0;
+    let margin = m.block_margin();
+    let ms = |len: f64| (len - margin) / v * 1000.0;
     let mut slots: Vec<Slot> = Vec::with_capacity(pieces.len() + 2 * cmd.len());
     let mut input = pieces.into_iter().zip(lens);
     let mut end = 0.0;
@@ -468,7 +469,7 @@ fn whole_ta(tac: u32, d: f64) -> u32 {
 fn place(slots: &[Slot], c: f64, last_b: f64, m: &LaserSetup) -> Option<(Placement, f64)> {
     let v = m.feed;
     let tac = m.cut_ta();
-    let q = BLOCK_MARGIN;
+    let q = m.block_margin();
     let ms = |len: f64| (len - q) / v * 1000.0;
     // Least length of a block of TA t (ms).
     let len_for = |t: f64| v * t / 1000.0 + q;

@@ -10,13 +10,8 @@
 use crate::machine::Controller;
 use thiserror::Error;
 
-/// Positions are written to 4 decimals in PMAC text (0.1 µm), so a block
-/// may come out up to twice this shorter than planned: every length that
-/// must last a given time keeps [`BLOCK_MARGIN`] in hand.
-pub const WRITE_QUANTUM: f64 = 1e-4;
-
-/// Length (mm) kept in hand on a block that must last a given time.
-pub const BLOCK_MARGIN: f64 = 2.0 * WRITE_QUANTUM;
+/// Decimals PMAC text is written with unless told otherwise (0.1 µm).
+pub const DEFAULT_DECIMALS: u8 = 4;
 
 /// Why a set of machine parameters cannot be planned with.
 #[derive(Debug, Error, PartialEq)]
@@ -61,6 +56,11 @@ pub struct LaserSetup {
     /// block at V (a Turbo PMAC stretches a block shorter than its TA to
     /// TA) and puts an `M33==` switch within V·TA/2 of its block boundary.
     pub cut_ta_ms: f64,
+    /// Decimal places the program's positions are written with: a block
+    /// may come out up to two units of the last place shorter than
+    /// planned, so every length that must last a given time keeps
+    /// [`block_margin`](Self::block_margin) in hand.
+    pub decimals: u8,
 }
 
 impl Default for LaserSetup {
@@ -81,6 +81,7 @@ impl Default for LaserSetup {
             // V·close delay before the cut end, i.e. on the boundary at
             // the cut end itself, with no extra block.
             cut_ta_ms: 6.0,
+            decimals: DEFAULT_DECIMALS,
         }
     }
 }
@@ -205,9 +206,9 @@ impl LaserSetup {
 
     /// Shortest block pathgen makes on purpose (mm): one millisecond at V,
     /// the least TA a Turbo PMAC accepts, so no such block is stretched
-    /// (plus 0.2 µm for the 4 decimals of PMAC text).
+    /// (plus [`block_margin`](Self::block_margin) for the written decimals).
     pub fn min_block(&self) -> f64 {
-        self.feed / 1000.0 + BLOCK_MARGIN
+        self.feed / 1000.0 + self.block_margin()
     }
 
     /// What every beam-off connection (corner loop, turnaround) must be:
@@ -232,7 +233,9 @@ impl LaserSetup {
     /// boundary: none needed.
     pub fn switch_tail(&self) -> f64 {
         match self.controller {
-            Controller::Pmac => self.open_lead() + 0.5 * self.feed * self.cut_ta() as f64 / 1000.0 + 2.0 * BLOCK_MARGIN,
+            Controller::Pmac => {
+                self.open_lead() + 0.5 * self.feed * self.cut_ta() as f64 / 1000.0 + 2.0 * self.block_margin()
+            }
             Controller::Lookahead => 0.0,
         }
     }
@@ -260,14 +263,14 @@ impl LaserSetup {
     }
 
     /// PMAC: length of a block that starts from or ends at rest: it must
-    /// last its TA, with 0.2 µm in hand for the 4 decimals of PMAC text.
+    /// last its TA, with [`block_margin`](Self::block_margin) in hand.
     pub fn ramp_block(&self) -> f64 {
-        self.feed * self.ramp_time_s() + BLOCK_MARGIN
+        self.feed * self.ramp_time_s() + self.block_margin()
     }
 
     /// PMAC: the part of the lead-out at V before the stopping block.
     pub fn lead_out_cruise(&self) -> f64 {
-        let at_v = 0.5 * self.feed * (self.cut_ta() as f64 / 1000.0 + self.ramp_time_s()) + BLOCK_MARGIN;
+        let at_v = 0.5 * self.feed * (self.cut_ta() as f64 / 1000.0 + self.ramp_time_s()) + self.block_margin();
         // Never shorter than the shutter needs to close at V.
         at_v.max(self.close_lead().max(0.0) + self.close_travel())
     }
@@ -275,6 +278,18 @@ impl LaserSetup {
     /// Shortest cut the shutter exposes reliably (mm).
     pub fn min_cut(&self) -> f64 {
         self.feed * self.min_exposure_ms / 1000.0
+    }
+
+    /// One unit of the last decimal place written (mm).
+    pub fn write_quantum(&self) -> f64 {
+        10f64.powi(-i32::from(self.decimals.min(9)))
+    }
+
+    /// Length (mm) kept in hand on a block that must last a given time:
+    /// rounding both ends to the written decimals shortens a block by less
+    /// than two units of the last place.
+    pub fn block_margin(&self) -> f64 {
+        2.0 * self.write_quantum()
     }
 
     /// Cosine of the tangency tolerance.
@@ -306,6 +321,20 @@ mod tests {
         };
         assert!((l.lead_in() - (0.1 + 0.024)).abs() < 1e-12);
         assert!((l.lead_out() - (0.006 + 0.028 + 0.1)).abs() < 1e-12);
+    }
+
+    #[test]
+    fn the_block_margin_follows_the_written_decimals() {
+        let m = LaserSetup::default();
+        assert!((m.block_margin() - 2e-4).abs() < 1e-15);
+        assert!((m.min_block() - 0.0022).abs() < 1e-12);
+        let m3 = LaserSetup {
+            decimals: 3,
+            ..LaserSetup::default()
+        };
+        assert!((m3.block_margin() - 2e-3).abs() < 1e-15);
+        assert!((m3.min_block() - 0.004).abs() < 1e-12);
+        assert!((m3.ramp_block() - (0.2 + 2e-3)).abs() < 1e-12);
     }
 
     #[test]
