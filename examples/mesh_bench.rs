@@ -1,16 +1,20 @@
 //! Timing harness for scripts/bench/rays (not a tool): reads a mesh and a
 //! file of rays, builds the BVH and casts the rays, printing one JSON line.
 //!
-//!   mesh_bench MESH.stl RAYS.f64 [REPEAT]
+//!   mesh_bench MESH.stl RAYS.f64 [REPEAT [GRID.f64]]
 //!
 //! RAYS.f64 holds little-endian f64 sextuples (origin x y z, direction
 //! x y z). HITS go to RAYS.f64.hits as f64 t per ray (NaN for a miss), so
-//! the script can compare them with the anchor's.
+//! the script can compare them with the anchor's. GRID.f64 (optional) is a
+//! second ray file whose rays all share one direction (the verification
+//! rays' case): cast through the BVH and through `ParallelRays`, hits to
+//! GRID.f64.hits. Read, weld (1e-6 mm) and build are timed separately.
 
 use std::time::Instant;
 
 use microcam::geometry::{P3, V3};
 use microcam::mesh::bvh::{Bvh, Ray};
+use microcam::mesh::parallel::ParallelRays;
 use microcam::mesh::{ReadOptions, read_path};
 
 /// CPU seconds (user + system) this process has used, from /proc (Linux;
@@ -42,19 +46,17 @@ fn main() {
         std::process::exit(2)
     });
     let read_s = t0.elapsed().as_secs_f64();
-    let t1 = Instant::now();
+    let read_cpu_s = cpu_s() - c0;
+    let (c1, t1) = (cpu_s(), Instant::now());
+    let (welded, _) = microcam::mesh::weld::weld(&m.mesh, 1e-6);
+    let weld_s = t1.elapsed().as_secs_f64();
+    let weld_cpu_s = cpu_s() - c1;
+    let (c1, t1) = (cpu_s(), Instant::now());
     let bvh = Bvh::new(&m.mesh);
     let build_s = t1.elapsed().as_secs_f64();
-    let read_build_cpu_s = cpu_s() - c0;
-    let raw = std::fs::read(&args[2]).expect("rays file");
-    let f: Vec<f64> = raw
-        .chunks_exact(8)
-        .map(|c| f64::from_le_bytes(c.try_into().unwrap()))
-        .collect();
-    let rays: Vec<Ray> = f
-        .chunks_exact(6)
-        .map(|c| Ray::new(P3::new(c[0], c[1], c[2]), V3::new(c[3], c[4], c[5])))
-        .collect();
+    let build_cpu_s = cpu_s() - c1;
+    let read_build_cpu_s = read_cpu_s + build_cpu_s;
+    let rays = read_rays(&args[2]);
     // One thread: the per-core figure.
     let mut best1 = f64::INFINITY;
     let mut hits = Vec::new();
@@ -93,11 +95,71 @@ fn main() {
         .collect();
     std::fs::write(format!("{}.hits", args[2]), out).expect("write hits");
     let n_hit = hits.iter().filter(|h| h.is_some()).count();
+    let grid = args
+        .get(4)
+        .map(|g| grid_bench(&m.mesh, &bvh, g, repeat))
+        .unwrap_or_default();
     println!(
-        "{{\"triangles\":{},\"nodes\":{},\"read_s\":{read_s:.6},\"build_s\":{build_s:.6},\"read_build_cpu_s\":{read_build_cpu_s:.3},\"first_hit_1thread_cpu_s\":{rays_cpu_s:.3},\"rays\":{},\"hit\":{n_hit},\"first_hit_1thread_s\":{best1:.6},\"first_hit_par_s\":{best_n:.6},\"threads\":{},\"all_hits\":{n_all},\"all_hits_1thread_s\":{all_s:.6}}}",
+        "{{\"weld_s\":{weld_s:.6},\"weld_cpu_s\":{weld_cpu_s:.3},\"welded_vertices\":{},\"read_cpu_s\":{read_cpu_s:.3},\"build_cpu_s\":{build_cpu_s:.3},{grid}\"triangles\":{},\"nodes\":{},\"read_s\":{read_s:.6},\"build_s\":{build_s:.6},\"read_build_cpu_s\":{read_build_cpu_s:.3},\"first_hit_1thread_cpu_s\":{rays_cpu_s:.3},\"rays\":{},\"hit\":{n_hit},\"first_hit_1thread_s\":{best1:.6},\"first_hit_par_s\":{best_n:.6},\"threads\":{},\"all_hits\":{n_all},\"all_hits_1thread_s\":{all_s:.6}}}",
+        welded.vertices.len(),
         m.mesh.triangles.len(),
         bvh.node_count(),
         rays.len(),
         rayon::current_num_threads()
     );
+}
+
+fn read_rays(path: &str) -> Vec<Ray> {
+    let raw = std::fs::read(path).expect("rays file");
+    let f: Vec<f64> = raw
+        .chunks_exact(8)
+        .map(|c| f64::from_le_bytes(c.try_into().unwrap()))
+        .collect();
+    f.chunks_exact(6)
+        .map(|c| Ray::new(P3::new(c[0], c[1], c[2]), V3::new(c[3], c[4], c[5])))
+        .collect()
+}
+
+/// Parallel rays (one direction): through the BVH and through
+/// `ParallelRays`, one thread and all; JSON fields (with a trailing comma).
+fn grid_bench(mesh: &microcam::mesh::Mesh, bvh: &Bvh, path: &str, repeat: usize) -> String {
+    let rays = read_rays(path);
+    let Some(dir) = rays.first().map(|r| r.dir) else {
+        return String::new();
+    };
+    assert!(rays.iter().all(|r| r.dir == dir), "grid rays must share one direction");
+    let origins: Vec<P3> = rays.iter().map(|r| r.origin).collect();
+    let (c0, t0) = (cpu_s(), Instant::now());
+    let pr = ParallelRays::new(mesh, dir);
+    let (pr_build_s, pr_build_cpu_s) = (t0.elapsed().as_secs_f64(), cpu_s() - c0);
+    let time = |f: &dyn Fn() -> Vec<Option<microcam::mesh::bvh::Hit>>| {
+        let mut best = f64::INFINITY;
+        let mut cpu = f64::INFINITY;
+        let mut out = Vec::new();
+        for _ in 0..repeat {
+            let (c, t) = (cpu_s(), Instant::now());
+            out = f();
+            best = best.min(t.elapsed().as_secs_f64());
+            cpu = cpu.min(cpu_s() - c);
+        }
+        (best, cpu, out)
+    };
+    let (bvh1, bvh1_cpu, hb) = time(&|| rays.iter().map(|r| bvh.first_hit(r)).collect());
+    let (pr1, pr1_cpu, hp) = time(&|| origins.iter().map(|o| pr.first_hit(o)).collect());
+    let (prn, _, hpn) = time(&|| pr.first_hits(&origins));
+    let (bvhn, _, _) = time(&|| bvh.first_hits(&rays));
+    let same = hb.iter().zip(&hp).filter(|(a, b)| a == b).count();
+    assert_eq!(hp, hpn);
+    let out: Vec<u8> = hp
+        .iter()
+        .flat_map(|h| h.map_or(f64::NAN, |h| h.t).to_le_bytes())
+        .collect();
+    std::fs::write(format!("{path}.hits"), out).expect("write hits");
+    format!(
+        "\"grid_rays\":{},\"grid_hit\":{},\"grid_same_as_bvh\":{same},\"grid_bvh_1thread_s\":{bvh1:.6},\"grid_bvh_1thread_cpu_s\":{bvh1_cpu:.3},\"grid_bvh_par_s\":{bvhn:.6},\"grid_pr_build_s\":{pr_build_s:.6},\"grid_pr_build_cpu_s\":{pr_build_cpu_s:.3},\"grid_pr_cells\":{},\"grid_pr_refs\":{},\"grid_pr_1thread_s\":{pr1:.6},\"grid_pr_1thread_cpu_s\":{pr1_cpu:.3},\"grid_pr_par_s\":{prn:.6},",
+        rays.len(),
+        hp.iter().filter(|h| h.is_some()).count(),
+        pr.cells(),
+        pr.references()
+    )
 }

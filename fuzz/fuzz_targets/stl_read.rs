@@ -4,7 +4,8 @@
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
-use microcam::mesh::{Format, ReadOptions, read_bytes, slice, topology};
+use microcam::mesh::{Format, ReadOptions, read_bytes, topology};
+use microcam::slice;
 
 fuzz_target!(|data: &[u8]| {
     let opts = ReadOptions {

@@ -119,24 +119,28 @@ const BINS: usize = 12;
 const MAX_LEAF: usize = 4;
 const PAR_MIN: usize = 1 << 15;
 
+/// A box during the build, in f32 rounded outward (half the memory of
+/// f64 to stream through at every level; the node boxes are f32 anyway).
 #[derive(Clone, Copy)]
 struct Aabb {
-    min: [f64; 3],
-    max: [f64; 3],
+    min: [f32; 3],
+    max: [f32; 3],
 }
 
 impl Aabb {
     const EMPTY: Aabb = Aabb {
-        min: [f64::INFINITY; 3],
-        max: [f64::NEG_INFINITY; 3],
+        min: [f32::INFINITY; 3],
+        max: [f32::NEG_INFINITY; 3],
     };
+    #[inline]
     fn grow(&mut self, o: &Aabb) {
         for k in 0..3 {
             self.min[k] = self.min[k].min(o.min[k]);
             self.max[k] = self.max[k].max(o.max[k]);
         }
     }
-    fn grow_p(&mut self, p: &[f64; 3]) {
+    #[inline]
+    fn grow_p(&mut self, p: &[f32; 3]) {
         for (k, &v) in p.iter().enumerate() {
             self.min[k] = self.min[k].min(v);
             self.max[k] = self.max[k].max(v);
@@ -144,9 +148,9 @@ impl Aabb {
     }
     fn half_area(&self) -> f64 {
         let d = [
-            self.max[0] - self.min[0],
-            self.max[1] - self.min[1],
-            self.max[2] - self.min[2],
+            self.max[0] as f64 - self.min[0] as f64,
+            self.max[1] as f64 - self.min[1] as f64,
+            self.max[2] as f64 - self.min[2] as f64,
         ];
         if d[0] < 0.0 {
             return 0.0;
@@ -155,12 +159,26 @@ impl Aabb {
     }
 }
 
-/// A triangle during the build: box, centroid and index, moved together
-/// by the partitions so every pass over a node reads memory in order.
+/// `x` rounded down (`up` false) or up to an f32.
+#[inline]
+fn round_f32(x: f64, up: bool) -> f32 {
+    let f = x as f32;
+    if up && (f as f64) < x {
+        f.next_up()
+    } else if !up && (f as f64) > x {
+        f.next_down()
+    } else {
+        f
+    }
+}
+
+/// A triangle during the build: box, centroid and index (40 bytes), moved
+/// together by the partitions so every pass over a node reads memory in
+/// order.
 #[derive(Clone, Copy)]
 struct Prim {
     b: Aabb,
-    c: [f64; 3],
+    c: [f32; 3],
     id: u32,
 }
 
@@ -171,7 +189,8 @@ impl Bvh {
         let n = mesh.triangles.len();
         let corners: Vec<[P3; 3]> = mesh
             .triangles
-            .iter()
+            .par_iter()
+            .with_min_len(4096)
             .map(|t| {
                 [
                     mesh.vertices[t[0] as usize],
@@ -185,15 +204,19 @@ impl Bvh {
             .enumerate()
             .with_min_len(4096)
             .map(|(i, c)| {
-                let mut b = Aabb::EMPTY;
+                let mut lo = [f64::INFINITY; 3];
+                let mut hi = [f64::NEG_INFINITY; 3];
                 for p in c {
-                    b.grow_p(&[p.x, p.y, p.z]);
+                    for k in 0..3 {
+                        lo[k] = lo[k].min(p[k]);
+                        hi[k] = hi[k].max(p[k]);
+                    }
                 }
-                let m = [
-                    0.5 * (b.min[0] + b.max[0]),
-                    0.5 * (b.min[1] + b.max[1]),
-                    0.5 * (b.min[2] + b.max[2]),
-                ];
+                let b = Aabb {
+                    min: lo.map(|v| round_f32(v, false)),
+                    max: hi.map(|v| round_f32(v, true)),
+                };
+                let m = [0, 1, 2].map(|k| (0.5 * (lo[k] + hi[k])) as f32);
                 Prim { b, c: m, id: i as u32 }
             })
             .collect();
@@ -205,7 +228,7 @@ impl Bvh {
         // origins and slab parameters for rays starting within a few scene
         // sizes of the mesh.
         let scale = (0..3)
-            .map(|k| all.max[k].abs().max(all.min[k].abs()))
+            .map(|k| (all.max[k].abs().max(all.min[k].abs())) as f64)
             .fold(0.0, f64::max);
         let pad = scale * 1e-6 + 1e-12;
         let mut nodes = Vec::with_capacity(2 * n / MAX_LEAF + 1);
@@ -213,7 +236,11 @@ impl Bvh {
             build(&mut prims, 0, &mut nodes, pad);
         }
         let ids: Vec<u32> = prims.iter().map(|p| p.id).collect();
-        let tris = ids.iter().map(|&i| corners[i as usize]).collect();
+        let tris = ids
+            .par_iter()
+            .with_min_len(4096)
+            .map(|&i| corners[i as usize])
+            .collect();
         let pairs = pairs_of(&nodes);
         Bvh {
             nodes,
@@ -238,7 +265,12 @@ impl Bvh {
         self.nodes.len()
     }
 
-    /// The nearest hit along the ray, if any.
+    /// The nearest hit along the ray, if any. Triangles count as closed
+    /// here (a ray exactly through an edge or vertex hits every triangle
+    /// on it, at the same point), so a ray through the rim of a part's top
+    /// face, or exactly through a vertex, never slips through; of several
+    /// hits at the same `t` the lowest triangle index is reported, so the
+    /// answer does not depend on the tree.
     pub fn first_hit(&self, ray: &Ray) -> Option<Hit> {
         let mut best: Option<Hit> = None;
         let t_max = std::cell::Cell::new(ray.t_max);
@@ -246,7 +278,9 @@ impl Bvh {
             ray,
             |_| t_max.get(),
             |bvh, i, pre| {
-                if let Some(h) = bvh.hit_tri(i, ray, pre, t_max.get()) {
+                if let Some(h) = bvh.hit_tri(i, ray, pre, t_max.get(), Edges::Closed)
+                    && best.is_none_or(|b| h.t < b.t || (h.t == b.t && h.triangle < b.triangle))
+                {
                     t_max.set(h.t);
                     best = Some(h);
                 }
@@ -264,7 +298,7 @@ impl Bvh {
             ray,
             |_| ray.t_max,
             |bvh, i, pre| {
-                if let Some(h) = bvh.hit_tri(i, ray, pre, ray.t_max) {
+                if let Some(h) = bvh.hit_tri(i, ray, pre, ray.t_max, Edges::TopLeft) {
                     out.push(h);
                 }
             },
@@ -280,7 +314,7 @@ impl Bvh {
             ray,
             |_| ray.t_max,
             |bvh, i, pre| {
-                n += bvh.hit_tri(i, ray, pre, ray.t_max).is_some() as usize;
+                n += bvh.hit_tri(i, ray, pre, ray.t_max, Edges::TopLeft).is_some() as usize;
             },
         );
         n
@@ -366,7 +400,7 @@ impl Bvh {
             },
             |bvh, i, pre| {
                 tris.set(tris.get() + 1);
-                if let Some(h) = bvh.hit_tri(i, ray, pre, t_max.get()) {
+                if let Some(h) = bvh.hit_tri(i, ray, pre, t_max.get(), Edges::Closed) {
                     t_max.set(h.t);
                 }
             },
@@ -462,74 +496,37 @@ impl Bvh {
         }
     }
 
-    /// Watertight ray-triangle test (Woop, Benthin and Wald 2013) with the
-    /// top-left tie rule for rays exactly through an edge or vertex.
     #[inline]
-    fn hit_tri(&self, i: usize, ray: &Ray, pre: &Pre, t_max: f64) -> Option<Hit> {
-        let [a, b, c] = &self.tris[i];
-        let (kx, ky, kz) = (pre.kx, pre.ky, pre.kz);
-        let (o, s) = (&ray.origin, &pre.s);
-        let ta = [a[kx] - o[kx], a[ky] - o[ky], a[kz] - o[kz]];
-        let tb = [b[kx] - o[kx], b[ky] - o[ky], b[kz] - o[kz]];
-        let tc = [c[kx] - o[kx], c[ky] - o[ky], c[kz] - o[kz]];
-        let (ax, ay) = (ta[0] - s[0] * ta[2], ta[1] - s[1] * ta[2]);
-        let (bx, by) = (tb[0] - s[0] * tb[2], tb[1] - s[1] * tb[2]);
-        let (cx, cy) = (tc[0] - s[0] * tc[2], tc[1] - s[1] * tc[2]);
-        let u = cx * by - cy * bx;
-        let v = ax * cy - ay * cx;
-        let w = bx * ay - by * ax;
-        if (u < 0.0 || v < 0.0 || w < 0.0) && (u > 0.0 || v > 0.0 || w > 0.0) {
-            return None;
-        }
-        let det = u + v + w;
-        if det == 0.0 {
-            return None;
-        }
-        if u == 0.0 || v == 0.0 || w == 0.0 {
-            // On an edge: only "top-left" edges (after orienting by the
-            // triangle's facing) keep the hit, so exactly one of the two
-            // triangles sharing the edge does.
-            let sg = det.signum();
-            let top_left = |dx: f64, dy: f64| {
-                let (dx, dy) = (sg * dx, sg * dy);
-                dy > 0.0 || (dy == 0.0 && dx > 0.0)
-            };
-            if (u == 0.0 && !top_left(cx - bx, cy - by))
-                || (v == 0.0 && !top_left(ax - cx, ay - cy))
-                || (w == 0.0 && !top_left(bx - ax, by - ay))
-            {
-                return None;
-            }
-        }
-        let t_num = (u * ta[2] + v * tb[2] + w * tc[2]) * s[2];
-        let t = t_num / det;
-        if !(t >= ray.t_min && t <= t_max) {
-            return None;
-        }
-        Some(Hit {
-            t,
-            triangle: self.ids[i],
-            u: v / det,
-            v: w / det,
-            front: (b - a).cross(&(c - a)).dot(&ray.dir) < 0.0,
-        })
+    fn hit_tri(&self, i: usize, ray: &Ray, pre: &Pre, t_max: f64, edges: Edges) -> Option<Hit> {
+        intersect(&self.tris[i], self.ids[i], ray, &pre.sh, t_max, edges)
     }
 }
 
-/// Per-ray values for the slab and triangle tests.
-struct Pre {
+/// Which triangles a ray exactly through an edge or vertex hits.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Edges {
+    /// Every triangle on the edge or vertex (closed triangles): for first
+    /// hits, so no ray slips through anywhere, a mesh's rim included.
+    Closed,
+    /// Exactly one of the triangles sharing an edge or vertex, by the
+    /// rasterisers' top-left rule: for counts and parity.
+    TopLeft,
+}
+
+/// The ray's shear into the frame where it runs along +z (Woop, Benthin
+/// and Wald 2013): the axis of the largest direction component becomes z,
+/// the other two are swapped when it is negative to keep the winding.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Shear {
     kx: usize,
     ky: usize,
     kz: usize,
     s: [f64; 3],
-    org: [f32; 3],
-    inv: [f32; 3],
 }
 
-impl Pre {
-    fn new(ray: &Ray) -> Option<Pre> {
-        let d = ray.dir;
-        if !(d.x.is_finite() && d.y.is_finite() && d.z.is_finite()) || d == V3::zeros() {
+impl Shear {
+    pub(crate) fn new(d: &V3) -> Option<Shear> {
+        if !(d.x.is_finite() && d.y.is_finite() && d.z.is_finite()) || *d == V3::zeros() {
             return None;
         }
         let kz = d.iamax();
@@ -538,17 +535,85 @@ impl Pre {
         if d[kz] < 0.0 {
             std::mem::swap(&mut kx, &mut ky);
         }
-        let s = [d[kx] / d[kz], d[ky] / d[kz], 1.0 / d[kz]];
-        let inv = [(1.0 / d.x) as f32, (1.0 / d.y) as f32, (1.0 / d.z) as f32];
-        let org = [ray.origin.x as f32, ray.origin.y as f32, ray.origin.z as f32];
-        Some(Pre {
+        Some(Shear {
             kx,
             ky,
             kz,
-            s,
-            org,
-            inv,
+            s: [d[kx] / d[kz], d[ky] / d[kz], 1.0 / d[kz]],
         })
+    }
+}
+
+/// Watertight ray-triangle test (Woop, Benthin and Wald 2013) in f64. The
+/// edge functions of an edge are computed from its two corners alone, in
+/// the same order for both triangles sharing it, so their signs agree
+/// exactly and no ray passes between two triangles; `edges` decides who
+/// owns a ray exactly on an edge or vertex.
+#[inline(always)]
+pub(crate) fn intersect(tri: &[P3; 3], id: u32, ray: &Ray, sh: &Shear, t_max: f64, edges: Edges) -> Option<Hit> {
+    let [a, b, c] = tri;
+    let (kx, ky, kz) = (sh.kx, sh.ky, sh.kz);
+    let (o, s) = (&ray.origin, &sh.s);
+    let ta = [a[kx] - o[kx], a[ky] - o[ky], a[kz] - o[kz]];
+    let tb = [b[kx] - o[kx], b[ky] - o[ky], b[kz] - o[kz]];
+    let tc = [c[kx] - o[kx], c[ky] - o[ky], c[kz] - o[kz]];
+    let (ax, ay) = (ta[0] - s[0] * ta[2], ta[1] - s[1] * ta[2]);
+    let (bx, by) = (tb[0] - s[0] * tb[2], tb[1] - s[1] * tb[2]);
+    let (cx, cy) = (tc[0] - s[0] * tc[2], tc[1] - s[1] * tc[2]);
+    let u = cx * by - cy * bx;
+    let v = ax * cy - ay * cx;
+    let w = bx * ay - by * ax;
+    if (u < 0.0 || v < 0.0 || w < 0.0) && (u > 0.0 || v > 0.0 || w > 0.0) {
+        return None;
+    }
+    let det = u + v + w;
+    if det == 0.0 {
+        return None;
+    }
+    if edges == Edges::TopLeft && (u == 0.0 || v == 0.0 || w == 0.0) {
+        // On an edge: only "top-left" edges (after orienting by the
+        // triangle's facing) keep the hit, so exactly one of the two
+        // triangles sharing the edge does.
+        let sg = det.signum();
+        let top_left = |dx: f64, dy: f64| {
+            let (dx, dy) = (sg * dx, sg * dy);
+            dy > 0.0 || (dy == 0.0 && dx > 0.0)
+        };
+        if (u == 0.0 && !top_left(cx - bx, cy - by))
+            || (v == 0.0 && !top_left(ax - cx, ay - cy))
+            || (w == 0.0 && !top_left(bx - ax, by - ay))
+        {
+            return None;
+        }
+    }
+    let t_num = (u * ta[2] + v * tb[2] + w * tc[2]) * s[2];
+    let t = t_num / det;
+    if !(t >= ray.t_min && t <= t_max) {
+        return None;
+    }
+    Some(Hit {
+        t,
+        triangle: id,
+        u: v / det,
+        v: w / det,
+        front: (b - a).cross(&(c - a)).dot(&ray.dir) < 0.0,
+    })
+}
+
+/// Per-ray values for the slab and triangle tests.
+struct Pre {
+    sh: Shear,
+    org: [f32; 3],
+    inv: [f32; 3],
+}
+
+impl Pre {
+    fn new(ray: &Ray) -> Option<Pre> {
+        let d = ray.dir;
+        let sh = Shear::new(&d)?;
+        let inv = [(1.0 / d.x) as f32, (1.0 / d.y) as f32, (1.0 / d.z) as f32];
+        let org = [ray.origin.x as f32, ray.origin.y as f32, ray.origin.z as f32];
+        Some(Pre { sh, org, inv })
     }
 
     /// Entry parameters of the ray into both child boxes of a pair within
@@ -714,9 +779,9 @@ fn to_node(b: &Aabb, pad: f64) -> Node {
         if (f as f64) < x + pad { f.next_up() } else { f }
     };
     Node {
-        min: [lo(b.min[0]), lo(b.min[1]), lo(b.min[2])],
+        min: [lo(b.min[0] as f64), lo(b.min[1] as f64), lo(b.min[2] as f64)],
         a: 0,
-        max: [hi(b.max[0]), hi(b.max[1]), hi(b.max[2])],
+        max: [hi(b.max[0] as f64), hi(b.max[1] as f64), hi(b.max[2] as f64)],
         n: 0,
     }
 }
@@ -735,7 +800,7 @@ fn build(ids: &mut [Prim], offset: usize, out: &mut Vec<Node>, pad: f64) -> u32 
     let n = ids.len();
     let split = if n <= 2 { None } else { best_split(ids, &bb, &cb) };
     let mid = match split {
-        Some((axis, pos)) => partition(ids, |q| q.c[axis] < pos),
+        Some(sp) => partition(ids, |q| sp.left(q)),
         None if n > MAX_LEAF => {
             // No useful SAH split (identical centroids, or a leaf would be
             // cheaper but too big): split at the median of the longest axis.
@@ -791,11 +856,45 @@ fn finish_split(ids: &mut [Prim], offset: usize, out: &mut Vec<Node>, pad: f64, 
     me
 }
 
-/// Binned SAH over all three axes: `(axis, position)` of the cheapest
-/// split, or None when keeping a leaf is cheaper (and allowed).
-fn best_split(ids: &[Prim], bb: &Aabb, cb: &Aabb) -> Option<(usize, f64)> {
+/// A binned split: primitives whose centroid falls in bins `0..=last`
+/// of `axis` go left (the same bin function as the binning, so the
+/// partition matches the counts the cost was computed from).
+#[derive(Clone, Copy)]
+struct Split {
+    axis: usize,
+    lo: f32,
+    k: f32,
+    last: usize,
+}
+
+impl Split {
+    #[inline(always)]
+    fn bin(axis: usize, lo: f32, k: f32, q: &Prim) -> usize {
+        (((q.c[axis] - lo) * k) as usize).min(BINS - 1)
+    }
+    #[inline(always)]
+    fn left(&self, q: &Prim) -> bool {
+        Split::bin(self.axis, self.lo, self.k, q) <= self.last
+    }
+}
+
+type Bins = [(Aabb, u32); BINS];
+
+fn bin_prims(ids: &[Prim], axis: usize, lo: f32, k: f32) -> Bins {
+    let mut bins = [(Aabb::EMPTY, 0u32); BINS];
+    for q in ids {
+        let b = Split::bin(axis, lo, k, q);
+        bins[b].0.grow(&q.b);
+        bins[b].1 += 1;
+    }
+    bins
+}
+
+/// Binned SAH over all three axes: the cheapest split, or None when
+/// keeping a leaf is cheaper (and allowed).
+fn best_split(ids: &[Prim], bb: &Aabb, cb: &Aabb) -> Option<Split> {
     let n = ids.len();
-    let mut best = (f64::INFINITY, 0usize, 0.0f64);
+    let mut best = (f64::INFINITY, None);
     // Large nodes: the longest centroid axis only (a third of the binning
     // work where most of the build time goes, and the SAH rarely prefers
     // another axis this high up).
@@ -803,7 +902,7 @@ fn best_split(ids: &[Prim], bb: &Aabb, cb: &Aabb) -> Option<(usize, f64)> {
         .max_by(|&a, &b| (cb.max[a] - cb.min[a]).total_cmp(&(cb.max[b] - cb.min[b])))
         .unwrap_or(0);
     for axis in 0..3 {
-        if n > 4096 && axis != longest {
+        if n > 1024 && axis != longest {
             continue;
         }
         let lo = cb.min[axis];
@@ -811,13 +910,25 @@ fn best_split(ids: &[Prim], bb: &Aabb, cb: &Aabb) -> Option<(usize, f64)> {
         if ext.is_nan() || ext <= 0.0 {
             continue;
         }
-        let k = BINS as f64 / ext;
-        let mut bins = [(Aabb::EMPTY, 0u32); BINS];
-        for q in ids {
-            let b = (((q.c[axis] - lo) * k) as usize).min(BINS - 1);
-            bins[b].0.grow(&q.b);
-            bins[b].1 += 1;
+        let k = BINS as f32 / ext;
+        if !k.is_finite() {
+            continue;
         }
+        let bins = if n >= PAR_MIN {
+            // Box unions and counts: the same result in any order.
+            ids.par_chunks(PAR_MIN / 4).map(|c| bin_prims(c, axis, lo, k)).reduce(
+                || [(Aabb::EMPTY, 0u32); BINS],
+                |mut a, b| {
+                    for (x, y) in a.iter_mut().zip(&b) {
+                        x.0.grow(&y.0);
+                        x.1 += y.1;
+                    }
+                    a
+                },
+            )
+        } else {
+            bin_prims(ids, axis, lo, k)
+        };
         // Sweep from the right, then from the left.
         let mut right = [0.0f64; BINS];
         let mut acc = Aabb::EMPTY;
@@ -834,20 +945,19 @@ fn best_split(ids: &[Prim], bb: &Aabb, cb: &Aabb) -> Option<(usize, f64)> {
             cnt += bins[j].1;
             let cost = acc.half_area() * cnt as f64 + right[j + 1];
             if cnt > 0 && (cnt as usize) < n && cost < best.0 {
-                best = (cost, axis, lo + (j + 1) as f64 / k);
+                best = (cost, Some(Split { axis, lo, k, last: j }));
             }
         }
     }
-    if !best.0.is_finite() {
-        return None;
-    }
+    let (cost, split) = best;
+    let split = split?;
     // Cost model: traversal 1, triangle test 1 per triangle.
     let leaf_cost = n as f64;
-    let split_cost = 1.0 + best.0 / bb.half_area().max(f64::MIN_POSITIVE);
+    let split_cost = 1.0 + cost / bb.half_area().max(f64::MIN_POSITIVE);
     if n <= MAX_LEAF && leaf_cost <= split_cost {
         return None;
     }
-    Some((best.1, best.2))
+    Some(split)
 }
 
 fn partition(ids: &mut [Prim], left: impl Fn(&Prim) -> bool) -> usize {
@@ -863,4 +973,4 @@ fn partition(ids: &mut [Prim], left: impl Fn(&Prim) -> bool) -> usize {
 
 #[cfg(test)]
 #[path = "bvh_tests.rs"]
-mod tests;
+pub(crate) mod tests;

@@ -201,3 +201,76 @@ fn empty_and_large_builds() {
     assert!(bvh.first_hit(&Ray::new(P3::origin(), V3::new(1.0, 1.0, 1.0))).is_none());
     assert!((bvh.nearest(&P3::origin()).unwrap().distance - 3f64.sqrt()).abs() < 1e-12);
 }
+
+/// The terrain block as the verification tool sees a design part: written
+/// to a binary STL and read back, f32 corners, three per triangle (a soup).
+pub(crate) fn terrain_block(n: usize, h: f64) -> Mesh {
+    let m = solids::terrain_block(n, h);
+    let bytes = crate::mesh::read_stl::write_binary(&m, "terrain");
+    crate::mesh::read_stl::read_stl(&bytes).unwrap().mesh
+}
+
+/// Top of the block over (x, y) by brute force over closed triangles
+/// (projected point-in-triangle with inclusive edges, exact for the f32
+/// corners on this grid).
+pub(crate) fn brute_top(m: &Mesh, x: f64, y: f64) -> Option<f64> {
+    let mut best: Option<f64> = None;
+    for t in m.iter_triangles() {
+        let e = |p: &P3, q: &P3| (q.x - p.x) * (y - p.y) - (q.y - p.y) * (x - p.x);
+        let (u, v, w) = (e(&t.b, &t.c), e(&t.c, &t.a), e(&t.a, &t.b));
+        let det = u + v + w;
+        if det == 0.0 || !((u >= 0.0 && v >= 0.0 && w >= 0.0) || (u <= 0.0 && v <= 0.0 && w <= 0.0)) {
+            continue;
+        }
+        let z = (u * t.a.z + v * t.b.z + w * t.c.z) / det;
+        best = Some(best.map_or(z, |b: f64| b.max(z)));
+    }
+    best
+}
+
+#[test]
+fn vertical_rays_through_vertices_and_edges_of_a_closed_mesh() {
+    let n = 12;
+    let h = 0.25;
+    let m = terrain_block(n, h);
+    let bvh = Bvh::new(&m);
+    let mut checked = 0;
+    // Every vertex, every edge midpoint (axis and diagonal) and every cell
+    // centre of the grid, boundary included.
+    for i2 in 0..=2 * n {
+        for j2 in 0..=2 * n {
+            let (x, y) = (i2 as f64 * h / 2.0, j2 as f64 * h / 2.0);
+            for up in [false, true] {
+                let d = if up { V3::z() } else { -V3::z() };
+                let o = P3::new(x, y, if up { -5.0 } else { 5.0 });
+                let ray = Ray::new(o, d);
+                let want = brute_top(&m, x, y).unwrap();
+                let hit = bvh.first_hit(&ray);
+                let hit = hit.unwrap_or_else(|| panic!("({x}, {y}) up {up}: no hit"));
+                let got = if up { 0.0 } else { ray.at(hit.t).z };
+                assert_eq!(got, if up { 0.0 } else { want }, "({x}, {y}) up {up}");
+                // From outside: an even number of crossings; from inside
+                // (origin between bottom and top): odd.
+                let n_out = bvh.count_hits(&ray);
+                assert!(n_out.is_multiple_of(2), "({x}, {y}) up {up}: {n_out} crossings");
+                let inside = Ray::new(P3::new(x, y, 0.5), d);
+                let n_in = bvh.count_hits(&inside);
+                let interior = i2 > 0 && j2 > 0 && i2 < 2 * n && j2 < 2 * n;
+                if interior {
+                    assert_eq!(n_in, 1, "({x}, {y}) up {up} from inside");
+                    assert_eq!(bvh.all_hits(&ray).len(), 2, "({x}, {y}) up {up}");
+                }
+                checked += 1;
+            }
+        }
+    }
+    assert_eq!(checked, 2 * (2 * n + 1) * (2 * n + 1));
+    // Oblique rays aimed exactly at every vertex from a point inside: odd.
+    let c = P3::new(n as f64 * h * 0.5 + 0.013, n as f64 * h * 0.5 - 0.007, 0.41);
+    for v in &m.vertices {
+        let d = v - c;
+        let n_in = bvh.count_hits(&Ray::new(c, d));
+        assert_eq!(n_in % 2, 1, "vertex {v:?}");
+        assert!(bvh.first_hit(&Ray::new(c, d)).is_some(), "vertex {v:?}");
+    }
+}

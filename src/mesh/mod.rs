@@ -11,8 +11,11 @@
 //!   duplicate triangles dropped, orientation made consistent).
 //! - [`solids`]: generated closed solids (sphere, torus, cylinder, box).
 //! - [`bvh`]: a bounding-volume hierarchy with ray and nearest-point queries.
+//! - [`parallel`]: first hits of many rays in one direction (a 2-D grid over
+//!   the projection; the verification rays).
 
 pub mod bvh;
+pub mod parallel;
 pub mod read;
 pub mod read_obj;
 pub mod read_stl;

@@ -125,6 +125,59 @@ pub fn cuboid(lo: P3, hi: P3) -> Mesh {
     Mesh { vertices, triangles }
 }
 
+/// A closed block over `[0, n h]²`: its top a bumpy height field on an
+/// `n` x `n` grid of spacing `h` (z = 1 + 0.3 sin(0.7 i) cos(0.45 j), the
+/// cells' diagonals alternating so vertices have fans of four and eight
+/// triangles), vertical sides and a flat bottom at z = 0, all on the same
+/// grid, so every face shares its edges. Rays on the grid's lines pass
+/// exactly through its vertices and edges.
+pub fn terrain_block(n: usize, h: f64) -> Mesh {
+    let z = |i: usize, j: usize| 1.0 + 0.3 * ((i as f64) * 0.7).sin() * ((j as f64) * 0.45).cos();
+    let m1 = n + 1;
+    let id = |i: usize, j: usize, top: bool| (usize::from(top) * m1 * m1 + j * m1 + i) as u32;
+    let mut vertices = Vec::with_capacity(2 * m1 * m1);
+    for top in [false, true] {
+        for j in 0..=n {
+            for i in 0..=n {
+                vertices.push(P3::new(i as f64 * h, j as f64 * h, if top { z(i, j) } else { 0.0 }));
+            }
+        }
+    }
+    let mut triangles = Vec::new();
+    for i in 0..n {
+        for j in 0..n {
+            let q = |top| {
+                [
+                    id(i, j, top),
+                    id(i + 1, j, top),
+                    id(i + 1, j + 1, top),
+                    id(i, j + 1, top),
+                ]
+            };
+            let ([a, b, c, d], [ab, bb, cb, db]) = (q(true), q(false));
+            if (i + j) % 2 == 0 {
+                triangles.extend([[a, b, c], [a, c, d], [ab, cb, bb], [ab, db, cb]]);
+            } else {
+                triangles.extend([[a, b, d], [b, c, d], [ab, db, bb], [bb, db, cb]]);
+            }
+        }
+    }
+    for k in 0..n {
+        // Sides, outward: y = 0, x = n, y = n, x = 0.
+        for ((i0, j0), (i1, j1)) in [
+            ((k, 0), (k + 1, 0)),
+            ((n, k), (n, k + 1)),
+            ((k + 1, n), (k, n)),
+            ((0, k + 1), (0, k)),
+        ] {
+            let (a, b) = (id(i0, j0, false), id(i1, j1, false));
+            let (c, d) = (id(i1, j1, true), id(i0, j0, true));
+            triangles.extend([[a, b, c], [a, c, d]]);
+        }
+    }
+    Mesh { vertices, triangles }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -148,5 +201,10 @@ mod tests {
         let c = cylinder(P3::new(0.0, 0.0, 0.0), P3::new(1.0, 1.0, 5.0), 1.0, 64, 3);
         let cv = std::f64::consts::PI * (27.0f64).sqrt();
         assert!((signed_volume(&c) / cv - 1.0).abs() < 0.01);
+        let t = terrain_block(8, 0.5);
+        let v = signed_volume(&t);
+        assert!(v > 0.7 * 16.0 && v < 1.3 * 16.0, "{v}");
+        let r = crate::mesh::topology::report(&t);
+        assert!(r.watertight && r.components == 1, "{r:?}");
     }
 }

@@ -2,13 +2,14 @@
 //! triangles read as a soup (STL stores every corner three to eight times)
 //! share their edges and the topology can be read.
 //!
-//! A spatial hash with cells of the tolerance's size: each vertex looks in
-//! the 27 cells around its own for an earlier kept vertex within the
-//! tolerance, so the work is linear in the vertex count. The first vertex
-//! of a cluster (in file order) is the one kept, so the result does not
-//! depend on anything but the input order.
+//! A hash on the exact coordinates first (an STL soup repeats each corner
+//! three to eight times), then a spatial hash with cells twice the
+//! tolerance for the distinct positions: each looks in the 8 cells its
+//! tolerance ball can reach. Linear work, mostly in parallel, and a result
+//! that depends on the input order alone (see [`weld`]).
 
 use std::collections::HashMap;
+use std::hash::{BuildHasherDefault, Hash, Hasher};
 
 use super::Mesh;
 use crate::geometry::P3;
@@ -22,11 +23,65 @@ pub struct WeldReport {
     pub vertices_out: usize,
 }
 
+/// A multiply-rotate hash with a final avalanche (the keys are float bits
+/// whose low 29 bits are zero for f32 data, so the mixing must reach the
+/// low bits the table indexes by). Fixed, so runs are reproducible.
+#[derive(Default)]
+struct Fast(u64);
+
+impl Hasher for Fast {
+    fn write(&mut self, bytes: &[u8]) {
+        for b in bytes {
+            self.write_u64(*b as u64);
+        }
+    }
+    #[inline]
+    fn write_u64(&mut self, x: u64) {
+        self.0 = (self.0.rotate_left(26) ^ x).wrapping_mul(0x9E37_79B9_7F4A_7C15);
+    }
+    #[inline]
+    fn finish(&self) -> u64 {
+        let mut h = self.0;
+        h ^= h >> 33;
+        h = h.wrapping_mul(0xFF51_AFD7_ED55_8CCD);
+        h ^= h >> 33;
+        h
+    }
+}
+
+type FastMap<K, V> = HashMap<K, V, BuildHasherDefault<Fast>>;
+
+/// Three words hashed as three words.
+#[derive(Clone, Copy, PartialEq, Eq)]
+struct Key([u64; 3]);
+
+impl Hash for Key {
+    #[inline]
+    fn hash<H: Hasher>(&self, h: &mut H) {
+        h.write_u64(self.0[0]);
+        h.write_u64(self.0[1]);
+        h.write_u64(self.0[2]);
+    }
+}
+
 /// Merge vertices within `tol` (mm; 0 = identical coordinates only) and
 /// drop vertices no triangle uses. Triangles keep their order and winding.
+///
+/// The rule, in file order: identical coordinates always become one vertex
+/// (an STL soup stores each corner three to eight times); a new position
+/// joins the earliest kept vertex within `tol`, else it is kept. Kept
+/// vertices are numbered in the order they first occur, so the result
+/// depends on the input alone.
+///
+/// The work, mostly in parallel (rayon): identical coordinates are found
+/// by hashing their bits in shards; the distinct positions are put in a
+/// spatial hash of cells `2 tol` wide (the ball of radius `tol` reaches 8
+/// of them), and each finds out whether any other lies within `tol`. Only
+/// those that have such a neighbour (none on a clean mesh) go through the
+/// rule above one by one.
 pub fn weld(mesh: &Mesh, tol: f64) -> (Mesh, WeldReport) {
+    use rayon::prelude::*;
     let n = mesh.vertices.len();
-    let mut remap = vec![u32::MAX; n];
     let mut used = vec![false; n];
     for t in &mesh.triangles {
         for &v in t {
@@ -35,65 +90,143 @@ pub fn weld(mesh: &Mesh, tol: f64) -> (Mesh, WeldReport) {
             }
         }
     }
-    let mut out: Vec<P3> = Vec::new();
-    if tol > 0.0 && tol.is_finite() {
-        let inv = 1.0 / tol;
-        let cell = |p: &P3| {
-            (
-                (p.x * inv).floor() as i64,
-                (p.y * inv).floor() as i64,
-                (p.z * inv).floor() as i64,
-            )
-        };
-        let mut grid: HashMap<(i64, i64, i64), Vec<u32>> = HashMap::with_capacity(n / 4);
-        let tol2 = tol * tol;
-        for (i, p) in mesh.vertices.iter().enumerate() {
-            if !used[i] {
-                continue;
-            }
-            let (cx, cy, cz) = cell(p);
-            let mut found = None;
-            'search: for dx in -1..=1 {
-                for dy in -1..=1 {
-                    for dz in -1..=1 {
-                        if let Some(list) = grid.get(&(cx.wrapping_add(dx), cy.wrapping_add(dy), cz.wrapping_add(dz))) {
-                            for &k in list {
-                                if (out[k as usize] - p).norm_squared() <= tol2 {
-                                    found = Some(k);
-                                    break 'search;
-                                }
-                            }
-                        }
-                    }
+    // +0.0 and -0.0 are the same point.
+    let key_of = |p: &P3| Key([(p.x + 0.0).to_bits(), (p.y + 0.0).to_bits(), (p.z + 0.0).to_bits()]);
+    let hash_of = |k: &Key| {
+        let mut h = Fast::default();
+        k.hash(&mut h);
+        h.finish()
+    };
+    const SHARDS: u64 = 64;
+    let shard: Vec<u8> = mesh
+        .vertices
+        .par_iter()
+        .with_min_len(8192)
+        .map(|p| (hash_of(&key_of(p)) % SHARDS) as u8)
+        .collect();
+    // first[i]: the first vertex (file order) with i's coordinates.
+    let pairs: Vec<Vec<(u32, u32)>> = (0..SHARDS as u8)
+        .into_par_iter()
+        .map(|s| {
+            let mut map: FastMap<Key, u32> = FastMap::default();
+            let mut out = Vec::new();
+            for (i, p) in mesh.vertices.iter().enumerate() {
+                if shard[i] != s || !used[i] {
+                    continue;
                 }
+                let f = *map.entry(key_of(p)).or_insert(i as u32);
+                out.push((i as u32, f));
             }
-            remap[i] = match found {
-                Some(k) => k,
-                None => {
-                    let k = out.len() as u32;
-                    out.push(*p);
-                    grid.entry((cx, cy, cz)).or_default().push(k);
-                    k
-                }
-            };
-        }
-    } else {
-        let mut seen: HashMap<[u64; 3], u32> = HashMap::with_capacity(n / 4);
-        for (i, p) in mesh.vertices.iter().enumerate() {
-            if !used[i] {
-                continue;
-            }
-            // +0.0 and -0.0 are the same point.
-            let key = [(p.x + 0.0).to_bits(), (p.y + 0.0).to_bits(), (p.z + 0.0).to_bits()];
-            remap[i] = *seen.entry(key).or_insert_with(|| {
-                out.push(*p);
-                (out.len() - 1) as u32
-            });
+            out
+        })
+        .collect();
+    let mut first = vec![u32::MAX; n];
+    for v in &pairs {
+        for &(i, f) in v {
+            first[i as usize] = f;
         }
     }
+    drop(pairs);
+    // Distinct positions in file order.
+    let uniq: Vec<u32> = (0..n as u32).filter(|&i| first[i as usize] == i).collect();
+    let near = tol > 0.0 && tol.is_finite();
+    let inv = 0.5 / tol;
+    let tol2 = tol * tol;
+    let cell_of = |p: &P3| [p.x, p.y, p.z].map(|v| (v * inv).floor() as i64);
+    // The 8 cells the ball of radius tol around p can reach.
+    let reach = |p: &P3| {
+        let c = cell_of(p);
+        let side = |v: f64, c: i64| {
+            if v * inv - c as f64 >= 0.5 {
+                c.wrapping_add(1)
+            } else {
+                c.wrapping_sub(1)
+            }
+        };
+        let s = [side(p.x, c[0]), side(p.y, c[1]), side(p.z, c[2])];
+        (0..8).map(move |m| {
+            Key([
+                (if m & 1 == 0 { c[0] } else { s[0] }) as u64,
+                (if m & 2 == 0 { c[1] } else { s[1] }) as u64,
+                (if m & 4 == 0 { c[2] } else { s[2] }) as u64,
+            ])
+        })
+    };
+    // Cell -> first distinct position in it; `next` chains the others
+    // (in decreasing file order).
+    let mut cells: FastMap<Key, u32> = FastMap::default();
+    let mut next = vec![u32::MAX; if near { uniq.len() } else { 0 }];
+    let mut crowded = vec![false; if near { uniq.len() } else { 0 }];
+    if near {
+        cells.reserve(uniq.len());
+        for (j, &i) in uniq.iter().enumerate() {
+            let c = cell_of(&mesh.vertices[i as usize]).map(|v| v as u64);
+            let head = cells.entry(Key(c)).or_insert(u32::MAX);
+            next[j] = *head;
+            *head = j as u32;
+        }
+        crowded = uniq
+            .par_iter()
+            .enumerate()
+            .with_min_len(4096)
+            .map(|(j, &i)| {
+                let p = &mesh.vertices[i as usize];
+                reach(p).any(|key| {
+                    let mut k = cells.get(&key).copied().unwrap_or(u32::MAX);
+                    while k != u32::MAX {
+                        if k as usize != j && (mesh.vertices[uniq[k as usize] as usize] - p).norm_squared() <= tol2 {
+                            return true;
+                        }
+                        k = next[k as usize];
+                    }
+                    false
+                })
+            })
+            .collect();
+    }
+    // The rule, in file order; out_of[j]: output index of distinct position j.
+    let mut out: Vec<P3> = Vec::with_capacity(uniq.len());
+    let mut out_of = vec![u32::MAX; uniq.len()];
+    let mut kept = vec![false; uniq.len()];
+    for (j, &i) in uniq.iter().enumerate() {
+        let p = &mesh.vertices[i as usize];
+        let mut found = u32::MAX;
+        if near && crowded[j] {
+            for key in reach(p) {
+                let mut k = cells.get(&key).copied().unwrap_or(u32::MAX);
+                while k != u32::MAX {
+                    // Earlier, kept, within tol; the earliest such.
+                    let o = out_of[k as usize];
+                    if (k as usize) < j && kept[k as usize] && o < found && (out[o as usize] - p).norm_squared() <= tol2
+                    {
+                        found = o;
+                    }
+                    k = next[k as usize];
+                }
+            }
+        }
+        out_of[j] = if found != u32::MAX {
+            found
+        } else {
+            kept[j] = true;
+            out.push(*p);
+            (out.len() - 1) as u32
+        };
+    }
+    // Map every vertex through its first occurrence.
+    let mut pos_of = vec![u32::MAX; n];
+    for (j, &i) in uniq.iter().enumerate() {
+        pos_of[i as usize] = out_of[j];
+    }
+    let remap: Vec<u32> = (0..n)
+        .into_par_iter()
+        .with_min_len(8192)
+        .map(|i| if used[i] { pos_of[first[i] as usize] } else { u32::MAX })
+        .collect();
     let triangles = mesh
         .triangles
-        .iter()
+        .par_iter()
+        .with_min_len(8192)
         .filter(|t| t.iter().all(|&v| (v as usize) < n))
         .map(|t| [remap[t[0] as usize], remap[t[1] as usize], remap[t[2] as usize]])
         .collect();
@@ -131,6 +264,72 @@ mod tests {
         assert_eq!(r2.vertices_out, m.vertices.len());
         for (a, b) in w.iter_triangles().zip(w2.iter_triangles()) {
             assert!((a.a - b.a).norm() < 1e-6);
+        }
+    }
+
+    /// The rule of [`weld`], one vertex at a time by brute force.
+    fn reference(mesh: &Mesh, tol: f64) -> Mesh {
+        let mut out: Vec<P3> = Vec::new();
+        let mut seen: Vec<(P3, u32)> = Vec::new();
+        let mut remap = vec![u32::MAX; mesh.vertices.len()];
+        let used: std::collections::BTreeSet<u32> = mesh.triangles.iter().flatten().copied().collect();
+        for &i in &used {
+            let p = mesh.vertices[i as usize];
+            let same = |q: &P3| q.x == p.x && q.y == p.y && q.z == p.z;
+            remap[i as usize] = if let Some(&(_, k)) = seen.iter().find(|(q, _)| same(q)) {
+                k
+            } else {
+                let k = match out
+                    .iter()
+                    .position(|q| tol > 0.0 && (q - p).norm_squared() <= tol * tol)
+                {
+                    Some(k) => k as u32,
+                    None => {
+                        out.push(p);
+                        (out.len() - 1) as u32
+                    }
+                };
+                seen.push((p, k));
+                k
+            };
+        }
+        let triangles = mesh.triangles.iter().map(|t| t.map(|v| remap[v as usize])).collect();
+        Mesh {
+            vertices: out,
+            triangles,
+        }
+    }
+
+    #[test]
+    fn clusters_and_chains_weld_by_the_rule() {
+        // Points in tight clusters and chains (each within tol of the
+        // next, not of the first), with exact repeats and -0.0.
+        let mut s = 12345u64;
+        let mut rnd = || {
+            s ^= s << 13;
+            s ^= s >> 7;
+            s ^= s << 17;
+            (s % 10_000) as f64 / 10_000.0
+        };
+        let mut v = Vec::new();
+        for c in 0..300 {
+            let base = P3::new((c % 7) as f64 * 0.01, (c / 7 % 5) as f64 * 0.01, 0.0);
+            for _ in 0..4 {
+                v.push(base + crate::geometry::V3::new(rnd(), rnd(), rnd()) * 3e-3);
+            }
+            if c % 3 == 0 {
+                v.push(v[v.len() - 2]);
+            }
+        }
+        v.push(P3::new(-0.0, 0.0, 0.0));
+        v.push(P3::new(0.0, -0.0, 0.0));
+        let n = v.len() as u32;
+        let triangles: Vec<[u32; 3]> = (0..n).map(|i| [i, (i * 7 + 1) % n, (i * 13 + 2) % n]).collect();
+        let m = Mesh { vertices: v, triangles };
+        for tol in [0.0, 1e-4, 1e-3, 2e-3, 5e-3, 0.02] {
+            let (w, r) = weld(&m, tol);
+            assert_eq!(w, reference(&m, tol), "tol {tol}");
+            assert_eq!(r.vertices_out, w.vertices.len());
         }
     }
 }

@@ -5,7 +5,7 @@
 
 use super::Simulation;
 use crate::geometry::{P3, V3};
-use crate::mesh::bvh::{Bvh, Ray};
+use crate::mesh::parallel::ParallelRays;
 use rayon::prelude::*;
 
 /// One comparison point.
@@ -27,9 +27,11 @@ impl Sample {
     }
 }
 
-/// The design mesh ready for vertical rays.
+/// The design mesh ready for vertical rays (a 2-D grid over its plan view:
+/// the same hits as the BVH, several times faster for rays in one
+/// direction, docs/mesh.md).
 pub struct Design {
-    bvh: Bvh,
+    rays: ParallelRays,
     top: f64,
 }
 
@@ -38,7 +40,7 @@ impl Design {
     pub fn new(mesh: &crate::mesh::Mesh) -> Design {
         let b = mesh.bbox();
         Design {
-            bvh: Bvh::new(mesh),
+            rays: ParallelRays::new(mesh, -V3::z()),
             top: if b.max.z.is_finite() { b.max.z } else { 0.0 },
         }
     }
@@ -46,8 +48,7 @@ impl Design {
     /// Top of the design over (x, y): the first hit of a ray cast down.
     pub fn top_at(&self, x: f64, y: f64) -> Option<f64> {
         let z0 = self.top + 1.0;
-        let ray = Ray::new(P3::new(x, y, z0), -V3::z());
-        self.bvh.first_hit(&ray).map(|h| z0 - h.t)
+        self.rays.first_hit(&P3::new(x, y, z0)).map(|h| z0 - h.t)
     }
 }
 
