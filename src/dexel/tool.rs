@@ -131,6 +131,14 @@ fn slerp(a0: &V3, a1: &V3, u: f64) -> V3 {
     (a0 * ((1.0 - u) * th).sin() / s + a1 * (u * th).sin() / s).normalize()
 }
 
+/// Material along one line, as [`MoveSweep::remove_from`] sees it.
+pub trait LineMaterial {
+    /// Whether there is material strictly inside (t0, t1).
+    fn has(&self, t0: f64, t1: f64) -> bool;
+    /// Remove (t0, t1).
+    fn remove(&mut self, t0: f64, t1: f64);
+}
+
 /// The volume one move sweeps, as pieces.
 #[derive(Debug, Clone)]
 pub struct MoveSweep {
@@ -141,6 +149,12 @@ pub struct MoveSweep {
     pub fine: Vec<Piece>,
     /// Sub-moves the move was split into.
     pub substeps: usize,
+    /// Grown pieces of each run of `group` consecutive sub-moves (empty
+    /// when there is one sub-move): a line whose material a group's copy
+    /// does not touch skips that group's sub-moves.
+    pub groups: Vec<Piece>,
+    /// Sub-moves per group.
+    pub group: usize,
     /// Box around everything (min, max).
     pub lo: [f64; 3],
     pub hi: [f64; 3],
@@ -153,12 +167,20 @@ impl MoveSweep {
     pub fn new(tool: &ToolShape, from: &Location, to: &Location, tol: f64) -> MoveSweep {
         let theta = from.axis.dot(&to.axis).clamp(-1.0, 1.0).acos();
         let reach = tool.reach();
+        let ring = tool.ring_count(tol);
+        let ring_err = if ring > 0 {
+            std::f64::consts::PI * (tool.cutter.radius() - tool.cutter.corner_radius()) / ring as f64
+        } else {
+            0.0
+        };
+        // The axis error θ/(2n)·reach gets what the ring leaves of `tol`
+        // (at least half of it: the ring takes at most tol/2).
+        let budget = (tol - ring_err).max(0.5 * tol);
         let n = if theta < 1e-12 {
             1
         } else {
-            ((theta * reach / tol).ceil() as usize).clamp(1, 100_000)
+            ((theta * reach / (2.0 * budget)).ceil() as usize).clamp(1, 100_000)
         };
-        let ring = tool.ring_count(tol);
         let mut fine = Vec::new();
         for k in 0..n {
             let (u0, u1) = (k as f64 / n as f64, (k + 1) as f64 / n as f64);
@@ -168,11 +190,25 @@ impl MoveSweep {
             tool.pieces(&Location { tip: p0, axis }, p1 - p0, ring, &mut fine);
         }
         let axis_err = if n > 1 { theta / (2.0 * n as f64) * reach } else { 0.0 };
-        let ring_err = if ring > 0 {
-            std::f64::consts::PI * (tool.cutter.radius() - tool.cutter.corner_radius()) / ring as f64
-        } else {
-            0.0
-        };
+        // Groups of about √n sub-moves: a line tests n/g groups and the
+        // sub-moves of the few groups that reach its material.
+        let group = if n > 1 { (n as f64).sqrt().ceil() as usize } else { n };
+        let mut groups = Vec::new();
+        if n > 1 {
+            for k0 in (0..n).step_by(group) {
+                let k1 = (k0 + group).min(n);
+                let (u0, u1) = (k0 as f64 / n as f64, k1 as f64 / n as f64);
+                let p0 = from.tip + (to.tip - from.tip) * u0;
+                let p1 = from.tip + (to.tip - from.tip) * u1;
+                let axis = slerp(&from.axis, &to.axis, 0.5 * (u0 + u1));
+                let at = groups.len();
+                tool.pieces(&Location { tip: p0, axis }, p1 - p0, ring, &mut groups);
+                let grow = 0.5 * theta * (u1 - u0) * reach + 1e-9;
+                for p in &mut groups[at..] {
+                    *p = p.grown(grow);
+                }
+            }
+        }
         let coarse = (n > 1).then(|| {
             let mut v = Vec::new();
             let axis = slerp(&from.axis, &to.axis, 0.5);
@@ -193,6 +229,8 @@ impl MoveSweep {
             coarse,
             fine,
             substeps: n,
+            groups,
+            group,
             lo,
             hi,
             shape_error_mm: axis_err + ring_err,
@@ -206,6 +244,63 @@ impl MoveSweep {
     pub fn hull(&self, o: &P3, e: &V3) -> Option<(f64, f64)> {
         let pieces = self.coarse.as_deref().unwrap_or(&self.fine[..]);
         hull_of(pieces, o, e)
+    }
+}
+
+impl MoveSweep {
+    /// Remove the move from the line `o + t·e` (`o` on the line, `e` a
+    /// unit direction): every sub-move's interval that can reach the
+    /// material. Returns the sub-move (and group) interval tests made.
+    ///
+    /// With one sub-move that is its exact interval. With several, the
+    /// whole move's grown copy is tested first, then each group's grown
+    /// copy; only groups whose copy meets material test their sub-moves.
+    /// The group with the lowest start and the one with the highest end
+    /// go first, so the bulk is removed early and most other groups find
+    /// no material left in reach. Every skipped sub-move's interval lies
+    /// inside its group's, which held no material: the result is the same
+    /// as removing every sub-move.
+    pub fn remove_from<M: LineMaterial>(&self, o: &P3, e: &V3, m: &mut M, scratch: &mut Vec<(f64, f64, u32)>) -> u64 {
+        let Some((t0, t1)) = self.hull(o, e) else { return 0 };
+        if !m.has(t0, t1) {
+            return 0;
+        }
+        if self.coarse.is_none() {
+            m.remove(t0, t1);
+            return 0;
+        }
+        let per = self.fine.len() / self.substeps;
+        let gper = per;
+        let mut tests = 0u64;
+        scratch.clear();
+        for (g, pcs) in self.groups.chunks(gper).enumerate() {
+            tests += 1;
+            if let Some((a, b)) = hull_of(pcs, o, e) {
+                scratch.push((a, b, g as u32));
+            }
+        }
+        // Lowest start first, then highest end, then the rest in order.
+        let lo = (0..scratch.len()).min_by(|&i, &j| scratch[i].0.total_cmp(&scratch[j].0));
+        let hi = (0..scratch.len()).max_by(|&i, &j| scratch[i].1.total_cmp(&scratch[j].1));
+        let order = lo
+            .into_iter()
+            .chain(hi.filter(|&h| Some(h) != lo))
+            .chain((0..scratch.len()).filter(|&k| Some(k) != lo && Some(k) != hi));
+        for k in order {
+            let (a, b, g) = scratch[k];
+            if !m.has(a, b) {
+                continue;
+            }
+            let k0 = g as usize * self.group;
+            let k1 = (k0 + self.group).min(self.substeps);
+            for sub in self.fine[k0 * per..k1 * per].chunks(per) {
+                tests += 1;
+                if let Some((a, b)) = hull_of(sub, o, e) {
+                    m.remove(a, b);
+                }
+            }
+        }
+        tests
     }
 }
 
