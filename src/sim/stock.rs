@@ -406,7 +406,7 @@ fn level_cells(g: &Grid, a: &P3, b: &P3, py: f64, zrun: &mut [f64], i0: usize, h
         let hb = &mut buf[..block.len()];
         for (k, hv) in hb.iter_mut().enumerate() {
             let wx = xs + (base + k) as f64 * c;
-            let t = ((wx * dx + wyd) * inv).max(0.0).min(1.0);
+            let t = ((wx * dx + wyd) * inv).clamp(0.0, 1.0);
             let (ex, ey) = (wx - t * dx, wy - t * dy);
             *hv = (z + h(ex * ex + ey * ey)).max(bottom);
         }
