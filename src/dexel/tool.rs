@@ -9,11 +9,15 @@
 //!
 //! A move whose tool axis turns (5-axis) is split into `n` sub-moves with
 //! the axis fixed at each sub-move's middle direction (spherical
-//! interpolation of the two axes); the axis then errs by at most
-//! `θ/(2n)`, which moves no tool point by more than `θ/(2n)·√(L² + R²)`.
-//! `n` is chosen so that is at most half the sweep tolerance. A grown copy
-//! of the whole move with the middle axis holds every sub-move, so a dexel
-//! it misses (or whose material it does not touch) skips them all.
+//! interpolation of the two axes), turning the tool about a pivot half-way
+//! up the flutes (h = L/2) whose path is followed by chords. A sub-move
+//! turning by φ = θ/n then moves no tool point by more than
+//! `φ/2·√(h² + R²) + h·φ²/4` (rotation about the pivot, plus the chord's
+//! sagitta, counted twice); about half the error of pivoting at the tip
+//! (`φ/2·√(L² + R²)`), so about half the sub-moves. `n` is chosen so that
+//! is within the sweep tolerance left by the torus ring. Grown copies of
+//! the whole move and of runs of sub-moves hold them, so a dexel a copy
+//! misses (or whose material it does not touch) skips them all.
 
 use super::sweep::Piece;
 use crate::cutter::Cutter;
@@ -166,44 +170,64 @@ impl MoveSweep {
     /// The sweep of `tool` from `from` to `to`, within `tol` mm.
     pub fn new(tool: &ToolShape, from: &Location, to: &Location, tol: f64) -> MoveSweep {
         let theta = from.axis.dot(&to.axis).clamp(-1.0, 1.0).acos();
-        let reach = tool.reach();
         let ring = tool.ring_count(tol);
         let ring_err = if ring > 0 {
             std::f64::consts::PI * (tool.cutter.radius() - tool.cutter.corner_radius()) / ring as f64
         } else {
             0.0
         };
-        // The axis error θ/(2n)·reach gets what the ring leaves of `tol`
-        // (at least half of it: the ring takes at most tol/2).
+        // The axis error gets what the ring leaves of `tol` (at least
+        // half of it: the ring takes at most tol/2).
         let budget = (tol - ring_err).max(0.5 * tol);
-        let n = if theta < 1e-12 {
+        // Each span turns the tool about a pivot half-way up the flutes:
+        // the pivot moves along the chord of its path, the axis is fixed
+        // at the span's middle direction. No tool point is then farther
+        // than `err(φ)` from where it should be, for a span turning by φ:
+        // φ/2 times the pivot's reach (rotation) plus the pivot's chord
+        // sagitta (≤ h·φ²/8, counted as h·φ²/4).
+        let h = 0.5 * tool.length;
+        let rp = h.hypot(tool.cutter.radius());
+        let err = |phi: f64| 0.5 * phi * rp + 0.25 * h * phi * phi;
+        let pivot = |u: f64| from.tip + (to.tip - from.tip) * u + slerp(&from.axis, &to.axis, u) * h;
+        let span = |u0: f64, u1: f64, out: &mut Vec<Piece>| {
+            let axis = if theta < 1e-12 {
+                from.axis
+            } else {
+                slerp(&from.axis, &to.axis, 0.5 * (u0 + u1))
+            };
+            let (q0, q1) = if theta < 1e-12 {
+                (from.tip + (to.tip - from.tip) * u0, from.tip + (to.tip - from.tip) * u1)
+            } else {
+                (pivot(u0) - axis * h, pivot(u1) - axis * h)
+            };
+            tool.pieces(&Location { tip: q0, axis }, q1 - q0, ring, out);
+        };
+        let mut n = if theta < 1e-12 {
             1
         } else {
-            ((theta * reach / (2.0 * budget)).ceil() as usize).clamp(1, 100_000)
+            ((theta * rp / (2.0 * budget)).ceil() as usize).clamp(1, 100_000)
         };
+        while n < 100_000 && theta >= 1e-12 && err(theta / n as f64) > budget {
+            n += 1;
+        }
         let mut fine = Vec::new();
         for k in 0..n {
-            let (u0, u1) = (k as f64 / n as f64, (k + 1) as f64 / n as f64);
-            let p0 = from.tip + (to.tip - from.tip) * u0;
-            let p1 = from.tip + (to.tip - from.tip) * u1;
-            let axis = slerp(&from.axis, &to.axis, 0.5 * (u0 + u1));
-            tool.pieces(&Location { tip: p0, axis }, p1 - p0, ring, &mut fine);
+            span(k as f64 / n as f64, (k + 1) as f64 / n as f64, &mut fine);
         }
-        let axis_err = if n > 1 { theta / (2.0 * n as f64) * reach } else { 0.0 };
+        let axis_err = if n > 1 { err(theta / n as f64) } else { 0.0 };
         // Groups of about √n sub-moves: a line tests n/g groups and the
-        // sub-moves of the few groups that reach its material.
+        // sub-moves of the few groups that reach its material. A group's
+        // copy is grown by its own error plus a sub-move's, so it holds
+        // every sub-move of the group.
         let group = if n > 1 { (n as f64).sqrt().ceil() as usize } else { n };
         let mut groups = Vec::new();
         if n > 1 {
             for k0 in (0..n).step_by(group) {
                 let k1 = (k0 + group).min(n);
                 let (u0, u1) = (k0 as f64 / n as f64, k1 as f64 / n as f64);
-                let p0 = from.tip + (to.tip - from.tip) * u0;
-                let p1 = from.tip + (to.tip - from.tip) * u1;
-                let axis = slerp(&from.axis, &to.axis, 0.5 * (u0 + u1));
                 let at = groups.len();
-                tool.pieces(&Location { tip: p0, axis }, p1 - p0, ring, &mut groups);
-                let grow = 0.5 * theta * (u1 - u0) * reach + 1e-9;
+                span(u0, u1, &mut groups);
+                let grow = err(theta * (u1 - u0)) + axis_err + 1e-9;
                 for p in &mut groups[at..] {
                     *p = p.grown(grow);
                 }
@@ -211,9 +235,8 @@ impl MoveSweep {
         }
         let coarse = (n > 1).then(|| {
             let mut v = Vec::new();
-            let axis = slerp(&from.axis, &to.axis, 0.5);
-            tool.pieces(&Location { tip: from.tip, axis }, to.tip - from.tip, ring, &mut v);
-            let grow = 0.5 * theta * reach + 1e-9;
+            span(0.0, 1.0, &mut v);
+            let grow = err(theta) + axis_err + 1e-9;
             v.iter().map(|p| p.grown(grow)).collect()
         });
         let mut lo = [f64::INFINITY; 3];
