@@ -296,3 +296,105 @@ fn bad_input_exits_2_and_names_the_line() {
         .unwrap();
     assert_eq!(out.status.code(), Some(2));
 }
+
+/// A closed solid over [0, x1] × [0, y1] from z = `bottom` up to a plane
+/// top rising from `z0` at x = 0 to `z1` at x = x1 (ASCII STL, the faces
+/// of [`write_box`]).
+fn write_ramp(path: &Path, x1: f64, y1: f64, bottom: f64, z0: f64, z1: f64) {
+    write_box(path, [0.0, 0.0, bottom], [x1, y1, 1.0]);
+    let text = std::fs::read_to_string(path).unwrap();
+    // write_box puts z = 1 on the top corners: bend them onto the ramp.
+    let mut s = String::new();
+    for l in text.lines() {
+        match l.strip_prefix("vertex ") {
+            Some(v) => {
+                let w: Vec<f64> = v.split(' ').map(|x| x.parse().unwrap()).collect();
+                let z = if w[2] == 1.0 { z0 + (z1 - z0) * w[0] / x1 } else { w[2] };
+                s.push_str(&format!("vertex {} {} {}\n", w[0], w[1], z));
+            }
+            None => {
+                s.push_str(l);
+                s.push('\n');
+            }
+        }
+    }
+    std::fs::write(path, s).unwrap();
+}
+
+/// Scallop height left between ball passes `s` apart (horizontally) on a
+/// plane of slope `tan_a` across the passes, measured vertically: the
+/// cusp stands `R - √(R² - (w/2)²)` off the plane along its normal, with
+/// `w = s / cos a` the passes' distance along the plane.
+fn scallop(r: f64, s: f64, tan_a: f64) -> f64 {
+    let cos = 1.0 / tan_a.hypot(1.0);
+    let w = s / cos;
+    (r - (r * r - 0.25 * w * w).sqrt()) / cos
+}
+
+#[test]
+fn drop_cutter_data_of_a_part_verify_without_gouges_and_with_analytic_scallops() {
+    let pathgen = PathBuf::from(env!("CARGO_BIN_EXE_pathgen"));
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    // Two design parts, 10 x 10 mm, machined from a stock 3 mm high: a
+    // level top at z = -0.5 and a top sloping from -0.5 to -2.5 across
+    // the passes (slope 0.2). Ball R 1 mm, passes along Y 0.5 mm apart.
+    for (name, z1, tan_a) in [("level", -0.5, 0.0), ("ramp", -2.5, 0.2)] {
+        let design = d.join(format!("{name}.stl"));
+        write_ramp(&design, 10.0, 10.0, -3.0, -0.5, z1);
+        let cl = d.join(format!("{name}.cl"));
+        let out = Command::new(&pathgen)
+            .args([
+                "dropcutter",
+                "--cutter",
+                "ball:2",
+                "--step-over",
+                "0.5",
+                "--step-forward",
+                "0.1",
+            ])
+            .args(["--direction", "y", "-o"])
+            .arg(&cl)
+            .arg(&design)
+            .output()
+            .unwrap();
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        let (code, r) = run(&[
+            "--stock",
+            "0,0,-3,10,10,0",
+            "--tool",
+            "ball:2",
+            "--spacing",
+            "0.05",
+            "--design",
+            &design.display().to_string(),
+            "--region",
+            "0.5,9.5,0.5,9.5",
+            "--step-forward",
+            "0.01",
+            "--step-over",
+            "0.25",
+            "--profile-y",
+            "5",
+            &cl.display().to_string(),
+        ]);
+        let v = &r["verification"];
+        assert_eq!(code, 0, "{name}: {v}");
+        assert_eq!(v["gouge"], 0, "{name}");
+        assert_eq!(v["not_compared"], 0, "{name}");
+        // Drop-cutter locations touch the design: nothing below it beyond
+        // rounding.
+        assert!(v["max_gouge_mm"].as_f64().unwrap() < 1e-4, "{name}: {v}");
+        let want = scallop(1.0, 0.5, tan_a);
+        let got = v["profiles"][0]["max_excess_mm"].as_f64().unwrap();
+        assert!(
+            (got - want).abs() <= 0.1 * want,
+            "{name}: scallop {got} mm, analytic {want} mm"
+        );
+        assert!(
+            (v["max_excess_mm"].as_f64().unwrap() - want).abs() <= 0.1 * want,
+            "{name}: {v}"
+        );
+        eprintln!("{name}: scallop {got:.5} mm, analytic {want:.5} mm");
+    }
+}

@@ -22,7 +22,7 @@ use crate::geometry::{P3, V3};
 use rayon::prelude::*;
 use thiserror::Error;
 use tile::{TILE, Tile};
-use tool::MoveSweep;
+use tool::{LineMaterial, MoveSweep};
 
 /// A stock that cannot be made.
 #[derive(Debug, Error, Clone, PartialEq)]
@@ -179,17 +179,13 @@ impl Family {
         let mut e = V3::zeros();
         e[self.dir] = 1.0;
         let mut st = CutStats::default();
+        let mut scratch = Vec::new();
         for &k in bin {
             let s = &sweeps[k as usize];
             let (i0, i1) = Self::range(self.p0, self.hp, self.np, s.lo[self.p], s.hi[self.p]);
             let (j0, j1) = Self::range(self.q0, self.hq, self.nq, s.lo[self.q], s.hi[self.q]);
             let (i0, i1) = (i0.max(ti * TILE), i1.min((ti + 1) * TILE));
             let (j0, j1) = (j0.max(tj * TILE), j1.min((tj + 1) * TILE));
-            let per = if s.coarse.is_some() {
-                s.fine.len() / s.substeps
-            } else {
-                0
-            };
             for j in j0..j1 {
                 for i in i0..i1 {
                     let (pp, qq) = self.ray_pos(i, j);
@@ -197,21 +193,9 @@ impl Family {
                     o[self.p] = pp;
                     o[self.q] = qq;
                     st.ray_tests += 1;
-                    let Some((t0, t1)) = s.hull(&o, &e) else { continue };
                     let kk = (j % TILE) * TILE + i % TILE;
-                    if !tile.has_material(kk, t0, t1) {
-                        continue;
-                    }
-                    if per == 0 {
-                        tile.subtract(kk, t0, t1);
-                    } else {
-                        for sub in s.fine.chunks(per) {
-                            st.fine_tests += 1;
-                            if let Some((a, b)) = tool::hull_of(sub, &o, &e) {
-                                tile.subtract(kk, a, b);
-                            }
-                        }
-                    }
+                    let mut m = TileRay { tile, k: kk };
+                    st.fine_tests += s.remove_from(&o, &e, &mut m, &mut scratch);
                 }
             }
         }
@@ -241,6 +225,21 @@ impl Family {
 
     fn bytes(&self) -> usize {
         self.tiles.len() * 8 + self.tiles.iter().flatten().map(|t| t.bytes()).sum::<usize>()
+    }
+}
+
+/// One dexel of a tile, as the line a move cuts.
+struct TileRay<'a> {
+    tile: &'a mut Tile,
+    k: usize,
+}
+
+impl LineMaterial for TileRay<'_> {
+    fn has(&self, t0: f64, t1: f64) -> bool {
+        self.tile.has_material(self.k, t0, t1)
+    }
+    fn remove(&mut self, t0: f64, t1: f64) {
+        self.tile.subtract(self.k, t0, t1);
     }
 }
 

@@ -72,12 +72,13 @@ impl Tile {
         if r[0] > r[1] || c1 <= r[0] || c0 >= r[1] {
             return;
         }
-        let mut out = Vec::new();
-        cut(r, c0, c1, &mut out);
-        match out.len() {
-            0 => self.rays[k] = EMPTY,
-            1 => self.rays[k] = out[0],
-            _ => {
+        // One interval in, at most two out: no allocation unless it splits.
+        match (c0 > r[0], c1 < r[1]) {
+            (false, false) => self.rays[k] = EMPTY,
+            (true, false) => self.rays[k] = [r[0], c0],
+            (false, true) => self.rays[k] = [c1, r[1]],
+            (true, true) => {
+                let out = vec![[r[0], c0], [c1, r[1]]];
                 // Reuse a cleared side slot when there is one.
                 let idx = match self.multi.iter().position(|v| v.is_empty()) {
                     Some(i) => {

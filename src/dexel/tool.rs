@@ -9,11 +9,15 @@
 //!
 //! A move whose tool axis turns (5-axis) is split into `n` sub-moves with
 //! the axis fixed at each sub-move's middle direction (spherical
-//! interpolation of the two axes); the axis then errs by at most
-//! `θ/(2n)`, which moves no tool point by more than `θ/(2n)·√(L² + R²)`.
-//! `n` is chosen so that is at most half the sweep tolerance. A grown copy
-//! of the whole move with the middle axis holds every sub-move, so a dexel
-//! it misses (or whose material it does not touch) skips them all.
+//! interpolation of the two axes), turning the tool about a pivot half-way
+//! up the flutes (h = L/2) whose path is followed by chords. A sub-move
+//! turning by φ = θ/n then moves no tool point by more than
+//! `φ/2·√(h² + R²) + h·φ²/4` (rotation about the pivot, plus the chord's
+//! sagitta, counted twice); about half the error of pivoting at the tip
+//! (`φ/2·√(L² + R²)`), so about half the sub-moves. `n` is chosen so that
+//! is within the sweep tolerance left by the torus ring. Grown copies of
+//! the whole move and of runs of sub-moves hold them, so a dexel a copy
+//! misses (or whose material it does not touch) skips them all.
 
 use super::sweep::Piece;
 use crate::cutter::Cutter;
@@ -131,6 +135,14 @@ fn slerp(a0: &V3, a1: &V3, u: f64) -> V3 {
     (a0 * ((1.0 - u) * th).sin() / s + a1 * (u * th).sin() / s).normalize()
 }
 
+/// Material along one line, as [`MoveSweep::remove_from`] sees it.
+pub trait LineMaterial {
+    /// Whether there is material strictly inside (t0, t1).
+    fn has(&self, t0: f64, t1: f64) -> bool;
+    /// Remove (t0, t1).
+    fn remove(&mut self, t0: f64, t1: f64);
+}
+
 /// The volume one move sweeps, as pieces.
 #[derive(Debug, Clone)]
 pub struct MoveSweep {
@@ -141,6 +153,12 @@ pub struct MoveSweep {
     pub fine: Vec<Piece>,
     /// Sub-moves the move was split into.
     pub substeps: usize,
+    /// Grown pieces of each run of `group` consecutive sub-moves (empty
+    /// when there is one sub-move): a line whose material a group's copy
+    /// does not touch skips that group's sub-moves.
+    pub groups: Vec<Piece>,
+    /// Sub-moves per group.
+    pub group: usize,
     /// Box around everything (min, max).
     pub lo: [f64; 3],
     pub hi: [f64; 3],
@@ -152,32 +170,73 @@ impl MoveSweep {
     /// The sweep of `tool` from `from` to `to`, within `tol` mm.
     pub fn new(tool: &ToolShape, from: &Location, to: &Location, tol: f64) -> MoveSweep {
         let theta = from.axis.dot(&to.axis).clamp(-1.0, 1.0).acos();
-        let reach = tool.reach();
-        let n = if theta < 1e-12 {
-            1
-        } else {
-            ((theta * reach / tol).ceil() as usize).clamp(1, 100_000)
-        };
         let ring = tool.ring_count(tol);
-        let mut fine = Vec::new();
-        for k in 0..n {
-            let (u0, u1) = (k as f64 / n as f64, (k + 1) as f64 / n as f64);
-            let p0 = from.tip + (to.tip - from.tip) * u0;
-            let p1 = from.tip + (to.tip - from.tip) * u1;
-            let axis = slerp(&from.axis, &to.axis, 0.5 * (u0 + u1));
-            tool.pieces(&Location { tip: p0, axis }, p1 - p0, ring, &mut fine);
-        }
-        let axis_err = if n > 1 { theta / (2.0 * n as f64) * reach } else { 0.0 };
         let ring_err = if ring > 0 {
             std::f64::consts::PI * (tool.cutter.radius() - tool.cutter.corner_radius()) / ring as f64
         } else {
             0.0
         };
+        // The axis error gets what the ring leaves of `tol` (at least
+        // half of it: the ring takes at most tol/2).
+        let budget = (tol - ring_err).max(0.5 * tol);
+        // Each span turns the tool about a pivot half-way up the flutes:
+        // the pivot moves along the chord of its path, the axis is fixed
+        // at the span's middle direction. No tool point is then farther
+        // than `err(φ)` from where it should be, for a span turning by φ:
+        // φ/2 times the pivot's reach (rotation) plus the pivot's chord
+        // sagitta (≤ h·φ²/8, counted as h·φ²/4).
+        let h = 0.5 * tool.length;
+        let rp = h.hypot(tool.cutter.radius());
+        let err = |phi: f64| 0.5 * phi * rp + 0.25 * h * phi * phi;
+        let pivot = |u: f64| from.tip + (to.tip - from.tip) * u + slerp(&from.axis, &to.axis, u) * h;
+        let span = |u0: f64, u1: f64, out: &mut Vec<Piece>| {
+            let axis = if theta < 1e-12 {
+                from.axis
+            } else {
+                slerp(&from.axis, &to.axis, 0.5 * (u0 + u1))
+            };
+            let (q0, q1) = if theta < 1e-12 {
+                (from.tip + (to.tip - from.tip) * u0, from.tip + (to.tip - from.tip) * u1)
+            } else {
+                (pivot(u0) - axis * h, pivot(u1) - axis * h)
+            };
+            tool.pieces(&Location { tip: q0, axis }, q1 - q0, ring, out);
+        };
+        let mut n = if theta < 1e-12 {
+            1
+        } else {
+            ((theta * rp / (2.0 * budget)).ceil() as usize).clamp(1, 100_000)
+        };
+        while n < 100_000 && theta >= 1e-12 && err(theta / n as f64) > budget {
+            n += 1;
+        }
+        let mut fine = Vec::new();
+        for k in 0..n {
+            span(k as f64 / n as f64, (k + 1) as f64 / n as f64, &mut fine);
+        }
+        let axis_err = if n > 1 { err(theta / n as f64) } else { 0.0 };
+        // Groups of about √n sub-moves: a line tests n/g groups and the
+        // sub-moves of the few groups that reach its material. A group's
+        // copy is grown by its own error plus a sub-move's, so it holds
+        // every sub-move of the group.
+        let group = if n > 1 { (n as f64).sqrt().ceil() as usize } else { n };
+        let mut groups = Vec::new();
+        if n > 1 {
+            for k0 in (0..n).step_by(group) {
+                let k1 = (k0 + group).min(n);
+                let (u0, u1) = (k0 as f64 / n as f64, k1 as f64 / n as f64);
+                let at = groups.len();
+                span(u0, u1, &mut groups);
+                let grow = err(theta * (u1 - u0)) + axis_err + 1e-9;
+                for p in &mut groups[at..] {
+                    *p = p.grown(grow);
+                }
+            }
+        }
         let coarse = (n > 1).then(|| {
             let mut v = Vec::new();
-            let axis = slerp(&from.axis, &to.axis, 0.5);
-            tool.pieces(&Location { tip: from.tip, axis }, to.tip - from.tip, ring, &mut v);
-            let grow = 0.5 * theta * reach + 1e-9;
+            span(0.0, 1.0, &mut v);
+            let grow = err(theta) + axis_err + 1e-9;
             v.iter().map(|p| p.grown(grow)).collect()
         });
         let mut lo = [f64::INFINITY; 3];
@@ -193,6 +252,8 @@ impl MoveSweep {
             coarse,
             fine,
             substeps: n,
+            groups,
+            group,
             lo,
             hi,
             shape_error_mm: axis_err + ring_err,
@@ -206,6 +267,63 @@ impl MoveSweep {
     pub fn hull(&self, o: &P3, e: &V3) -> Option<(f64, f64)> {
         let pieces = self.coarse.as_deref().unwrap_or(&self.fine[..]);
         hull_of(pieces, o, e)
+    }
+}
+
+impl MoveSweep {
+    /// Remove the move from the line `o + t·e` (`o` on the line, `e` a
+    /// unit direction): every sub-move's interval that can reach the
+    /// material. Returns the sub-move (and group) interval tests made.
+    ///
+    /// With one sub-move that is its exact interval. With several, the
+    /// whole move's grown copy is tested first, then each group's grown
+    /// copy; only groups whose copy meets material test their sub-moves.
+    /// The group with the lowest start and the one with the highest end
+    /// go first, so the bulk is removed early and most other groups find
+    /// no material left in reach. Every skipped sub-move's interval lies
+    /// inside its group's, which held no material: the result is the same
+    /// as removing every sub-move.
+    pub fn remove_from<M: LineMaterial>(&self, o: &P3, e: &V3, m: &mut M, scratch: &mut Vec<(f64, f64, u32)>) -> u64 {
+        let Some((t0, t1)) = self.hull(o, e) else { return 0 };
+        if !m.has(t0, t1) {
+            return 0;
+        }
+        if self.coarse.is_none() {
+            m.remove(t0, t1);
+            return 0;
+        }
+        let per = self.fine.len() / self.substeps;
+        let gper = per;
+        let mut tests = 0u64;
+        scratch.clear();
+        for (g, pcs) in self.groups.chunks(gper).enumerate() {
+            tests += 1;
+            if let Some((a, b)) = hull_of(pcs, o, e) {
+                scratch.push((a, b, g as u32));
+            }
+        }
+        // Lowest start first, then highest end, then the rest in order.
+        let lo = (0..scratch.len()).min_by(|&i, &j| scratch[i].0.total_cmp(&scratch[j].0));
+        let hi = (0..scratch.len()).max_by(|&i, &j| scratch[i].1.total_cmp(&scratch[j].1));
+        let order = lo
+            .into_iter()
+            .chain(hi.filter(|&h| Some(h) != lo))
+            .chain((0..scratch.len()).filter(|&k| Some(k) != lo && Some(k) != hi));
+        for k in order {
+            let (a, b, g) = scratch[k];
+            if !m.has(a, b) {
+                continue;
+            }
+            let k0 = g as usize * self.group;
+            let k1 = (k0 + self.group).min(self.substeps);
+            for sub in self.fine[k0 * per..k1 * per].chunks(per) {
+                tests += 1;
+                if let Some((a, b)) = hull_of(sub, o, e) {
+                    m.remove(a, b);
+                }
+            }
+        }
+        tests
     }
 }
 

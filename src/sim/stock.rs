@@ -316,15 +316,28 @@ fn cut_row(g: &Grid, a: &P3, b: &P3, cutter: &Cutter, q: &Reach, j: usize, zrow:
         }
         return (removed, (ib - ia) as u64);
     }
+    if q.level {
+        // Ball and torus on a level move: the underside over a cell is a
+        // function of its squared distance from the move's XY segment,
+        // branch-free so the loop vectorises like the flat one.
+        let removed = match *cutter {
+            Cutter::Ball { radius } => level_run(g, a, b, py, &mut zrow[ia..ib], ia, |rho2| {
+                radius - (radius * radius - rho2).max(0.0).sqrt()
+            }),
+            Cutter::Torus { radius, corner } => {
+                let flat = radius - corner;
+                level_run(g, a, b, py, &mut zrow[ia..ib], ia, |rho2| {
+                    let u = (rho2.sqrt() - flat).max(0.0);
+                    corner - (corner * corner - u * u).max(0.0).sqrt()
+                })
+            }
+            Cutter::Flat { .. } => 0.0,
+        };
+        return (removed, (ib - ia) as u64);
+    }
     for (i, zc) in zrow.iter_mut().enumerate().take(ib).skip(ia) {
         let px = x0 + (i as f64 + 0.5) * c;
-        let h = if q.level {
-            let rho = dist_xy_segment(px, py, a, b);
-            cutter.profile(rho).map(|h| a.z + h)
-        } else {
-            lowest_on_move(px, py, a, b, cutter)
-        };
-        if let Some(h) = h {
+        if let Some(h) = lowest_on_move(px, py, a, b, cutter) {
             let h = h.max(g.bottom);
             // Rounding in the move's height (a + (b - a)·1 is not always b)
             // must not count as a cut.
@@ -335,6 +348,76 @@ fn cut_row(g: &Grid, a: &P3, b: &P3, cutter: &Cutter, q: &Reach, j: usize, zrow:
         }
     }
     (removed, (ib - ia) as u64)
+}
+
+/// Lower the run of cells `zrun` (starting at column `i0`) of row `py` to
+/// the underside `a.z + h(ρ²)` of a level move a-b, ρ the XY distance from
+/// the cell centre to the segment; returns the height removed (sum, mm).
+/// Every cell of the run lies in the move's stadium, so ρ ≤ R up to
+/// rounding and `h` needs no test for "outside the tool".
+///
+/// Heights are computed in blocks into a buffer (a loop without a
+/// reduction, so the square roots vectorise) and then applied like the
+/// flat tool's. A move along X has one height over the cells beside the
+/// segment (ρ is the row's distance from it), so those take the flat
+/// loop directly and only the end caps need square roots.
+#[inline(always)]
+fn level_run(g: &Grid, a: &P3, b: &P3, py: f64, zrun: &mut [f64], i0: usize, h: impl Fn(f64) -> f64) -> f64 {
+    let (dx, dy) = (b.x - a.x, b.y - a.y);
+    let wy = py - a.y;
+    let c = g.c;
+    let xs = g.x0 + 0.5 * c - a.x;
+    let (ka, kb) = if dy == 0.0 && dx != 0.0 {
+        // Cells with 0 <= wx <= dx (or dx <= wx <= 0): beside the segment.
+        let (lo, hi) = (dx.min(0.0), dx.max(0.0));
+        let n = zrun.len() as f64;
+        let ka = ((lo - xs) / c - i0 as f64).ceil().clamp(0.0, n);
+        let kb = (((hi - xs) / c - i0 as f64).floor() + 1.0).clamp(ka, n);
+        (ka as usize, kb as usize)
+    } else {
+        (0, 0)
+    };
+    let (head, rest) = zrun.split_at_mut(ka);
+    let (mid, tail) = rest.split_at_mut(kb - ka);
+    let mut removed = level_cells(g, a, b, py, head, i0, &h);
+    let hz = (a.z + h(wy * wy)).max(g.bottom);
+    for zc in mid.iter_mut() {
+        let cut = (*zc - hz).max(0.0);
+        removed += cut;
+        *zc -= cut;
+    }
+    removed + level_cells(g, a, b, py, tail, i0 + kb, &h)
+}
+
+/// [`level_run`]'s general case: every cell's own distance.
+#[inline(always)]
+fn level_cells(g: &Grid, a: &P3, b: &P3, py: f64, zrun: &mut [f64], i0: usize, h: &impl Fn(f64) -> f64) -> f64 {
+    let (dx, dy) = (b.x - a.x, b.y - a.y);
+    let l2 = dx * dx + dy * dy;
+    let inv = if l2 > 0.0 { 1.0 / l2 } else { 0.0 };
+    let wy = py - a.y;
+    let wyd = wy * dy;
+    let (c, xs) = (g.c, g.x0 + 0.5 * g.c - a.x);
+    let (z, bottom) = (a.z, g.bottom);
+    let mut removed = 0.0;
+    let mut buf = [0.0f64; 64];
+    for (bi, block) in zrun.chunks_mut(64).enumerate() {
+        let base = i0 + bi * 64;
+        let hb = &mut buf[..block.len()];
+        for (k, hv) in hb.iter_mut().enumerate() {
+            let wx = xs + (base + k) as f64 * c;
+            let t = ((wx * dx + wyd) * inv).clamp(0.0, 1.0);
+            let (ex, ey) = (wx - t * dx, wy - t * dy);
+            *hv = (z + h(ex * ex + ey * ey)).max(bottom);
+        }
+        for (zc, &hz) in block.iter_mut().zip(hb.iter()) {
+            // Rounding in the move's height must not count as a cut.
+            let cut = if hz < *zc - 1e-12 { *zc - hz } else { 0.0 };
+            removed += cut;
+            *zc = if hz < *zc - 1e-12 { hz } else { *zc };
+        }
+    }
+    removed
 }
 
 /// Where the horizontal line y = `py` crosses the stadium of the XY
@@ -382,7 +465,7 @@ fn stadium_chord(a: &P3, b: &P3, r: f64, py: f64) -> Option<(f64, f64)> {
 }
 
 /// Distance in XY from (px, py) to the segment a-b.
-#[inline]
+#[cfg(test)]
 fn dist_xy_segment(px: f64, py: f64, a: &P3, b: &P3) -> f64 {
     let (dx, dy) = (b.x - a.x, b.y - a.y);
     let (wx, wy) = (px - a.x, py - a.y);

@@ -17,7 +17,7 @@ pub mod cl;
 pub mod compare;
 pub mod plot;
 
-use crate::dexel::tool::{Location, MoveSweep, ToolShape};
+use crate::dexel::tool::{LineMaterial, Location, MoveSweep, ToolShape};
 use crate::dexel::{CutStats, DexelError, TriDexel};
 use crate::geometry::{P3, V3};
 use rayon::prelude::*;
@@ -141,22 +141,13 @@ impl Simulation {
         let o = P3::new(x, y, 0.0);
         let e = V3::z();
         let mut ivs = vec![[min.z, max.z]];
+        let mut scratch = Vec::new();
         for &k in &ix.bins[j * ix.nx + i] {
             let s = &self.sweeps[k as usize];
             if x < s.lo[0] || x > s.hi[0] || y < s.lo[1] || y > s.hi[1] {
                 continue;
             }
-            let Some((t0, t1)) = s.hull(&o, &e) else { continue };
-            if s.coarse.is_none() {
-                subtract(&mut ivs, t0, t1);
-            } else {
-                let per = s.fine.len() / s.substeps;
-                for sub in s.fine.chunks(per) {
-                    if let Some((a, b)) = crate::dexel::tool::hull_of(sub, &o, &e) {
-                        subtract(&mut ivs, a, b);
-                    }
-                }
-            }
+            s.remove_from(&o, &e, &mut Intervals(&mut ivs), &mut scratch);
         }
         Some(ivs.last().map_or(min.z, |v| v[1]))
     }
@@ -164,6 +155,18 @@ impl Simulation {
     /// Volume removed from the stock, mm³, by the Z dexels.
     pub fn removed_volume(&self) -> f64 {
         self.dexels.box_volume() - self.dexels.volumes()[2]
+    }
+}
+
+/// Sorted disjoint intervals along a vertical line.
+struct Intervals<'a>(&'a mut Vec<[f64; 2]>);
+
+impl LineMaterial for Intervals<'_> {
+    fn has(&self, t0: f64, t1: f64) -> bool {
+        self.0.iter().any(|iv| iv[0] < t1 && iv[1] > t0)
+    }
+    fn remove(&mut self, t0: f64, t1: f64) {
+        subtract(self.0, t0, t1);
     }
 }
 
