@@ -26,10 +26,15 @@ pub struct Faults {
     pub drop_at: Option<u64>,
     /// Wait this long before every reply ...
     pub delay: Duration,
-    /// ... from request N on (0: from the first).
+    /// ... from request N on (0: from the first) ...
     pub delay_from: u64,
+    /// ... for this many requests (None: all).
+    pub delay_count: Option<u64>,
     /// Reset the controller (`$$$`) on the Nth request, once.
     pub reset_at: Option<u64>,
+    /// Lie on the Nth request, once: every number in its reply becomes
+    /// 99999 (a counter past any job's end), as a broken proxy might.
+    pub lie_at: Option<u64>,
 }
 
 /// A running emulator server.
@@ -108,13 +113,28 @@ fn lock(ctl: &Mutex<Controller>) -> std::sync::MutexGuard<'_, Controller> {
     ctl.lock().unwrap_or_else(|e| e.into_inner())
 }
 
+/// Apply the lie fault to a reply of request `n`.
+fn lie(sh: &Shared, n: u64, r: Result<Vec<String>, u16>) -> Result<Vec<String>, u16> {
+    if sh.faults.lie_at != Some(n) {
+        return r;
+    }
+    r.map(|v| {
+        v.into_iter()
+            .map(|l| if l.trim().parse::<f64>().is_ok() { "99999".to_string() } else { l })
+            .collect()
+    })
+}
+
 /// Count a request and apply faults; `false` means drop the connection.
 fn count(sh: &Shared) -> bool {
     let n = sh.requests.fetch_add(1, Ordering::SeqCst) + 1;
     if sh.faults.reset_at == Some(n) {
         lock(&sh.ctl).reset();
     }
-    if !sh.faults.delay.is_zero() && n >= sh.faults.delay_from {
+    if !sh.faults.delay.is_zero()
+        && n >= sh.faults.delay_from
+        && sh.faults.delay_count.is_none_or(|c| n < sh.faults.delay_from + c)
+    {
         std::thread::sleep(sh.faults.delay);
     }
     sh.faults.drop_at != Some(n)
@@ -151,7 +171,8 @@ fn serve_lines(conn: TcpStream, sh: &Shared) -> io::Result<()> {
             if !count(sh) {
                 return Ok(());
             }
-            let reply = lock(&sh.ctl).command_line(&mut sess, line);
+            let n = sh.requests.load(Ordering::SeqCst);
+            let reply = lie(sh, n, lock(&sh.ctl).command_line(&mut sess, line));
             w.write_all(&p::frame_reply(&reply))?;
         }
     }
@@ -182,7 +203,8 @@ fn serve_ethernet(mut conn: TcpStream, sh: &Shared) -> io::Result<()> {
         let reply: Vec<u8> = match h.request {
             p::GETRESPONSE => {
                 let cmd = text_of(&payload);
-                let r = lock(&sh.ctl).command_line(&mut sess, &cmd);
+                let n = sh.requests.load(Ordering::SeqCst);
+                let r = lie(sh, n, lock(&sh.ctl).command_line(&mut sess, &cmd));
                 rest = p::frame_reply(&r);
                 take_chunk(&mut rest)
             }
