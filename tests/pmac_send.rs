@@ -140,7 +140,11 @@ fn p3(v: &Value) -> P3 {
 /// cut short where its run was aborted) lies on a beam-on move of the
 /// clean job, and the pieces cover each beam-on move exactly once: no
 /// stretch twice, none missing. Answers the first fault.
-fn coverage(logs: &[Vec<Value>], text: &str) -> Result<(), String> {
+///
+/// `allow_twice_mm`: re-cut tolerated in total (a controller reset loses
+/// its counters: what ran after the last confirmed counter is cut again).
+fn coverage(logs: &[Vec<Value>], text: &str, allow_twice_mm: f64) -> Result<(), String> {
+    let mut twice = 0.0;
     let job = Job::read(text, &Names::default()).unwrap();
     let moves = job.moves();
     let mut cover: Vec<Vec<(f64, f64)>> = vec![Vec::new(); moves.len()];
@@ -192,12 +196,15 @@ fn coverage(logs: &[Vec<Value>], text: &str) -> Result<(), String> {
                 continue;
             }
             if a < at - 2e-3 {
-                return Err(format!("move {} cut twice around {a:.4}..{at:.4} mm", k + 1));
+                twice += at.min(b) - a;
+                if twice > allow_twice_mm {
+                    return Err(format!("move {} cut twice around {a:.4}..{at:.4} mm", k + 1));
+                }
             }
             if a > at + 2e-3 {
                 return Err(format!("move {} not cut from {at:.4} to {a:.4} mm", k + 1));
             }
-            at = b;
+            at = at.max(b);
         }
         if at < len - 2e-3 {
             return Err(format!("move {} not cut from {at:.4} to {len:.4} mm", k + 1));
@@ -392,6 +399,8 @@ fn send_hit(e: &Emu, extra: &[&str], hit: Hit) -> Outcome {
 /// runs; at the end the beam-on path is covered exactly once. Answers
 /// whether the job was stopped at all.
 fn scenario(cfg: Config, faults: Faults, scale: f64, mode: &[&str], hit: Hit) -> bool {
+    // Only a reset makes the controller forget its counters.
+    let allow = if faults.reset_at.is_some() { 3.0 } else { 0.0 };
     let e = emu(cfg, faults, scale);
     let o = send_hit(&e, mode, hit);
     let killed = matches!(hit, Hit::Signal("-KILL", _));
@@ -416,7 +425,7 @@ fn scenario(cfg: Config, faults: Faults, scale: f64, mode: &[&str], hit: Hit) ->
     }
     assert_eq!(last.code, 0, "{}", last.stderr);
     let ev = events(&e.log);
-    if let Err(msg) = coverage(&[ev], &program(30)) {
+    if let Err(msg) = coverage(&[ev], &program(30), allow) {
         panic!("{hit:?}: {msg}");
     }
     assert!(shutter_closed(&e));
@@ -538,7 +547,7 @@ fn lying_counter_is_never_taken_as_progress() {
     let e = emu(small(), faults, 30.0);
     let o = send(&e, &split_args());
     assert_eq!(o.code, 1, "{}", o.stderr);
-    assert!(o.stderr.contains("impossible"), "{}", o.stderr);
+    assert!(o.stderr.contains("bad reply"), "{}", o.stderr);
     let state: Value =
         serde_json::from_str(&std::fs::read_to_string(e.dir.path().join("pmac-send.state.json")).unwrap()).unwrap();
     assert!(state["next_move"].as_u64().unwrap() < 240, "{state}");
