@@ -5,8 +5,8 @@
 //! faults and --resume.
 
 use microcam::gcode::{ReadOptions, read_str};
-use microcam::model::toolpath::Record;
 use microcam::geometry::P3;
+use microcam::model::toolpath::Record;
 use microcam::pmac::controller::{Clock, Config, Controller};
 use microcam::pmac::plan::{Job, Names};
 use microcam::pmac::server::{Faults, Server};
@@ -362,7 +362,17 @@ fn send_hit(e: &Emu, extra: &[&str], hit: Hit) -> Outcome {
     };
     let port = e.server.addr().port().to_string();
     let host = format!("127.0.0.1:{port}");
-    let mut args = vec!["job.pmac", "--host", &host, "--poll-ms", "5", "--stall-s", "10", "--timeout-ms", "2000"];
+    let mut args = vec![
+        "job.pmac",
+        "--host",
+        &host,
+        "--poll-ms",
+        "5",
+        "--stall-s",
+        "10",
+        "--timeout-ms",
+        "2000",
+    ];
     args.extend_from_slice(extra);
     let mut child = Command::new(env!("CARGO_BIN_EXE_pmac-send"))
         .args(&args)
@@ -435,7 +445,13 @@ fn scenario(cfg: Config, faults: Faults, scale: f64, mode: &[&str], hit: Hit) ->
 #[test]
 fn split_interrupted_mid_move_at_many_points_resumes_exactly() {
     for after in [3, 20, 61, 130, 222] {
-        assert!(scenario(small(), Faults::default(), 30.0, &split_args(), Hit::Signal("-INT", after)));
+        assert!(scenario(
+            small(),
+            Faults::default(),
+            30.0,
+            &split_args(),
+            Hit::Signal("-INT", after)
+        ));
     }
 }
 
@@ -660,7 +676,12 @@ fn bad_flags_and_hosts_are_usage_errors() {
             .current_dir(dir.path())
             .output()
             .unwrap();
-        assert_eq!(out.status.code(), Some(2), "{args:?}: {}", String::from_utf8_lossy(&out.stderr));
+        assert_eq!(
+            out.status.code(),
+            Some(2),
+            "{args:?}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
     }
     for args in [
         &["--duration", "1e308"][..],

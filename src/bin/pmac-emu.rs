@@ -106,7 +106,10 @@ fn run(args: Args) -> Result<(), CliError> {
         ));
     }
     if args.delay_ms > 3_600_000 {
-        return Err(CliError::input(format!("--delay-ms must be at most 3600000, not {}", args.delay_ms)));
+        return Err(CliError::input(format!(
+            "--delay-ms must be at most 3600000, not {}",
+            args.delay_ms
+        )));
     }
     if !args.bind.is_loopback() {
         // An emulator reachable from the network could be mistaken for the

@@ -6,8 +6,8 @@ use microcam::cli::{self, CliError};
 use microcam::pmac::client::{Client, Transport};
 use microcam::pmac::plan::{Job, MARKER_WORDS, Names, marker_lines};
 use microcam::pmac::send::{Mode, SendError, SendOptions, Sender, State, input_hash};
-use std::net::ToSocketAddrs;
 use std::io::Write;
+use std::net::ToSocketAddrs;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::sync::Arc;
@@ -129,7 +129,9 @@ struct Args {
 fn check_args(args: &Args) -> Result<String, CliError> {
     for (name, v) in [("--stall-s", args.stall_s), ("--stop-deadline-s", args.stop_deadline_s)] {
         if !(v.is_finite() && v > 0.0 && v <= 1e6) {
-            return Err(CliError::input(format!("{name} must be a positive number of seconds up to 1e6, not {v}")));
+            return Err(CliError::input(format!(
+                "{name} must be a positive number of seconds up to 1e6, not {v}"
+            )));
         }
     }
     for (name, v) in [("--timeout-ms", args.timeout_ms), ("--poll-ms", args.poll_ms)] {
@@ -138,7 +140,10 @@ fn check_args(args: &Args) -> Result<String, CliError> {
         }
     }
     if args.rotary_words < 64 || args.rotary_words > 1 << 24 {
-        return Err(CliError::input(format!("--rotary-words must be 64..16777216, not {}", args.rotary_words)));
+        return Err(CliError::input(format!(
+            "--rotary-words must be 64..16777216, not {}",
+            args.rotary_words
+        )));
     }
     for (flag, v, letter) in [
         ("--shutter-var", &args.shutter_var, None),
@@ -153,14 +158,23 @@ fn check_args(args: &Args) -> Result<String, CliError> {
             && letter.is_none_or(|l| u.starts_with(l))
             && u[1..].parse::<u32>().is_ok_and(|n| n < 8192);
         if !ok {
-            return Err(CliError::input(format!("{flag} '{v}' is not a variable (P0..P8191 and the like)")));
+            return Err(CliError::input(format!(
+                "{flag} '{v}' is not a variable (P0..P8191 and the like)"
+            )));
         }
     }
     let host = args.host.trim();
-    let host = if host.contains(':') { host.to_string() } else { format!("{host}:1025") };
+    let host = if host.contains(':') {
+        host.to_string()
+    } else {
+        format!("{host}:1025")
+    };
     let (name, port) = host.rsplit_once(':').unwrap_or((&host, ""));
     if name.is_empty() || port.parse::<u16>().map_or(true, |p| p == 0) {
-        return Err(CliError::input(format!("--host '{}' is not HOST or HOST:PORT (port 1..65535)", args.host)));
+        return Err(CliError::input(format!(
+            "--host '{}' is not HOST or HOST:PORT (port 1..65535)",
+            args.host
+        )));
     }
     if args.dry_run.is_none() && host.to_socket_addrs().map_or(true, |mut a| a.next().is_none()) {
         return Err(CliError::input(format!("--host '{}': no such host", args.host)));
@@ -288,12 +302,9 @@ fn run(args: Args) -> Result<(), CliError> {
     if args.resume {
         // The controller's word first: after a hard kill of an earlier
         // session it may have run on past what the state file says.
-        sender.recover(&mut state, false).map_err(|e| {
-            CliError::failure(format!(
-                "SAFETY: {e}; not resuming (state in {})",
-                args.state.display()
-            ))
-        })?;
+        sender
+            .recover(&mut state, false)
+            .map_err(|e| CliError::failure(format!("SAFETY: {e}; not resuming (state in {})", args.state.display())))?;
     }
     // The budget: from the state on resume (the same cut), else measured.
     let budget = match (mode, state.budget) {
@@ -322,9 +333,13 @@ fn run(args: Args) -> Result<(), CliError> {
         println!("{v}");
         return Ok(());
     }
-    let rest = job
-        .rest(state.next_move, state.resume_point())
-        .ok_or_else(|| CliError::failure(format!("{}: no move {} in the job", args.state.display(), state.next_move)))?;
+    let rest = job.rest(state.next_move, state.resume_point()).ok_or_else(|| {
+        CliError::failure(format!(
+            "{}: no move {} in the job",
+            args.state.display(),
+            state.next_move
+        ))
+    })?;
     let chunks = rest
         .job
         .cut_from(budget, mode != Mode::Rotary, rest.start, rest.ta, rest.counter0)
@@ -345,7 +360,11 @@ fn run(args: Args) -> Result<(), CliError> {
         chunks.iter().map(|c| c.lines.len()).sum::<usize>(),
         state.next_move,
         state.moves,
-        if state.resume_at.is_some() { " (part way along)" } else { "" }
+        if state.resume_at.is_some() {
+            " (part way along)"
+        } else {
+            ""
+        }
     );
     match sender.run(&chunks, &mut state) {
         Ok(summary) => {
@@ -372,7 +391,11 @@ fn run(args: Args) -> Result<(), CliError> {
                 f.error,
                 f.state.next_move - 1,
                 f.state.moves,
-                if f.state.resume_at.is_some() { " and part of the next" } else { "" },
+                if f.state.resume_at.is_some() {
+                    " and part of the next"
+                } else {
+                    ""
+                },
                 args.state.display()
             )))
         }

@@ -258,7 +258,10 @@ fn parse_mdef(def: &str) -> Option<MDef> {
         None => addr.parse::<i64>().ok()?,
     };
     let p = (matches!(ty, "L" | "D") && (0x6000..0x8000).contains(&a)).then_some((a - 0x6000) as usize);
-    Some(MDef { text: def.to_string(), p })
+    Some(MDef {
+        text: def.to_string(),
+        p,
+    })
 }
 
 /// Decode `&1??` text into (running, in position); `None` if malformed.
@@ -478,7 +481,9 @@ impl Controller {
         let now = self.now();
         if let Some(r) = self.run.as_ref() {
             let p = self.position_at(now);
-            self.event(serde_json::json!({"ev": "abort", "t": now, "run": r.id, "why": "reset", "x": p.x, "y": p.y, "z": p.z}));
+            self.event(
+                serde_json::json!({"ev": "abort", "t": now, "run": r.id, "why": "reset", "x": p.x, "y": p.y, "z": p.z}),
+            );
             self.stop_run(now, None);
         }
         self.event(serde_json::json!({"ev": "reset", "t": now}));
@@ -730,10 +735,20 @@ impl Controller {
         let Some(seg) = self.run.as_ref().and_then(|r| r.segs.front()) else {
             return self.pos;
         };
-        let (Some(t0), SegKind::Move { from, to, kind, dur, .. }) = (seg.start, &seg.kind) else {
+        let (
+            Some(t0),
+            SegKind::Move {
+                from, to, kind, dur, ..
+            },
+        ) = (seg.start, &seg.kind)
+        else {
             return self.pos;
         };
-        let f = if *dur > 0.0 { ((t - t0) / dur).clamp(0.0, 1.0) } else { 1.0 };
+        let f = if *dur > 0.0 {
+            ((t - t0) / dur).clamp(0.0, 1.0)
+        } else {
+            1.0
+        };
         match kind {
             MotionKind::Arc(a) => match Arc3::new(a.center, *from, *to, a.ccw, a.plane, a.extra_turns) {
                 Some(arc) => arc.point_at(f),
@@ -909,7 +924,9 @@ impl Controller {
         }
         // On-line commands act at once even with a buffer open; the rest
         // of the line follows them on-line too (`PR &1?? P400`).
-        const ONLINE: &[&str] = &["SIZE", "VER", "CID", "PR", "??", "$$$", "&", "OPEN", "CLOSE", "MFLUSH", "#"];
+        const ONLINE: &[&str] = &[
+            "SIZE", "VER", "CID", "PR", "??", "$$$", "&", "OPEN", "CLOSE", "MFLUSH", "#",
+        ];
         let b = compact.as_bytes();
         let var_query =
             b.len() > 1 && matches!(b[0], b'P' | b'M' | b'I' | b'Q') && b[1..].iter().all(u8::is_ascii_digit);
@@ -1228,7 +1245,12 @@ impl Controller {
             // ^P positions, ^F following errors, ^V velocities (motors 1-3).
             0x10 => {
                 let p = self.position();
-                Ok(vec![format!("{} {} {}", fmt_value(p.x), fmt_value(p.y), fmt_value(p.z))])
+                Ok(vec![format!(
+                    "{} {} {}",
+                    fmt_value(p.x),
+                    fmt_value(p.y),
+                    fmt_value(p.z)
+                )])
             }
             0x06 | 0x16 => Ok(vec!["0 0 0".into()]),
             _ => Err(err::DATA),

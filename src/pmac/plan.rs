@@ -174,7 +174,13 @@ impl Job {
             .lines()
             .filter(|l| !l.trim_start().to_ascii_uppercase().starts_with("OPEN PROG"))
             .map(|l| offset_counter(l, &counter_word, counter0))
-            .map(|l| if l == format!("{}=0", self.names.shutter) { close.clone() } else { l })
+            .map(|l| {
+                if l == format!("{}=0", self.names.shutter) {
+                    close.clone()
+                } else {
+                    l
+                }
+            })
             .collect();
         let words = lines.iter().map(|l| line_words(l)).sum();
         Ok(Chunk {
@@ -401,7 +407,11 @@ impl MoveGeom {
         }
         let d = self.to - self.from;
         let l2 = d.dot(&d);
-        let t = if l2 > 0.0 { ((p - self.from).dot(&d) / l2).clamp(0.0, 1.0) } else { 1.0 };
+        let t = if l2 > 0.0 {
+            ((p - self.from).dot(&d) / l2).clamp(0.0, 1.0)
+        } else {
+            1.0
+        };
         let q = self.from + d * t;
         ((q - p).norm(), t * l2.sqrt())
     }

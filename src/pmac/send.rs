@@ -8,9 +8,9 @@
 //! confirmed only by what the controller reports (the line counter read
 //! back, and not running), never by what was sent.
 
+use crate::geometry::P3;
 use crate::pmac::client::{Client, ClientError, DownloadError};
 use crate::pmac::controller::parse_status;
-use crate::geometry::P3;
 use crate::pmac::plan::{Chunk, MoveGeom, Names, marker_lines};
 use serde::{Deserialize, Serialize};
 use std::io::Write;
@@ -465,7 +465,10 @@ impl<'a> Sender<'a> {
                     self.opts.stop_deadline
                 ));
             }
-            let _ = writeln!(self.progress, "pmac-send: safety stop not confirmed yet ({last}); retrying");
+            let _ = writeln!(
+                self.progress,
+                "pmac-send: safety stop not confirmed yet ({last}); retrying"
+            );
             std::thread::sleep(Duration::from_millis(200));
         }
     }

@@ -32,8 +32,9 @@ pub struct Faults {
     pub delay_count: Option<u64>,
     /// Reset the controller (`$$$`) on the Nth request, once.
     pub reset_at: Option<u64>,
-    /// Lie on the Nth request, once: every number in its reply becomes
-    /// 99999 (a counter past any job's end), as a broken proxy might.
+    /// Lie once, in the first reply with a number from request N on: every
+    /// number in it becomes 99999 (a counter past any job's end), as a
+    /// broken proxy might.
     pub lie_at: Option<u64>,
 }
 
@@ -50,6 +51,7 @@ struct Shared {
     faults: Faults,
     requests: AtomicU64,
     stop: Arc<AtomicBool>,
+    lied: AtomicBool,
 }
 
 impl Server {
@@ -65,6 +67,7 @@ impl Server {
             faults,
             requests: AtomicU64::new(0),
             stop: stop.clone(),
+            lied: AtomicBool::new(false),
         });
         let accept = std::thread::spawn(move || {
             for conn in listener.incoming() {
@@ -115,12 +118,20 @@ fn lock(ctl: &Mutex<Controller>) -> std::sync::MutexGuard<'_, Controller> {
 
 /// Apply the lie fault to a reply of request `n`.
 fn lie(sh: &Shared, n: u64, r: Result<Vec<String>, u16>) -> Result<Vec<String>, u16> {
-    if sh.faults.lie_at != Some(n) {
+    let numeric = |v: &Vec<String>| v.iter().any(|l| l.trim().parse::<f64>().is_ok());
+    if sh.faults.lie_at.is_none_or(|k| n < k) || !r.as_ref().is_ok_and(numeric) || sh.lied.swap(true, Ordering::SeqCst)
+    {
         return r;
     }
     r.map(|v| {
         v.into_iter()
-            .map(|l| if l.trim().parse::<f64>().is_ok() { "99999".to_string() } else { l })
+            .map(|l| {
+                if l.trim().parse::<f64>().is_ok() {
+                    "99999".to_string()
+                } else {
+                    l
+                }
+            })
             .collect()
     })
 }
