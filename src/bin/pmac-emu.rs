@@ -94,7 +94,7 @@ fn run(args: Args) -> Result<(), CliError> {
         )));
     }
     if let Some(d) = args.duration
-        && !(d.is_finite() && d >= 0.0 && d <= 1e7)
+        && !(d.is_finite() && (0.0..=1e7).contains(&d))
     {
         return Err(CliError::input(format!(
             "--duration must be a number of seconds from 0 to 1e7, not {d}"

@@ -445,8 +445,10 @@ impl<'a> Sender<'a> {
                 let r = self.cmd(&stop_line).and_then(|_| self.cmd(&check));
                 match r {
                     Ok(v) => match parse_check(&v) {
-                        Some((false, shut, reading)) if shut == 0.0 => return Ok(reading),
-                        Some((running, shut, _)) => {
+                        Some((running, shut, reading)) => {
+                            if !running && shut == 0.0 {
+                                return Ok(reading);
+                            }
                             last = format!("controller still reports running={running}, {sh}={shut}")
                         }
                         None => last = format!("bad reply to '{check}': {v:?}"),
