@@ -64,6 +64,12 @@ struct Args {
     /// Fault: delay only from request N on.
     #[arg(long, value_name = "N", default_value_t = 0)]
     delay_from: u64,
+    /// Fault: delay only this many requests (default: all from --delay-from).
+    #[arg(long, value_name = "N")]
+    delay_count: Option<u64>,
+    /// Fault: answer request N (once) with every number replaced by 99999.
+    #[arg(long, value_name = "N")]
+    lie_at: Option<u64>,
     /// Fault: answer ERR006 to the Nth program line stored (once).
     #[arg(long, value_name = "N")]
     err006_at_line: Option<u64>,
@@ -81,8 +87,29 @@ fn main() -> ExitCode {
 }
 
 fn run(args: Args) -> Result<(), CliError> {
-    if !(args.time_scale.is_finite() && args.time_scale > 0.0) {
-        return Err(CliError::input("--time-scale must be a positive number"));
+    if !(args.time_scale.is_finite() && args.time_scale > 0.0 && args.time_scale <= 1e9) {
+        return Err(CliError::input(format!(
+            "--time-scale must be a positive number up to 1e9, not {}",
+            args.time_scale
+        )));
+    }
+    if let Some(d) = args.duration
+        && !(d.is_finite() && (0.0..=1e7).contains(&d))
+    {
+        return Err(CliError::input(format!(
+            "--duration must be a number of seconds from 0 to 1e7, not {d}"
+        )));
+    }
+    if args.memory_words < 0 || args.gather_words < 0 || args.gather_words > args.memory_words {
+        return Err(CliError::input(
+            "--memory-words and --gather-words must be 0 or more, the gather buffer no larger than memory",
+        ));
+    }
+    if args.delay_ms > 3_600_000 {
+        return Err(CliError::input(format!(
+            "--delay-ms must be at most 3600000, not {}",
+            args.delay_ms
+        )));
     }
     if !args.bind.is_loopback() {
         // An emulator reachable from the network could be mistaken for the
@@ -106,6 +133,8 @@ fn run(args: Args) -> Result<(), CliError> {
         delay: Duration::from_millis(args.delay_ms),
         delay_from: args.delay_from,
         reset_at: args.reset_at,
+        delay_count: args.delay_count,
+        lie_at: args.lie_at,
     };
     let ctl = Controller::new(cfg, Clock::scaled(args.time_scale), log);
     let server = Server::start(SocketAddr::new(args.bind, args.port), ctl, faults)
@@ -115,8 +144,8 @@ fn run(args: Args) -> Result<(), CliError> {
     std::io::stdout().flush()?;
     eprintln!("pmac-emu: listening on {addr}");
     match args.duration {
-        Some(s) if s.is_finite() && s >= 0.0 => std::thread::sleep(Duration::from_secs_f64(s)),
-        _ => loop {
+        Some(s) => std::thread::sleep(Duration::from_secs_f64(s)),
+        None => loop {
             std::thread::sleep(Duration::from_secs(3600));
         },
     }

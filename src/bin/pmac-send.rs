@@ -7,6 +7,7 @@ use microcam::pmac::client::{Client, Transport};
 use microcam::pmac::plan::{Job, MARKER_WORDS, Names, marker_lines};
 use microcam::pmac::send::{Mode, SendError, SendOptions, Sender, State, input_hash};
 use std::io::Write;
+use std::net::ToSocketAddrs;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::sync::Arc;
@@ -29,9 +30,13 @@ a JSON summary to stdout.
 
 Safety: on Ctrl-C, SIGTERM, an ERR reply, a timeout or a lost connection the
 shutter is closed (M33=0) and &1 aborted (reconnecting if needed), the resume
-state is written (--state), and the exit status is 1. --resume never re-runs a
-chunk the controller confirmed complete; the interrupted chunk starts over with
-a beam-off RAPID to its start.
+state is written (--state), and the exit status is 1. The stop keeps trying,
+reconnecting, for --stop-deadline-s until the controller confirms the program
+aborted and the shutter closed; it then reads the motor positions and the line
+counter (M7400==n, synchronous, pointed at P400) and saves the move the stage
+stopped in and where along it. --resume first does the same (the controller's
+word before the state file), then goes there with the beam off and continues
+from that point: no beam-on path twice, none skipped.
 Exit status: 0 done, 1 stopped or failed, 2 bad usage or bad input.";
 
 #[derive(Clone, Copy, ValueEnum)]
@@ -96,9 +101,9 @@ struct Args {
     /// Give up when the controller shows no progress for this many seconds.
     #[arg(long, default_value_t = 60.0)]
     stall_s: f64,
-    /// Blocks the controller calculates ahead of motion (rotary resume).
-    #[arg(long, default_value_t = 2)]
-    lookahead: u64,
+    /// How long a safety stop keeps trying to confirm the shutter closed, s.
+    #[arg(long, default_value_t = 120.0)]
+    stop_deadline_s: f64,
     /// Program mode only: store the program but do not run it.
     #[arg(long)]
     upload_only: bool,
@@ -110,6 +115,71 @@ struct Args {
     /// (behind DWELL0); confirms chunks even across an abort.
     #[arg(long, default_value = "P401")]
     done_var: String,
+    /// M-variable pointed at the line counter's P register and assigned
+    /// synchronously, so the counter follows motion.
+    #[arg(long, default_value = "M7400")]
+    counter_mvar: String,
+    /// Variable holding the job's session number.
+    #[arg(long, default_value = "P402")]
+    session_var: String,
+}
+
+/// Check the numeric flags and the host before anything else: bad usage is
+/// exit 2.
+fn check_args(args: &Args) -> Result<String, CliError> {
+    for (name, v) in [("--stall-s", args.stall_s), ("--stop-deadline-s", args.stop_deadline_s)] {
+        if !(v.is_finite() && v > 0.0 && v <= 1e6) {
+            return Err(CliError::input(format!(
+                "{name} must be a positive number of seconds up to 1e6, not {v}"
+            )));
+        }
+    }
+    for (name, v) in [("--timeout-ms", args.timeout_ms), ("--poll-ms", args.poll_ms)] {
+        if v == 0 || v > 3_600_000 {
+            return Err(CliError::input(format!("{name} must be 1..3600000, not {v}")));
+        }
+    }
+    if args.rotary_words < 64 || args.rotary_words > 1 << 24 {
+        return Err(CliError::input(format!(
+            "--rotary-words must be 64..16777216, not {}",
+            args.rotary_words
+        )));
+    }
+    for (flag, v, letter) in [
+        ("--shutter-var", &args.shutter_var, None),
+        ("--line-counter", &args.line_counter, Some('P')),
+        ("--done-var", &args.done_var, None),
+        ("--counter-mvar", &args.counter_mvar, Some('M')),
+        ("--session-var", &args.session_var, None),
+    ] {
+        let u = v.to_ascii_uppercase();
+        let ok = u.len() > 1
+            && matches!(u.as_bytes()[0], b'P' | b'M' | b'Q' | b'I')
+            && letter.is_none_or(|l| u.starts_with(l))
+            && u[1..].parse::<u32>().is_ok_and(|n| n < 8192);
+        if !ok {
+            return Err(CliError::input(format!(
+                "{flag} '{v}' is not a variable (P0..P8191 and the like)"
+            )));
+        }
+    }
+    let host = args.host.trim();
+    let host = if host.contains(':') {
+        host.to_string()
+    } else {
+        format!("{host}:1025")
+    };
+    let (name, port) = host.rsplit_once(':').unwrap_or((&host, ""));
+    if name.is_empty() || port.parse::<u16>().map_or(true, |p| p == 0) {
+        return Err(CliError::input(format!(
+            "--host '{}' is not HOST or HOST:PORT (port 1..65535)",
+            args.host
+        )));
+    }
+    if args.dry_run.is_none() && host.to_socket_addrs().map_or(true, |mut a| a.next().is_none()) {
+        return Err(CliError::input(format!("--host '{}': no such host", args.host)));
+    }
+    Ok(host)
 }
 
 fn main() -> ExitCode {
@@ -118,12 +188,15 @@ fn main() -> ExitCode {
 }
 
 fn run(args: Args) -> Result<(), CliError> {
+    let host = check_args(&args)?;
     let mut input = cli::open_input(args.file.as_deref())?;
     let text = cli::read_to_string(&mut input)?;
     let names = Names {
         shutter: args.shutter_var.to_ascii_uppercase(),
         counter: args.line_counter.to_ascii_uppercase(),
         done: args.done_var.to_ascii_uppercase(),
+        counter_m: args.counter_mvar.to_ascii_uppercase(),
+        session: args.session_var.to_ascii_uppercase(),
     };
     let job = Job::read(&text, &names).map_err(|e| CliError::in_file(&input.name, e))?;
     let mode = match args.mode {
@@ -145,7 +218,15 @@ fn run(args: Args) -> Result<(), CliError> {
             ),
             Mode::Rotary => Some(chunk_words),
         };
-        return dry_run(&job, mode, budget, args.prog, &args.done_var.to_ascii_uppercase(), dir);
+        return dry_run(
+            &job,
+            &input.name,
+            mode,
+            budget,
+            args.prog,
+            &args.done_var.to_ascii_uppercase(),
+            dir,
+        );
     }
     let hash = input_hash(&text);
     let transport = match args.transport {
@@ -153,12 +234,8 @@ fn run(args: Args) -> Result<(), CliError> {
         TransportArg::EthernetLines => Transport::EthernetLines,
         TransportArg::Line => Transport::Line,
     };
-    let host = if args.host.contains(':') {
-        args.host.clone()
-    } else {
-        format!("{}:1025", args.host)
-    };
-    let timeout = Duration::from_millis(args.timeout_ms.max(1));
+    let timeout = Duration::from_millis(args.timeout_ms);
+    let moves = job.moves();
     let mut state = if args.resume {
         let s = State::load(&args.state).map_err(|e| CliError::input(e.to_string()))?;
         if s.input_hash != hash {
@@ -176,14 +253,22 @@ fn run(args: Args) -> Result<(), CliError> {
         }
         s
     } else {
+        // A session number the controller's counters are matched with.
+        let session = (std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map_or(0, |d| d.as_nanos() as u64)
+            ^ u64::from(std::process::id()))
+            % 1_000_000_000
+            + 1;
         State {
-            version: 1,
+            version: 2,
             input_hash: hash,
             mode,
             budget: None,
-            chunks: 0,
-            chunks_done: 0,
-            last_counter: 0,
+            moves: moves.len() as u64,
+            next_move: 1,
+            resume_at: None,
+            session,
             stopped: None,
         }
     };
@@ -206,13 +291,21 @@ fn run(args: Args) -> Result<(), CliError> {
         rotary_fill: 0.9,
         poll: Duration::from_millis(args.poll_ms),
         stall: Duration::from_secs_f64(args.stall_s.max(0.1)),
-        lookahead: args.lookahead,
+        stop_deadline: Duration::from_secs_f64(args.stop_deadline_s),
+        stop_timeout: (timeout * 4).max(Duration::from_secs(2)),
         names,
         state_path: args.state.clone(),
         upload_only: args.upload_only,
     };
     let mut stderr = std::io::stderr();
-    let mut sender = Sender::new(client, &host, timeout, opts, stop, &mut stderr);
+    let mut sender = Sender::new(client, &host, opts, stop, &mut stderr, moves);
+    if args.resume {
+        // The controller's word first: after a hard kill of an earlier
+        // session it may have run on past what the state file says.
+        sender
+            .recover(&mut state, false)
+            .map_err(|e| CliError::failure(format!("SAFETY: {e}; not resuming (state in {})", args.state.display())))?;
+    }
     // The budget: from the state on resume (the same cut), else measured.
     let budget = match (mode, state.budget) {
         (Mode::Program, _) => None,
@@ -225,11 +318,32 @@ fn run(args: Args) -> Result<(), CliError> {
         }
         (Mode::Rotary, None) => Some(chunk_words),
     };
-    let chunks = match (mode, budget) {
-        (Mode::Rotary, Some(b)) => job.stream_chunks(b),
-        _ => job.chunks(budget),
+    state.budget = budget;
+    if state.next_move > state.moves {
+        eprintln!("pmac-send: nothing to resume: all {} moves have executed", state.moves);
+        let summary = microcam::pmac::send::Summary {
+            mode: mode.name().into(),
+            moves: state.moves,
+            first_move: state.next_move,
+            final_counter: state.moves,
+            ..Default::default()
+        };
+        let mut v = serde_json::to_value(&summary).map_err(|e| CliError::failure(e.to_string()))?;
+        v["ok"] = serde_json::json!(true);
+        println!("{v}");
+        return Ok(());
     }
-    .map_err(|e| CliError::in_file(&input.name, e))?;
+    let rest = job.rest(state.next_move, state.resume_point()).ok_or_else(|| {
+        CliError::failure(format!(
+            "{}: no move {} in the job",
+            args.state.display(),
+            state.next_move
+        ))
+    })?;
+    let chunks = rest
+        .job
+        .cut_from(budget, mode != Mode::Rotary, rest.start, rest.ta, rest.counter0)
+        .map_err(|e| CliError::in_file(&input.name, e))?;
     if mode == Mode::Program {
         let free = sender.free_words().map_err(|e| stopped(&mut sender, e, &args))?;
         if chunks[0].words as i64 > free {
@@ -239,28 +353,18 @@ fn run(args: Args) -> Result<(), CliError> {
             )));
         }
     }
-    state.budget = budget;
-    state.chunks = chunks.len();
-    if state.chunks_done >= chunks.len() && args.resume {
-        eprintln!("pmac-send: nothing to resume: all {} chunks are complete", chunks.len());
-        let summary = microcam::pmac::send::Summary {
-            mode: mode.name().into(),
-            chunks: chunks.len(),
-            first_chunk: chunks.len(),
-            final_counter: state.last_counter,
-            ..Default::default()
-        };
-        let mut v = serde_json::to_value(&summary).map_err(|e| CliError::failure(e.to_string()))?;
-        v["ok"] = serde_json::json!(true);
-        println!("{v}");
-        return Ok(());
-    }
     eprintln!(
-        "pmac-send: {} mode, {} chunk(s), {} lines, starting at chunk {}",
+        "pmac-send: {} mode, {} chunk(s), {} lines, starting at move {} of {}{}",
         mode.name(),
         chunks.len(),
         chunks.iter().map(|c| c.lines.len()).sum::<usize>(),
-        state.chunks_done + 1
+        state.next_move,
+        state.moves,
+        if state.resume_at.is_some() {
+            " (part way along)"
+        } else {
+            ""
+        }
     );
     match sender.run(&chunks, &mut state) {
         Ok(summary) => {
@@ -272,7 +376,7 @@ fn run(args: Args) -> Result<(), CliError> {
         Err(f) => {
             let mut v = serde_json::to_value(&f.summary).map_err(|e| CliError::failure(e.to_string()))?;
             v["ok"] = serde_json::json!(false);
-            v["chunks_done"] = serde_json::json!(f.state.chunks_done);
+            v["next_move"] = serde_json::json!(f.state.next_move);
             v["error"] = serde_json::json!(f.error.to_string());
             println!("{v}");
             let safety = match &f.safe_stop {
@@ -283,10 +387,15 @@ fn run(args: Args) -> Result<(), CliError> {
                 Err(e) => format!("SAFETY: {e}"),
             };
             Err(CliError::failure(format!(
-                "stopped: {}; {safety}; {} of {} chunks complete; continue with --resume (state in {})",
+                "stopped: {}; {safety}; {} of {} moves executed{}; continue with --resume (state in {})",
                 f.error,
-                f.state.chunks_done,
-                chunks.len(),
+                f.state.next_move - 1,
+                f.state.moves,
+                if f.state.resume_at.is_some() {
+                    " and part of the next"
+                } else {
+                    ""
+                },
                 args.state.display()
             )))
         }
@@ -295,7 +404,11 @@ fn run(args: Args) -> Result<(), CliError> {
 
 /// A failure before the first chunk: stop safely all the same.
 fn stopped(sender: &mut Sender, e: SendError, args: &Args) -> CliError {
-    let safety = match sender.stop_safely(e.is_link()) {
+    let mut state = match State::load(&args.state) {
+        Ok(s) => s,
+        Err(err) => return CliError::failure(format!("stopped: {e}; {err}")),
+    };
+    let safety = match sender.recover(&mut state, e.is_link()) {
         Ok(()) => format!(
             "shutter closed ({}=0) and &1 aborted",
             args.shutter_var.to_ascii_uppercase()
@@ -308,12 +421,20 @@ fn stopped(sender: &mut Sender, e: SendError, args: &Args) -> CliError {
     ))
 }
 
-fn dry_run(job: &Job, mode: Mode, budget: Option<usize>, prog: u32, done: &str, dir: &Path) -> Result<(), CliError> {
+fn dry_run(
+    job: &Job,
+    input: &str,
+    mode: Mode,
+    budget: Option<usize>,
+    prog: u32,
+    done: &str,
+    dir: &Path,
+) -> Result<(), CliError> {
     let chunks = match (mode, budget) {
         (Mode::Rotary, Some(b)) => job.stream_chunks(b),
         _ => job.chunks(budget),
     }
-    .map_err(|e| CliError::input(e.to_string()))?;
+    .map_err(|e| CliError::in_file(input, e))?;
     std::fs::create_dir_all(dir).map_err(|e| CliError::failure(format!("{}: {e}", dir.display())))?;
     let mut plan = Vec::new();
     for (i, c) in chunks.iter().enumerate() {
@@ -355,6 +476,23 @@ fn dry_run(job: &Job, mode: Mode, budget: Option<usize>, prog: u32, done: &str, 
     let mut out = cli::Output::new(Some(&dir.join("plan.json")));
     writeln!(out, "{}", serde_json::to_string_pretty(&summary).unwrap_or_default())?;
     out.commit()?;
+    // Chunk files of an earlier, longer plan are not part of this one.
+    let stale: Vec<PathBuf> = std::fs::read_dir(dir)
+        .map_err(|e| CliError::failure(format!("{}: {e}", dir.display())))?
+        .filter_map(|e| e.ok())
+        .map(|e| e.path())
+        .filter(|p| {
+            p.file_name().and_then(|n| n.to_str()).is_some_and(|n| {
+                n.strip_prefix("chunk-")
+                    .and_then(|r| r.strip_suffix(".pmac"))
+                    .and_then(|d| d.parse::<usize>().ok())
+                    .is_some_and(|k| k == 0 || k > chunks.len() || n != format!("chunk-{k:03}.pmac"))
+            })
+        })
+        .collect();
+    for p in stale {
+        std::fs::remove_file(&p).map_err(|e| CliError::failure(format!("{}: {e}", p.display())))?;
+    }
     println!(
         "{}",
         serde_json::json!({"dry_run": dir.display().to_string(), "chunks": chunks.len()})

@@ -132,12 +132,63 @@ struct Run {
     id: u64,
     source: Source,
     interp: PmacInterpreter,
+    /// Records of the line being calculated.
     pending: VecDeque<Record>,
     lineno: u64,
     moved: bool,
-    /// `Q` given: stop when the current line's moves are done.
+    /// `Q` given: calculate no more; end when motion has.
     quit: bool,
+    /// A program buffer's last line has been calculated.
+    eof: bool,
+    /// Calculated segments; the first may be in motion.
+    segs: VecDeque<Seg>,
+    /// Where the last calculated move ends.
+    calc_pos: P3,
+    /// `==` assignments waiting for the next calculated segment.
+    sync_pending: Vec<(u8, usize, f64)>,
 }
+
+#[derive(Clone)]
+enum SegKind {
+    Move {
+        from: P3,
+        to: P3,
+        kind: MotionKind,
+        name: &'static str,
+        feed: Option<f64>,
+        dur: f64,
+    },
+    Dwell {
+        s: f64,
+    },
+}
+
+/// A calculated move or dwell.
+struct Seg {
+    kind: SegKind,
+    /// Synchronous assignments performed as it starts.
+    sync: Vec<(u8, usize, f64)>,
+    /// When its motion started.
+    start: Option<f64>,
+    /// When it was calculated (it cannot start before).
+    ready: f64,
+}
+
+/// Segments calculated ahead of motion (besides the one moving).
+pub const LOOKAHEAD: usize = 2;
+
+/// An M-variable definition: its text as given, and the P-variable it
+/// points at when its address is in P-variable memory (Turbo PMAC:
+/// P0..P8191 at $6000..$7FFF, read as floating point with `L:`/`D:`).
+#[derive(Debug, Clone)]
+struct MDef {
+    text: String,
+    p: Option<usize>,
+}
+
+/// Counts per millimetre of the emulated motors #1..#3 (`#n->` answers
+/// `10000X` etc.).
+pub const COUNTS_PER_MM: f64 = 10_000.0;
 
 /// The controller state. Wrap it in a mutex to share between connections.
 pub struct Controller {
@@ -156,8 +207,13 @@ pub struct Controller {
     ta_ms: f64,
     vars: [Vec<f64>; 4],
     lines_stored: u64,
-    /// Synchronous assignments (`==`) waiting for the next move.
-    sync_vars: Vec<(u8, usize, f64)>,
+    /// Synchronous assignments (`==`) left queued by a stopped program:
+    /// they act at the next segment's start unless `MFLUSH` clears them.
+    sync_left: Vec<(u8, usize, f64)>,
+    /// Simulated time of the last calculation or motion event.
+    t_evt: f64,
+    /// M-variable definitions (`M7400->L:$6190`); absent: self-referenced.
+    mdefs: BTreeMap<usize, MDef>,
     /// Resets so far (see [`Session`]).
     epoch: u64,
 }
@@ -189,6 +245,25 @@ pub fn status_word(running: bool, in_position: bool) -> String {
     format!("{w1:06X}{w2:06X}{:06X}", 0)
 }
 
+/// An M-variable definition `X:$addr`, `Y:$addr,bit`, `L:$addr`,
+/// `D:$addr`; `L`/`D` at $6000..$7FFF point at P-variables.
+fn parse_mdef(def: &str) -> Option<MDef> {
+    let (ty, rest) = def.split_once(':')?;
+    if !matches!(ty, "X" | "Y" | "L" | "D" | "DP" | "F" | "TWD" | "TWB" | "TWS" | "TWR") {
+        return None;
+    }
+    let addr = rest.split(',').next()?;
+    let a = match addr.strip_prefix('$') {
+        Some(h) => i64::from_str_radix(h, 16).ok()?,
+        None => addr.parse::<i64>().ok()?,
+    };
+    let p = (matches!(ty, "L" | "D") && (0x6000..0x8000).contains(&a)).then_some((a - 0x6000) as usize);
+    Some(MDef {
+        text: def.to_string(),
+        p,
+    })
+}
+
 /// Decode `&1??` text into (running, in position); `None` if malformed.
 pub fn parse_status(s: &str) -> Option<(bool, bool)> {
     let s = s.trim();
@@ -212,6 +287,8 @@ pub struct Session {
     /// The controller's reset count when this session last spoke: a reset
     /// closes every port's buffer.
     epoch: u64,
+    /// The addressed motor (`#n`).
+    pub motor: u32,
 }
 
 impl Default for Session {
@@ -220,6 +297,7 @@ impl Default for Session {
             cs: 1,
             open: None,
             epoch: 0,
+            motor: 1,
         }
     }
 }
@@ -316,7 +394,9 @@ impl Controller {
             ta_ms: DEFAULT_TA_MS,
             vars: [vec![0.0; VARS], vec![0.0; VARS], vec![0.0; VARS], vec![0.0; VARS]],
             lines_stored: 0,
-            sync_vars: Vec::new(),
+            sync_left: Vec::new(),
+            t_evt: 0.0,
+            mdefs: BTreeMap::new(),
             epoch: 0,
         }
     }
@@ -336,11 +416,14 @@ impl Controller {
         self.run.is_some()
     }
 
+    /// Motors at rest: nothing calculated waits to move (a suspended
+    /// rotary program is running and in position).
     pub fn in_position(&self) -> bool {
-        self.now() >= self.t_free
+        self.run.as_ref().is_none_or(|r| r.segs.is_empty())
     }
 
     pub fn var(&self, letter: u8, n: usize) -> f64 {
+        let (letter, n) = self.resolve(letter, n);
         var_index(letter)
             .and_then(|k| self.vars[k].get(n))
             .copied()
@@ -362,7 +445,18 @@ impl Controller {
         }
     }
 
+    /// An M-variable pointed at a P-variable stands for it.
+    fn resolve(&self, letter: u8, n: usize) -> (u8, usize) {
+        if letter.eq_ignore_ascii_case(&b'M')
+            && let Some(MDef { p: Some(k), .. }) = self.mdefs.get(&n)
+        {
+            return (b'P', *k);
+        }
+        (letter, n)
+    }
+
     fn set_var(&mut self, letter: u8, n: usize, value: f64, t: f64) {
+        let (letter, n) = self.resolve(letter, n);
         let Some(k) = var_index(letter) else { return };
         let Some(slot) = self.vars[k].get_mut(n) else { return };
         if *slot != value {
@@ -385,148 +479,311 @@ impl Controller {
     /// motion are gone.
     pub fn reset(&mut self) {
         let now = self.now();
-        if let Some(r) = self.run.take() {
-            self.event(serde_json::json!({"ev": "abort", "t": now, "run": r.id, "why": "reset"}));
+        if let Some(r) = self.run.as_ref() {
+            let p = self.position_at(now);
+            self.event(
+                serde_json::json!({"ev": "abort", "t": now, "run": r.id, "why": "reset", "x": p.x, "y": p.y, "z": p.z}),
+            );
+            self.stop_run(now, None);
         }
         self.event(serde_json::json!({"ev": "reset", "t": now}));
         self.programs.clear();
         self.rotary = None;
         self.gather = self.cfg.gather_words.max(0);
         self.pointer = None;
+        self.pos = self.position_at(now);
         self.t_free = self.t_free.min(now);
+        self.t_evt = self.t_evt.max(now);
         self.ta_ms = DEFAULT_TA_MS;
-        self.sync_vars.clear();
+        self.sync_left.clear();
+        self.mdefs.clear();
         self.epoch += 1;
         for v in &mut self.vars {
             v.iter_mut().for_each(|x| *x = 0.0);
         }
     }
 
-    /// Execute everything due by the current simulated time.
+    /// Execute everything due by the current simulated time, as a
+    /// discrete-event simulation: calculation (look-ahead) and motion.
+    ///
+    /// Calculation runs while fewer than [`LOOKAHEAD`] calculated segments
+    /// wait to start and no calculated DWELL waits (a dwell stops
+    /// look-ahead); plain variable assignments act when their line is
+    /// calculated, synchronous ones (`M..==`) are queued on the next
+    /// calculated segment and act when it starts. Motion runs segments in
+    /// order, each for its duration.
     pub fn advance(&mut self) {
         let now = self.now();
-        // Each pass consumes a record or a line, or stops: bounded by the
-        // work queued, but guard anyway against a runaway.
+        // Each pass handles one record, line or motion event: bounded by
+        // the work queued, but guard anyway against a runaway.
         for _ in 0..10_000_000u32 {
-            let Some(run) = self.run.as_mut() else { return };
-            if run.pending.is_empty() {
-                if run.quit && run.lineno > 0 {
-                    self.finish_run("done");
-                    return;
+            let Some(run) = self.run.as_ref() else { return };
+            let unstarted = run.segs.iter().filter(|s| s.start.is_none()).count();
+            let dwell_wait = run
+                .segs
+                .iter()
+                .any(|s| s.start.is_none() && matches!(s.kind, SegKind::Dwell { .. }));
+            // When the next calculation input is available.
+            let t_in: Option<f64> = if run.quit || run.eof || unstarted >= LOOKAHEAD || dwell_wait {
+                None
+            } else if !run.pending.is_empty() {
+                Some(self.t_evt)
+            } else {
+                match &run.source {
+                    Source::Prog { .. } => Some(self.t_evt),
+                    Source::Rot => self
+                        .rotary
+                        .as_ref()
+                        .and_then(|r| r.lines.front())
+                        .map(|q| q.arrival.max(self.t_evt)),
                 }
-                let text = match &mut run.source {
-                    Source::Prog { n, next } => match self.programs.get(n).and_then(|p| p.lines.get(*next)) {
-                        Some(l) => {
-                            *next += 1;
-                            l.clone()
-                        }
-                        None => {
-                            self.finish_run("done");
-                            return;
-                        }
-                    },
-                    Source::Rot => {
-                        if self.t_free > now {
-                            return; // calculate only when the stage needs it
-                        }
-                        let Some(q) = self.rotary.as_mut().and_then(|r| r.lines.pop_front()) else {
-                            return; // a dry rotary buffer waits
-                        };
-                        if let Some(r) = self.rotary.as_mut() {
-                            r.used -= q.words;
-                        }
-                        if q.arrival > self.t_free {
-                            if run.moved {
-                                let (id, from, to) = (run.id, self.t_free, q.arrival);
-                                self.event(serde_json::json!({"ev": "idle", "t": from, "run": id, "until": to}));
-                            }
-                            self.t_free = q.arrival;
-                        }
-                        q.text
-                    }
-                };
-                let Some(run) = self.run.as_mut() else { return };
-                run.lineno += 1;
-                let lineno = run.lineno;
-                if let Err(e) = run.interp.line(text.as_bytes(), lineno, &mut run.pending) {
-                    let id = run.id;
-                    let t = self.t_free;
-                    self.event(serde_json::json!({"ev": "error", "t": t, "run": id, "msg": e.to_string()}));
-                    self.run = None;
+            };
+            // When the next motion event happens.
+            let t_m: Option<f64> = run.segs.front().map(|s| match s.start {
+                Some(_) => self.t_free,
+                None => self.t_free.max(s.ready),
+            });
+            let calc_first = match (t_in, t_m) {
+                (Some(a), Some(b)) => a <= b,
+                (Some(_), None) => true,
+                _ => false,
+            };
+            if calc_first && t_in.is_some_and(|t| t <= now) {
+                self.t_evt = t_in.unwrap_or(self.t_evt);
+                if !self.calculate() {
                     return;
                 }
                 continue;
             }
-            if self.t_free > now {
-                return;
+            if let Some(t) = t_m.filter(|t| *t <= now) {
+                self.t_evt = self.t_evt.max(t);
+                self.motion_event();
+                continue;
             }
-            let Some(rec) = run.pending.pop_front() else { continue };
-            let id = run.id;
-            self.execute(id, rec);
+            // Nothing due: a program with no more lines and no motion ends.
+            let run = self.run.as_ref().expect("checked above");
+            if run.segs.is_empty() && (run.eof || run.quit) && run.pending.is_empty() | run.quit {
+                self.t_evt = self.t_evt.max(self.t_free);
+                self.finish_run("done");
+            }
+            return;
         }
     }
 
-    fn execute(&mut self, id: u64, rec: Record) {
-        let t = self.t_free;
-        match rec {
-            Record::Move(m) => {
-                // `M33==1` takes effect as this move's motion starts.
-                for (l, n, v) in std::mem::take(&mut self.sync_vars) {
-                    self.set_var(l, n, v, t);
+    /// Calculate one record or fetch one line. `false`: the run ended.
+    fn calculate(&mut self) -> bool {
+        let t = self.t_evt;
+        let Some(run) = self.run.as_mut() else { return false };
+        if let Some(rec) = run.pending.pop_front() {
+            match rec {
+                Record::Move(m) => {
+                    let from = run.calc_pos;
+                    let (len, kind) = match m.kind {
+                        MotionKind::Rapid => ((m.to - from).norm(), "rapid"),
+                        MotionKind::Line => ((m.to - from).norm(), "line"),
+                        MotionKind::Arc(a) => (
+                            Arc3::new(a.center, from, m.to, a.ccw, a.plane, a.extra_turns).map_or(0.0, |a| a.length()),
+                            "arc",
+                        ),
+                    };
+                    let speed = match m.kind {
+                        MotionKind::Rapid => RAPID_MM_S,
+                        _ => m.feed.filter(|f| *f > 0.0 && f.is_finite()).unwrap_or(DEFAULT_FEED),
+                    };
+                    let dur = (len / speed).max(self.ta_ms / 1000.0);
+                    run.calc_pos = m.to;
+                    let sync = std::mem::take(&mut run.sync_pending);
+                    run.segs.push_back(Seg {
+                        kind: SegKind::Move {
+                            from,
+                            to: m.to,
+                            kind: m.kind,
+                            name: kind,
+                            feed: m.feed,
+                            dur,
+                        },
+                        sync,
+                        start: None,
+                        ready: t,
+                    });
                 }
-                let beam = self.shutter().is_some_and(|(l, n)| self.var(l, n) != 0.0);
-                let (len, kind) = match m.kind {
-                    MotionKind::Rapid => ((m.to - self.pos).norm(), "rapid"),
-                    MotionKind::Line => ((m.to - self.pos).norm(), "line"),
-                    MotionKind::Arc(a) => (
-                        Arc3::new(a.center, self.pos, m.to, a.ccw, a.plane, a.extra_turns).map_or(0.0, |a| a.length()),
-                        "arc",
-                    ),
-                };
-                let speed = match m.kind {
-                    MotionKind::Rapid => RAPID_MM_S,
-                    _ => m.feed.filter(|f| *f > 0.0 && f.is_finite()).unwrap_or(DEFAULT_FEED),
-                };
-                let d = (len / speed).max(self.ta_ms / 1000.0);
-                self.event(serde_json::json!({
-                    "ev": "move", "t": t, "run": id, "kind": kind,
-                    "x": m.to.x, "y": m.to.y, "z": m.to.z, "beam": beam, "feed": m.feed, "dur": d,
-                }));
-                self.pos = m.to;
-                self.t_free = t + d;
-                if let Some(r) = self.run.as_mut() {
-                    r.moved = true;
+                Record::Dwell { seconds, .. } => {
+                    let s = if seconds.is_finite() { seconds.max(0.0) } else { 0.0 };
+                    let sync = std::mem::take(&mut run.sync_pending);
+                    run.segs.push_back(Seg {
+                        kind: SegKind::Dwell { s },
+                        sync,
+                        start: None,
+                        ready: t,
+                    });
                 }
+                Record::Accel { ta_ms, .. } => {
+                    if let Some(ta) = ta_ms.filter(|v| v.is_finite() && *v >= 0.0) {
+                        self.ta_ms = ta;
+                    }
+                }
+                Record::Var { name, value, sync, .. } => {
+                    let b = name.as_bytes();
+                    if let (Some(&l), Ok(n)) = (b.first(), name.get(1..).unwrap_or("").parse::<usize>()) {
+                        if sync {
+                            run.sync_pending.push((l, n, value));
+                        } else {
+                            // A plain assignment acts when calculated.
+                            self.set_var(l, n, value, t);
+                        }
+                    }
+                }
+                Record::Spindle { .. } => {}
             }
-            Record::Dwell { seconds, .. } => {
-                let s = if seconds.is_finite() { seconds.max(0.0) } else { 0.0 };
+            return true;
+        }
+        let text = match &mut run.source {
+            Source::Prog { n, next } => match self.programs.get(n).and_then(|p| p.lines.get(*next)) {
+                Some(l) => {
+                    *next += 1;
+                    l.clone()
+                }
+                None => {
+                    run.eof = true;
+                    return true;
+                }
+            },
+            Source::Rot => {
+                let Some(q) = self.rotary.as_mut().and_then(|r| r.lines.pop_front()) else {
+                    return true;
+                };
+                if let Some(r) = self.rotary.as_mut() {
+                    r.used -= q.words;
+                }
+                q.text
+            }
+        };
+        let Some(run) = self.run.as_mut() else { return false };
+        run.lineno += 1;
+        let lineno = run.lineno;
+        if let Err(e) = run.interp.line(text.as_bytes(), lineno, &mut run.pending) {
+            let id = run.id;
+            self.event(serde_json::json!({"ev": "error", "t": t, "run": id, "msg": e.to_string()}));
+            self.stop_run(t, None);
+            return false;
+        }
+        true
+    }
+
+    /// Start the first calculated segment, or end it.
+    fn motion_event(&mut self) {
+        let Some(run) = self.run.as_mut() else { return };
+        let Some(seg) = run.segs.front_mut() else { return };
+        let id = run.id;
+        if seg.start.is_some() {
+            // Ends now.
+            if let Some(seg) = run.segs.pop_front()
+                && let SegKind::Move { to, .. } = seg.kind
+            {
+                self.pos = to;
+            }
+            return;
+        }
+        let t = self.t_free.max(seg.ready);
+        if t > self.t_free && run.moved {
+            let from = self.t_free;
+            self.event(serde_json::json!({"ev": "idle", "t": from, "run": id, "until": t}));
+        }
+        let Some(run) = self.run.as_mut() else { return };
+        let Some(seg) = run.segs.front_mut() else { return };
+        seg.start = Some(t);
+        let sync = std::mem::take(&mut seg.sync);
+        let kind = seg.kind.clone();
+        run.moved |= matches!(kind, SegKind::Move { .. });
+        // Queued synchronous assignments act as this segment starts (those
+        // left over from a stopped program first, unless MFLUSHed).
+        for (l, n, v) in std::mem::take(&mut self.sync_left).into_iter().chain(sync) {
+            self.set_var(l, n, v, t);
+        }
+        match kind {
+            SegKind::Move {
+                from,
+                to,
+                kind,
+                name,
+                feed,
+                dur,
+            } => {
+                let beam = self.shutter().is_some_and(|(l, n)| self.var(l, n) != 0.0);
+                let mut ev = serde_json::json!({
+                    "ev": "move", "t": t, "run": id, "kind": name,
+                    "x": to.x, "y": to.y, "z": to.z, "from": [from.x, from.y, from.z],
+                    "beam": beam, "feed": feed, "dur": dur,
+                });
+                if let MotionKind::Arc(a) = kind {
+                    ev["center"] = serde_json::json!([a.center.x, a.center.y, a.center.z]);
+                    ev["ccw"] = serde_json::json!(a.ccw);
+                }
+                self.event(ev);
+                self.t_free = t + dur;
+            }
+            SegKind::Dwell { s } => {
                 self.event(serde_json::json!({"ev": "dwell", "t": t, "run": id, "s": s}));
                 self.t_free = t + s;
             }
-            Record::Accel { ta_ms, .. } => {
-                if let Some(ta) = ta_ms.filter(|v| v.is_finite() && *v >= 0.0) {
-                    self.ta_ms = ta;
-                }
-            }
-            Record::Var { name, value, sync, .. } => {
-                let b = name.as_bytes();
-                if let (Some(&l), Ok(n)) = (b.first(), name.get(1..).unwrap_or("").parse::<usize>()) {
-                    if sync {
-                        self.sync_vars.push((l, n, value));
-                    } else {
-                        self.set_var(l, n, value, t);
-                    }
-                }
-            }
-            Record::Spindle { .. } => {}
         }
     }
 
-    fn finish_run(&mut self, how: &str) {
-        if let Some(r) = self.run.take() {
-            let t = self.t_free;
-            self.event(serde_json::json!({"ev": how, "t": t, "run": r.id}));
+    /// Where the stage is at simulated time `t` (now or later): on the
+    /// segment in motion, at constant speed along it.
+    pub fn position_at(&self, t: f64) -> P3 {
+        let Some(seg) = self.run.as_ref().and_then(|r| r.segs.front()) else {
+            return self.pos;
+        };
+        let (
+            Some(t0),
+            SegKind::Move {
+                from, to, kind, dur, ..
+            },
+        ) = (seg.start, &seg.kind)
+        else {
+            return self.pos;
+        };
+        let f = if *dur > 0.0 {
+            ((t - t0) / dur).clamp(0.0, 1.0)
+        } else {
+            1.0
+        };
+        match kind {
+            MotionKind::Arc(a) => match Arc3::new(a.center, *from, *to, a.ccw, a.plane, a.extra_turns) {
+                Some(arc) => arc.point_at(f),
+                None => *to,
+            },
+            _ => *from + (*to - *from) * f,
         }
+    }
+
+    /// The stage's position now.
+    pub fn position(&self) -> P3 {
+        self.position_at(self.now())
+    }
+
+    fn finish_run(&mut self, how: &str) {
+        let t = self.t_evt.max(self.t_free);
+        self.stop_run(t, Some(how));
+    }
+
+    /// End the run at time `t`: motion stops where it is, calculated
+    /// segments are dropped, their synchronous assignments stay queued.
+    fn stop_run(&mut self, t: f64, how: Option<&str>) {
+        let p = self.position_at(t);
+        if let Some(r) = self.run.take() {
+            if let Some(how) = how {
+                self.event(serde_json::json!({"ev": how, "t": t, "run": r.id, "x": p.x, "y": p.y, "z": p.z}));
+            }
+            for s in r.segs.into_iter().filter(|s| s.start.is_none()) {
+                self.sync_left.extend(s.sync);
+            }
+            self.sync_left.extend(r.sync_pending);
+        }
+        self.pos = p;
+        self.t_free = self.t_free.min(t);
+        self.t_evt = t;
     }
 
     fn start_run(&mut self, p: Pointer) -> Result<(), u16> {
@@ -560,6 +817,7 @@ impl Controller {
         let id = self.runs;
         let now = self.now();
         self.t_free = self.t_free.max(now);
+        self.t_evt = self.t_evt.max(now);
         let prog = match p {
             Pointer::Prog(n) => serde_json::json!(n),
             Pointer::Rot => serde_json::json!("rot"),
@@ -574,18 +832,22 @@ impl Controller {
             lineno: 0,
             moved: false,
             quit: false,
+            eof: false,
+            segs: VecDeque::new(),
+            calc_pos: self.pos,
+            sync_pending: Vec::new(),
         });
         Ok(())
     }
 
     fn abort(&mut self) {
         let now = self.now();
-        if let Some(r) = self.run.take() {
-            self.event(serde_json::json!({"ev": "abort", "t": now, "run": r.id}));
+        if self.run.is_some() {
+            // Motion stops where it is (deceleration within TA ignored);
+            // look-ahead is dropped. Queued `==` assignments stay queued
+            // until MFLUSH.
+            self.stop_run(now, Some("abort"));
         }
-        // Motion stops where it is (decelerating within TA; ignored).
-        self.t_free = self.t_free.min(now);
-        self.sync_vars.clear();
     }
 
     /// Store one program line into the open buffer.
@@ -662,7 +924,9 @@ impl Controller {
         }
         // On-line commands act at once even with a buffer open; the rest
         // of the line follows them on-line too (`PR &1?? P400`).
-        const ONLINE: &[&str] = &["SIZE", "VER", "CID", "PR", "??", "$$$", "&", "OPEN", "CLOSE"];
+        const ONLINE: &[&str] = &[
+            "SIZE", "VER", "CID", "PR", "??", "$$$", "&", "OPEN", "CLOSE", "MFLUSH", "#",
+        ];
         let b = compact.as_bytes();
         let var_query =
             b.len() > 1 && matches!(b[0], b'P' | b'M' | b'I' | b'Q') && b[1..].iter().all(u8::is_ascii_digit);
@@ -796,6 +1060,13 @@ impl Controller {
             self.gather = n;
             return Ok(());
         }
+        if c.kw("MFLUSH") {
+            self.sync_left.clear();
+            if let Some(r) = self.run.as_mut() {
+                r.sync_pending.clear();
+            }
+            return Ok(());
+        }
         if c.kw("SIZE") {
             let free = self.free_words();
             out.push(format!("{}", if sess.open.is_some() { -free } else { free }));
@@ -848,6 +1119,35 @@ impl Controller {
                 sess.cs = n;
                 Ok(())
             }
+            Some(b'#') => {
+                c.i += 1;
+                let n = c.int().ok_or(err::DATA)?;
+                if !(1..=8).contains(&n) {
+                    return Err(err::DATA);
+                }
+                sess.motor = n;
+                if c.kw("->") {
+                    // Query only: X, Y, Z on motors 1-3.
+                    out.push(match n {
+                        1..=3 => format!("{}{}", fmt_value(COUNTS_PER_MM), ["X", "Y", "Z"][n as usize - 1]),
+                        _ => "0".into(),
+                    });
+                }
+                Ok(())
+            }
+            Some(b'P') if !c.b.get(c.i + 1).is_some_and(|d| d.is_ascii_digit()) => {
+                // Position of the addressed motor, counts.
+                c.i += 1;
+                let p = self.position();
+                let v = match sess.motor {
+                    1 => p.x,
+                    2 => p.y,
+                    3 => p.z,
+                    _ => 0.0,
+                };
+                out.push(fmt_value((v * COUNTS_PER_MM * 10.0).round() / 10.0));
+                Ok(())
+            }
             Some(b'B') if c.b.get(c.i + 1).is_some_and(|d| d.is_ascii_digit() || *d == b' ') => {
                 c.i += 1;
                 let n = c.int().ok_or(err::DATA)?;
@@ -881,10 +1181,8 @@ impl Controller {
                 c.i += 1;
                 if let Some(r) = self.run.as_mut() {
                     r.quit = true;
-                    if r.pending.is_empty() {
-                        self.finish_run("done");
-                    }
                 }
+                self.advance();
                 Ok(())
             }
             Some(l @ (b'I' | b'P' | b'Q' | b'M')) if c.b.get(c.i + 1).is_some_and(|d| d.is_ascii_digit()) => {
@@ -893,7 +1191,21 @@ impl Controller {
                 if n >= VARS {
                     return Err(err::DATA);
                 }
-                if c.kw("=") {
+                if l == b'M' && c.kw("->") {
+                    c.ws();
+                    let s = c.i;
+                    while c.peek().is_some_and(|d| !d.is_ascii_whitespace()) {
+                        c.i += 1;
+                    }
+                    let def = std::str::from_utf8(&c.b[s..c.i]).unwrap_or("").to_string();
+                    if def.is_empty() {
+                        out.push(self.mdefs.get(&n).map_or("*".into(), |d| d.text.clone()));
+                    } else if def == "*" {
+                        self.mdefs.remove(&n);
+                    } else {
+                        self.mdefs.insert(n, parse_mdef(&def).ok_or(err::DATA)?);
+                    }
+                } else if c.kw("=") {
                     let v = c.number().ok_or(err::DATA)?;
                     let t = self.now();
                     self.set_var(l, n, v, t);
@@ -931,12 +1243,15 @@ impl Controller {
             // ^G: global status.
             0x07 => Ok(vec![format!("{:06X}{:06X}", 0, 0)]),
             // ^P positions, ^F following errors, ^V velocities (motors 1-3).
-            0x10 => Ok(vec![format!(
-                "{} {} {}",
-                fmt_value(self.pos.x),
-                fmt_value(self.pos.y),
-                fmt_value(self.pos.z)
-            )]),
+            0x10 => {
+                let p = self.position();
+                Ok(vec![format!(
+                    "{} {} {}",
+                    fmt_value(p.x),
+                    fmt_value(p.y),
+                    fmt_value(p.z)
+                )])
+            }
             0x06 | 0x16 => Ok(vec!["0 0 0".into()]),
             _ => Err(err::DATA),
         }
@@ -978,10 +1293,15 @@ mod tests {
         assert_eq!(parse_status(&st[0]), Some((true, false)));
         assert_eq!(c.command_line(&mut s, "OPEN PROG 1 CLEAR"), Err(err::RUNNING));
         c.set_time(1.5);
-        assert_eq!(ok(&mut c, &mut s, "P400"), vec!["1"]);
+        // P400=2 is a plain assignment: it ran when look-ahead calculated
+        // the second line, ahead of its motion.
+        assert_eq!(ok(&mut c, &mut s, "P400"), vec!["2"]);
         assert_eq!(ok(&mut c, &mut s, "M33"), vec!["1"]);
         c.set_time(2.5);
-        assert_eq!(ok(&mut c, &mut s, "M33"), vec!["0"]);
+        // The immediate `M33=0` after the last move ran at calculation
+        // time, before `M33==1` took effect: the shutter stays open. This
+        // is why pmac-send closes it synchronously and after every stop.
+        assert_eq!(ok(&mut c, &mut s, "M33"), vec!["1"]);
         assert_eq!(parse_status(&ok(&mut c, &mut s, "&1??")[0]), Some((false, true)));
     }
 
@@ -1024,6 +1344,52 @@ mod tests {
         ok(&mut c, &mut s, "&1Q");
         assert!(!c.running());
         assert_eq!(c.pos.x, 2.0);
+    }
+
+    #[test]
+    fn synchronous_counter_follows_motion_and_mflush_clears_leftovers() {
+        let (mut c, mut s) = ctl();
+        ok(&mut c, &mut s, "M7400->L:$6190");
+        assert_eq!(ok(&mut c, &mut s, "M7400->"), vec!["L:$6190"]);
+        ok(&mut c, &mut s, "OPEN PROG 1 CLEAR");
+        ok(&mut c, &mut s, "LINEAR F1 X1 M7400==1");
+        ok(&mut c, &mut s, "M33==1 X2 M7400==2");
+        ok(&mut c, &mut s, "X3 M7400==3");
+        ok(&mut c, &mut s, "M33==0 X4 M7400==4");
+        ok(&mut c, &mut s, "CLOSE &1B1R");
+        c.set_time(0.5);
+        // The counter (through M7400, in P400) is set where the next move
+        // starts: still 0 in move 1.
+        assert_eq!(ok(&mut c, &mut s, "P400"), vec!["0"]);
+        assert_eq!(ok(&mut c, &mut s, "#1P"), vec!["5000"]);
+        c.set_time(1.5);
+        assert_eq!(ok(&mut c, &mut s, "P400 M7400 M33"), vec!["1", "1", "1"]);
+        c.set_time(2.25);
+        ok(&mut c, &mut s, "&1A");
+        assert_eq!(ok(&mut c, &mut s, "#1P #2P #1->"), vec!["22500", "0", "10000X"]);
+        assert!(!c.running() && c.in_position());
+        // Queued `==` assignments of dropped look-ahead (M33==0, counters)
+        // stay queued: the next move would run them. MFLUSH clears them.
+        assert!(!c.sync_left.is_empty());
+        ok(&mut c, &mut s, "&1 MFLUSH");
+        assert!(c.sync_left.is_empty());
+        assert_eq!(c.position().x, 2.25);
+    }
+
+    #[test]
+    fn dry_rotary_program_is_suspended_not_finished() {
+        let (mut c, mut s) = ctl();
+        ok(&mut c, &mut s, "&1 DEFINE ROT 50");
+        ok(&mut c, &mut s, "&1 B0");
+        ok(&mut c, &mut s, "OPEN ROT");
+        ok(&mut c, &mut s, "LINEAR X1 F1");
+        ok(&mut c, &mut s, "&1R");
+        ok(&mut c, &mut s, "CLOSE");
+        c.set_time(5.0);
+        let st = ok(&mut c, &mut s, "&1??");
+        assert_eq!(parse_status(&st[0]), Some((true, true)), "running and in position");
+        ok(&mut c, &mut s, "&1Q");
+        assert_eq!(parse_status(&ok(&mut c, &mut s, "&1??")[0]), Some((false, true)));
     }
 
     #[test]

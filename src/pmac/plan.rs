@@ -42,6 +42,22 @@ pub struct Names {
     /// `DWELL0` (which stops look-ahead): it changes only once all motion
     /// of the chunk has ended, so it confirms the chunk even after an abort.
     pub done: String,
+    /// The M-variable pointed at the counter's P register: the program
+    /// assigns it synchronously (`M7400==n` after move n), so the counter
+    /// follows motion, not look-ahead.
+    pub counter_m: String,
+    /// Holds the job's session number, so counters read back are known to
+    /// be this job's (a reset zeroes it).
+    pub session: String,
+}
+
+impl Names {
+    /// `M7400->L:$6190`: the counter M-variable pointed at the counter's
+    /// P register (Turbo PMAC P-variables live at $6000 + n).
+    pub fn counter_definition(&self) -> Option<String> {
+        let n: u32 = self.counter.strip_prefix('P')?.parse().ok()?;
+        (n < 8192).then(|| format!("{}->L:${:04X}", self.counter_m, 0x6000 + n))
+    }
 }
 
 impl Default for Names {
@@ -50,6 +66,8 @@ impl Default for Names {
             shutter: "M33".into(),
             counter: "P400".into(),
             done: "P401".into(),
+            counter_m: "M7400".into(),
+            session: "P402".into(),
         }
     }
 }
@@ -128,9 +146,15 @@ impl Job {
     ) -> Result<Chunk, PlanError> {
         let mut opts = WriteOptions::for_dialect(Dialect::Pmac);
         opts.shutter_var = self.names.shutter.clone();
-        opts.line_counter = Some(self.names.counter.clone());
+        // `M7400=` + `=n`: the writer's counter word becomes the
+        // synchronous `M7400==n`, performed where the next move starts.
+        let counter_word = format!("{}=", self.names.counter_m);
+        opts.line_counter = Some(counter_word.clone());
         opts.start = start;
-        opts.trailer = Some(vec![format!("{}=0", self.names.shutter)]);
+        // Synchronous: an immediate close would run at look-ahead time,
+        // during the last beam-on move.
+        let close = format!("{}==0", self.names.shutter);
+        opts.trailer = Some(vec![close.clone()]);
         let mut w = GcodeWriter::new(Vec::new(), opts, self.feed_unit);
         if let Some((ta_ms, ts_ms)) = ta {
             w.record(&Record::Accel {
@@ -149,7 +173,14 @@ impl Job {
         let lines: Vec<String> = text
             .lines()
             .filter(|l| !l.trim_start().to_ascii_uppercase().starts_with("OPEN PROG"))
-            .map(|l| offset_counter(l, &self.names.counter, counter0))
+            .map(|l| offset_counter(l, &counter_word, counter0))
+            .map(|l| {
+                if l == format!("{}=0", self.names.shutter) {
+                    close.clone()
+                } else {
+                    l
+                }
+            })
             .collect();
         let words = lines.iter().map(|l| line_words(l)).sum();
         Ok(Chunk {
@@ -176,13 +207,90 @@ impl Job {
         self.cut(Some(budget), false)
     }
 
+    /// The moves as the counter numbers them (move n has counter n).
+    pub fn moves(&self) -> Vec<MoveGeom> {
+        let mut pos = P3::origin();
+        let mut v = Vec::new();
+        for r in &self.records {
+            if let Record::Move(m) = r {
+                let arc = match m.kind {
+                    MotionKind::Arc(a) => Some((a.center, a.ccw, a.plane, a.extra_turns)),
+                    _ => None,
+                };
+                v.push(MoveGeom {
+                    from: pos,
+                    to: m.to,
+                    arc,
+                    beam: m.beam,
+                });
+                pos = m.to;
+            }
+        }
+        v
+    }
+
+    /// The job from move `next` (1-based) on; with `at`, move `next` runs
+    /// only from `at` (a point on it) to its end. Answers the job, where it
+    /// starts, the TA in force and the counter before its first move.
+    pub fn rest(&self, next: u64, at: Option<P3>) -> Option<Rest> {
+        let mut k = 0u64;
+        let mut pos = P3::origin();
+        let mut ta: Option<(Option<f64>, Option<f64>)> = None;
+        let mut from_idx = 0usize;
+        for (i, r) in self.records.iter().enumerate() {
+            match r {
+                Record::Move(m) => {
+                    k += 1;
+                    if k == next {
+                        let (s, start) = match at {
+                            Some(p) => (i, p),
+                            None => (from_idx, pos),
+                        };
+                        let job = Job {
+                            records: self.records[s..].to_vec(),
+                            feed_unit: self.feed_unit,
+                            dialect: self.dialect,
+                            names: self.names.clone(),
+                        };
+                        return Some(Rest {
+                            job,
+                            start,
+                            ta,
+                            counter0: next - 1,
+                        });
+                    }
+                    pos = m.to;
+                    from_idx = i + 1;
+                }
+                Record::Accel { ta_ms, ts_ms, .. } if k + 1 < next || at.is_some() => {
+                    let (a0, s0) = ta.unwrap_or((None, None));
+                    ta = Some((ta_ms.or(a0), ts_ms.or(s0)));
+                }
+                _ => {}
+            }
+        }
+        None
+    }
+
     fn cut(&self, budget: Option<usize>, strict: bool) -> Result<Vec<Chunk>, PlanError> {
+        self.cut_from(budget, strict, P3::origin(), None, 0)
+    }
+
+    /// Cut starting at `pos` with TA `ta` and the counter at `counter0`.
+    pub fn cut_from(
+        &self,
+        budget: Option<usize>,
+        strict: bool,
+        pos: P3,
+        ta: Option<(Option<f64>, Option<f64>)>,
+        counter0: u64,
+    ) -> Result<Vec<Chunk>, PlanError> {
         let cuts = self.cuts();
         let mut out = Vec::new();
         let mut s = 0usize;
-        let mut pos = P3::origin();
-        let mut ta: Option<(Option<f64>, Option<f64>)> = None;
-        let mut counter = 0u64;
+        let mut pos = pos;
+        let mut ta = ta;
+        let mut counter = counter0;
         while s < self.records.len() {
             // Candidate ends: cuts after s. Grow exponentially while the
             // chunk fits, then bisect between the last fit and the first
@@ -263,6 +371,68 @@ impl Job {
         }
         Ok(out)
     }
+}
+
+/// A move's geometry, for finding where along the job the stage stopped.
+#[derive(Debug, Clone, Copy)]
+pub struct MoveGeom {
+    pub from: P3,
+    pub to: P3,
+    /// Centre, counter-clockwise, plane, extra turns.
+    pub arc: Option<(P3, bool, crate::geometry::Plane, u32)>,
+    pub beam: bool,
+}
+
+impl MoveGeom {
+    /// Length, mm.
+    pub fn length(&self) -> f64 {
+        match self.arc3() {
+            Some(a) => a.length(),
+            None => (self.to - self.from).norm(),
+        }
+    }
+
+    fn arc3(&self) -> Option<Arc3> {
+        let (c, ccw, plane, turns) = self.arc?;
+        Arc3::new(c, self.from, self.to, ccw, plane, turns)
+    }
+
+    /// The point of the move nearest `p`: (distance, length along the move).
+    pub fn project(&self, p: P3) -> (f64, f64) {
+        if let Some(a) = self.arc3() {
+            if let Some((q, t)) = a.closest_point(&p) {
+                return ((q - p).norm(), t * a.length());
+            }
+            return ((self.to - p).norm(), a.length());
+        }
+        let d = self.to - self.from;
+        let l2 = d.dot(&d);
+        let t = if l2 > 0.0 {
+            ((p - self.from).dot(&d) / l2).clamp(0.0, 1.0)
+        } else {
+            1.0
+        };
+        let q = self.from + d * t;
+        ((q - p).norm(), t * l2.sqrt())
+    }
+
+    /// The point `s` mm along the move.
+    pub fn point_at(&self, s: f64) -> P3 {
+        let len = self.length();
+        let t = if len > 0.0 { (s / len).clamp(0.0, 1.0) } else { 1.0 };
+        match self.arc3() {
+            Some(a) => a.point_at(t),
+            None => self.from + (self.to - self.from) * t,
+        }
+    }
+}
+
+/// The rest of a job, from a resume point.
+pub struct Rest {
+    pub job: Job,
+    pub start: P3,
+    pub ta: Option<(Option<f64>, Option<f64>)>,
+    pub counter0: u64,
 }
 
 /// Words the completion marker of a buffer chunk takes (with margin).

@@ -8,9 +8,10 @@
 //! confirmed only by what the controller reports (the line counter read
 //! back, and not running), never by what was sent.
 
+use crate::geometry::P3;
 use crate::pmac::client::{Client, ClientError, DownloadError};
 use crate::pmac::controller::parse_status;
-use crate::pmac::plan::{Chunk, Names, marker_lines};
+use crate::pmac::plan::{Chunk, MoveGeom, Names, marker_lines};
 use serde::{Deserialize, Serialize};
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -54,9 +55,11 @@ pub struct SendOptions {
     pub poll: Duration,
     /// Give up when nothing changes on the controller for this long.
     pub stall: Duration,
-    /// Blocks the controller may calculate ahead of motion: a rotary chunk
-    /// counts as done only when the counter is this far past its end.
-    pub lookahead: u64,
+    /// How long a safety stop keeps trying (reconnecting) before it gives
+    /// up and says the shutter could not be confirmed closed.
+    pub stop_deadline: Duration,
+    /// Reply timeout during a safety stop (longer than the normal one).
+    pub stop_timeout: Duration,
     pub names: Names,
     /// Where the resume state goes.
     pub state_path: PathBuf,
@@ -65,7 +68,12 @@ pub struct SendOptions {
     pub upload_only: bool,
 }
 
-/// The resume state, written after every confirmed chunk and on a stop.
+/// The resume state: written before the controller is touched, whenever
+/// the controller confirms progress, and after a stop.
+///
+/// Progress is counted in moves (the counter numbers them): every move
+/// before `next_move` has executed; of `next_move` only the part before
+/// `resume_at` (when set) has.
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 pub struct State {
     pub version: u32,
@@ -74,10 +82,15 @@ pub struct State {
     pub mode: Mode,
     /// Word budget the chunks were cut with (so resume cuts the same).
     pub budget: Option<usize>,
-    pub chunks: usize,
-    /// Chunks confirmed complete, in order: resume starts at this index.
-    pub chunks_done: usize,
-    pub last_counter: u64,
+    /// Moves in the job.
+    pub moves: u64,
+    /// The first move not wholly executed (moves + 1 when finished).
+    pub next_move: u64,
+    /// Where along `next_move` the stage stopped (mm), if it had started it.
+    pub resume_at: Option<[f64; 3]>,
+    /// This job's number, also written to the session variable on the
+    /// controller: counters read back count only when it matches.
+    pub session: u64,
     /// Why the last session stopped (absent when it finished).
     pub stopped: Option<String>,
 }
@@ -100,6 +113,56 @@ impl State {
         tmp.persist(path).map_err(|e| err(&e))?;
         Ok(())
     }
+
+    pub fn resume_point(&self) -> Option<P3> {
+        self.resume_at.map(|a| P3::new(a[0], a[1], a[2]))
+    }
+
+    /// Take a resume point if it is further along than the saved one
+    /// (progress never goes back).
+    pub fn advance_to(&mut self, moves: &[MoveGeom], next: u64, at: Option<P3>) -> bool {
+        let key = |n: u64, a: Option<P3>| -> (u64, f64) {
+            let s = match (a, moves.get((n as usize).wrapping_sub(1))) {
+                (Some(p), Some(m)) => m.project(p).1,
+                _ => 0.0,
+            };
+            (n, s)
+        };
+        let (new, old) = (key(next, at), key(self.next_move, self.resume_point()));
+        if new.0 > old.0 || (new.0 == old.0 && new.1 > old.1 + 1e-6) {
+            self.next_move = next;
+            self.resume_at = at.map(|p| [p.x, p.y, p.z]);
+            true
+        } else {
+            false
+        }
+    }
+}
+
+/// Where the stage is in the job, from the counter `c` (moves wholly
+/// executed: move n sets it to n where the next move starts) and the
+/// position `p`: the move to continue and the point on it. A position on
+/// neither move `c + 1` nor move `c` (the blend) gives move `c + 1` from its
+/// start: re-cutting a little is safe, skipping is not.
+pub fn locate(moves: &[MoveGeom], c: u64, p: P3, tol: f64) -> (u64, Option<P3>) {
+    let place = |n: u64| -> Option<(u64, Option<P3>)> {
+        let m = moves.get((n as usize).checked_sub(1)?)?;
+        let (d, s) = m.project(p);
+        if d > tol {
+            return None;
+        }
+        let len = m.length();
+        Some(if len - s <= tol {
+            (n + 1, None)
+        } else if s <= tol {
+            (n, None)
+        } else {
+            (n, Some(m.point_at(s)))
+        })
+    };
+    place(c + 1)
+        .or_else(|| if c >= 1 { place(c) } else { None })
+        .unwrap_or((c + 1, None))
 }
 
 /// FNV-1a 64 of the input, as hex.
@@ -143,17 +206,33 @@ impl SendError {
     }
 }
 
-/// `&1??`, the line counter and the done marker: (running, in position,
-/// counter, chunks done).
-type Polled = (bool, bool, u64, u64);
+/// A counter read back: a multiple of 0.5 between 0 and the job's moves
+/// (x.5 marks a beam-off reposition before move x + 1), or the reply is
+/// bad and must not be trusted.
+fn counter_value(s: &str, moves: u64) -> Result<f64, SendError> {
+    let v = s
+        .trim()
+        .parse::<f64>()
+        .map_err(|_| SendError::BadReply(format!("counter '{}' is not a number", s.trim())))?;
+    if !v.is_finite() || v < 0.0 || v > moves as f64 || (v * 2.0).fract() != 0.0 {
+        return Err(SendError::BadReply(format!(
+            "counter '{}' is impossible (the job has {moves} moves)",
+            s.trim()
+        )));
+    }
+    Ok(v)
+}
 
-/// A counter variable's value as a count (negative or junk: 0).
+/// A small whole number (the chunk marker).
 fn count(s: &str) -> Result<u64, SendError> {
     let v = s
         .trim()
         .parse::<f64>()
         .map_err(|_| SendError::BadReply(s.to_string()))?;
-    Ok(if v.is_finite() && v > 0.0 { v as u64 } else { 0 })
+    if !v.is_finite() || v < 0.0 || v.fract() != 0.0 || v > 1e9 {
+        return Err(SendError::BadReply(s.to_string()));
+    }
+    Ok(v as u64)
 }
 
 /// What a session did, printed as JSON at the end.
@@ -161,13 +240,14 @@ fn count(s: &str) -> Result<u64, SendError> {
 pub struct Summary {
     pub mode: String,
     pub chunks: usize,
-    /// First chunk this session ran (non-zero after --resume).
-    pub first_chunk: usize,
     pub chunks_run: usize,
+    pub moves: u64,
+    /// First move this session ran (above 1 after --resume).
+    pub first_move: u64,
     pub lines_sent: u64,
     pub requests: u64,
     pub final_counter: u64,
-    /// A beam-off rapid to the resumed chunk's start was added.
+    /// A beam-off rapid to the resume point was added.
     pub repositioned: bool,
     pub upload_seconds: f64,
     pub seconds: f64,
@@ -183,37 +263,46 @@ pub struct Failure {
     pub summary: Summary,
 }
 
+/// The controller's word after a safety stop: counter, session number,
+/// position (mm).
+#[derive(Debug, Clone, Copy)]
+pub struct Reading {
+    pub counter: f64,
+    pub session: f64,
+    pub pos: P3,
+}
+
 pub struct Sender<'a> {
     client: Option<Client>,
     host: String,
     transport: crate::pmac::client::Transport,
-    timeout: Duration,
     opts: SendOptions,
     stop: Arc<AtomicBool>,
     progress: &'a mut dyn Write,
     summary: Summary,
     last_note: Instant,
+    moves: Vec<MoveGeom>,
 }
 
 impl<'a> Sender<'a> {
     pub fn new(
         client: Client,
         host: &str,
-        timeout: Duration,
         opts: SendOptions,
         stop: Arc<AtomicBool>,
         progress: &'a mut dyn Write,
+        moves: Vec<MoveGeom>,
     ) -> Self {
         Sender {
             transport: client.transport(),
             client: Some(client),
             host: host.to_string(),
-            timeout,
             opts,
             stop,
             progress,
             summary: Summary::default(),
             last_note: Instant::now() - Duration::from_secs(10),
+            moves,
         }
     }
 
@@ -242,6 +331,10 @@ impl<'a> Sender<'a> {
         }
     }
 
+    fn n_moves(&self) -> u64 {
+        self.moves.len() as u64
+    }
+
     /// Free words after clearing program `prog` and the gather buffer.
     pub fn free_words(&mut self) -> Result<i64, SendError> {
         let prog = self.opts.prog;
@@ -254,26 +347,24 @@ impl<'a> Sender<'a> {
         s.trim().parse::<i64>().map_err(|_| SendError::BadReply(s))
     }
 
-    /// `&1?? P400 P401` in one request: (running, in position, counter,
-    /// chunks marked done).
-    fn poll(&mut self) -> Result<Polled, SendError> {
-        let q = format!("&1?? {} {}", self.opts.names.counter, self.opts.names.done);
-        let r = self.cmd(&q)?;
-        let (Some(st), Some(cnt), Some(done)) = (r.first(), r.get(1), r.get(2)) else {
-            return Err(SendError::BadReply(r.join(" ")));
-        };
-        let (run, inpos) = parse_status(st).ok_or_else(|| SendError::BadReply(st.clone()))?;
-        Ok((run, inpos, count(cnt)?, count(done)?))
+    /// Record the progress a validated counter confirms: moves up to `c`
+    /// have executed.
+    fn progress_to(&mut self, state: &mut State, c: f64) -> Result<(), SendError> {
+        if c.fract() == 0.0 && state.advance_to(&self.moves, c as u64 + 1, None) {
+            self.summary.final_counter = c as u64;
+            self.save(state)?;
+        }
+        Ok(())
     }
 
-    /// Run the chunks from `state.chunks_done` on; `state` is updated and
-    /// saved after each confirmed chunk.
+    /// Run the chunks (cut from the state's resume point).
     pub fn run(mut self, chunks: &[Chunk], state: &mut State) -> Result<Summary, Box<Failure>> {
         let t0 = Instant::now();
         self.summary.mode = self.opts.mode.name().into();
         self.summary.chunks = chunks.len();
-        self.summary.first_chunk = state.chunks_done;
-        self.summary.estimated_run_seconds = chunks.iter().skip(state.chunks_done).map(|c| c.seconds).sum();
+        self.summary.moves = self.n_moves();
+        self.summary.first_move = state.next_move;
+        self.summary.estimated_run_seconds = chunks.iter().map(|c| c.seconds).sum();
         let r = match self.opts.mode {
             Mode::Program | Mode::Split => self.run_buffers(chunks, state),
             Mode::Rotary => self.run_rotary(chunks, state),
@@ -291,12 +382,8 @@ impl<'a> Sender<'a> {
                 Ok(self.summary)
             }
             Err(error) => {
-                let link = error.is_link();
-                let (safe_stop, status) = self.safe_stop(link);
-                // What the controller says decides what is complete.
-                if let Some((_, _, counter, done)) = status {
-                    confirm(chunks, state, counter, done, self.opts.mode, self.opts.lookahead);
-                }
+                let link = error.is_link() || matches!(error, SendError::BadReply(_));
+                let safe_stop = self.recover(state, link);
                 state.stopped = Some(error.to_string());
                 let mut failure = Failure {
                     error,
@@ -313,90 +400,139 @@ impl<'a> Sender<'a> {
         }
     }
 
-    /// Close the shutter and abort (for a failure outside [`Sender::run`]).
-    pub fn stop_safely(&mut self, link_failed: bool) -> Result<(), String> {
-        self.safe_stop(link_failed).0
+    /// Stop safely, then take from the controller where the job stopped
+    /// (when its counters are this job's) and save it in the state.
+    pub fn recover(&mut self, state: &mut State, link_failed: bool) -> Result<(), String> {
+        let reading = self.secure(link_failed)?;
+        if reading.session == state.session as f64
+            && let Ok(c) = counter_value(&fmt_reading(reading.counter), self.n_moves())
+        {
+            let (next, at) = if c.fract() != 0.0 {
+                // Still repositioning before move c + 0.5: nothing new ran.
+                (state.next_move, state.resume_point())
+            } else {
+                locate(&self.moves, c as u64, reading.pos, POSITION_TOL_MM)
+            };
+            state.advance_to(&self.moves, next, at);
+        }
+        state
+            .save(&self.opts.state_path)
+            .map_err(|e| format!("shutter closed, but {e}"))
     }
 
-    /// Close the shutter and abort, on the current link or a new one.
-    /// Returns the status read first (before the abort) when it could.
-    fn safe_stop(&mut self, link_failed: bool) -> (Result<(), String>, Option<Polled>) {
-        if link_failed || self.client.is_none() {
+    /// Close the shutter, abort, flush queued synchronous assignments, and
+    /// keep at it, reconnecting, until the controller confirms the program
+    /// is not running and the shutter is closed, or the stop deadline
+    /// passes. Each reply may take [`SendOptions::stop_timeout`].
+    fn secure(&mut self, link_failed: bool) -> Result<Reading, String> {
+        let deadline = Instant::now() + self.opts.stop_deadline;
+        let sh = self.opts.names.shutter.clone();
+        let stop_line = format!("CLOSE {sh}=0 &1A &1 MFLUSH {sh}=0");
+        let n = &self.opts.names;
+        let check = format!("&1?? {sh} {} {} #1P #2P #3P #1-> #2-> #3->", n.counter, n.session);
+        if link_failed {
             self.client = None;
-            // Bounded: a few tries, each with the client timeout.
-            let mut last = String::new();
-            for _ in 0..3 {
-                match Client::connect(&self.host, self.transport, self.timeout) {
-                    Ok(c) => {
-                        self.client = Some(c);
-                        break;
-                    }
+        }
+        let mut last = String::new();
+        loop {
+            if self.client.is_none() {
+                match Client::connect(&self.host, self.transport, self.opts.stop_timeout) {
+                    Ok(c) => self.client = Some(c),
+                    Err(e) => last = format!("could not reach the controller: {e}"),
+                }
+            }
+            if self.client.is_some() {
+                let r = self.cmd(&stop_line).and_then(|_| self.cmd(&check));
+                match r {
+                    Ok(v) => match parse_check(&v) {
+                        Some((running, shut, reading)) => {
+                            if !running && shut == 0.0 {
+                                return Ok(reading);
+                            }
+                            last = format!("controller still reports running={running}, {sh}={shut}")
+                        }
+                        None => last = format!("bad reply to '{check}': {v:?}"),
+                    },
                     Err(e) => {
                         last = e.to_string();
-                        std::thread::sleep(Duration::from_millis(200));
+                        if !matches!(&e, SendError::Client(ClientError::Pmac { .. })) {
+                            self.client = None;
+                        }
                     }
                 }
             }
-            if self.client.is_none() {
-                return (
-                    Err(format!("could not reach the controller to close the shutter: {last}")),
-                    None,
-                );
+            if Instant::now() >= deadline {
+                return Err(format!(
+                    "could not confirm the shutter closed within {:?}: {last}",
+                    self.opts.stop_deadline
+                ));
             }
+            let _ = writeln!(
+                self.progress,
+                "pmac-send: safety stop not confirmed yet ({last}); retrying"
+            );
+            std::thread::sleep(Duration::from_millis(200));
         }
-        let status = self.poll().ok();
-        let shutter = format!("{}=0", self.opts.names.shutter);
-        // CLOSE first so the shutter command is not stored in an open
-        // buffer; the shutter again after the abort, in case the program
-        // opened it in its last calculated line.
-        let mut res = Ok(());
-        for cmd in ["CLOSE", &shutter, "&1A", &shutter] {
-            if let Err(e) = self.cmd(cmd) {
-                res = Err(format!("'{cmd}' failed: {e}"));
-            }
-        }
-        // A chunk that ended between the first poll and the abort set its
-        // done marker; read it again so it is not run twice.
-        let status = self.poll().ok().or(status);
-        (res, status)
     }
 
     fn save(&mut self, state: &State) -> Result<(), SendError> {
         state.save(&self.opts.state_path)
     }
 
+    /// The lines of chunk `c`; with `reposition`, a beam-off RAPID to its
+    /// start first, which sets the counter to the move before it.
     fn chunk_lines(&mut self, c: &Chunk, reposition: bool, number: usize) -> Vec<String> {
         let mut lines = c.lines.clone();
         if self.opts.mode != Mode::Rotary {
             lines.extend(marker_lines(&self.opts.names.done, number));
         }
         if reposition {
-            // After an interrupted chunk the stage is not where this chunk
-            // starts: go there with the beam off (the header closed it).
             let at = lines
                 .iter()
                 .position(|l| l.starts_with(&format!("{}=", self.opts.names.shutter)))
                 .map_or(0, |p| p + 1);
             lines.insert(
                 at,
-                format!("RAPID X{:.4} Y{:.4} Z{:.4}", c.start[0], c.start[1], c.start[2]),
+                format!(
+                    "RAPID X{:.4} Y{:.4} Z{:.4} {}=={}",
+                    c.start[0],
+                    c.start[1],
+                    c.start[2],
+                    self.opts.names.counter_m,
+                    c.first_counter - 1
+                ),
             );
             self.summary.repositioned = true;
         }
         lines
     }
 
+    /// Before `R`: the counter M-variable pointed at its register, the
+    /// counter and session set, leftover synchronous assignments flushed.
+    fn prepare(&mut self, state: &State, counter: f64, first: bool) -> Result<(), SendError> {
+        let n = self.opts.names.clone();
+        let def = n.counter_definition().unwrap_or_default();
+        let mut line = format!(
+            "{def} {}={} {}={}",
+            n.counter,
+            fmt_reading(counter),
+            n.session,
+            state.session
+        );
+        if first {
+            line += &format!(" {}=0", n.done);
+        }
+        self.cmd(&format!("{line} {}=0 &1 MFLUSH", n.shutter))?;
+        Ok(())
+    }
+
     fn run_buffers(&mut self, chunks: &[Chunk], state: &mut State) -> Result<(), SendError> {
         let prog = self.opts.prog;
         let n = chunks.len();
-        let start = state.chunks_done;
-        if start == 0 {
-            let (c, d) = (self.opts.names.counter.clone(), self.opts.names.done.clone());
-            self.cmd(&format!("{c}=0 {d}=0"))?;
-        }
-        for (i, chunk) in chunks.iter().enumerate().skip(start) {
+        let resumed = state.next_move > 1 || state.resume_at.is_some();
+        for (i, chunk) in chunks.iter().enumerate() {
             self.check_stop()?;
-            let reposition = i == start && i > 0;
+            let reposition = i == 0 && resumed;
             let lines = self.chunk_lines(chunk, reposition, i + 1);
             let t = Instant::now();
             self.cmd("CLOSE")?;
@@ -419,38 +555,56 @@ impl<'a> Sender<'a> {
             self.note(true, || {
                 format!("chunk {}/{n}: {} lines uploaded, running", i + 1, lines.len())
             });
+            let c0 = (chunk.first_counter - 1) as f64 + if reposition { 0.5 } else { 0.0 };
+            self.prepare(state, c0, i == 0)?;
             self.cmd(&format!("&1B{prog}R"))?;
-            let (last, remaining): (u64, f64) = (chunk.last_counter, chunks[i + 1..].iter().map(|c| c.seconds).sum());
-            let (got, done) = self.wait_done(i, n, chunk, remaining)?;
-            if got < last || done < (i + 1) as u64 {
-                return Err(SendError::Incomplete { got, want: last });
+            let remaining: f64 = chunks[i + 1..].iter().map(|c| c.seconds).sum();
+            let (got, done) = self.wait_done(i, n, chunk, remaining, state)?;
+            if got < chunk.last_counter as f64 || done < (i + 1) as u64 {
+                return Err(SendError::Incomplete {
+                    got: got.max(0.0) as u64,
+                    want: chunk.last_counter,
+                });
             }
-            state.chunks_done = i + 1;
-            state.last_counter = got;
+            self.progress_to(state, got)?;
             self.summary.chunks_run += 1;
-            self.summary.final_counter = got;
-            self.save(state)?;
         }
         Ok(())
     }
 
-    /// Poll until the program is not running and in position.
-    fn wait_done(&mut self, i: usize, n: usize, chunk: &Chunk, remaining: f64) -> Result<(u64, u64), SendError> {
-        let mut last = (true, false, u64::MAX, u64::MAX);
+    /// Poll until the program is not running and in position, saving the
+    /// progress the counter confirms.
+    fn wait_done(
+        &mut self,
+        i: usize,
+        n: usize,
+        chunk: &Chunk,
+        remaining: f64,
+        state: &mut State,
+    ) -> Result<(f64, u64), SendError> {
+        let mut last: Option<(bool, bool, f64, u64)> = None;
         let mut changed = Instant::now();
+        let q = format!("&1?? {} {}", self.opts.names.counter, self.opts.names.done);
         loop {
             self.check_stop()?;
-            let s = self.poll()?;
-            if s != last {
-                last = s;
+            let r = self.cmd(&q)?;
+            let (Some(st), Some(cnt), Some(done)) = (r.first(), r.get(1), r.get(2)) else {
+                return Err(SendError::BadReply(r.join(" ")));
+            };
+            let (running, inpos) = parse_status(st).ok_or_else(|| SendError::BadReply(st.clone()))?;
+            let counter = counter_value(cnt, self.n_moves())?;
+            let done = count(done)?;
+            let s = (running, inpos, counter, done);
+            if Some(s) != last {
+                last = Some(s);
                 changed = Instant::now();
             } else if changed.elapsed() > self.opts.stall {
-                return Err(SendError::Stalled(self.opts.stall, s.2));
+                return Err(SendError::Stalled(self.opts.stall, counter as u64));
             }
-            let (running, inpos, counter, done) = s;
+            self.progress_to(state, counter)?;
             let span = (chunk.last_counter + 1).saturating_sub(chunk.first_counter).max(1) as f64;
-            let done_frac = (counter.saturating_sub(chunk.first_counter - 1) as f64 / span).clamp(0.0, 1.0);
-            let left = remaining + chunk.seconds * (1.0 - done_frac);
+            let frac = ((counter - (chunk.first_counter - 1) as f64) / span).clamp(0.0, 1.0);
+            let left = remaining + chunk.seconds * (1.0 - frac);
             let var = self.opts.names.counter.clone();
             self.note(false, || {
                 format!(
@@ -466,66 +620,76 @@ impl<'a> Sender<'a> {
         }
     }
 
+    /// Stream the chunks through the rotary buffer, whole chunks at a time:
+    /// every chunk ends with the beam off, so whatever the controller holds
+    /// ends with the shutter closed and a stream the host stops feeding
+    /// runs dry with the beam off.
     fn run_rotary(&mut self, chunks: &[Chunk], state: &mut State) -> Result<(), SendError> {
-        let start = state.chunks_done;
-        // Every line with the chunk it belongs to.
-        let mut lines: Vec<(usize, String)> = Vec::new();
-        for (i, c) in chunks.iter().enumerate().skip(start) {
-            let ls = self.chunk_lines(c, i == start && i > 0, i + 1);
-            lines.extend(ls.into_iter().map(|l| (i, l)));
+        let resumed = state.next_move > 1 || state.resume_at.is_some();
+        let mut units: Vec<(Vec<String>, usize)> = Vec::new();
+        for (i, c) in chunks.iter().enumerate() {
+            let mut ls = self.chunk_lines(c, i == 0 && resumed, i + 1);
+            if i + 1 == chunks.len() {
+                // A dwell lets the last synchronous assignments (the last
+                // counter) act; the stream then waits, suspended.
+                ls.push("DWELL0".into());
+            }
+            let w = ls.iter().map(|l| crate::pmac::protocol::line_words(l)).sum();
+            units.push((ls, w));
         }
-        let words: Vec<usize> = lines
-            .iter()
-            .map(|(_, l)| crate::pmac::protocol::line_words(l))
-            .collect();
+        let total_lines: usize = units.iter().map(|u| u.0.len()).sum();
         let final_counter = chunks.last().map_or(0, |c| c.last_counter);
         let cap = self.opts.rotary_words;
         let limit = ((cap as f64) * self.opts.rotary_fill.clamp(0.1, 1.0)) as usize;
-        if let Some(w) = words.iter().find(|&&w| w > limit) {
+        if let Some((_, w)) = units.iter().find(|u| u.1 > limit) {
             return Err(SendError::TooBig {
                 need: *w,
                 free: limit as i64,
             });
         }
-        if start == 0 {
-            let c = self.opts.names.counter.clone();
-            self.cmd(&format!("{c}=0"))?;
-        }
         self.cmd("CLOSE")?;
         self.cmd("DELETE GATHER")?;
+        self.cmd("&1 A")?;
         self.cmd("&1 DELETE ROT")?;
         self.cmd(&format!("&1 DEFINE ROT {cap}"))?;
         self.cmd("&1 B0")?;
+        let first = chunks.first().map_or(0, |c| c.first_counter - 1) as f64 + if resumed { 0.5 } else { 0.0 };
+        self.prepare(state, first, true)?;
         self.cmd("OPEN ROT")?;
-        let mut sent = 0usize;
-        let mut queued = 0usize; // lines the controller reports waiting (PR)
+        // Lines of each unit, to know how many words still wait (PR).
+        let mut sent_units = 0usize;
+        let mut sent_lines = 0usize;
+        let mut queued = 0usize;
+        let line_words: Vec<usize> = units
+            .iter()
+            .flat_map(|u| u.0.iter().map(|l| crate::pmac::protocol::line_words(l)))
+            .collect();
         let mut started = false;
-        let mut last = (false, false, u64::MAX, usize::MAX);
+        let mut last: Option<(bool, bool, f64, usize)> = None;
         let mut changed = Instant::now();
         let n = chunks.len();
         loop {
             self.check_stop()?;
-            // Words still waiting: the last `queued` lines sent.
-            let waiting: usize = words[sent.saturating_sub(queued)..sent].iter().sum();
-            let mut end = sent;
+            let waiting: usize = line_words[sent_lines.saturating_sub(queued)..sent_lines].iter().sum();
             let mut room = limit.saturating_sub(waiting);
-            while end < lines.len() && words[end] <= room && end - sent < 200 {
-                room -= words[end];
-                end += 1;
+            let mut batch: Vec<String> = Vec::new();
+            while sent_units < units.len() && units[sent_units].1 <= room && batch.len() < 200 {
+                room -= units[sent_units].1;
+                batch.extend(units[sent_units].0.iter().cloned());
+                sent_units += 1;
             }
-            if end > sent {
-                let batch: Vec<&str> = lines[sent..end].iter().map(|(_, l)| l.as_str()).collect();
+            if !batch.is_empty() {
                 let t = Instant::now();
                 self.c()?.write_lines(&batch)?;
                 self.summary.upload_seconds += t.elapsed().as_secs_f64();
                 self.summary.lines_sent += batch.len() as u64;
-                sent = end;
+                sent_lines += batch.len();
             }
             if !started {
                 self.cmd("&1R")?;
                 started = true;
                 self.note(true, || {
-                    format!("rotary: running, {sent} of {} lines queued", lines.len())
+                    format!("rotary: running, {sent_lines} of {total_lines} lines queued")
                 });
             }
             let q = format!("PR &1?? {}", self.opts.names.counter);
@@ -534,72 +698,78 @@ impl<'a> Sender<'a> {
                 return Err(SendError::BadReply(r.join(" ")));
             };
             queued = pr.trim().parse().map_err(|_| SendError::BadReply(pr.clone()))?;
+            if queued > sent_lines {
+                return Err(SendError::BadReply(format!("PR {queued} with {sent_lines} lines sent")));
+            }
             let (running, inpos) = parse_status(st).ok_or_else(|| SendError::BadReply(st.clone()))?;
-            let counter = count(cnt)?;
-            let cur_chunk = lines.get(sent.saturating_sub(queued + 1)).map_or(n, |(i, _)| *i + 1);
-            self.summary.final_counter = counter;
-            let (var, total) = (self.opts.names.counter.clone(), lines.len());
+            let counter = counter_value(cnt, self.n_moves())?;
+            self.progress_to(state, counter)?;
+            let var = self.opts.names.counter.clone();
             self.note(false, || {
                 format!(
-                    "rotary: chunk {cur_chunk}/{n}, {sent}/{total} lines sent, {queued} queued, \
-                     {var} = {counter} of {final_counter}"
+                    "rotary: {sent_units}/{n} chunks sent, {queued} lines queued, {var} = {counter} of {final_counter}"
                 )
             });
             let s = (running, inpos, counter, queued);
-            if s != last {
-                last = s;
+            if Some(s) != last {
+                last = Some(s);
                 changed = Instant::now();
             } else if changed.elapsed() > self.opts.stall {
-                return Err(SendError::Stalled(self.opts.stall, counter));
+                return Err(SendError::Stalled(self.opts.stall, counter as u64));
             }
-            confirm(chunks, state, counter, 0, Mode::Rotary, self.opts.lookahead);
-            if sent == lines.len() && queued == 0 && inpos {
-                if counter < final_counter {
-                    if !running {
-                        return Err(SendError::Incomplete {
-                            got: counter,
-                            want: final_counter,
-                        });
-                    }
-                } else {
-                    break;
-                }
-            } else if !running {
+            if !running {
+                // A rotary program runs (suspended when dry) until Q or A:
+                // not running means it was stopped.
                 return Err(SendError::Incomplete {
-                    got: counter,
+                    got: counter as u64,
                     want: final_counter,
                 });
             }
-            if end == sent && sent < lines.len() || sent == lines.len() {
+            // Done: everything sent and calculated, motion ended, and the
+            // last counter set (by the final DWELL0).
+            if sent_units == units.len() && queued == 0 && inpos && counter >= final_counter as f64 {
+                break;
+            }
+            if batch.is_empty() {
                 std::thread::sleep(self.opts.poll);
             }
         }
         self.cmd("CLOSE")?;
         self.cmd("&1Q")?;
         self.cmd("&1 DELETE ROT")?;
-        state.chunks_done = chunks.len();
-        state.last_counter = final_counter;
-        self.summary.chunks_run = chunks.len() - start;
-        self.save(state)?;
+        self.summary.chunks_run = chunks.len();
         Ok(())
     }
 }
 
-/// Mark chunks complete from what the controller reports.
-fn confirm(chunks: &[Chunk], state: &mut State, counter: u64, done: u64, mode: Mode, lookahead: u64) {
-    let mut k = state.chunks_done;
-    while let Some(c) = chunks.get(k) {
-        let ok = match mode {
-            // The done marker runs after DWELL0: all motion has ended.
-            Mode::Program | Mode::Split => done > k as u64,
-            // In a stream, later lines may be calculated ahead of motion.
-            Mode::Rotary => counter >= c.last_counter + lookahead,
-        };
-        if !ok {
-            break;
-        }
-        k += 1;
-        state.last_counter = c.last_counter;
+/// Tolerance for placing the stage on a move, mm.
+pub const POSITION_TOL_MM: f64 = 0.002;
+
+fn fmt_reading(v: f64) -> String {
+    crate::pmac::controller::fmt_value(v)
+}
+
+/// Parse the answer to `&1?? M33 P400 P402 #1P #2P #3P #1-> #2-> #3->`: (running,
+/// shutter, reading). `None` if any part is malformed.
+fn parse_check(v: &[String]) -> Option<(bool, f64, Reading)> {
+    if v.len() != 10 {
+        return None;
     }
-    state.chunks_done = k;
+    let (running, _) = parse_status(&v[0])?;
+    let num = |s: &String| s.trim().parse::<f64>().ok().filter(|x| x.is_finite());
+    let shutter = num(&v[1])?;
+    let counter = num(&v[2])?;
+    let session = num(&v[3])?;
+    // `#n->` answers the axis definition, e.g. `10000X`: counts per mm.
+    let scale = |s: &String| -> Option<f64> {
+        let t = s.trim();
+        let end = t.find(|c: char| c.is_ascii_alphabetic()).unwrap_or(t.len());
+        t[..end].parse::<f64>().ok().filter(|x| x.is_finite() && *x != 0.0)
+    };
+    let pos = P3::new(
+        num(&v[4])? / scale(&v[7])?,
+        num(&v[5])? / scale(&v[8])?,
+        num(&v[6])? / scale(&v[9])?,
+    );
+    Some((running, shutter, Reading { counter, session, pos }))
 }

@@ -26,10 +26,16 @@ pub struct Faults {
     pub drop_at: Option<u64>,
     /// Wait this long before every reply ...
     pub delay: Duration,
-    /// ... from request N on (0: from the first).
+    /// ... from request N on (0: from the first) ...
     pub delay_from: u64,
+    /// ... for this many requests (None: all).
+    pub delay_count: Option<u64>,
     /// Reset the controller (`$$$`) on the Nth request, once.
     pub reset_at: Option<u64>,
+    /// Lie once, in the first reply with a number from request N on: every
+    /// number in it becomes 99999 (a counter past any job's end), as a
+    /// broken proxy might.
+    pub lie_at: Option<u64>,
 }
 
 /// A running emulator server.
@@ -45,6 +51,7 @@ struct Shared {
     faults: Faults,
     requests: AtomicU64,
     stop: Arc<AtomicBool>,
+    lied: AtomicBool,
 }
 
 impl Server {
@@ -60,6 +67,7 @@ impl Server {
             faults,
             requests: AtomicU64::new(0),
             stop: stop.clone(),
+            lied: AtomicBool::new(false),
         });
         let accept = std::thread::spawn(move || {
             for conn in listener.incoming() {
@@ -108,13 +116,36 @@ fn lock(ctl: &Mutex<Controller>) -> std::sync::MutexGuard<'_, Controller> {
     ctl.lock().unwrap_or_else(|e| e.into_inner())
 }
 
+/// Apply the lie fault to a reply of request `n`.
+fn lie(sh: &Shared, n: u64, r: Result<Vec<String>, u16>) -> Result<Vec<String>, u16> {
+    let numeric = |v: &Vec<String>| v.iter().any(|l| l.trim().parse::<f64>().is_ok());
+    if sh.faults.lie_at.is_none_or(|k| n < k) || !r.as_ref().is_ok_and(numeric) || sh.lied.swap(true, Ordering::SeqCst)
+    {
+        return r;
+    }
+    r.map(|v| {
+        v.into_iter()
+            .map(|l| {
+                if l.trim().parse::<f64>().is_ok() {
+                    "99999".to_string()
+                } else {
+                    l
+                }
+            })
+            .collect()
+    })
+}
+
 /// Count a request and apply faults; `false` means drop the connection.
 fn count(sh: &Shared) -> bool {
     let n = sh.requests.fetch_add(1, Ordering::SeqCst) + 1;
     if sh.faults.reset_at == Some(n) {
         lock(&sh.ctl).reset();
     }
-    if !sh.faults.delay.is_zero() && n >= sh.faults.delay_from {
+    if !sh.faults.delay.is_zero()
+        && n >= sh.faults.delay_from
+        && sh.faults.delay_count.is_none_or(|c| n < sh.faults.delay_from + c)
+    {
         std::thread::sleep(sh.faults.delay);
     }
     sh.faults.drop_at != Some(n)
@@ -151,7 +182,8 @@ fn serve_lines(conn: TcpStream, sh: &Shared) -> io::Result<()> {
             if !count(sh) {
                 return Ok(());
             }
-            let reply = lock(&sh.ctl).command_line(&mut sess, line);
+            let n = sh.requests.load(Ordering::SeqCst);
+            let reply = lie(sh, n, lock(&sh.ctl).command_line(&mut sess, line));
             w.write_all(&p::frame_reply(&reply))?;
         }
     }
@@ -182,7 +214,8 @@ fn serve_ethernet(mut conn: TcpStream, sh: &Shared) -> io::Result<()> {
         let reply: Vec<u8> = match h.request {
             p::GETRESPONSE => {
                 let cmd = text_of(&payload);
-                let r = lock(&sh.ctl).command_line(&mut sess, &cmd);
+                let n = sh.requests.load(Ordering::SeqCst);
+                let r = lie(sh, n, lock(&sh.ctl).command_line(&mut sess, &cmd));
                 rest = p::frame_reply(&r);
                 take_chunk(&mut rest)
             }
