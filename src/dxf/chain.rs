@@ -854,7 +854,10 @@ fn orient(chains: &mut Chains, tol: f64, report: &mut Report) {
     for (k, i) in infos.iter().enumerate() {
         let (x0, y0) = ((i.lo.0 / size).floor() as i64, (i.lo.1 / size).floor() as i64);
         let (x1, y1) = ((i.hi.0 / size).floor() as i64, (i.hi.1 / size).floor() as i64);
-        if (x1 - x0 + 1).saturating_mul(y1 - y0 + 1) > 256 {
+        // In i128: far-out boxes (the casts saturate) must not wrap into a
+        // small, or a huge, cell range.
+        let cells = (x1 as i128 - x0 as i128 + 1) * (y1 as i128 - y0 as i128 + 1);
+        if !(1..=256).contains(&cells) {
             big.push(k as u32);
             continue;
         }

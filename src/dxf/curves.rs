@@ -176,10 +176,17 @@ pub struct FitStats {
     pub pieces: u64,
     /// Lines a polyline would need at the same tolerance.
     pub chords: u64,
+    /// The work bound ([`MAX_STEPS`]) was reached: the rest of the curve
+    /// was drawn with chords (or the chord count is a lower bound).
+    pub truncated: bool,
 }
 
 const SAMPLES: usize = 16;
 const MAX_DEPTH: u32 = 30;
+/// Intervals tried per curve, for the fit and for the chord count each:
+/// whatever the curve and the tolerance, fitting one curve is bounded work
+/// (about 5 million curve evaluations).
+pub const MAX_STEPS: u64 = 1 << 18;
 
 /// Fit `curve` with biarcs within `tol`, appending segments (all at the
 /// start's z) to `out`.
@@ -188,13 +195,16 @@ pub fn fit_biarcs(curve: &dyn Curve, tol: f64, out: &mut Vec<Segment>) -> FitSta
     let z = curve.point(0.0).z;
     let before = out.len();
     let mut chords = 0u64;
+    let mut fit_steps = MAX_STEPS;
+    let mut chord_steps = MAX_STEPS;
     for w in curve.breaks().windows(2) {
-        fit_interval(curve, w[0], w[1], tol, z, 0, out);
-        chords += count_chords(curve, w[0], w[1], tol, 0);
+        fit_interval(curve, w[0], w[1], tol, z, 0, &mut fit_steps, out);
+        chords += count_chords(curve, w[0], w[1], tol, 0, &mut chord_steps);
     }
     FitStats {
         pieces: (out.len() - before) as u64,
         chords,
+        truncated: fit_steps == 0 || chord_steps == 0,
     }
 }
 
@@ -219,9 +229,26 @@ fn tangents(curve: &dyn Curve, t0: f64, t1: f64) -> (Option<V3>, Option<V3>) {
     (unit_xy(d(t0, h)), unit_xy(d(t1, -h)))
 }
 
-fn fit_interval(curve: &dyn Curve, t0: f64, t1: f64, tol: f64, z: f64, depth: u32, out: &mut Vec<Segment>) {
+#[allow(clippy::too_many_arguments)]
+fn fit_interval(
+    curve: &dyn Curve,
+    t0: f64,
+    t1: f64,
+    tol: f64,
+    z: f64,
+    depth: u32,
+    steps: &mut u64,
+    out: &mut Vec<Segment>,
+) {
     let p0 = xy(curve.point(t0), z);
     let p1 = xy(curve.point(t1), z);
+    if *steps == 0 {
+        if p0 != p1 {
+            out.push(Segment::Line { start: p0, end: p1 });
+        }
+        return;
+    }
+    *steps -= 1;
     if let (Some(d0), Some(d1)) = tangents(curve, t0, t1)
         && let Some(pieces) = biarc(p0, d0, p1, d1)
     {
@@ -243,11 +270,15 @@ fn fit_interval(curve: &dyn Curve, t0: f64, t1: f64, tol: f64, z: f64, depth: u3
         return;
     }
     let tm = 0.5 * (t0 + t1);
-    fit_interval(curve, t0, tm, tol, z, depth + 1, out);
-    fit_interval(curve, tm, t1, tol, z, depth + 1, out);
+    fit_interval(curve, t0, tm, tol, z, depth + 1, steps, out);
+    fit_interval(curve, tm, t1, tol, z, depth + 1, steps, out);
 }
 
-fn count_chords(curve: &dyn Curve, t0: f64, t1: f64, tol: f64, depth: u32) -> u64 {
+fn count_chords(curve: &dyn Curve, t0: f64, t1: f64, tol: f64, depth: u32, steps: &mut u64) -> u64 {
+    if *steps == 0 {
+        return 1;
+    }
+    *steps -= 1;
     let a = curve.point(t0);
     let b = curve.point(t1);
     let line = Segment::Line {
@@ -261,7 +292,7 @@ fn count_chords(curve: &dyn Curve, t0: f64, t1: f64, tol: f64, depth: u32) -> u6
         return 1;
     }
     let tm = 0.5 * (t0 + t1);
-    count_chords(curve, t0, tm, tol, depth + 1) + count_chords(curve, tm, t1, tol, depth + 1)
+    count_chords(curve, t0, tm, tol, depth + 1, steps) + count_chords(curve, tm, t1, tol, depth + 1, steps)
 }
 
 /// The arc from `a`, leaving along unit tangent `t`, to `b` (a line when

@@ -5,6 +5,7 @@
 use super::curves::{Conic, Curve, FitPoints, Nurbs, fit_biarcs};
 use super::entities::{Entity, Insert, Shape};
 use super::ocs::Affine;
+use super::reader::Pos;
 use crate::geometry::{P3, V3};
 use crate::model::chain::Segment;
 use std::collections::{BTreeMap, HashMap};
@@ -33,9 +34,18 @@ pub struct Sink {
     pub curves: u64,
     pub curve_pieces: u64,
     pub curve_chords: u64,
-    /// The drawing expanded past `max_segments`: the result is incomplete
-    /// and must not be used.
+    /// The drawing expanded past `max_segments` segments or expanded
+    /// entities: the result is incomplete and must not be used.
     pub overflow: bool,
+    /// Entities visited so far, every copy of every insert counted: the
+    /// work bound for inserts of empty or layer-filtered blocks.
+    pub expanded: u64,
+    /// Bad geometry (a coordinate beyond [`MAX_COORD`] after units and
+    /// transforms): where the entity sits and what is wrong. The result
+    /// must not be used.
+    pub bad: Option<(Pos, String)>,
+    /// Blocks being expanded, outermost first (the insert stack).
+    stack: Vec<String>,
 }
 
 /// How to expand: tolerance and layer filter.
@@ -48,10 +58,33 @@ pub struct Expander<'a> {
     pub max_segments: usize,
 }
 
-const MAX_NESTING: usize = 64;
+/// Blocks nested deeper than this are refused (each level is a stack frame
+/// of the expansion); a block on its own insert stack is recursion, told
+/// apart at any depth.
+pub const MAX_NESTING: usize = 1000;
 /// A guard against block bombs (arrays of arrays of arrays...).
 /// The default guard: about 2 GB of geometry.
 pub const MAX_SEGMENTS: usize = 20_000_000;
+/// Coordinates (in mm, after units, inserts and user transforms) beyond
+/// this are bad input: no machine travels a kilometre, and past this the
+/// join tolerance is below the doubles' resolution.
+pub const MAX_COORD: f64 = 1e9;
+
+fn in_range(p: &P3) -> bool {
+    // Written so that NaN fails too.
+    p.x.abs() <= MAX_COORD && p.y.abs() <= MAX_COORD && p.z.abs() <= MAX_COORD
+}
+
+fn fmt_point(p: &P3) -> String {
+    let f = |v: f64| {
+        if v.abs() < 1e6 {
+            format!("{v}")
+        } else {
+            format!("{v:e}")
+        }
+    };
+    format!("({}, {}, {})", f(p.x), f(p.y), f(p.z))
+}
 
 impl Sink {
     fn layer_id(&mut self, name: &str) -> u32 {
@@ -67,6 +100,64 @@ impl Sink {
     fn warn(&mut self, w: String) {
         *self.warnings.entry(w).or_default() += 1;
     }
+
+    /// Set [`Sink::bad`] for `pos` unless it is set already.
+    fn out_of_range(&mut self, pos: Pos, p: &P3) {
+        if self.bad.is_none() {
+            self.bad = Some((
+                pos,
+                format!(
+                    "coordinate {} mm is beyond what a machine can mean (|x|, |y|, |z| at most {MAX_COORD:e} mm after units and transforms)",
+                    fmt_point(p)
+                ),
+            ));
+        }
+    }
+
+    /// Anything that must stop the expansion.
+    pub fn stopped(&self) -> bool {
+        self.overflow || self.bad.is_some()
+    }
+}
+
+/// A nearly straight arc (a bulge of 1e-10, a fitted piece along a
+/// straight stretch) has its centre far out although its ends are near:
+/// when it lies within `tol` of its chord it becomes that chord, so no
+/// coordinate of the output is out of range. Others are left for the range
+/// check to refuse.
+fn flatten_far_arc(s: &mut Segment, tol: f64) {
+    let Segment::Arc {
+        start,
+        end,
+        center,
+        ccw,
+    } = *s
+    else {
+        return;
+    };
+    if in_range(&center) || !in_range(&start) || !in_range(&end) {
+        return;
+    }
+    let (a, b) = (start - center, end - center);
+    let cross = a.x * b.y - a.y * b.x;
+    if cross == 0.0 || (cross > 0.0) != ccw {
+        // A full circle or a major arc: as far out as its centre.
+        return;
+    }
+    let r = a.xy().norm();
+    let half = 0.5 * (end - start).xy().norm();
+    let sagitta = half * half / (r + (r * r - half * half).max(0.0).sqrt());
+    if sagitta <= tol {
+        *s = Segment::Line { start, end };
+    }
+}
+
+/// The first out-of-range point of a segment, if any.
+fn first_out_of_range(s: &Segment) -> Option<P3> {
+    match s {
+        Segment::Line { start, end } => [start, end].into_iter().find(|p| !in_range(p)).copied(),
+        Segment::Arc { start, end, center, .. } => [start, end, center].into_iter().find(|p| !in_range(p)).copied(),
+    }
 }
 
 impl Expander<'_> {
@@ -77,18 +168,23 @@ impl Expander<'_> {
             Some(l) if e.layer == "0" => l,
             _ => e.layer.as_str(),
         };
+        if sink.stopped() {
+            return;
+        }
+        sink.expanded += 1;
+        if sink.segments.len() > self.max_segments || sink.expanded > self.max_segments as u64 {
+            sink.overflow = true;
+            return;
+        }
         if let Shape::Insert(ins) = &e.shape {
-            self.insert(ins, t, layer, depth, sink);
+            self.insert(ins, e.pos, t, layer, depth, sink);
             return;
         }
         if !self.layers.is_empty() && !self.layers.iter().any(|l| l == layer) {
             return;
         }
-        if sink.segments.len() > self.max_segments {
-            sink.overflow = true;
-            return;
-        }
         let lid = sink.layer_id(layer);
+        let before = sink.segments.len();
         let name = match &e.shape {
             Shape::Line { a, b } => {
                 sink.segments.push((
@@ -161,6 +257,10 @@ impl Expander<'_> {
                     t0: *t0,
                     sweep,
                 };
+                if let Some(p) = conic_out_of_range(&conic) {
+                    sink.out_of_range(e.pos, &p);
+                    return;
+                }
                 self.place_conic(conic, lid, sink);
                 "ELLIPSE"
             }
@@ -173,12 +273,17 @@ impl Expander<'_> {
                 ..
             } => {
                 let ctrl_w: Vec<P3> = ctrl.iter().map(|p| t.apply(p)).collect();
+                let fit_w: Vec<P3> = fit.iter().map(|p| t.apply(p)).collect();
+                // Far-out control points would make the fit subdivide for
+                // ever: refuse them before fitting.
+                if let Some(p) = ctrl_w.iter().chain(&fit_w).find(|p| !in_range(p)) {
+                    sink.out_of_range(e.pos, p);
+                    return;
+                }
                 let curve: Option<Box<dyn Curve>> = if ctrl_w.len() >= 2 {
                     Nurbs::new(*degree, knots.clone(), ctrl_w, weights.clone()).map(|n| Box::new(n) as Box<dyn Curve>)
                 } else if fit.len() >= 2 {
-                    Some(Box::new(FitPoints {
-                        pts: fit.iter().map(|p| t.apply(p)).collect(),
-                    }))
+                    Some(Box::new(FitPoints { pts: fit_w }))
                 } else {
                     None
                 };
@@ -189,17 +294,30 @@ impl Expander<'_> {
                 "SPLINE"
             }
             Shape::Point { p } => {
-                sink.points.push((t.apply(p), lid));
+                let q = t.apply(p);
+                if !in_range(&q) {
+                    sink.out_of_range(e.pos, &q);
+                    return;
+                }
+                sink.points.push((q, lid));
                 "POINT"
             }
             Shape::Insert(_) => "INSERT",
         };
+        let flat = self.arc_tol.max(1e-9);
+        for (s, _) in &mut sink.segments[before..] {
+            flatten_far_arc(s, flat);
+        }
+        if let Some(p) = sink.segments[before..].iter().find_map(|(s, _)| first_out_of_range(s)) {
+            sink.out_of_range(e.pos, &p);
+            return;
+        }
         if depth == 0 {
             *sink.used.entry(name).or_default() += 1;
         }
     }
 
-    fn insert(&self, ins: &Insert, t: &Affine, layer: &str, depth: usize, sink: &mut Sink) {
+    fn insert(&self, ins: &Insert, pos: Pos, t: &Affine, layer: &str, depth: usize, sink: &mut Sink) {
         if depth == 0 {
             *sink.used.entry("INSERT").or_default() += 1;
         }
@@ -207,11 +325,33 @@ impl Expander<'_> {
             sink.warn(format!("INSERT of undefined block '{}' left out", ins.block));
             return;
         };
-        if depth >= MAX_NESTING {
+        if let Some(k) = sink.stack.iter().position(|b| *b == ins.block) {
+            // Recursion: the block is being expanded already. Its geometry
+            // is drawn once, at the outermost level; the inner insert is
+            // the cycle and is left out.
+            let cycle: Vec<&str> = sink.stack[k..]
+                .iter()
+                .map(|s| s.as_str())
+                .chain([ins.block.as_str()])
+                .collect();
             sink.warn(format!(
-                "blocks nested deeper than {MAX_NESTING} (a block that inserts itself?): '{}' left out",
-                ins.block
+                "block '{}' inserts itself ({}): the recursive INSERT left out",
+                ins.block,
+                cycle.join(" -> ")
             ));
+            return;
+        }
+        if sink.stack.len() >= MAX_NESTING {
+            if sink.bad.is_none() {
+                sink.bad = Some((
+                    pos,
+                    format!(
+                        "blocks nested more than {MAX_NESTING} levels deep (INSERT of '{}' inside '{}')",
+                        ins.block,
+                        sink.stack.last().map(|s| s.as_str()).unwrap_or("")
+                    ),
+                ));
+            }
             return;
         }
         let place = t
@@ -224,9 +364,8 @@ impl Expander<'_> {
             for col in 0..ins.cols {
                 // Array spacing is in the rotated insert frame, not scaled.
                 let offset = V3::new(col as f64 * ins.col_spacing, row as f64 * ins.row_spacing, 0.0);
-                if sink.segments.len() > self.max_segments {
+                if sink.stopped() {
                     // Stop at every level at once, not copy by copy.
-                    sink.overflow = true;
                     return;
                 }
                 let m = place.then_after(&Affine::translate(offset)).then_after(&scale_base);
@@ -237,8 +376,15 @@ impl Expander<'_> {
                     ));
                     return;
                 }
+                sink.stack.push(ins.block.clone());
                 for e in &block.entities {
                     self.entity(e, &m, Some(layer), depth + 1, sink);
+                }
+                sink.stack.pop();
+                // An empty block copied a billion times is work too.
+                sink.expanded += 1;
+                if sink.expanded > self.max_segments as u64 {
+                    sink.overflow = true;
                 }
             }
         }
@@ -302,12 +448,25 @@ impl Expander<'_> {
             sink.segments.push((Segment::Line { start: a, end: b }, lid));
             return;
         }
+        if let Some(p) = conic_out_of_range(&k) {
+            // Reported by the caller, which knows the entity's position
+            // (from this line's far end); never fit a curve this large.
+            sink.segments.push((Segment::Line { start: k.c, end: p }, lid));
+            return;
+        }
         self.fit(&k, lid, sink);
     }
 
     fn fit(&self, c: &dyn Curve, lid: u32, sink: &mut Sink) {
         let mut segs = Vec::new();
         let st = fit_biarcs(c, self.arc_tol, &mut segs);
+        if st.truncated {
+            sink.warn(format!(
+                "a curve needed more than {} fitting steps at --arc-tol {}: the rest of it drawn as chords (raise --arc-tol)",
+                super::curves::MAX_STEPS,
+                self.arc_tol
+            ));
+        }
         sink.curves += 1;
         sink.curve_pieces += st.pieces;
         sink.curve_chords += st.chords;
@@ -353,6 +512,13 @@ impl Expander<'_> {
             }
         }
     }
+}
+
+/// A point of the conic's bounding parallelogram beyond [`MAX_COORD`].
+fn conic_out_of_range(k: &Conic) -> Option<P3> {
+    [k.c, k.c + k.u + k.v, k.c - k.u - k.v, k.c + k.u - k.v, k.c - k.u + k.v]
+        .into_iter()
+        .find(|p| !in_range(p))
 }
 
 #[cfg(test)]

@@ -187,9 +187,7 @@ pub fn import(input: Box<dyn BufRead>, opts: &ImportOptions) -> Result<Import, D
                         for t in top.iter() {
                             x.entity(&e, t, None, 0, &mut sink);
                         }
-                        if sink.overflow {
-                            return Err(overflow(e.pos, opts.max_segments));
-                        }
+                        stopped(&mut sink, e.pos, opts.max_segments)?;
                     }
                 }
             }
@@ -214,9 +212,7 @@ pub fn import(input: Box<dyn BufRead>, opts: &ImportOptions) -> Result<Import, D
         for t in &top {
             x.entity(e, t, None, 0, &mut sink);
         }
-        if sink.overflow {
-            return Err(overflow(e.pos, opts.max_segments));
-        }
+        stopped(&mut sink, e.pos, opts.max_segments)?;
     }
     // Give back the growth slack of the geometry array before chaining
     // starts allocating (a shrink of a large block is a remap, not a copy).
@@ -232,11 +228,24 @@ pub fn import(input: Box<dyn BufRead>, opts: &ImportOptions) -> Result<Import, D
     })
 }
 
-fn overflow(pos: reader::Pos, max: usize) -> DxfError {
-    DxfError::at(
-        pos,
-        format!("this entity expands the drawing past {max} segments (blocks inserted in arrays of arrays?)"),
-    )
+/// The error that stopped the expansion of the top-level entity at `top`,
+/// if any.
+fn stopped(sink: &mut Sink, top: reader::Pos, max: usize) -> Result<(), DxfError> {
+    if let Some((pos, msg)) = sink.bad.take() {
+        if pos == top {
+            return Err(DxfError::at(pos, msg));
+        }
+        return Err(DxfError::at(pos, format!("{msg}, as placed by the INSERT at {top}")));
+    }
+    if sink.overflow {
+        return Err(DxfError::at(
+            top,
+            format!(
+                "this entity expands the drawing past {max} segments or entities (blocks inserted in arrays of arrays?)"
+            ),
+        ));
+    }
+    Ok(())
 }
 
 fn unit_of(opts: &ImportOptions, insunits: Option<i64>) -> (f64, UnitSource) {
@@ -402,3 +411,6 @@ mod tests {
         assert!(run("", &ImportOptions::default()).is_err());
     }
 }
+
+#[cfg(test)]
+mod hostile_tests;
