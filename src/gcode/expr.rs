@@ -212,7 +212,7 @@ impl<'a> Cursor<'a> {
     pub fn real_value(&mut self, p: &Params) -> Result<f64, String> {
         let v = self.real_value_depth(p, 0)?;
         if !v.is_finite() {
-            return Err("calculation resulted in infinity".into());
+            return Err("calculation result is not finite (overflow)".into());
         }
         Ok(v)
     }
