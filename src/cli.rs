@@ -526,3 +526,84 @@ mod numeric_argument_tests {
         }
     }
 }
+
+/// Read one text line into `buf`, ending at LF, CR or CRLF (the ending is
+/// kept in `buf`), so files written on any system, or with mixed endings,
+/// read line for line. Returns the bytes consumed; 0 at end of input.
+/// Every line-based reader (G-code of both dialects, the JSON Lines
+/// formats) reads through this.
+pub fn read_line_any_ending<R: BufRead + ?Sized>(input: &mut R, buf: &mut Vec<u8>) -> io::Result<usize> {
+    let mut total = 0;
+    loop {
+        let (end, used) = {
+            let avail = match input.fill_buf() {
+                Ok(b) => b,
+                Err(e) if e.kind() == io::ErrorKind::Interrupted => continue,
+                Err(e) => return Err(e),
+            };
+            if avail.is_empty() {
+                return Ok(total);
+            }
+            match avail.iter().position(|&c| c == b'\n' || c == b'\r') {
+                Some(i) => {
+                    buf.extend_from_slice(&avail[..=i]);
+                    (Some(avail[i]), i + 1)
+                }
+                None => {
+                    buf.extend_from_slice(avail);
+                    (None, avail.len())
+                }
+            }
+        };
+        input.consume(used);
+        total += used;
+        match end {
+            None => continue,
+            Some(b'\r') => loop {
+                // CRLF is one line end: take the LF with the CR.
+                match input.fill_buf() {
+                    Ok(b) => {
+                        if b.first() == Some(&b'\n') {
+                            buf.push(b'\n');
+                            input.consume(1);
+                            total += 1;
+                        }
+                        return Ok(total);
+                    }
+                    Err(e) if e.kind() == io::ErrorKind::Interrupted => continue,
+                    Err(e) => return Err(e),
+                }
+            },
+            Some(_) => return Ok(total),
+        }
+    }
+}
+
+#[cfg(test)]
+mod line_ending_tests {
+    use super::read_line_any_ending;
+
+    fn lines(text: &[u8], cap: usize) -> Vec<Vec<u8>> {
+        // A tiny buffer capacity puts CR and LF of one CRLF in different
+        // fills, as a pipe may.
+        let mut r = std::io::BufReader::with_capacity(cap, text);
+        let mut out = Vec::new();
+        loop {
+            let mut b = Vec::new();
+            if read_line_any_ending(&mut r, &mut b).unwrap() == 0 {
+                return out;
+            }
+            out.push(b);
+        }
+    }
+
+    #[test]
+    fn lf_cr_crlf_and_mixed_endings_all_end_a_line() {
+        for cap in [1, 2, 3, 64] {
+            let got = lines(b"a\nb\rc\r\nd\r\re\n\nf", cap);
+            let want: Vec<&[u8]> = vec![b"a\n", b"b\r", b"c\r\n", b"d\r", b"\r", b"e\n", b"\n", b"f"];
+            assert_eq!(got, want, "buffer capacity {cap}");
+        }
+        assert!(lines(b"", 8).is_empty());
+    }
+}

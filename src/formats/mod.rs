@@ -45,7 +45,7 @@ impl FormatError {
 /// Reads non-empty lines one at a time, counting line numbers.
 pub(crate) struct LineSource<R> {
     input: R,
-    buf: String,
+    buf: Vec<u8>,
     line: u64,
 }
 
@@ -53,26 +53,32 @@ impl<R: BufRead> LineSource<R> {
     pub(crate) fn new(input: R) -> Self {
         LineSource {
             input,
-            buf: String::new(),
+            buf: Vec::new(),
             line: 0,
         }
     }
 
-    /// The next non-blank line (trimmed), or `None` at end of input.
+    /// The next non-blank line (trimmed), or `None` at end of input. Lines
+    /// end at LF, CR or CRLF (`cli::read_line_any_ending`).
     pub(crate) fn next_line(&mut self) -> Result<Option<(&str, u64)>, FormatError> {
         loop {
             self.buf.clear();
             self.line += 1;
-            let n = self.input.read_line(&mut self.buf).map_err(|e| FormatError::Io {
+            let n = crate::cli::read_line_any_ending(&mut self.input, &mut self.buf).map_err(|e| FormatError::Io {
                 line: self.line,
                 source: e,
             })?;
             if n == 0 {
                 return Ok(None);
             }
-            if !self.buf.trim().is_empty() {
-                return Ok(Some((self.buf.trim(), self.line)));
+            if self.buf.iter().all(u8::is_ascii_whitespace) {
+                continue;
             }
+            let text = std::str::from_utf8(&self.buf).map_err(|e| FormatError::Io {
+                line: self.line,
+                source: std::io::Error::new(std::io::ErrorKind::InvalidData, e),
+            })?;
+            return Ok(Some((text.trim(), self.line)));
         }
     }
 }

@@ -529,8 +529,12 @@ mod tests {
             let q = q as f64 / 2.0;
             let mode = if incremental { "G91" } else { "G90" };
             let retract = if r_plane { "G99" } else { "G98" };
+            // Only the words the cycle uses: rs274 refuses a Q or P that
+            // means nothing to it.
+            let q_word = if matches!(code, 73 | 83) { format!(" Q{q}") } else { String::new() };
+            let p_word = if matches!(code, 82 | 89) { " P0.5" } else { "" };
             let program = format!(
-                "G90 G0 X0 Y0 Z{z0}\nF100\n{mode} {retract} G{code} X{} Y{} R{r} Z{z} Q{q} P0.5 L{l}\n",
+                "G90 G0 X0 Y0 Z{z0}\nF100\n{mode} {retract} G{code} X{} Y{} R{r} Z{z}{q_word}{p_word} L{l}\n",
                 xy.0, xy.1
             );
             let want = trace(&hand_expanded(code, incremental, r_plane, z0, xy, r, z, q, l));

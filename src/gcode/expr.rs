@@ -193,7 +193,12 @@ impl<'a> Cursor<'a> {
         }
         let text = std::str::from_utf8(&self.s[start..self.pos]).unwrap_or("");
         let t = text.strip_prefix('+').unwrap_or(text);
-        t.parse::<f64>().map_err(|_| format!("bad number '{text}'"))
+        let v = t.parse::<f64>().map_err(|_| format!("bad number '{text}'"))?;
+        if !v.is_finite() {
+            let shown: String = text.chars().take(24).collect();
+            return Err(format!("number '{shown}...' ({} digits) is too large", text.len()));
+        }
+        Ok(v)
     }
 
     fn rest_for_msg(&self, from: usize) -> String {
@@ -202,8 +207,14 @@ impl<'a> Cursor<'a> {
     }
 
     /// A real value: number, `#` parameter, `[expr]` or unary function.
+    /// Like LinuxCNC, a calculation that overflows is an error, never an
+    /// infinite value carried on.
     pub fn real_value(&mut self, p: &Params) -> Result<f64, String> {
-        self.real_value_depth(p, 0)
+        let v = self.real_value_depth(p, 0)?;
+        if !v.is_finite() {
+            return Err("calculation result is not finite (overflow)".into());
+        }
+        Ok(v)
     }
 
     fn real_value_depth(&mut self, p: &Params, depth: u32) -> Result<f64, String> {

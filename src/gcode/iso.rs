@@ -799,6 +799,7 @@ impl IsoInterpreter {
                 fmt_code('M', *m)
             )));
         }
+        self.check_words(b).map_err(|m| err(m.to_string()))?;
         // Parameters take their new values once the whole line is read.
         for (r, v) in self.assigns.drain(..) {
             self.params.set(&r, v);
@@ -850,6 +851,90 @@ impl IsoInterpreter {
             self.cycle.initial_level = None;
         }
         self.motion_step(b, before, axes_used, lineno, out)
+    }
+
+    /// LinuxCNC's check of words that mean nothing on their block
+    /// (`G1 X1 I5`, a lone `R5`): each is an error with rs274's message,
+    /// never silently ignored. The motion the block will make is its own
+    /// group-1 code, or the modal one when it has axis words that no
+    /// G10/G28/G30/G52/G92 takes.
+    fn check_words(&self, b: &Block) -> Result<(), &'static str> {
+        let has = |l: u8| b.word(l).is_some();
+        if !(has(b'D')
+            || has(b'H')
+            || has(b'I')
+            || has(b'J')
+            || has(b'K')
+            || has(b'L')
+            || has(b'P')
+            || has(b'Q')
+            || has(b'R'))
+        {
+            return Ok(());
+        }
+        let has_axes = has(b'X') || has(b'Y') || has(b'Z') || b.polar.iter().any(Option::is_some);
+        let covets = [100u16, 280, 300, 520, 920].iter().any(|&c| b.has_g(c));
+        let motion = b.g[..b.ng]
+            .iter()
+            .copied()
+            .find(|&c| g_group(c) == Some(1))
+            .or(match self.motion {
+                Some(m) if has_axes && !covets => Some(match m {
+                    MotionMode::Rapid => 0,
+                    MotionMode::Feed => 10,
+                    MotionMode::Cw => 20,
+                    MotionMode::Ccw => 30,
+                    MotionMode::Cycle(c) => c,
+                }),
+                _ => None,
+            });
+        let motion_in = |codes: &[u16]| motion.is_some_and(|m| codes.contains(&m));
+        let cycle = motion.is_some_and(|m| (810..=890).contains(&m) || m == 730);
+        let g10 = b.has_g(100);
+        let comp = [410u16, 411, 420, 421].iter().any(|&c| b.has_g(c));
+        let user_m = b.m[..b.nm].iter().any(|m| (1000..=1990).contains(m));
+        let m_in = |codes: &[u16]| codes.iter().any(|&c| b.has_m(c));
+        if has(b'D') && !comp && !b.has_g(960) {
+            return Err("D word with no G41, G41.1, G42, G42.1, G71, G71.1, G71.2 or G96 to use it");
+        }
+        if has(b'H') && !b.has_g(430) && !b.has_g(432) && !motion_in(&[760]) {
+            return Err("H word with no G43 or G76 to use it");
+        }
+        if has(b'I') && !g10 && !motion_in(&[20, 30, 50, 51, 331, 760, 870]) {
+            return Err("I word with no G2, G3, G5, G5.1, G10, G33.1, G76, or G87 to use it");
+        }
+        if has(b'J') && !g10 && !motion_in(&[20, 30, 50, 51, 760, 870]) {
+            return Err("J word with no G2, G3, G5, G5.1, G10, G76 or G87 to use it");
+        }
+        if has(b'K') && !motion_in(&[20, 30, 330, 331, 760, 870]) {
+            return Err("K word with no G2, G3, G33, G33.1, G76, or G87 to use it");
+        }
+        if has(b'L') && !(cycle || g10 || comp || motion_in(&[760, 52]) || m_in(&[660, 980])) {
+            return Err(
+                "L word with no G10, cutter compensation, canned cycle, digital/analog input, M98 or NURBS code",
+            );
+        }
+        if has(b'P')
+            && !(g10
+                || b.has_g(40)
+                || b.has_g(640)
+                || motion_in(&[760, 820, 860, 880, 890, 50, 52, 20, 30])
+                || m_in(&[500, 510, 520, 530, 620, 630, 640, 650, 660, 190, 980])
+                || user_m)
+        {
+            return Err(
+                "P word with no G2 G3 G4 G10 G64 G5 G5.2 G76 G82 G86 G88 G89 or M50 M51 M52 M53 M62 M63 M64 M65 M66 M98 or user M code to use it",
+            );
+        }
+        if has(b'Q')
+            && !(g10 || b.has_g(640) || motion_in(&[830, 730, 50, 760]) || m_in(&[660, 670, 680, 610, 190]) || user_m)
+        {
+            return Err("Q word with no G5, G10, G64, G73, G76, G83, M19, M66, M67, M68 or user M code that uses it");
+        }
+        if has(b'R') && !(g10 || cycle || b.has_g(411) || b.has_g(421) || motion_in(&[20, 30, 760]) || m_in(&[190])) {
+            return Err("R word with no g code that uses it");
+        }
+        Ok(())
     }
 
     /// A non-motion record, behind any compensated move held back.

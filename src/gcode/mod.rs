@@ -279,8 +279,7 @@ impl<R: BufRead> ProgramReader<R> {
                 let mut buf = Vec::new();
                 for n in 1..=200u64 {
                     buf.clear();
-                    let k = input
-                        .read_until(b'\n', &mut buf)
+                    let k = crate::cli::read_line_any_ending(&mut input, &mut buf)
                         .map_err(|e| GcodeError::Io { line: n, source: e })?;
                     if k == 0 {
                         break;
@@ -323,10 +322,8 @@ impl<R: BufRead> ProgramReader<R> {
                 true
             } else {
                 self.buf.clear();
-                let n = self
-                    .input
-                    .read_until(b'\n', &mut self.buf)
-                    .map_err(|e| GcodeError::Io {
+                let n =
+                    crate::cli::read_line_any_ending(&mut self.input, &mut self.buf).map_err(|e| GcodeError::Io {
                         line: self.lineno,
                         source: e,
                     })?;
@@ -334,17 +331,32 @@ impl<R: BufRead> ProgramReader<R> {
             };
             if !line {
                 self.done = true;
+                let before = self.pending.len();
                 self.interp.finish(self.lineno - 1, &mut self.pending)?;
+                check_records(&self.pending, before, self.lineno - 1)?;
                 break;
             }
             let mut text = self.buf.as_slice();
             while let [rest @ .., b'\n' | b'\r'] = text {
                 text = rest;
             }
+            let before = self.pending.len();
             self.interp.line(text, self.lineno, &mut self.pending)?;
+            check_records(&self.pending, before, self.lineno)?;
         }
         Ok(())
     }
+}
+
+/// No record leaves a reader with a number that overflowed or that no
+/// machine can mean (see [`Record::check_numbers`]); the error names the
+/// record's own line (compensation emits a move a line late).
+fn check_records(pending: &VecDeque<Record>, from: usize, lineno: u64) -> Result<(), GcodeError> {
+    for r in pending.range(from..) {
+        r.check_numbers()
+            .map_err(|m| GcodeError::at(r.block().unwrap_or(lineno), m))?;
+    }
+    Ok(())
 }
 
 impl<R: BufRead> Iterator for ProgramReader<R> {

@@ -491,9 +491,9 @@ fn find_word(b: &[u8], from: usize, words: &[&str]) -> Option<(usize, usize)> {
 
 /// Words looked for between buffers: OPEN starts the next buffer; a move
 /// mode word there means program text outside its buffer (a CLOSE too
-/// early). Other on-line text (`&1B1R`, `#1->1000X`, `I5=2`) is sent at
-/// download time and ignored.
-const OUTSIDE_WORDS: &[&str] = &["OPEN", "LINEAR", "RAPID", "CIRCLE"];
+/// early), and a second CLOSE is unbalanced. Other on-line text (`&1B1R`,
+/// `#1->1000X`, `I5=2`) is sent at download time and ignored.
+const OUTSIDE_WORDS: &[&str] = &["OPEN", "CLOSE", "LINEAR", "RAPID", "CIRCLE"];
 
 /// PMAC bit-by-bit operators work on the integer and fractional bits of
 /// their operands; 32 fractional bits in an `i128` reproduce that for any
@@ -600,7 +600,7 @@ impl PmacInterpreter {
         loop {
             match self.buffer {
                 Buffer::Outside => match find_word(cur.b, cur.i, OUTSIDE_WORDS) {
-                    Some((p, 0)) => cur.i = p,
+                    Some((p, 0 | 1)) => cur.i = p,
                     Some((p, _)) => {
                         return Err(GcodeError::at(
                             lineno,
@@ -884,10 +884,28 @@ impl PmacInterpreter {
             }
             Kw::Open => self.open(cur, lineno)?,
             Kw::Close => {
-                // CLOSE before any OPEN is the safe download preamble: the
-                // file may still be a bare program, so stay in it.
-                if self.buffer != Buffer::Bare {
-                    self.buffer = Buffer::Outside;
+                // CLOSE before any OPEN and before any program text is the
+                // safe download preamble: the file may still be a bare
+                // program, so stay in it. Any other CLOSE with no buffer
+                // open is unbalanced.
+                match self.buffer {
+                    Buffer::Bare if self.buffer_has_records => {
+                        return Err(GcodeError::at(
+                            lineno,
+                            "CLOSE without OPEN: the program text above it is in no buffer (OPEN PROG n first)",
+                        ));
+                    }
+                    Buffer::Bare => {}
+                    Buffer::Outside => {
+                        return Err(GcodeError::at(
+                            lineno,
+                            format!(
+                                "CLOSE without OPEN: the buffer opened at line {} is closed already",
+                                self.opened_at
+                            ),
+                        ));
+                    }
+                    Buffer::Open | Buffer::Skip => self.buffer = Buffer::Outside,
                 }
             }
             Kw::Clear => {

@@ -25,6 +25,12 @@ pub fn arc_end_tolerance(r: f64) -> f64 {
     ARC_END_TOL_MM.max(ARC_END_REL_TOL * r.abs())
 }
 
+/// The largest coordinate magnitude (mm) a toolpath may carry: a kilometre
+/// of travel. Beyond it no machine or output format means anything, and
+/// lengths and times computed from such numbers overflow; readers refuse
+/// it, naming the record.
+pub const MAX_COORD_MM: f64 = 1e9;
+
 /// Why a move is there. Previews colour by it, simulators report by it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
@@ -242,6 +248,50 @@ impl Record {
         match self {
             Record::Move(m) => Some(m),
             _ => None,
+        }
+    }
+
+    /// Check that every number of the record is finite and that its
+    /// coordinates (end point, arc centre) lie within [`MAX_COORD_MM`];
+    /// the error says which number. Readers call this on every record, so
+    /// no tool computes with, or prints, an overflowed value.
+    pub fn check_numbers(&self) -> Result<(), String> {
+        fn num(v: f64, what: &str) -> Result<(), String> {
+            if v.is_finite() {
+                Ok(())
+            } else {
+                Err(format!("{what} is not a finite number ({v})"))
+            }
+        }
+        fn point(p: &P3, what: &str) -> Result<(), String> {
+            for (v, axis) in [(p.x, "X"), (p.y, "Y"), (p.z, "Z")] {
+                num(v, what)?;
+                if v.abs() > MAX_COORD_MM {
+                    return Err(format!(
+                        "{what} {axis} = {v:e} mm is beyond what a machine can mean (|value| <= {MAX_COORD_MM:e} mm)"
+                    ));
+                }
+            }
+            Ok(())
+        }
+        match self {
+            Record::Move(m) => {
+                point(&m.to, "end point")?;
+                if let MotionKind::Arc(a) = &m.kind {
+                    point(&a.center, "arc centre")?;
+                }
+                if let Some(f) = m.feed {
+                    num(f, "feed")?;
+                }
+                Ok(())
+            }
+            Record::Dwell { seconds, .. } => num(*seconds, "dwell time"),
+            Record::Spindle { rpm, .. } => num(*rpm, "spindle speed"),
+            Record::Accel { ta_ms, ts_ms, .. } => {
+                ta_ms.map_or(Ok(()), |v| num(v, "TA"))?;
+                ts_ms.map_or(Ok(()), |v| num(v, "TS"))
+            }
+            Record::Var { value, name, .. } => num(*value, name),
         }
     }
 

@@ -98,6 +98,10 @@ pub struct Removal<W: Write> {
     pub overlay: Option<Overlay>,
 }
 
+/// Most steps one block may be cut in with `--flutes` (per block, so the
+/// work stays proportional to the program).
+pub const MAX_STEPS_PER_BLOCK: f64 = 1e6;
+
 /// The header row of the `--steps` CSV.
 pub const STEPS_HEADER: &str = "line,step,x_mm,y_mm,z_mm,step_length_mm,chip_volume_mm3\n";
 
@@ -418,7 +422,21 @@ impl<W: Write> Removal<W> {
             }
         })?;
         let per_tooth = block.feed_mm_s / (rpm / 60.0 * plan.flutes as f64);
-        Ok(Some(per_tooth * plan.scale))
+        let step = per_tooth * plan.scale;
+        // Bounded work: estimate the steps before cutting them and refuse,
+        // with the estimate, what no one could want (a 1e-12 scale would
+        // otherwise run for ever).
+        let n = block.length_mm / step;
+        if n.is_nan() || n > MAX_STEPS_PER_BLOCK {
+            let msg = format!(
+                "chip volume per step: this block needs about {n:.3e} steps of {step:.3e} mm, more than {MAX_STEPS_PER_BLOCK:e} (raise --step-scale)"
+            );
+            return Err(match block.line {
+                Some(line) => SimError::Line { line, msg },
+                None => SimError::Record { index: 0, msg },
+            });
+        }
+        Ok(Some(step))
     }
 
     fn cut(&mut self, block: &Block, from: &P3, to: &P3, kind: &MotionKind) -> Result<(), SimError> {
