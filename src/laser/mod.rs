@@ -11,6 +11,7 @@ pub mod audit;
 pub mod contour;
 pub mod dubins;
 pub mod elem;
+pub mod fill;
 pub mod input;
 pub mod offset;
 pub mod order;
