@@ -738,6 +738,40 @@ fn drop_short(run: Vec<Elem>, m: &LaserSetup, dropped: &mut (usize, f64)) -> Vec
     out
 }
 
+/// Fold pieces shorter than the controller's least block (1 ms at V) into
+/// a neighbouring line: a Turbo PMAC would stretch such a block and slow
+/// down there. Pieces inside a stretch meet tangentially (within the
+/// tangency tolerance), so the line barely turns.
+fn merge_tiny(run: Vec<Elem>, min_block: f64) -> Vec<Elem> {
+    let mut out: Vec<Elem> = Vec::with_capacity(run.len());
+    let mut pending: Option<Elem> = None;
+    for e in run {
+        let e = match pending.take() {
+            // A tiny piece before this line: the line starts earlier.
+            Some(t) => match e {
+                Elem::Line(_) => Elem::line(t.start(), e.end()),
+                _ => {
+                    out.push(t);
+                    e
+                }
+            },
+            None => e,
+        };
+        if e.length() >= min_block {
+            out.push(e);
+            continue;
+        }
+        match out.last_mut() {
+            Some(prev @ Elem::Line(_)) => *prev = Elem::line(prev.start(), e.end()),
+            _ => pending = Some(e),
+        }
+    }
+    if let Some(t) = pending {
+        out.push(t);
+    }
+    out
+}
+
 /// Join runs of cut pieces into beam-off-linked paths: a Dubins link at
 /// V from the end of one run to the start of the next, in the stage's
 /// least radius and long enough for the shutter. Where no link exists the
@@ -748,7 +782,12 @@ fn join_runs(runs: Vec<Vec<Elem>>, m: &LaserSetup, dropped: &mut (usize, f64)) -
     let xy = |v: crate::geometry::V3| V2::new(v.x, v.y);
     let mut paths = Vec::new();
     let mut cur: Tagged = Vec::new();
-    for run in runs.into_iter().flat_map(|r| drop_short(r, m, dropped)) {
+    let runs: Vec<Vec<Elem>> = runs
+        .into_iter()
+        .flat_map(|r| drop_short(r, m, dropped))
+        .map(|r| merge_tiny(r, m.min_block()))
+        .collect();
+    for run in runs {
         let Some(first) = run.first() else { continue };
         if let Some((last, _)) = cur.last() {
             let (din, dout) = (xy(last.dir_end()), xy(first.dir_start()));
