@@ -742,7 +742,7 @@ fn drop_short(run: Vec<Elem>, m: &LaserSetup, dropped: &mut (usize, f64)) -> Vec
 /// a neighbouring line: a Turbo PMAC would stretch such a block and slow
 /// down there. Pieces inside a stretch meet tangentially (within the
 /// tangency tolerance), so the line barely turns.
-fn merge_tiny(run: Vec<Elem>, min_block: f64) -> Vec<Elem> {
+fn merge_tiny(run: Vec<Elem>, min_block: f64, rmin: f64) -> Vec<Elem> {
     let mut out: Vec<Elem> = Vec::with_capacity(run.len());
     let mut pending: Option<Elem> = None;
     for e in run {
@@ -750,10 +750,13 @@ fn merge_tiny(run: Vec<Elem>, min_block: f64) -> Vec<Elem> {
             // A tiny piece before this line: the line starts earlier.
             Some(t) => match e {
                 Elem::Line(_) => Elem::line(t.start(), e.end()),
-                _ => {
-                    out.push(t);
-                    e
-                }
+                _ => match extend_arc(&e.reversed(), t.start(), rmin) {
+                    Some(a) => a.reversed(),
+                    None => {
+                        out.push(t);
+                        e
+                    }
+                },
             },
             None => e,
         };
@@ -763,13 +766,35 @@ fn merge_tiny(run: Vec<Elem>, min_block: f64) -> Vec<Elem> {
         }
         match out.last_mut() {
             Some(prev @ Elem::Line(_)) => *prev = Elem::line(prev.start(), e.end()),
-            _ => pending = Some(e),
+            Some(prev) => match extend_arc(prev, e.end(), rmin) {
+                Some(a) => *prev = a,
+                None => out.push(e),
+            },
+            None => pending = Some(e),
         }
     }
     if let Some(t) = pending {
         out.push(t);
     }
     out
+}
+
+/// The arc leaving where `e` (an arc) starts, along its start direction,
+/// and ending at `to`: `e` extended over a tiny piece that follows it.
+/// None when that arc would be tighter than `rmin` or is degenerate.
+fn extend_arc(e: &Elem, to: P3, rmin: f64) -> Option<Elem> {
+    let Elem::Arc(_) = e else { return None };
+    let a = e.start();
+    let t = e.dir_start();
+    let n = crate::geometry::V3::new(-t.y, t.x, 0.0);
+    let d = to - a;
+    let den = 2.0 * n.dot(&d);
+    if den.abs() < 1e-15 {
+        return None;
+    }
+    let rho = d.norm_squared() / den;
+    let arc = crate::geometry::arc::Arc3::new(a + n * rho, a, to, rho > 0.0, Plane::Xy, 0)?;
+    (arc.radius() >= rmin * (1.0 - 1e-9)).then_some(Elem::Arc(arc))
 }
 
 /// Join runs of cut pieces into beam-off-linked paths: a Dubins link at
@@ -785,7 +810,7 @@ fn join_runs(runs: Vec<Vec<Elem>>, m: &LaserSetup, dropped: &mut (usize, f64)) -
     let runs: Vec<Vec<Elem>> = runs
         .into_iter()
         .flat_map(|r| drop_short(r, m, dropped))
-        .map(|r| merge_tiny(r, m.min_block()))
+        .map(|r| merge_tiny(r, m.min_block(), m.min_radius()))
         .collect();
     for run in runs {
         let Some(first) = run.first() else { continue };
@@ -877,6 +902,7 @@ pub fn plan_prepared(
     mut sink: impl FnMut(Vec<Record>) -> bool,
 ) -> Vec<Warning> {
     let mut warnings = p.warnings.clone();
+    let mut t = Tally::default();
     if !sink(vec![ramps_record(m)]) {
         return warnings;
     }
@@ -899,37 +925,30 @@ pub fn plan_prepared(
         for ((rs, notes, empty, dropped), r) in planned.into_iter().zip(chunk) {
             recs.extend(rs);
             if dropped.0 > 0 {
-                warnings.push(Warning {
-                    chain: r.chain,
-                    message: format!(
-                        "{} pass stretch(es) between corners, {:.6} mm in all, are shorter than the shutter's \
-                         minimum exposure ({:.6} mm at this feed); not cut",
-                        dropped.0,
-                        dropped.1,
-                        m.min_cut()
-                    ),
-                });
+                t.dropped.0 += dropped.0;
+                t.dropped.1 += dropped.1;
+                t.dropped_in.get_or_insert(r.chain);
             }
             if empty && dropped.0 == 0 {
-                warnings.push(Warning {
-                    chain: r.chain,
-                    message: format!(
-                        "region at z {} is narrower than the beam ({} mm radius): nothing to cut",
-                        r.z, o.beam_radius
-                    ),
-                });
+                t.narrow += 1;
+                t.narrow_in.get_or_insert(r.chain);
             }
             let mut seen = std::collections::BTreeSet::new();
             for n in notes {
-                let s = n.to_string();
                 let kind = match n {
+                    Note::SwitchOff { count, worst } => {
+                        t.switch.0 += count;
+                        t.switch.1 = t.switch.1.max(worst);
+                        t.switch_in.get_or_insert(r.chain);
+                        continue;
+                    }
                     Note::TightArc { .. } => "tight".to_string(),
-                    _ => s.clone(),
+                    _ => n.to_string(),
                 };
                 if seen.insert(kind) {
                     warnings.push(Warning {
                         chain: r.chain,
-                        message: s,
+                        message: n.to_string(),
                     });
                 }
             }
@@ -938,7 +957,50 @@ pub fn plan_prepared(
             break;
         }
     }
+    // One line per kind for the whole job, however many regions.
+    if let Some(chain) = t.dropped_in {
+        warnings.push(Warning {
+            chain,
+            message: format!(
+                "{} pass stretch(es) between corners, {:.6} mm in all, are shorter than the shutter's minimum \
+                 exposure ({:.6} mm at this feed); not cut",
+                t.dropped.0,
+                t.dropped.1,
+                m.min_cut()
+            ),
+        });
+    }
+    if let Some(chain) = t.narrow_in {
+        warnings.push(Warning {
+            chain,
+            message: format!(
+                "{} region(s) narrower than the beam ({} mm radius): nothing to cut there",
+                t.narrow, o.beam_radius
+            ),
+        });
+    }
+    if let Some(chain) = t.switch_in {
+        warnings.push(Warning {
+            chain,
+            message: Note::SwitchOff {
+                count: t.switch.0,
+                worst: t.switch.1,
+            }
+            .to_string(),
+        });
+    }
     warnings
+}
+
+/// Job-wide tallies of what the user is told once.
+#[derive(Default)]
+struct Tally {
+    dropped: (usize, f64),
+    dropped_in: Option<u64>,
+    narrow: usize,
+    narrow_in: Option<u64>,
+    switch: (usize, f64),
+    switch_in: Option<u64>,
 }
 
 /// Plan a whole fill job.

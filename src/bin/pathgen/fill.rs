@@ -37,10 +37,10 @@ pub struct FillArgs {
     #[arg(long, value_enum, default_value_t = Pattern::Offset)]
     pattern: Pattern,
     /// Beam spot diameter (mm): passes keep its radius inside the region.
-    #[arg(long, default_value_t = 0.01)]
+    #[arg(long, default_value_t = 0.01, allow_negative_numbers = true)]
     beam_diameter: f64,
     /// Distance between passes (mm). Default: the beam radius.
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     stepover: Option<f64>,
     /// Hatch: direction of the lines (degrees from +X).
     #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
