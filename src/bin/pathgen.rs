@@ -27,6 +27,8 @@ use std::process::ExitCode;
 
 #[path = "pathgen/dropcutter.rs"]
 mod dropcutter;
+#[path = "pathgen/fill.rs"]
+mod fill;
 #[path = "pathgen/pocket.rs"]
 mod pocket;
 #[path = "pathgen/slice.rs"]
@@ -89,6 +91,10 @@ enum Command {
     /// or along chains (3-axis), or 5-axis along the surface normal.
     #[command(after_help = dropcutter::EXAMPLES)]
     Dropcutter(Box<dropcutter::DropcutterArgs>),
+    /// Fill closed chains (sections from `slice`, regions from dxf2chains):
+    /// offset passes or hatch, through the laser planner.
+    #[command(after_help = fill::EXAMPLES)]
+    Fill(Box<fill::FillArgs>),
 }
 
 #[derive(ClapArgs)]
@@ -616,6 +622,7 @@ fn main() -> ExitCode {
         Command::MeshInfo(a) => slice::mesh_info_cmd(*a),
         Command::Pocket(a) => pocket::run(*a),
         Command::Dropcutter(a) => dropcutter::run(*a),
+        Command::Fill(a) => fill::run(*a),
     })
 }
 

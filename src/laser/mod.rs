@@ -12,6 +12,7 @@ pub mod cleanup;
 pub mod contour;
 pub mod dubins;
 pub mod elem;
+pub mod fill;
 pub mod input;
 pub mod offset;
 pub mod order;

@@ -206,7 +206,7 @@ fn miter_joins(path: Vec<Elem>, vertices: &[P3], dist: f64) -> Vec<Elem> {
 
 /// `a` then `b` as one line, when both are lines and `b` goes straight on
 /// from where `a` ends.
-fn continue_line(a: &Elem, b: &Elem) -> Option<Elem> {
+pub(super) fn continue_line(a: &Elem, b: &Elem) -> Option<Elem> {
     let (Elem::Line(a), Elem::Line(b)) = (a, b) else {
         return None;
     };
