@@ -30,6 +30,10 @@ pub struct CliError {
     /// The reader of our stdout went away (`| head`): the job ends with
     /// status 1 but without a message, as Unix filters do.
     pub broken_pipe: bool,
+    /// A verdict, not a failure of the run (stlverify outside its band,
+    /// an audit that finds broken limits): every output was written and
+    /// must appear, and the status says what the job found.
+    pub keep_outputs: bool,
 }
 
 impl CliError {
@@ -39,6 +43,17 @@ impl CliError {
             status: 2,
             message: message.into(),
             broken_pipe: false,
+            keep_outputs: false,
+        }
+    }
+
+    /// The job was done and its outputs are written, but what it found is
+    /// a failure (a part outside its tolerance band): exit status 1, with
+    /// every output in place for the user to look at.
+    pub fn verdict(message: impl Into<String>) -> Self {
+        CliError {
+            keep_outputs: true,
+            ..CliError::failure(message)
         }
     }
 
@@ -48,12 +63,17 @@ impl CliError {
             status: 1,
             message: message.into(),
             broken_pipe: false,
+            keep_outputs: false,
         }
     }
 
     /// An input error located in `source` (a file name or `<stdin>`).
     pub fn in_file(source: &str, err: impl std::fmt::Display) -> Self {
-        CliError::input(format!("{source}:{err}").replacen(":line ", ":", 1))
+        let err = err.to_string();
+        match err.strip_prefix("line ") {
+            Some(rest) => CliError::input(format!("{source}:{rest}")),
+            None => CliError::input(format!("{source}: {err}")),
+        }
     }
 }
 
@@ -84,7 +104,11 @@ pub fn run(tool: &str, body: impl FnOnce() -> Result<(), CliError>) -> ExitCode 
     }
     *staged() = Some(Vec::new());
     let discard = Discard;
-    let outcome = body().and_then(|()| release(take_staged().unwrap_or_default()));
+    let outcome = match body() {
+        Ok(()) => release(take_staged().unwrap_or_default()),
+        Err(e) if e.keep_outputs => release(take_staged().unwrap_or_default()).and(Err(e)),
+        Err(e) => Err(e),
+    };
     drop(discard);
     match outcome {
         Ok(()) => ExitCode::SUCCESS,

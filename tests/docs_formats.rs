@@ -114,7 +114,7 @@ fn error_table_messages_are_real() {
         ),
         (
             "{\"schema\":\"microcam.toolpath/1\"}\n\u{0}\u{ff}\n",
-            "stream did not contain valid UTF-8",
+            "invalid utf-8 sequence",
         ),
     ];
     for (text, want) in cases {

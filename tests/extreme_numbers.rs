@@ -189,7 +189,19 @@ fn run(label: String, tool: &str, args: &[String], dir: &Path) -> Outcome {
 /// A non-finite number in a tool's output: NaN or infinity spelled any way a
 /// formatter may spell it, or a JSON `null` where a number was expected.
 fn non_finite(out: &[u8]) -> Option<String> {
-    let text = String::from_utf8_lossy(out);
+    let raw = String::from_utf8_lossy(out);
+    // G-code comments are the user's text, passed through (feedopt keeps
+    // every byte but the F words): not numbers a tool computed.
+    let mut text = String::with_capacity(raw.len());
+    let mut depth = 0;
+    for c in raw.chars() {
+        match c {
+            '(' => depth += 1,
+            ')' if depth > 0 => depth -= 1,
+            _ if depth == 0 => text.push(c),
+            _ => {}
+        }
+    }
     for word in text.split(|c: char| !(c.is_ascii_alphanumeric() || c == '-' || c == '+' || c == '.')) {
         let w = word.trim_start_matches(['-', '+']);
         let lw = w.to_ascii_lowercase();

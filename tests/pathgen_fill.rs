@@ -253,7 +253,7 @@ fn bad_input_exits_2_and_writes_nothing() {
         (nan, vec![], ""),
         (square.clone(), vec!["--stepover", "1e-9"], "moves"),
         (square.clone(), vec!["--stepover", "-1"], "positive"),
-        (square, vec!["--beam-diameter", "nan"], "positive"),
+        (square, vec!["--beam-diameter", "nan"], "not a number"),
     ];
     for (input, extra, msg) in cases {
         let mut args = vec!["fill", "--gcode", "pmac", "-o", out_s];

@@ -1160,7 +1160,7 @@ fn audit_cmd(a: AuditArgs) -> Result<(), CliError> {
     if ok {
         Ok(())
     } else {
-        Err(CliError::failure(
+        Err(CliError::verdict(
             "the toolpath breaks the machine's limits (see the report)",
         ))
     }

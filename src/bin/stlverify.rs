@@ -315,7 +315,7 @@ fn run(args: Args) -> Result<(), CliError> {
     )?;
     out.commit()?;
     if failed {
-        return Err(CliError::failure("points outside the tolerance band (see the report)"));
+        return Err(CliError::verdict("points outside the tolerance band (see the report)"));
     }
     Ok(())
 }

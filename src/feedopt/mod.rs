@@ -39,6 +39,9 @@ use force::{Coefficients, Engagement, ForceModel};
 use schedule::{Band, By, Segment, Step, Targets};
 use thiserror::Error;
 
+/// Most simulation steps one run may take (each a record in the series).
+pub const MAX_STEPS: usize = 20_000_000;
+
 /// Why a program cannot be scheduled.
 #[derive(Debug, Error)]
 pub enum FeedoptError {
@@ -52,6 +55,8 @@ pub enum FeedoptError {
     NeverCuts,
     #[error("inch programs (G20) are not supported: feedopt writes F in mm/min")]
     Inch,
+    #[error("the simulation would take about {steps:.3e} steps of {step_mm:e} mm (more than {max}): raise --step-mm or --fz-min-um")]
+    TooManySteps { steps: f64, step_mm: f64, max: usize },
     #[error("--stock: {0}")]
     Stock(#[from] StockError),
     #[error("{0}")]
@@ -221,6 +226,27 @@ pub fn optimise(input: &str, o: &Options) -> Result<Outcome, FeedoptError> {
     );
     let mut steps_total = 0usize;
     let mut steps: Vec<Step> = Vec::new();
+    // The series holds one record per step: estimate it from the program's
+    // feed length before allocating anything.
+    {
+        let mut at = o.read.start;
+        let mut length = 0.0;
+        for r in &recs {
+            if let Record::Move(m) = r {
+                length += match m.kind {
+                    MotionKind::Rapid => 0.0,
+                    MotionKind::Arc(a) => Arc3::new(a.center, at, m.to, a.ccw, a.plane, a.extra_turns)
+                        .map_or((m.to - at).norm(), |arc| arc.length()),
+                    _ => (m.to - at).norm(),
+                };
+                at = m.to;
+            }
+        }
+        let est = length / step_mm;
+        if !(step_mm > 0.0) || !est.is_finite() || est > MAX_STEPS as f64 {
+            return Err(FeedoptError::TooManySteps { steps: est, step_mm, max: MAX_STEPS });
+        }
+    }
     for r in &recs {
         match r {
             Record::Spindle { rpm: s, .. } if o.rpm.is_none() => rpm = Some(*s),

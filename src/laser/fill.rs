@@ -1011,7 +1011,11 @@ pub fn fill(chains: &[Chain], m: &LaserSetup, o: &FillOptions) -> Result<Job, Fi
         records.extend(r);
         true
     });
-    Ok(Job { records, warnings })
+    Ok(Job {
+        records,
+        warnings,
+        cleanup: Default::default(),
+    })
 }
 
 #[cfg(test)]

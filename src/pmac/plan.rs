@@ -560,7 +560,9 @@ mod tests {
             assert!(c.words <= 40);
             assert_eq!(c.first_counter, next);
             next = c.last_counter + 1;
-            assert_eq!(c.lines.last().unwrap(), "M33=0");
+            // Closed synchronously: an immediate M33=0 would act at look-ahead,
+            // during the last beam-on move.
+            assert_eq!(c.lines.last().unwrap(), "M33==0");
             assert!(
                 c.lines.iter().any(|l| l.contains(" F") || l.starts_with('F')),
                 "{:?}",

@@ -48,9 +48,6 @@ pub struct FillArgs {
     /// Hatch: cut the region's outline (one beam radius in) after the lines.
     #[arg(long)]
     outline: bool,
-    /// Refuse jobs estimated to make more moves than this.
-    #[arg(long, default_value_t = 5_000_000)]
-    max_moves: u64,
     #[command(flatten)]
     machine: MachineArgs,
     #[command(flatten)]
@@ -72,7 +69,7 @@ pub fn run(a: FillArgs) -> Result<(), CliError> {
         stepover: a.stepover.unwrap_or(r),
         angle_deg: a.angle,
         outline: a.outline,
-        max_moves: a.max_moves,
+        max_moves: a.out.max_moves,
     };
     let input = cli::open_input(a.file.as_deref())?;
     let name = input.name.clone();
