@@ -153,7 +153,10 @@ pub fn check_numeric_arguments(args: &[String]) -> Result<(), CliError> {
         if pieces.iter().all(|p| p.parse::<i128>().is_ok()) {
             continue; // integers (seeds, counts): clap's integer types check their own range
         }
-        if let Some(bad) = numbers.iter().find(|x| !x.is_finite() || x.abs() > MAX_ARGUMENT_MAGNITUDE) {
+        if let Some(bad) = numbers
+            .iter()
+            .find(|x| !x.is_finite() || x.abs() > MAX_ARGUMENT_MAGNITUDE)
+        {
             let what = if bad.is_nan() {
                 "not a number".to_string()
             } else if bad.is_infinite() {
@@ -162,7 +165,9 @@ pub fn check_numeric_arguments(args: &[String]) -> Result<(), CliError> {
                 format!("beyond ±{MAX_ARGUMENT_MAGNITUDE:e}")
             };
             let whose = name.map(|n| format!("{n} ")).unwrap_or_default();
-            return Err(CliError::input(format!("{whose}'{value}': {what}; numbers must be finite and within ±{MAX_ARGUMENT_MAGNITUDE:e}")));
+            return Err(CliError::input(format!(
+                "{whose}'{value}': {what}; numbers must be finite and within ±{MAX_ARGUMENT_MAGNITUDE:e}"
+            )));
         }
     }
     Ok(())
@@ -530,8 +535,29 @@ mod numeric_argument_tests {
 
     #[test]
     fn finite_numbers_names_and_paths_pass() {
-        assert!(check(&["--feed", "2.5", "--stock", "0,0,-1,4,3,0", "--tool", "ball:2", "part.ngc"]).is_ok());
-        assert!(check(&["--start=-5,0,0", "--polygon", "0,0;4,0;4,3", "-", "--shutter-var", "M33"]).is_ok());
+        assert!(
+            check(&[
+                "--feed",
+                "2.5",
+                "--stock",
+                "0,0,-1,4,3,0",
+                "--tool",
+                "ball:2",
+                "part.ngc"
+            ])
+            .is_ok()
+        );
+        assert!(
+            check(&[
+                "--start=-5,0,0",
+                "--polygon",
+                "0,0;4,0;4,3",
+                "-",
+                "--shutter-var",
+                "M33"
+            ])
+            .is_ok()
+        );
         assert!(check(&["--seed", "18446744073709551615", "--levels", "-1e11"]).is_ok());
     }
 

@@ -15,9 +15,7 @@ use std::process::{Command, Stdio};
 use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
-const EXTREMES: &[&str] = &[
-    "1e-12", "1e308", "-1e308", "-1", "0", "nan", "inf", "-inf", "1e9",
-];
+const EXTREMES: &[&str] = &["1e-12", "1e308", "-1e308", "-1", "0", "nan", "inf", "-inf", "1e9"];
 /// Wall-clock budget of one run. Generous because the machine may be loaded;
 /// the bounded-work rule is about seconds, not minutes or hours.
 const RUN_LIMIT: Duration = Duration::from_secs(20);
@@ -28,7 +26,9 @@ fn bin(name: &str) -> PathBuf {
     if p.exists() {
         return p;
     }
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("target/debug").join(name)
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("target/debug")
+        .join(name)
 }
 
 fn root() -> PathBuf {
@@ -45,36 +45,134 @@ struct Case {
 }
 
 const CASES: &[Case] = &[
-    Case { tool: "dxf2chains", args: &[], input: Some("testdata/samples/part.dxf") },
-    Case { tool: "pathgen", args: &["contour", "--side", "outside"], input: Some("testdata/chains/plate.chains") },
-    Case { tool: "pathgen", args: &["helix", "--radius", "0.5", "--pitch", "0.02", "--turns", "3"], input: None },
-    Case { tool: "pathgen", args: &["spiral", "--step", "0.05", "--radius", "1"], input: None },
-    Case { tool: "pathgen", args: &["zigzag", "--length", "2", "--width", "1", "--step", "0.1"], input: None },
-    Case { tool: "pathgen", args: &["cone", "--d1", "2", "--d2", "1", "--height", "0.5"], input: None },
-    Case { tool: "pathgen", args: &["arcfit"], input: Some("testdata/chains/wave.xy") },
-    Case { tool: "pathgen", args: &["emit", "--dialect", "pmac"], input: Some("testdata/writer/laser.jsonl") },
-    Case { tool: "pathgen", args: &["audit"], input: Some("testdata/writer/laser.jsonl") },
-    Case { tool: "pathgen", args: &["slice", "--z-step", "1"], input: Some("testdata/samples/dome.stl") },
-    Case { tool: "pathgen", args: &["mesh-info"], input: Some("testdata/samples/dome.stl") },
+    Case {
+        tool: "dxf2chains",
+        args: &[],
+        input: Some("testdata/samples/part.dxf"),
+    },
     Case {
         tool: "pathgen",
-        args: &["pocket", "--polygon", "0,0;4,0;4,3;0,3", "--tool", "flat:1", "--grid", "0.5,0.5", "--floor-z", "-0.2"],
+        args: &["contour", "--side", "outside"],
+        input: Some("testdata/chains/plate.chains"),
+    },
+    Case {
+        tool: "pathgen",
+        args: &["helix", "--radius", "0.5", "--pitch", "0.02", "--turns", "3"],
         input: None,
     },
     Case {
         tool: "pathgen",
-        args: &["dropcutter", "--cutter", "ball:2", "--step-over", "2", "--step-forward", "1"],
+        args: &["spiral", "--step", "0.05", "--radius", "1"],
+        input: None,
+    },
+    Case {
+        tool: "pathgen",
+        args: &["zigzag", "--length", "2", "--width", "1", "--step", "0.1"],
+        input: None,
+    },
+    Case {
+        tool: "pathgen",
+        args: &["cone", "--d1", "2", "--d2", "1", "--height", "0.5"],
+        input: None,
+    },
+    Case {
+        tool: "pathgen",
+        args: &["arcfit"],
+        input: Some("testdata/chains/wave.xy"),
+    },
+    Case {
+        tool: "pathgen",
+        args: &["emit", "--dialect", "pmac"],
+        input: Some("testdata/writer/laser.jsonl"),
+    },
+    Case {
+        tool: "pathgen",
+        args: &["audit"],
+        input: Some("testdata/writer/laser.jsonl"),
+    },
+    Case {
+        tool: "pathgen",
+        args: &["slice", "--z-step", "1"],
         input: Some("testdata/samples/dome.stl"),
     },
-    Case { tool: "gsim", args: &[], input: Some("testdata/gcode/badge.ngc") },
-    Case { tool: "gsim", args: &["--moves"], input: Some("testdata/writer/laser.pmac") },
-    Case { tool: "gsim", args: &["--stock", "-6,-6,-1,6,6,0", "--tool", "flat:1"], input: Some("testdata/sim/microslot.ngc") },
-    Case { tool: "feedopt", args: &["--tool", "flat:0.794", "--stock", "-2,-2,-1,2,2,0", "--rpm", "60000"], input: Some("testdata/feedopt/pocket.ngc") },
-    Case { tool: "plough2d", args: &["--stock", "0,0,4,3", "--rpm", "60000"], input: Some("testdata/feedopt/pocket.pmc") },
-    Case { tool: "stlverify", args: &["--stock", "0,0,-2,6,6,0", "--tool", "flat:1", "--spacing", "0.1"], input: Some("testdata/stlverify/slot3.cl") },
-    Case { tool: "probescan", args: &["--circle", "2", "--points", "20"], input: None },
-    Case { tool: "pmac-send", args: &["--dry-run", "@OUT"], input: Some("testdata/writer/laser.pmac") },
-    Case { tool: "pmac-emu", args: &["--port", "0", "--duration", "0.2"], input: None },
+    Case {
+        tool: "pathgen",
+        args: &["mesh-info"],
+        input: Some("testdata/samples/dome.stl"),
+    },
+    Case {
+        tool: "pathgen",
+        args: &[
+            "pocket",
+            "--polygon",
+            "0,0;4,0;4,3;0,3",
+            "--tool",
+            "flat:1",
+            "--grid",
+            "0.5,0.5",
+            "--floor-z",
+            "-0.2",
+        ],
+        input: None,
+    },
+    Case {
+        tool: "pathgen",
+        args: &[
+            "dropcutter",
+            "--cutter",
+            "ball:2",
+            "--step-over",
+            "2",
+            "--step-forward",
+            "1",
+        ],
+        input: Some("testdata/samples/dome.stl"),
+    },
+    Case {
+        tool: "gsim",
+        args: &[],
+        input: Some("testdata/gcode/badge.ngc"),
+    },
+    Case {
+        tool: "gsim",
+        args: &["--moves"],
+        input: Some("testdata/writer/laser.pmac"),
+    },
+    Case {
+        tool: "gsim",
+        args: &["--stock", "-6,-6,-1,6,6,0", "--tool", "flat:1"],
+        input: Some("testdata/sim/microslot.ngc"),
+    },
+    Case {
+        tool: "feedopt",
+        args: &["--tool", "flat:0.794", "--stock", "-2,-2,-1,2,2,0", "--rpm", "60000"],
+        input: Some("testdata/feedopt/pocket.ngc"),
+    },
+    Case {
+        tool: "plough2d",
+        args: &["--stock", "0,0,4,3", "--rpm", "60000"],
+        input: Some("testdata/feedopt/pocket.pmc"),
+    },
+    Case {
+        tool: "stlverify",
+        args: &["--stock", "0,0,-2,6,6,0", "--tool", "flat:1", "--spacing", "0.1"],
+        input: Some("testdata/stlverify/slot3.cl"),
+    },
+    Case {
+        tool: "probescan",
+        args: &["--circle", "2", "--points", "20"],
+        input: None,
+    },
+    Case {
+        tool: "pmac-send",
+        args: &["--dry-run", "@OUT"],
+        input: Some("testdata/writer/laser.pmac"),
+    },
+    Case {
+        tool: "pmac-emu",
+        args: &["--port", "0", "--duration", "0.2"],
+        input: None,
+    },
 ];
 
 /// A tiny deterministic generator (SplitMix64) so the test needs no crate.
@@ -122,12 +220,38 @@ fn value_options(tool: &str, sub: Option<&str>) -> Vec<String> {
 fn names_a_path(opt: &str) -> bool {
     matches!(
         opt,
-        "--output" | "--svg" | "--png" | "--csv" | "--stl" | "--blocks" | "--removal" | "--steps"
-            | "--report" | "--plot" | "--log" | "--program" | "--points" | "--profiles"
-            | "--profiles-svg" | "--dry-run" | "--state" | "--design" | "--surface" | "--chains"
-            | "--tool-table" | "--subroutine-path" | "--force-coefficients" | "--header"
-            | "--trailer" | "--progress-file" | "--host" | "--shutter-var" | "--line-counter"
-            | "--line-counter-var" | "--layer" | "--counter-var"
+        "--output"
+            | "--svg"
+            | "--png"
+            | "--csv"
+            | "--stl"
+            | "--blocks"
+            | "--removal"
+            | "--steps"
+            | "--report"
+            | "--plot"
+            | "--log"
+            | "--program"
+            | "--points"
+            | "--profiles"
+            | "--profiles-svg"
+            | "--dry-run"
+            | "--state"
+            | "--design"
+            | "--surface"
+            | "--chains"
+            | "--tool-table"
+            | "--subroutine-path"
+            | "--force-coefficients"
+            | "--header"
+            | "--trailer"
+            | "--progress-file"
+            | "--host"
+            | "--shutter-var"
+            | "--line-counter"
+            | "--line-counter-var"
+            | "--layer"
+            | "--counter-var"
     )
 }
 
@@ -259,16 +383,29 @@ fn every_tool_survives_extreme_numbers() {
         eprintln!("skipping: prlimit (util-linux) is not installed");
         return;
     }
-    let seed = std::env::var("EXTREME_SEED").ok().and_then(|s| s.parse().ok()).unwrap_or(20261125u64);
+    let seed = std::env::var("EXTREME_SEED")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(20261125u64);
     let mut rng = Rng(seed);
     let work = tempfile::tempdir().unwrap();
     let mut jobs: Vec<(String, &'static str, Vec<String>)> = Vec::new();
     for (ci, case) in CASES.iter().enumerate() {
-        let sub = if case.tool == "pathgen" { Some(case.args[0]) } else { None };
+        let sub = if case.tool == "pathgen" {
+            Some(case.args[0])
+        } else {
+            None
+        };
         let base: Vec<String> = case
             .args
             .iter()
-            .map(|a| if *a == "@OUT" { format!("plan{ci}") } else { a.to_string() })
+            .map(|a| {
+                if *a == "@OUT" {
+                    format!("plan{ci}")
+                } else {
+                    a.to_string()
+                }
+            })
             .collect();
         let input = case.input.map(|p| root().join(p));
         let with_input = |mut args: Vec<String>| {
@@ -288,7 +425,10 @@ fn every_tool_survives_extreme_numbers() {
                 let v = rng.pick(EXTREMES);
                 // How long to serve is the one flag where a huge finite
                 // value is a legitimate request to run long.
-                if case.tool == "pmac-emu" && opt == "--duration" && v.parse::<f64>().is_ok_and(|x| x.is_finite() && x > 0.0) {
+                if case.tool == "pmac-emu"
+                    && opt == "--duration"
+                    && v.parse::<f64>().is_ok_and(|x| x.is_finite() && x > 0.0)
+                {
                     continue;
                 }
                 let mut args = base.clone();
@@ -327,20 +467,29 @@ fn every_tool_survives_extreme_numbers() {
             let Ok(text) = std::fs::read_to_string(p) else { continue };
             for which in 0..4 {
                 let v = rng.pick(EXTREMES);
-                let Some(mutated) = mutate_numbers(&text, 4, v, which) else { break };
+                let Some(mutated) = mutate_numbers(&text, 4, v, which) else {
+                    break;
+                };
                 let name = format!("in{ci}-{which}-{}", p.file_name().unwrap().to_string_lossy());
                 let path = work.path().join(&name);
                 std::fs::write(&path, mutated).unwrap();
                 let mut args = base.clone();
                 args.push(path.display().to_string());
-                jobs.push((format!("{} {} <{name}: a number set to {v}>", case.tool, base.join(" ")), case.tool, args));
+                jobs.push((
+                    format!("{} {} <{name}: a number set to {v}>", case.tool, base.join(" ")),
+                    case.tool,
+                    args,
+                ));
             }
         }
     }
     let total = jobs.len();
     let jobs = Mutex::new(jobs.into_iter());
     let failures = Mutex::new(Vec::new());
-    let workers = std::thread::available_parallelism().map(|n| n.get()).unwrap_or(2).min(4);
+    let workers = std::thread::available_parallelism()
+        .map(|n| n.get())
+        .unwrap_or(2)
+        .min(4);
     std::thread::scope(|s| {
         for _ in 0..workers {
             s.spawn(|| {

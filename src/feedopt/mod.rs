@@ -55,7 +55,9 @@ pub enum FeedoptError {
     NeverCuts,
     #[error("inch programs (G20) are not supported: feedopt writes F in mm/min")]
     Inch,
-    #[error("the simulation would take about {steps:.3e} steps of {step_mm:e} mm (more than {max}): raise --step-mm or --fz-min-um")]
+    #[error(
+        "the simulation would take about {steps:.3e} steps of {step_mm:e} mm (more than {max}): raise --step-mm or --fz-min-um"
+    )]
     TooManySteps { steps: f64, step_mm: f64, max: usize },
     #[error("--stock: {0}")]
     Stock(#[from] StockError),
@@ -244,7 +246,11 @@ pub fn optimise(input: &str, o: &Options) -> Result<Outcome, FeedoptError> {
         }
         let est = length / step_mm;
         if !(step_mm > 0.0) || !est.is_finite() || est > MAX_STEPS as f64 {
-            return Err(FeedoptError::TooManySteps { steps: est, step_mm, max: MAX_STEPS });
+            return Err(FeedoptError::TooManySteps {
+                steps: est,
+                step_mm,
+                max: MAX_STEPS,
+            });
         }
     }
     for r in &recs {

@@ -265,11 +265,15 @@ pub fn run(a: DropcutterArgs) -> Result<(), CliError> {
                 // stage can move: both would split spans until the depth
                 // limit, 2^60 points.
                 if t < 1e-6 {
-                    return Err(CliError::input(format!("--chord-tol {t}: below 1e-6 mm, finer than the mesh's float precision")));
+                    return Err(CliError::input(format!(
+                        "--chord-tol {t}: below 1e-6 mm, finer than the mesh's float precision"
+                    )));
                 }
                 let min_step = positive("min-step", a.min_step.unwrap_or(t.max(1e-4)))?;
                 if min_step < 1e-4 {
-                    return Err(CliError::input(format!("--min-step {min_step}: below 1e-4 mm (0.1 µm), finer than any stage moves")));
+                    return Err(CliError::input(format!(
+                        "--min-step {min_step}: below 1e-4 mm (0.1 µm), finer than any stage moves"
+                    )));
                 }
                 Some(Adaptive { chord_tol: t, min_step })
             }
