@@ -245,7 +245,7 @@ pub fn optimise(input: &str, o: &Options) -> Result<Outcome, FeedoptError> {
             }
         }
         let est = length / step_mm;
-        if !(step_mm > 0.0) || !est.is_finite() || est > MAX_STEPS as f64 {
+        if step_mm.is_nan() || step_mm <= 0.0 || !est.is_finite() || est > MAX_STEPS as f64 {
             return Err(FeedoptError::TooManySteps {
                 steps: est,
                 step_mm,

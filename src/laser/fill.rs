@@ -47,6 +47,10 @@ use cavalier_contours::shape_algorithms::{Shape, ShapeOffsetOptions};
 use rayon::prelude::*;
 use thiserror::Error;
 
+/// One region planned: its records, its notes, whether it was cut, and
+/// (stretches skipped, their length) for the tally.
+type PlannedRegion = (Vec<Record>, Vec<Note>, bool, (usize, f64));
+
 /// How a region is filled.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 pub enum Pattern {
@@ -297,7 +301,7 @@ fn nest_level(level: &[&Chain], z: f64, warnings: &mut Vec<Warning>) -> Vec<Regi
         .collect();
     let depth: Vec<usize> = containers.iter().map(Vec::len).collect();
     let mut out = Vec::new();
-    for i in (0..n).filter(|&i| depth[i] % 2 == 0) {
+    for i in (0..n).filter(|&i| depth[i].is_multiple_of(2)) {
         let mut outer = loops[i].pl.clone();
         if loops[i].area < 0.0 {
             outer.invert_direction_mut();
@@ -596,7 +600,7 @@ fn hatch_runs(r: &Region, o: &FillOptions, f: &Fix) -> Vec<Vec<Elem>> {
     let (lo, hi) = pieces.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), m| {
         (lo.min(m.v0).min(m.v1), hi.max(m.v0).max(m.v1))
     });
-    if !(hi > lo) {
+    if hi.is_nan() || lo.is_nan() || hi <= lo {
         return Vec::new();
     }
     let s = o.stepover;
@@ -610,6 +614,7 @@ fn hatch_runs(r: &Region, o: &FillOptions, f: &Fix) -> Vec<Vec<Elem>> {
         // a line counts once.
         let j0 = (((a - c0) / s).floor().max(0.0) as usize).min(count);
         let j1 = (((b - c0) / s).floor().max(-1.0) + 1.0).max(0.0) as usize;
+        #[allow(clippy::needless_range_loop)] // j is the line's index and its position
         for j in j0..j1.min(count) {
             let cj = c(j);
             if !(a < cj && cj <= b) {
@@ -907,7 +912,7 @@ pub fn plan_prepared(
         return warnings;
     }
     for chunk in p.regions.chunks(16) {
-        let planned: Vec<(Vec<Record>, Vec<Note>, bool, (usize, f64))> = chunk
+        let planned: Vec<PlannedRegion> = chunk
             .par_iter()
             .map(|r| {
                 let mut dropped = (0, 0.0);
