@@ -34,7 +34,7 @@
 use super::contour::{Job, Warning};
 use super::dubins::connect;
 use super::elem::Elem;
-use super::offset::{continue_line, from_polyline, to_polyline};
+use super::offset::{continue_line, from_polyline, join_closed_ends, to_polyline};
 use super::order;
 use super::plan::{Note, Tagged, plan_tagged, ramps_record, to_records};
 use super::setup::LaserSetup;
@@ -453,13 +453,7 @@ fn fix_tight_arcs(path: Vec<Elem>, r: &Region, d: f64, rmin: f64, sag: f64) -> V
         let pts: Vec<P3> = (0..=k).map(|i| arc.point_at(i as f64 / k as f64)).collect();
         polyline(&mut out, pts);
     }
-    if out.len() > 2
-        && let (Some(last), Some(first)) = (out.last(), out.first())
-        && let Some(joined) = continue_line(last, first)
-    {
-        out.pop();
-        out[0] = joined;
-    }
+    join_closed_ends(&mut out);
     out
 }
 

@@ -194,6 +194,13 @@ fn miter_joins(path: Vec<Elem>, vertices: &[P3], dist: f64) -> Vec<Elem> {
         }
     }
     // The path's first piece may continue its last (a closed offset).
+    join_closed_ends(&mut out);
+    out
+}
+
+/// Join a closed path's last piece into its first when the first goes
+/// straight on from it, so the seam is not a block boundary.
+pub(super) fn join_closed_ends(out: &mut Vec<Elem>) {
     if out.len() > 2
         && let (Some(last), Some(first)) = (out.last(), out.first())
         && let Some(joined) = continue_line(last, first)
@@ -201,7 +208,6 @@ fn miter_joins(path: Vec<Elem>, vertices: &[P3], dist: f64) -> Vec<Elem> {
         out.pop();
         out[0] = joined;
     }
-    out
 }
 
 /// `a` then `b` as one line, when both are lines and `b` goes straight on
