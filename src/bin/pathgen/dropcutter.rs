@@ -1,7 +1,7 @@
 //! `pathgen dropcutter`: CL data, a toolpath or G-code from a mesh by
 //! dropping a flat, ball or torus cutter (the library's `dropcutter`).
 
-use super::{WriterArgs, write_gcode, write_options};
+use super::common::{WriterArgs, write_gcode, write_options};
 use clap::{Args as ClapArgs, ValueEnum};
 use microcam::cli::{self, CliError, Output};
 use microcam::cutter::Cutter;

@@ -1,7 +1,7 @@
 //! `pathgen fill`: area fill of closed chains (offset passes or hatch),
 //! planned by the laser machinery. Included from pathgen.rs.
 
-use super::{GenOutput, MachineArgs, short_note, warn_all, write_generated, write_streamed};
+use super::common::{GenOutput, MachineArgs, short_note, warn_all, write_generated, write_streamed};
 use clap::Args as ClapArgs;
 use microcam::cli::{self, CliError};
 use microcam::geometry::P3;

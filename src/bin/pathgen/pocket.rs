@@ -1,7 +1,7 @@
 //! `pathgen pocket`: grid-navigated freeform pockets (the Iowa State
 //! grid-pocket thesis (1999)) and the contour-parallel alternative.
 
-use super::{GenOutput, parse_pair_f64, write_records};
+use super::common::{GenOutput, parse_pair_f64, write_records};
 use cavalier_contours::polyline::{PlineSource, PlineSourceMut, Polyline};
 use clap::{Args as ClapArgs, ValueEnum};
 use microcam::cli::{self, CliError, Output};

@@ -1,0 +1,95 @@
+//! `pathgen arcfit`: tangent-continuous arcs fitted to points or a polyline.
+
+use super::common::positive;
+use clap::Args as ClapArgs;
+use microcam::cli::{self, CliError, Output};
+use microcam::formats::chains::ChainsWriter;
+use microcam::laser::arcfit;
+use microcam::laser::elem::Elem;
+use microcam::model::chain::{Chain, ChainsHeader, Segment};
+use std::path::PathBuf;
+
+#[derive(ClapArgs)]
+pub(crate) struct ArcfitArgs {
+    /// Points, one 'x y' (or 'x,y') per line, '#' comments; '-' for stdin.
+    file: Option<PathBuf>,
+    /// Largest deviation from the polyline (mm).
+    #[arg(long, default_value_t = 0.001)]
+    tolerance: f64,
+    /// Print a JSON report (blocks, deviation) instead of chains.
+    #[arg(long)]
+    report: bool,
+    /// The input is a polyline to stay within (both ways), not samples of
+    /// a smooth curve (the default: only the points must be within).
+    #[arg(long)]
+    polyline: bool,
+    /// Write output here instead of stdout.
+    #[arg(short, long)]
+    output: Option<PathBuf>,
+}
+
+pub(crate) fn arcfit_cmd(a: ArcfitArgs) -> Result<(), CliError> {
+    let tol = positive("tolerance", a.tolerance)?;
+    let mut input = cli::open_input(a.file.as_deref())?;
+    let name = input.name.clone();
+    let text = cli::read_to_string(&mut input)?;
+    let pts = arcfit::parse_points(&text).map_err(|(line, msg)| CliError::input(format!("{name}:{line}: {msg}")))?;
+    if pts.len() < 2 {
+        return Err(CliError::input(format!("{name}: need at least two points")));
+    }
+    let fit = arcfit::fit_points(&pts, tol, 0.0, a.polyline);
+    if fit.is_empty() {
+        return Err(CliError::input(format!("{name}: need at least two distinct points")));
+    }
+    // Dense check: 256 samples per piece against the polyline, and every
+    // point against the fit.
+    let dev_poly = arcfit::max_deviation(&fit, &pts, 256);
+    let dev_pts = arcfit::point_deviation(&fit, &pts);
+    let dev = if a.polyline { dev_poly } else { dev_pts };
+    let mut out = Output::new(a.output.as_deref());
+    use std::io::Write;
+    if a.report {
+        let arcs = fit.iter().filter(|e| matches!(e, Elem::Arc(_))).count();
+        writeln!(
+            out,
+            "{{\"schema\":\"microcam.arcfit-report/1\",\"points\":{},\"polyline_blocks\":{},\"biarc_blocks\":{},\"arcs\":{},\"lines\":{},\"tolerance_mm\":{},\"max_point_deviation_mm\":{:.9},\"max_polyline_deviation_mm\":{:.9}}}",
+            pts.len(),
+            pts.len() - 1,
+            fit.len(),
+            arcs,
+            fit.len() - arcs,
+            tol,
+            dev_pts,
+            dev_poly
+        )?;
+    } else {
+        let segments = fit
+            .iter()
+            .map(|e| match e {
+                Elem::Line(l) => Segment::Line {
+                    start: l.start,
+                    end: l.end,
+                },
+                Elem::Arc(x) => Segment::Arc {
+                    start: x.start,
+                    end: x.end,
+                    center: x.center,
+                    ccw: x.ccw,
+                },
+            })
+            .collect();
+        let mut w = ChainsWriter::new(&mut out);
+        w.header(&ChainsHeader { source: Some(name) })?;
+        w.chain(&Chain {
+            id: 1,
+            closed: false,
+            segments,
+            ..Default::default()
+        })?;
+        w.finish()?;
+    }
+    if dev > tol {
+        eprintln!("pathgen: warning: arcfit: deviation {dev} mm exceeds the tolerance {tol} mm");
+    }
+    out.commit()
+}

@@ -1,0 +1,49 @@
+//! `pathgen audit`: a laser toolpath checked against the machine.
+
+use super::common::{MachineArgs, positive};
+use clap::Args as ClapArgs;
+use microcam::cli::{self, CliError};
+use microcam::gcode::ReadOptions;
+use microcam::geometry::P3;
+use microcam::model::toolpath::{FeedUnit, Record};
+use microcam::source::ToolpathSource;
+use std::path::PathBuf;
+
+#[derive(ClapArgs)]
+pub(crate) struct AuditArgs {
+    /// Toolpath or G-code to check ('-' for stdin).
+    file: Option<PathBuf>,
+    /// Printing precision of the input (mm): radii and switch points may be
+    /// off by this much (1e-4 for 4-decimal G-code, 1e-9 for toolpaths).
+    #[arg(long, default_value_t = 1e-4)]
+    precision: f64,
+    #[command(flatten)]
+    machine: MachineArgs,
+}
+
+pub(crate) fn audit_cmd(a: AuditArgs) -> Result<(), CliError> {
+    let m = a.machine.machine(None)?;
+    positive("precision", a.precision)?;
+    let input = cli::open_input(a.file.as_deref())?;
+    let source = ToolpathSource::open(input, &ReadOptions::default())?;
+    let unit = source.header.feed_unit;
+    let mut records = Vec::new();
+    for r in source {
+        let mut r = r?;
+        // Audit in mm/s whatever the program's feed unit.
+        if let Record::Move(mv) = &mut r {
+            mv.feed = mv.feed.map(|f| unit.convert(f, FeedUnit::MmPerS));
+        }
+        records.push(r);
+    }
+    let au = microcam::laser::audit::audit(&records, &m, P3::origin());
+    println!("{}", au.report_json(&m, a.precision));
+    let ok = au.passes(&m, a.precision);
+    if ok {
+        Ok(())
+    } else {
+        Err(CliError::verdict(
+            "the toolpath breaks the machine's limits (see the report)",
+        ))
+    }
+}
