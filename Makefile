@@ -86,22 +86,11 @@ demo: build
 demo-check: demo
 	scripts/demo-check
 
-# Benchmarks, each side by side with its anchor in one run.
+# Benchmarks, each side by side with its anchor in one run, as one table
+# (out/bench/table.md; each benchmark's full output in out/bench/*.log).
+# The Python anchors go into .venv (scripts/venv).
 bench: build
-	scripts/bench/interp
-	scripts/bench/dxf --bin $(BIN)/dxf2chains
-	python3 -c "import manifold3d" 2>/dev/null || python3 -m pip install -q manifold3d
-	scripts/bench/removal --gsim $(BIN)/gsim --passes 6000
-	scripts/bench/upload
-	scripts/bench/stlverify
-	scripts/bench/pathgen
-	scripts/bench/loops
-	scripts/bench/rays
-	scripts/bench/order --no-solver
-	scripts/bench/arcfit
-	scripts/bench/feedopt
-	scripts/bench/plough2d
-	scripts/bench/dropcutter --bin $(BIN)/pathgen
+	scripts/bench/table
 
 # Cut order against an independent TSP solver (LKH via elkai, installed into
 # a private venv; the solver itself takes minutes).
