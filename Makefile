@@ -5,7 +5,7 @@
 CARGO ?= cargo
 BIN   := target/release
 
-.PHONY: demo-check modgraph samples-check pocket-compare dropcutter-check bench-order all build test unit golden update-golden conformance checks fig3-20 removal-check dxf-check lint demo bench fuzz-smoke clean
+.PHONY: demo-check modgraph samples-check pocket-compare dropcutter-check bench-order all build test unit golden update-golden conformance checks fig3-20 removal-check dxf-check lint demo bench fuzz-smoke clean venv
 
 all: build
 
@@ -37,9 +37,9 @@ update-golden:
 # Conformance with tools nobody here wrote: LinuxCNC's rs274 interpreter
 # (installs linuxcnc-uspace when missing) and the dls-pmaclib PMAC client
 # against our controller emulator (installs dls-pmaclib when missing).
-conformance: build
+conformance: build venv
 	python3 scripts/rs274-diff --gsim $(BIN)/gsim
-	python3 scripts/pmac-conformance --emu $(BIN)/pmac-emu
+	$(PY) scripts/pmac-conformance --emu $(BIN)/pmac-emu
 
 # Checks against independent references, and of the repository itself.
 checks: fig3-20 removal-check dxf-check dropcutter-check modgraph samples-check demo-check
@@ -58,8 +58,8 @@ dropcutter-check: build
 
 # dxf2chains against ezdxf on random drawings of every entity type and on
 # the corpus (installs ezdxf when missing).
-dxf-check: build
-	python3 scripts/dxf-ezdxf-check --bin $(BIN)/dxf2chains
+dxf-check: build venv
+	$(PY) scripts/dxf-ezdxf-check --bin $(BIN)/dxf2chains
 
 # Bayesteh (2013) Fig. 3-20: achieved feed against segment length under the PMAC model.
 fig3-20: build
@@ -70,9 +70,17 @@ fig3-20: build
 pocket-compare: build
 	python3 scripts/pocket-compare --bin $(BIN)
 
-removal-check: build
-	python3 -c "import manifold3d" 2>/dev/null || python3 -m pip install -q manifold3d
-	python3 scripts/removal-check --gsim $(BIN)/gsim
+removal-check: build venv
+	$(PY) scripts/removal-check --gsim $(BIN)/gsim
+
+# The project's own Python environment (scripts/venv): every Python
+# package a check or benchmark needs goes into .venv, never system-wide
+# (a system pip install is refused on current Debian and Ubuntu). rs274-diff
+# stays on the system python3: it drives Debian's LinuxCNC package.
+PY = .venv/bin/python
+PY_PACKAGES = numpy ezdxf manifold3d dls-pmaclib
+venv:
+	scripts/venv $(PY_PACKAGES) >/dev/null
 
 lint:
 	$(CARGO) fmt --all -- --check

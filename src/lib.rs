@@ -45,6 +45,7 @@ pub mod pmac;
 pub mod pocket;
 pub mod preview;
 pub mod probe;
+pub mod progress;
 pub mod sim;
 pub mod slice;
 pub mod source;

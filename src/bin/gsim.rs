@@ -12,13 +12,14 @@ use microcam::machine::{Controller, Machine, Overrides};
 use microcam::model::chain::Chain;
 use microcam::model::toolpath::{FeedUnit, Record};
 use microcam::preview::Preview;
+use microcam::progress::{self, Meter, Show};
 use microcam::sim::beam::CommandTiming;
 use microcam::sim::picture::write_png;
 use microcam::sim::report::{SimError, Simulator, StepPlan};
 use microcam::sim::stl::write_stl;
 use microcam::sim::stock::Stock;
 use microcam::source::ToolpathSource;
-use std::io::{IsTerminal, Write};
+use std::io::Write;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -170,9 +171,13 @@ struct Args {
     /// Per-step chip volume as CSV (needs --flutes).
     #[arg(long, value_name = "FILE.csv", requires = "flutes")]
     steps: Option<PathBuf>,
-    /// Show progress on stderr (on by default when stderr is a terminal).
-    #[arg(long)]
+    /// Show progress on stderr even when it is not a terminal (plain lines,
+    /// for a log); on a terminal a bar appears by itself for long runs.
+    #[arg(long, conflicts_with = "quiet")]
     progress: bool,
+    /// No progress bar on stderr (warnings and errors still appear).
+    #[arg(short, long)]
+    quiet: bool,
     /// Also write a top-view SVG preview of the path (exact arcs, beam-on
     /// moves in red) to this file.
     #[arg(long, value_name = "FILE.svg")]
@@ -320,28 +325,21 @@ fn run(args: Args) -> Result<(), CliError> {
                 sim = sim.with_steps(plan, args.steps.as_deref().map(|p| Output::new(Some(p))));
             }
         }
-        // Progress for long runs, only where a person watches (a terminal)
-        // or when asked, so pipelines and tests see a clean stderr.
-        let progress = args.progress || std::io::stderr().is_terminal();
-        let started = std::time::Instant::now();
-        let mut last = started;
-        for (n, rec) in source.enumerate() {
+        // A bar for long runs where a person watches (a terminal), plain
+        // lines with --progress, nothing with --quiet.
+        let meter = Meter::start(
+            "gsim",
+            "simulating records",
+            0,
+            Show::from_flags(args.quiet, args.progress),
+        );
+        for rec in source {
             let rec = rec?;
             observe(&rec);
             sim.add(&rec).map_err(|e| sim_error(&src_name, e))?;
-            if progress && n % 4096 == 0 && last.elapsed().as_secs_f64() >= 1.0 {
-                last = std::time::Instant::now();
-                eprint!(
-                    "\rgsim: {} records, {:.1} s machine time, {:.0} s elapsed ",
-                    n,
-                    sim.machine_time_s(),
-                    started.elapsed().as_secs_f64()
-                );
-            }
+            progress::advance(1);
         }
-        if progress && last != started {
-            eprintln!();
-        }
+        meter.finish();
         let (mut report, series) = sim.finish().map_err(|e| sim_error(&src_name, e))?;
         if let Some(p) = args.chains.as_deref() {
             report = report.with_drawing(&read_chains(p)?, args.chain_tol_mm);

@@ -8,6 +8,7 @@ use microcam::geometry::P3;
 use microcam::plough::output::{plot_svg, stock_rgb, stock_svg, summary, write_csv};
 use microcam::plough::pocket::Pocket;
 use microcam::plough::{Method, Params, Plough, PloughError};
+use microcam::progress::{self, Meter, Show};
 use microcam::sim::picture::write_png;
 use microcam::source::ToolpathSource;
 use std::io::Write;
@@ -49,6 +50,9 @@ enum MethodArg {
 struct Args {
     /// Program (ISO or PMAC G-code, or toolpath JSON Lines; '-' for stdin).
     file: Option<PathBuf>,
+    /// No progress bar on stderr (warnings and errors still appear).
+    #[arg(short, long)]
+    quiet: bool,
     /// Stock outline, mm: X0,Y0,X1,Y1 (W = X1-X0, H = Y1-Y0).
     #[arg(long, value_name = "X0,Y0,X1,Y1", allow_hyphen_values = true)]
     stock: Option<String>,
@@ -164,9 +168,12 @@ fn run(args: Args) -> Result<(), CliError> {
         e => CliError::input(e.to_string()),
     };
     let mut sim = Plough::new(params, source.header.feed_unit, start).map_err(bad)?;
+    let meter = Meter::start("plough2d", "ploughing records", 0, Show::from_flags(args.quiet, false));
     for rec in source {
         sim.add(&rec?).map_err(bad)?;
+        progress::advance(1);
     }
+    meter.finish();
     let title = format!("plough2d {}", src.as_deref().unwrap_or("<stdin>"));
     // Everything is rendered before anything is committed.
     let mut outs = Vec::new();

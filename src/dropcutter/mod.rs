@@ -113,10 +113,20 @@ impl DropCutter {
     /// (pass `f64::NEG_INFINITY` for none: points that touch nothing are
     /// then at −∞).
     pub fn drop_many(&self, xy: &[P2], floor: f64) -> Vec<P3> {
-        xy.par_iter()
-            .with_min_len(256)
-            .map(|p| P3::new(p.x, p.y, self.drop_above(p.x, p.y, floor)))
-            .collect()
+        // In chunks, so the progress counter is touched once per chunk,
+        // not once per point.
+        let chunks: Vec<Vec<P3>> = xy
+            .par_chunks(256)
+            .map(|c| {
+                let v: Vec<P3> = c
+                    .iter()
+                    .map(|p| P3::new(p.x, p.y, self.drop_above(p.x, p.y, floor)))
+                    .collect();
+                crate::progress::advance(c.len() as u64);
+                v
+            })
+            .collect();
+        chunks.concat()
     }
 
     /// The highest point of the mesh straight below (x, y) and the unit

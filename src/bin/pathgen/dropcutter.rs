@@ -17,6 +17,7 @@ use microcam::geometry::{P2, P3};
 use microcam::laser::input::read_chains;
 use microcam::mesh::{ReadOptions, Units};
 use microcam::model::toolpath::{FeedUnit, Header};
+use microcam::progress::{Meter, Show};
 use std::io::Read;
 use std::path::PathBuf;
 
@@ -69,6 +70,9 @@ pub enum UnitsArg {
 pub struct DropcutterArgs {
     /// Mesh (STL or OBJ; '-' for stdin).
     file: Option<PathBuf>,
+    /// No progress bar on stderr (warnings and errors still appear).
+    #[arg(short, long)]
+    quiet: bool,
     /// Cutter: flat:D, ball:D or torus:D:RC (mm).
     #[arg(long)]
     cutter: String,
@@ -280,7 +284,14 @@ pub fn run(a: DropcutterArgs) -> Result<(), CliError> {
             None => None,
         };
         let flat: Vec<P2> = passes.iter().flatten().copied().collect();
+        let meter = Meter::start(
+            "pathgen",
+            "dropping the cutter",
+            flat.len() as u64,
+            Show::from_flags(a.quiet, false),
+        );
         let dropped = dc.drop_many(&flat, floor);
+        meter.finish();
         let mut cl: Vec<Vec<P3>> = Vec::with_capacity(passes.len());
         let mut at = 0;
         for p in &passes {

@@ -7,6 +7,7 @@ use microcam::formats::chains::ChainsWriter;
 use microcam::mesh::topology::{Prepared, prepare};
 use microcam::mesh::{Format, LoadedMesh, ReadOptions, Units, read_bytes};
 use microcam::model::chain::ChainsHeader;
+use microcam::progress::{self, Meter, Show};
 use microcam::slice::{self, SliceOptions};
 use std::io::{Read, Write};
 use std::path::PathBuf;
@@ -84,6 +85,9 @@ pub struct MeshInput {
 pub struct SliceArgs {
     #[command(flatten)]
     input: MeshInput,
+    /// No progress bar on stderr (warnings and errors still appear).
+    #[arg(short, long)]
+    quiet: bool,
     /// Distance between levels (mm).
     #[arg(long, conflicts_with = "levels")]
     z_step: Option<f64>,
@@ -197,7 +201,21 @@ pub fn slice_cmd(a: SliceArgs) -> Result<(), CliError> {
         ..Default::default()
     };
     use rayon::prelude::*;
-    let sections: Vec<_> = levels.par_iter().map(|&z| slice::section(&p.mesh, z, &opts)).collect();
+    let meter = Meter::start(
+        "pathgen",
+        "slicing levels",
+        levels.len() as u64,
+        Show::from_flags(a.quiet, false),
+    );
+    let sections: Vec<_> = levels
+        .par_iter()
+        .map(|&z| {
+            let s = slice::section(&p.mesh, z, &opts);
+            progress::advance(1);
+            s
+        })
+        .collect();
+    meter.finish();
     for s in &sections {
         for w in &s.warnings {
             eprintln!("pathgen: slice: {name}: z {}: warning: {w}", s.z);
