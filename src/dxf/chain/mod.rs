@@ -10,6 +10,7 @@
 //! - [`walk`]: the graph walk from nodes of degree != 2, then cycles;
 //! - [`orient`]: nesting depth through a grid over the closed chains'
 //!   boxes, and the exact point-in-chain and area tests.
+//!
 //! The thesis' method compares every pair of segments; this one never does.
 //!
 //! Every change to the drawing is counted in [`Report`] and noted on the
