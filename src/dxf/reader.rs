@@ -7,6 +7,8 @@
 //! group code implies: a malformed number is reported at the exact line (or
 //! byte offset, for binary files) where it sits, not later where it is used.
 
+use super::tokens::{self, Block, End, Tag};
+use std::collections::VecDeque;
 use std::fmt;
 use std::io::{BufRead, BufReader, Cursor, Read};
 use thiserror::Error;
@@ -108,9 +110,12 @@ enum Mode {
 /// available through [`Reader::float`], [`Reader::int`] or [`Reader::text`]
 /// according to the code's kind.
 pub struct Reader {
-    input: Box<dyn BufRead>,
     mode: Mode,
-    /// ASCII: lines consumed so far. Binary: bytes consumed so far.
+    /// ASCII: blocks tokenized ahead on the thread pool.
+    ascii: Option<Ascii>,
+    /// Binary: the byte stream.
+    input: Box<dyn BufRead>,
+    /// Binary: bytes consumed so far.
     count: u64,
     buf: Vec<u8>,
     pub code: i32,
@@ -118,7 +123,104 @@ pub struct Reader {
     float: f64,
     int: i64,
     text: String,
+    /// ASCII: the current tag (a string's text lives in its block).
+    tag: Option<Tag>,
     peeked: bool,
+}
+
+/// Bytes per block handed to a tokenizing thread, and blocks in flight:
+/// enough to keep both cores busy, little next to the geometry.
+const BLOCK: usize = 2 << 20;
+const AHEAD: usize = 4;
+
+/// A block being tokenized on its own thread, or (the whole of a small
+/// input) already done.
+enum Pending {
+    Ready(Block),
+    Thread(std::thread::JoinHandle<Block>),
+}
+
+/// ASCII input: the file is read in blocks of whole lines, each tokenized
+/// on the rayon pool while the caller consumes the earlier ones in order.
+struct Ascii {
+    /// Bytes read but not yet in a block.
+    carry: Vec<u8>,
+    eof: bool,
+    ahead: VecDeque<Pending>,
+    cur: Block,
+    /// Next tag of `cur`.
+    idx: usize,
+    /// Lines before `cur`'s first line.
+    base: u64,
+}
+
+impl Ascii {
+    /// Read the next block's bytes from `input` (`None` at the end).
+    fn read_block(&mut self, input: &mut dyn BufRead) -> std::io::Result<Option<Vec<u8>>> {
+        loop {
+            if !self.eof && self.carry.len() < BLOCK {
+                let want = BLOCK - self.carry.len();
+                let n = input.take(want as u64).read_to_end(&mut self.carry)?;
+                if n < want {
+                    self.eof = true;
+                }
+            }
+            if self.carry.is_empty() {
+                return Ok(None);
+            }
+            if self.eof {
+                return Ok(Some(std::mem::take(&mut self.carry)));
+            }
+            match tokens::cut(&self.carry) {
+                Some(k) => {
+                    let rest = self.carry.split_off(k);
+                    return Ok(Some(std::mem::replace(&mut self.carry, rest)));
+                }
+                // One line longer than a block: read on.
+                None => {
+                    let more = input.take(BLOCK as u64).read_to_end(&mut self.carry)?;
+                    if more == 0 {
+                        self.eof = true;
+                    }
+                }
+            }
+        }
+    }
+
+    /// Keep `AHEAD` blocks tokenizing.
+    fn fill(&mut self, input: &mut dyn BufRead) -> std::io::Result<()> {
+        while self.ahead.len() < AHEAD {
+            let Some(bytes) = self.read_block(input)? else {
+                break;
+            };
+            if self.eof && self.carry.is_empty() && self.ahead.is_empty() {
+                // The last block and nothing else to wait for: no thread.
+                self.ahead.push_back(Pending::Ready(tokens::tokenize(bytes)));
+            } else {
+                self.ahead
+                    .push_back(Pending::Thread(std::thread::spawn(move || tokens::tokenize(bytes))));
+            }
+        }
+        Ok(())
+    }
+
+    /// The next block in file order, or `None` at the end.
+    fn next_block(&mut self, input: &mut dyn BufRead) -> std::io::Result<Option<Block>> {
+        self.fill(input)?;
+        match self.ahead.pop_front() {
+            None => Ok(None),
+            Some(p) => {
+                let b = match p {
+                    Pending::Ready(b) => b,
+                    Pending::Thread(h) => h
+                        .join()
+                        .map_err(|_| std::io::Error::other("a tokenizing thread failed"))?,
+                };
+                self.fill(input)?;
+                Ok(Some(b))
+            }
+        }
+    }
 }
 
 impl Reader {
@@ -138,10 +240,28 @@ impl Reader {
             Mode::Ascii => 0,
             Mode::Binary { .. } => 22,
         };
-        let chained: Box<dyn BufRead> = Box::new(BufReader::with_capacity(1 << 16, Cursor::new(rest).chain(input)));
+        let (input, ascii): (Box<dyn BufRead>, Option<Ascii>) = match mode {
+            Mode::Ascii => {
+                let mut a = Ascii {
+                    carry: rest,
+                    eof: false,
+                    ahead: VecDeque::new(),
+                    cur: tokens::tokenize(Vec::new()),
+                    idx: 0,
+                    base: 0,
+                };
+                a.fill(&mut input)?;
+                (input, Some(a))
+            }
+            Mode::Binary { .. } => (
+                Box::new(BufReader::with_capacity(1 << 16, Cursor::new(rest).chain(input))),
+                None,
+            ),
+        };
         Ok(Reader {
-            input: chained,
             mode,
+            ascii,
+            input,
             count,
             buf: Vec::with_capacity(256),
             code: 0,
@@ -149,6 +269,7 @@ impl Reader {
             float: 0.0,
             int: 0,
             text: String::new(),
+            tag: None,
             peeked: false,
         })
     }
@@ -183,7 +304,10 @@ impl Reader {
     }
 
     pub fn text(&self) -> &str {
-        &self.text
+        match (&self.ascii, &self.tag) {
+            (Some(a), Some(t)) => a.cur.text(t),
+            _ => &self.text,
+        }
     }
 
     /// The value as a number whatever its declared kind (some writers put
@@ -192,86 +316,71 @@ impl Reader {
         match kind_of(self.code) {
             Kind::Float => self.float,
             Kind::Int16 | Kind::Int32 | Kind::Int64 | Kind::Bool => self.int as f64,
-            _ => self.text.trim().parse().unwrap_or(f64::NAN),
+            _ => self.text().trim().parse().unwrap_or(f64::NAN),
         }
-    }
-
-    fn read_line(&mut self) -> Result<bool, DxfError> {
-        self.buf.clear();
-        let n = self.input.read_until(b'\n', &mut self.buf)?;
-        if n == 0 {
-            return Ok(false);
-        }
-        self.count += 1;
-        while matches!(self.buf.last(), Some(b'\n' | b'\r')) {
-            self.buf.pop();
-        }
-        Ok(true)
     }
 
     fn next_ascii(&mut self) -> Result<Option<i32>, DxfError> {
-        // Blank lines where a group code belongs are tolerated only at the
-        // very end of the file (many writers add a trailing newline).
-        if !self.read_line()? {
+        let Some(a) = self.ascii.as_mut() else {
             return Ok(None);
-        }
-        if self.buf.iter().all(|b| b.is_ascii_whitespace()) {
-            let line = self.count;
-            loop {
-                if !self.read_line()? {
+        };
+        loop {
+            if let Some(&t) = a.cur.tags.get(a.idx) {
+                a.idx += 1;
+                let code = t.code as i32;
+                self.code = code;
+                self.pos = Pos::Line(a.base + t.line as u64);
+                match kind_of(code) {
+                    Kind::Float => self.float = f64::from_bits(t.val),
+                    Kind::Int16 | Kind::Int32 | Kind::Int64 | Kind::Bool => self.int = t.val as i64,
+                    Kind::Str | Kind::Binary => {}
+                }
+                self.tag = Some(t);
+                return Ok(Some(code));
+            }
+            let input = &mut *self.input;
+            match std::mem::replace(&mut a.cur.end, End::Clean) {
+                End::Clean => {
+                    let Some(next) = a.next_block(input)? else {
+                        return Ok(None);
+                    };
+                    a.base += a.cur.lines;
+                    a.cur = next;
+                    a.idx = 0;
+                    self.tag = None;
+                }
+                End::Error { line, msg } => return Err(DxfError::at(Pos::Line(a.base + line as u64), msg)),
+                End::Blank { line } => {
+                    // Only more blank lines may follow, to the end.
+                    while let Some(next) = a.next_block(input)? {
+                        if !next.blank_only {
+                            return Err(DxfError::at(
+                                Pos::Line(a.base + line as u64),
+                                "empty line where a group code belongs",
+                            ));
+                        }
+                    }
                     return Ok(None);
                 }
-                if !self.buf.iter().all(|b| b.is_ascii_whitespace()) {
-                    return Err(DxfError::at(Pos::Line(line), "empty line where a group code belongs"));
+                End::Dangling { line, off, code } => {
+                    let Some(next) = a.next_block(input)? else {
+                        return Err(DxfError::at(
+                            Pos::Line(a.base + line as u64),
+                            format!("file ends after group code {code}: truncated file?"),
+                        ));
+                    };
+                    // The block was cut inside a tag: tokenize again from
+                    // the code line on, joined to the next block.
+                    let mut bytes = a.cur.bytes.split_off(off);
+                    bytes.extend_from_slice(&next.bytes);
+                    drop(next);
+                    a.base += line as u64 - 1;
+                    a.cur = tokens::tokenize(bytes);
+                    a.idx = 0;
+                    self.tag = None;
                 }
             }
         }
-        let pos = Pos::Line(self.count);
-        self.pos = pos;
-        let code_text = trim_ascii(&self.buf);
-        let code: i32 = std::str::from_utf8(code_text)
-            .ok()
-            .and_then(|s| s.parse().ok())
-            .ok_or_else(|| {
-                DxfError::at(
-                    pos,
-                    format!(
-                        "expected a group code (an integer), found '{}'",
-                        shorten(&String::from_utf8_lossy(code_text))
-                    ),
-                )
-            })?;
-        if !(0..=1071).contains(&code) && code != -1 && code != -2 && code != -3 && code != -4 && code != -5 {
-            return Err(DxfError::at(pos, format!("group code {code} is out of range")));
-        }
-        self.code = code;
-        if !self.read_line()? {
-            return Err(DxfError::at(
-                pos,
-                format!("file ends after group code {code}: truncated file?"),
-            ));
-        }
-        let vpos = Pos::Line(self.count);
-        match kind_of(code) {
-            Kind::Float => {
-                let t = trim_ascii(&self.buf);
-                self.float = parse_float(t).ok_or_else(|| bad_number(vpos, code, t))?;
-            }
-            Kind::Int16 | Kind::Int32 | Kind::Int64 | Kind::Bool => {
-                let t = trim_ascii(&self.buf);
-                self.int = parse_int(t).ok_or_else(|| bad_number(vpos, code, t))?;
-            }
-            Kind::Str | Kind::Binary => {
-                self.text.clear();
-                match std::str::from_utf8(&self.buf) {
-                    Ok(s) => self.text.push_str(s),
-                    // Pre-2007 files are in a code page; names only matter
-                    // for layers and blocks, so a lossy decode is enough.
-                    Err(_) => self.text.push_str(&String::from_utf8_lossy(&self.buf)),
-                }
-            }
-        }
-        Ok(Some(code))
     }
 
     fn byte(&mut self, what: &str) -> Result<u8, DxfError> {
@@ -377,11 +486,7 @@ impl Reader {
     }
 }
 
-fn trim_ascii(b: &[u8]) -> &[u8] {
-    b.trim_ascii()
-}
-
-fn shorten(s: &str) -> String {
+pub(super) fn shorten(s: &str) -> String {
     // Binary garbage must not reach the terminal as is.
     let mut t: String = s
         .chars()
@@ -394,26 +499,23 @@ fn shorten(s: &str) -> String {
     t
 }
 
-fn bad_number(pos: Pos, code: i32, t: &[u8]) -> DxfError {
+pub(super) fn bad_number_msg(code: i32, t: &[u8]) -> String {
     let s = String::from_utf8_lossy(t);
     let hint = if s.contains(',') && s.replace(',', ".").parse::<f64>().is_ok() {
         " (a decimal comma? DXF numbers use a decimal point)"
     } else {
         ""
     };
-    DxfError::at(
-        pos,
-        format!("group code {code} needs a number, found '{}'{hint}", shorten(&s)),
-    )
+    format!("group code {code} needs a number, found '{}'{hint}", shorten(&s))
 }
 
-fn parse_float(t: &[u8]) -> Option<f64> {
+pub(super) fn parse_float(t: &[u8]) -> Option<f64> {
     let s = std::str::from_utf8(t).ok()?;
     let v: f64 = s.parse().ok()?;
     v.is_finite().then_some(v)
 }
 
-fn parse_int(t: &[u8]) -> Option<i64> {
+pub(super) fn parse_int(t: &[u8]) -> Option<i64> {
     let s = std::str::from_utf8(t).ok()?;
     if let Ok(v) = s.parse::<i64>() {
         return Some(v);

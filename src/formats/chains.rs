@@ -216,6 +216,12 @@ impl<W: Write> ChainsWriter<W> {
         self.lines.line(|b| format_chain(b, c))
     }
 
+    /// Write chains formatted elsewhere by [`format_chain`], one line each
+    /// with its newline (to format many on several threads).
+    pub fn formatted(&mut self, lines: &str) -> std::io::Result<()> {
+        self.lines.raw(lines)
+    }
+
     pub fn finish(self) -> std::io::Result<W> {
         self.lines.finish()
     }

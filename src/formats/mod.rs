@@ -126,6 +126,11 @@ impl<W: std::io::Write> LineWriter<W> {
         })
     }
 
+    /// Write records already formatted (whole lines, newlines included).
+    pub(crate) fn raw(&mut self, text: &str) -> std::io::Result<()> {
+        self.out.write_all(text.as_bytes())
+    }
+
     pub(crate) fn finish(mut self) -> std::io::Result<W> {
         self.out.flush()?;
         Ok(self.out)

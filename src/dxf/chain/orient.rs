@@ -1,0 +1,228 @@
+//! Orientation by nesting depth: which closed chains lie inside which,
+//! through a grid over their boxes and exact point-in-chain tests (arcs
+//! included, no tessellation).
+
+use super::{Chains, Report, midpoint};
+use crate::geometry::P3;
+use crate::model::chain::{Segment, arc_sweep};
+
+/// Whether angle `t` lies on the arc from `start` (inclusive) sweeping
+/// `sweep` radians (signed).
+fn on_sweep(a0: f64, sweep: f64, t: f64) -> bool {
+    let tau = std::f64::consts::TAU;
+    let off = if sweep >= 0.0 {
+        (t - a0).rem_euclid(tau)
+    } else {
+        (a0 - t).rem_euclid(tau)
+    };
+    off <= sweep.abs()
+}
+
+/// The XY box of a segment, arcs included exactly (their axis extremes).
+fn seg_box(s: &Segment, lo: &mut (f64, f64), hi: &mut (f64, f64)) {
+    let mut grow = |x: f64, y: f64| {
+        *lo = (lo.0.min(x), lo.1.min(y));
+        *hi = (hi.0.max(x), hi.1.max(y));
+    };
+    let (p, q) = (s.start(), s.end());
+    grow(p.x, p.y);
+    grow(q.x, q.y);
+    if let Segment::Arc {
+        start,
+        end,
+        center,
+        ccw,
+    } = s
+    {
+        let r = (start - center).xy().norm();
+        let a0 = (start.y - center.y).atan2(start.x - center.x);
+        let sw = arc_sweep(start, end, center, *ccw);
+        for k in 0..4 {
+            let t = k as f64 * std::f64::consts::FRAC_PI_2;
+            if on_sweep(a0, sw, t) {
+                grow(center.x + r * t.cos(), center.y + r * t.sin());
+            }
+        }
+    }
+}
+
+/// Point in a closed chain: the parity of crossings of the ray from `p`
+/// towards +X, with lines and arcs exactly (no tessellation, so memory
+/// does not grow with arc counts).
+fn inside(segs: &[Segment], p: &P3) -> bool {
+    let mut c = false;
+    for s in segs {
+        match *s {
+            Segment::Line { start: a, end: b } => {
+                if (a.y > p.y) != (b.y > p.y) {
+                    let x = a.x + (p.y - a.y) / (b.y - a.y) * (b.x - a.x);
+                    if x > p.x {
+                        c = !c;
+                    }
+                }
+            }
+            Segment::Arc {
+                start,
+                end,
+                center,
+                ccw,
+            } => {
+                let r = (start - center).xy().norm();
+                let dy = p.y - center.y;
+                if dy.abs() >= r {
+                    continue;
+                }
+                let dx = (r * r - dy * dy).sqrt();
+                let a0 = (start.y - center.y).atan2(start.x - center.x);
+                let sw = arc_sweep(&start, &end, &center, ccw);
+                for x in [center.x - dx, center.x + dx] {
+                    if x > p.x && on_sweep(a0, sw, dy.atan2(x - center.x)) {
+                        // Half-open at the arc's end, so a crossing exactly
+                        // at a shared vertex counts once.
+                        let at_end = (P3::new(x, p.y, end.z) - end).xy().norm() <= 1e-12 * r.max(1.0);
+                        if !at_end {
+                            c = !c;
+                        }
+                    }
+                }
+            }
+        }
+    }
+    c
+}
+
+/// Exact signed area enclosed by a closed chain (positive = counter-clockwise).
+pub fn signed_area(segs: &[Segment]) -> f64 {
+    let mut a = 0.0;
+    for s in segs {
+        let (p, q) = (s.start(), s.end());
+        a += 0.5 * (p.x * q.y - q.x * p.y);
+        if let Segment::Arc {
+            start,
+            end,
+            center,
+            ccw,
+        } = s
+        {
+            let r2 = (start - center).xy().norm_squared();
+            let sw = arc_sweep(start, end, center, *ccw);
+            a += 0.5 * r2 * (sw - sw.sin());
+        }
+    }
+    a
+}
+
+/// Orient closed chains by nesting depth: even depth (outer contours)
+/// counter-clockwise, odd depth (holes) clockwise.
+pub(super) fn orient(chains: &mut Chains, tol: f64, report: &mut Report) {
+    struct Info {
+        idx: usize,
+        lo: (f64, f64),
+        hi: (f64, f64),
+        area: f64,
+        probe: P3,
+    }
+    let mut infos: Vec<Info> = Vec::new();
+    let mut buf: Vec<Segment> = Vec::new();
+    for (idx, it) in chains.items.iter().enumerate() {
+        if !it.closed || it.len == 0 {
+            continue;
+        }
+        chains.segments_into(it, &mut buf);
+        let segs = &buf[..];
+        let mut lo = (f64::INFINITY, f64::INFINITY);
+        let mut hi = (f64::NEG_INFINITY, f64::NEG_INFINITY);
+        for s in segs {
+            seg_box(s, &mut lo, &mut hi);
+        }
+        infos.push(Info {
+            idx,
+            lo,
+            hi,
+            area: signed_area(segs),
+            probe: midpoint(&segs[0]),
+        });
+    }
+    if infos.is_empty() {
+        return;
+    }
+    // A grid over the boxes: each chain is listed in the cells its box
+    // covers (or in `big` when that would be too many cells).
+    let total: f64 = infos
+        .iter()
+        .map(|i| (i.hi.0 - i.lo.0).max(tol) * (i.hi.1 - i.lo.1).max(tol))
+        .sum();
+    let size = (total / infos.len() as f64).sqrt().max(1e-9);
+    // (cell, chain) pairs sorted by cell: a cell's chains are a contiguous
+    // range found by binary search (a table of vectors would cost more than
+    // the chains themselves).
+    let ckey = |x: i64, y: i64| ((x as u32 as u64) << 32) | (y as u32 as u64);
+    let mut grid: Vec<(u64, u32)> = Vec::new();
+    let mut big: Vec<u32> = Vec::new();
+    for (k, i) in infos.iter().enumerate() {
+        let (x0, y0) = ((i.lo.0 / size).floor() as i64, (i.lo.1 / size).floor() as i64);
+        let (x1, y1) = ((i.hi.0 / size).floor() as i64, (i.hi.1 / size).floor() as i64);
+        // In i128: far-out boxes (the casts saturate) must not wrap into a
+        // small, or a huge, cell range.
+        let cells = (x1 as i128 - x0 as i128 + 1) * (y1 as i128 - y0 as i128 + 1);
+        if !(1..=256).contains(&cells) {
+            big.push(k as u32);
+            continue;
+        }
+        for x in x0..=x1 {
+            for y in y0..=y1 {
+                grid.push((ckey(x, y), k as u32));
+            }
+        }
+    }
+    grid.sort_unstable();
+    // Probes sorted by cell too, so the grid is walked once, in order.
+    let mut probes: Vec<(u64, u32)> = infos
+        .iter()
+        .enumerate()
+        .map(|(k, i)| {
+            (
+                ckey((i.probe.x / size).floor() as i64, (i.probe.y / size).floor() as i64),
+                k as u32,
+            )
+        })
+        .collect();
+    probes.sort_unstable();
+    let mut flip: Vec<usize> = Vec::new();
+    let mut lo = 0;
+    for &(cell, k) in &probes {
+        let k = k as usize;
+        let me = &infos[k];
+        let p = me.probe;
+        while lo < grid.len() && grid[lo].0 < cell {
+            lo += 1;
+        }
+        let hi = lo + grid[lo..].iter().take_while(|e| e.0 == cell).count();
+        let mut depth = 0;
+        for j in grid[lo..hi].iter().map(|e| e.1).chain(big.iter().copied()) {
+            let o = &infos[j as usize];
+            if j as usize == k
+                || o.area.abs() <= me.area.abs()
+                || o.lo.0 > me.lo.0 + tol
+                || o.lo.1 > me.lo.1 + tol
+                || o.hi.0 < me.hi.0 - tol
+                || o.hi.1 < me.hi.1 - tol
+            {
+                continue;
+            }
+            chains.segments_into(&chains.items[o.idx], &mut buf);
+            if inside(&buf, &p) {
+                depth += 1;
+            }
+        }
+        let want_ccw = depth % 2 == 0;
+        if me.area != 0.0 && (me.area > 0.0) != want_ccw {
+            flip.push(me.idx);
+        }
+    }
+    flip.sort_unstable();
+    for idx in flip {
+        chains.items[idx].reversed = true;
+        report.reversed += 1;
+    }
+}

@@ -1,0 +1,312 @@
+//! Repairs before and during the walk: zero-length pieces, collinear
+//! overlaps and duplicates merged or removed, ends snapped onto their
+//! nodes. Each repair is counted in the report and noted on its piece.
+
+use super::nodes::NONE;
+use super::{Notes, Report, Work, fmt_num, midpoint};
+use crate::geometry::{P3, V3};
+use crate::model::chain::Segment;
+
+/// Merge lines lying on one another: exact and near duplicates and partial
+/// overlaps become one line spanning their union.
+///
+/// Lines are grouped by (direction, offset from the origin) buckets; each
+/// group, together with its neighbouring buckets (a line a hair across a
+/// bucket boundary), is swept in order along its direction, comparing each
+/// line only with the lines whose span it reaches. Rows of equal lines (a
+/// grid of parts) therefore cost n log n, not n squared.
+pub(super) fn merge_collinear(w: &mut [Work], notes: &mut Notes, tol: f64, report: &mut Report) {
+    const ANGLE_BUCKET: f64 = 1e-4;
+    let off_bucket = (2.0 * tol).max(1e-9);
+    let n_ang = (std::f64::consts::PI / ANGLE_BUCKET).ceil() as i64;
+    // (bucket, line) sorted: each bucket is a contiguous range, found by
+    // binary search; no table of vectors.
+    let mut keyed: Vec<((i64, i64), u32)> = Vec::new();
+    for (i, x) in w.iter().enumerate() {
+        let Segment::Line { start: a, end: b } = x.seg else {
+            continue;
+        };
+        let len = (b - a).xy().norm();
+        // Only lines in a plane of constant z can lie on one another here.
+        if !x.alive || len <= tol || (b.z - a.z).abs() > tol {
+            continue;
+        }
+        let mut d = (b - a).xy() / len;
+        if d.y < 0.0 || (d.y == 0.0 && d.x < 0.0) {
+            d = -d;
+        }
+        let ai = ((d.y.atan2(d.x) / ANGLE_BUCKET).floor() as i64).clamp(0, n_ang - 1);
+        let off = d.x * a.y - d.y * a.x;
+        keyed.push(((ai, (off / off_bucket).floor() as i64), i as u32));
+    }
+    keyed.sort_unstable();
+    // Each direction bucket's range of `keyed` (an array over the
+    // directions: no hashing); offsets are found within it by binary
+    // search, and the offset neighbours in the group's own direction are
+    // the runs just before and after it.
+    let mut by_angle: Vec<(u32, u32)> = vec![(0, 0); n_ang as usize];
+    let mut g = 0;
+    while g < keyed.len() {
+        let a = keyed[g].0.0;
+        let end = g + keyed[g..].partition_point(|e| e.0.0 == a);
+        by_angle[a as usize] = (g as u32, end as u32);
+        g = end;
+    }
+    let range_of = |k: (i64, i64)| {
+        let (lo, hi) = by_angle[k.0 as usize];
+        let s = &keyed[lo as usize..hi as usize];
+        let a = s.partition_point(|e| e.0.1 < k.1);
+        let b = a + s[a..].partition_point(|e| e.0.1 == k.1);
+        lo as usize + a..lo as usize + b
+    };
+    let mut cand: Vec<usize> = Vec::new();
+    let mut active: Vec<usize> = Vec::new();
+    let mut g = 0;
+    while g < keyed.len() {
+        let key = keyed[g].0;
+        let first = keyed[g].1 as usize;
+        let g0 = g;
+        g += keyed[g..].partition_point(|e| e.0 == key);
+        let (a_lo, a_hi) = by_angle[key.0 as usize];
+        cand.clear();
+        for da in -1..=1 {
+            // Directions are folded into [0, pi): a line just below pi is a
+            // neighbour of one just above 0, with its offset's sign flipped.
+            let raw = key.0 + da;
+            let wrapped = !(0..n_ang).contains(&raw);
+            let a_key = raw.rem_euclid(n_ang);
+            if by_angle[a_key as usize].0 == by_angle[a_key as usize].1 {
+                continue;
+            }
+            for dofs in -1..=1 {
+                let o_key = if wrapped { -key.1 - 1 + dofs } else { key.1 + dofs };
+                let range = if da == 0 && !wrapped {
+                    match dofs {
+                        0 => g0..g,
+                        -1 if g0 > a_lo as usize && keyed[g0 - 1].0 == (a_key, o_key) => {
+                            a_lo as usize + keyed[a_lo as usize..g0].partition_point(|e| e.0.1 < o_key)..g0
+                        }
+                        1 if g < a_hi as usize && keyed[g].0 == (a_key, o_key) => {
+                            g..g + keyed[g..a_hi as usize].partition_point(|e| e.0.1 == o_key)
+                        }
+                        _ => 0..0,
+                    }
+                } else {
+                    range_of((a_key, o_key))
+                };
+                cand.extend(keyed[range].iter().map(|e| e.1 as usize).filter(|&i| w[i].alive));
+            }
+        }
+        if cand.len() < 2 {
+            continue;
+        }
+        let Segment::Line { start: p, end: q } = w[first].seg else {
+            continue;
+        };
+        let d = (q - p).xy().normalize();
+        let span = |s: &Segment| {
+            let (a, b) = (s.start(), s.end());
+            let (x, y) = (d.x * a.x + d.y * a.y, d.x * b.x + d.y * b.y);
+            (x.min(y), x.max(y))
+        };
+        cand.sort_by(|&i, &j| span(&w[i].seg).0.total_cmp(&span(&w[j].seg).0).then(i.cmp(&j)));
+        cand.dedup();
+        active.clear();
+        for &i in cand.iter() {
+            if !w[i].alive {
+                continue;
+            }
+            let (lo, _) = span(&w[i].seg);
+            active.retain(|&k| w[k].alive && span(&w[k].seg).1 >= lo - tol);
+            let Segment::Line { start: a, end: b } = w[i].seg else {
+                continue;
+            };
+            let mut merged = false;
+            for &k in active.iter() {
+                if let Some((start, end, dup)) = overlap(&w[k].seg, a, b, tol) {
+                    w[k].seg = Segment::Line { start, end };
+                    w[k].order = w[k].order.min(w[i].order);
+                    w[i].alive = false;
+                    let note = if dup {
+                        report.duplicates += 1;
+                        "duplicate removed"
+                    } else {
+                        report.overlaps += 1;
+                        "collinear overlap merged"
+                    };
+                    let m = P3::from((a.coords + b.coords) * 0.5);
+                    notes
+                        .entry(k)
+                        .or_default()
+                        .push(format!("{note} at [{}, {}]", fmt_num(m.x), fmt_num(m.y)));
+                    merged = true;
+                    break;
+                }
+            }
+            if !merged {
+                active.push(i);
+            }
+        }
+    }
+}
+
+/// If line `a`-`b` lies along `kept` (within `tol`, same z) and overlaps it
+/// by more than `tol`, the union's ends (in `kept`'s direction) and whether
+/// `a`-`b` was a duplicate (same ends within `tol`).
+fn overlap(kept: &Segment, a: P3, b: P3, tol: f64) -> Option<(P3, P3, bool)> {
+    let Segment::Line { start: p, end: q } = *kept else {
+        return None;
+    };
+    if (p.z - a.z).abs() > tol || (q.z - p.z).abs() > tol || (b.z - a.z).abs() > tol {
+        return None;
+    }
+    let len = (q - p).xy().norm();
+    let d = (q - p).xy() / len;
+    let dist = |x: &P3| (d.x * (x.y - p.y) - d.y * (x.x - p.x)).abs();
+    if dist(&a) > tol || dist(&b) > tol {
+        return None;
+    }
+    let proj = |x: &P3| d.x * (x.x - p.x) + d.y * (x.y - p.y);
+    let (sa, sb) = (proj(&a), proj(&b));
+    let (lo, hi) = (sa.min(sb), sa.max(sb));
+    if hi.min(len) - lo.max(0.0) <= tol {
+        return None;
+    }
+    let dup = ((a - p).norm() <= tol && (b - q).norm() <= tol) || ((a - q).norm() <= tol && (b - p).norm() <= tol);
+    let start = if lo < -tol { if sa < sb { a } else { b } } else { p };
+    let end = if hi > len + tol { if sa > sb { a } else { b } } else { q };
+    Some((start, end, dup))
+}
+
+/// Move a segment's ends to `a` and `b`; an arc's centre moves onto the
+/// new ends' bisector so that both ends stay on one circle.
+pub(super) fn snap(s: &Segment, a: P3, b: P3) -> Segment {
+    match *s {
+        Segment::Line { .. } => Segment::Line { start: a, end: b },
+        Segment::Arc { start, center, ccw, .. } => {
+            let center = if a == b {
+                center + (a - start)
+            } else {
+                let m = P3::from((a.coords + b.coords) * 0.5);
+                let d = b - a;
+                let n = V3::new(-d.y, d.x, 0.0).normalize();
+                let mut c = m + n * (center - m).dot(&n);
+                c.z = a.z;
+                c
+            };
+            Segment::Arc {
+                start: a,
+                end: b,
+                center,
+                ccw,
+            }
+        }
+    }
+}
+
+/// Pieces shorter than the tolerance (or arcs of a radius below it).
+pub(super) fn zero_length(w: &mut [Work], tol: f64, report: &mut Report) {
+    for x in w.iter_mut() {
+        let r = match x.seg {
+            Segment::Arc { start, center, .. } => (start - center).xy().norm(),
+            _ => f64::INFINITY,
+        };
+        if x.alive && (x.seg.length() <= tol || r <= tol) {
+            x.alive = false;
+            report.zero_length += 1;
+        }
+    }
+}
+
+/// The pieces at each node, in piece order (compressed rows: node `n`'s
+/// pieces are `adj[start[n]..start[n + 1]]`; a piece from a node to itself
+/// is listed twice).
+pub(super) fn adjacency(w: &[Work], ends: &[(u32, u32)], n_nodes: usize) -> (Vec<u32>, Vec<u32>) {
+    let mut start = vec![0u32; n_nodes + 1];
+    for (i, x) in w.iter().enumerate() {
+        if x.alive {
+            start[ends[i].0 as usize + 1] += 1;
+            start[ends[i].1 as usize + 1] += 1;
+        }
+    }
+    for k in 0..n_nodes {
+        start[k + 1] += start[k];
+    }
+    let mut adj = vec![0u32; start[n_nodes] as usize];
+    let mut fill = start.clone();
+    for (i, x) in w.iter().enumerate() {
+        if x.alive {
+            for n in [ends[i].0, ends[i].1] {
+                adj[fill[n as usize] as usize] = i as u32;
+                fill[n as usize] += 1;
+            }
+        }
+    }
+    (start, adj)
+}
+
+/// Lines whose ends fell into one node (shorter than the tolerance across)
+/// and duplicates: a piece between the same two nodes as an earlier kept
+/// one (lines; arcs with the same centre and midpoint) is removed, with a
+/// note on the latest such kept piece. The earlier pieces are found among
+/// those at the piece's first node, so no table of node pairs is built.
+pub(super) fn remove_duplicates(
+    w: &mut [Work],
+    ends: &[(u32, u32)],
+    n_nodes: usize,
+    notes: &mut Notes,
+    tol: f64,
+    report: &mut Report,
+) {
+    for (i, x) in w.iter_mut().enumerate() {
+        if x.alive && ends[i].0 == ends[i].1 && matches!(x.seg, Segment::Line { .. }) {
+            x.alive = false;
+            report.zero_length += 1;
+        }
+    }
+    let (start, adj) = adjacency(w, ends, n_nodes);
+    for i in 0..w.len() {
+        if !w[i].alive {
+            continue;
+        }
+        let (a, b) = ends[i];
+        let mut dup_of = None;
+        let mut last = NONE;
+        for &j in adj[start[a as usize] as usize..start[a as usize + 1] as usize]
+            .iter()
+            .rev()
+        {
+            let j_ = j as usize;
+            // Later pieces (and this one) are not candidates yet; a piece
+            // from a node to itself is listed twice.
+            if j_ >= i || j == last || !w[j_].alive {
+                continue;
+            }
+            last = j;
+            let (p, q) = ends[j_];
+            if !((p == a && q == b) || (p == b && q == a)) {
+                continue;
+            }
+            let same = match (&w[i].seg, &w[j_].seg) {
+                (Segment::Line { .. }, Segment::Line { .. }) => true,
+                (Segment::Arc { center: c1, .. }, Segment::Arc { center: c2, .. }) => {
+                    (c1 - c2).norm() <= tol && (midpoint(&w[i].seg) - midpoint(&w[j_].seg)).norm() <= tol
+                }
+                _ => false,
+            };
+            if same {
+                dup_of = Some(j_);
+                break;
+            }
+        }
+        if let Some(j) = dup_of {
+            w[i].alive = false;
+            report.duplicates += 1;
+            let p = midpoint(&w[i].seg);
+            notes
+                .entry(j)
+                .or_default()
+                .push(format!("duplicate removed at [{}, {}]", fmt_num(p.x), fmt_num(p.y)));
+        }
+    }
+}

@@ -1,0 +1,136 @@
+//! The graph walk: pieces joined at their nodes into chains, open chains
+//! from the nodes of degree other than two first, then the cycles; each
+//! chain's pieces snapped onto its nodes and its repairs gathered.
+
+use super::nodes::Nodes;
+use super::repair::{adjacency, merge_collinear, remove_duplicates, snap, zero_length};
+use super::{Chains, Item, Notes, REPORT_GAP, Report, Work, fmt_num};
+
+/// Chain the pieces of one layer (`w`, whose first piece is number `base`
+/// of the drawing) into `out`.
+pub(super) fn chain_layer(
+    w: &mut [Work],
+    base: u32,
+    layer: u32,
+    tol: f64,
+    report: &mut Report,
+    out: &mut Chains,
+    repairs_out: &mut Vec<(u32, Vec<String>)>,
+) {
+    let mut notes = Notes::default();
+    // 1. Zero-length pieces, collinear overlaps.
+    zero_length(w, tol, report);
+    merge_collinear(w, &mut notes, tol, report);
+
+    // 2. End points to nodes.
+    let mut nodes = Nodes::new(tol, 2 * w.len());
+    let mut ends: Vec<(u32, u32)> = vec![(u32::MAX, u32::MAX); w.len()];
+    for (i, x) in w.iter().enumerate() {
+        if x.alive {
+            ends[i] = (nodes.node_of(&x.seg.start()), nodes.node_of(&x.seg.end()));
+        }
+    }
+    let (reps, gaps) = nodes.finish();
+    let n_nodes = reps.len();
+
+    // 3. Duplicates between the same pair of nodes.
+    remove_duplicates(w, &ends, n_nodes, &mut notes, tol, report);
+
+    // 4. Walk the graph: open chains from nodes of degree != 2, then cycles.
+    let (start_idx, adj) = adjacency(w, &ends, n_nodes);
+    let degree = |n: u32| start_idx[n as usize + 1] - start_idx[n as usize];
+    let mut used = vec![false; w.len()];
+    // Each walk fills `run` (reused) and is turned into a chain at once:
+    // no list of all runs is ever held.
+    let walk = |first_node: u32, first: usize, used: &mut Vec<bool>, run: &mut Vec<(usize, bool)>| -> u32 {
+        run.clear();
+        let mut cur = first_node;
+        let mut s = first;
+        loop {
+            used[s] = true;
+            let (a, b) = ends[s];
+            let fwd = a == cur;
+            let next = if fwd { b } else { a };
+            run.push((s, fwd));
+            cur = next;
+            if cur == first_node || degree(cur) != 2 {
+                break;
+            }
+            let lo = start_idx[cur as usize] as usize;
+            let hi = start_idx[cur as usize + 1] as usize;
+            match adj[lo..hi].iter().find(|&&t| !used[t as usize]) {
+                Some(&t) => s = t as usize,
+                None => break,
+            }
+        }
+        cur
+    };
+    let mut run: Vec<(usize, bool)> = Vec::new();
+    let alive: Vec<bool> = w.iter().map(|x| x.alive).collect();
+    let mut emit = |run: &[(usize, bool)], first: u32, last: u32| {
+        let start = out.seq.len() as u32;
+        let mut repairs: Vec<String> = Vec::new();
+        let mut order = u32::MAX;
+        let mut gap_nodes: Vec<u32> = Vec::new();
+        for &(i, fwd) in run {
+            order = order.min(w[i].order);
+            let (a, b) = ends[i];
+            let (na, nb) = if fwd { (a, b) } else { (b, a) };
+            let seg = if fwd { w[i].seg } else { w[i].seg.reversed() };
+            // Snapped in place, turned to the direction of travel.
+            w[i].seg = snap(&seg, reps[na as usize], reps[nb as usize]);
+            out.seq.push(base + i as u32);
+            if let Some(mut v) = notes.remove(&i) {
+                repairs.append(&mut v);
+            }
+            for n in [na, nb] {
+                if gaps[n as usize] > REPORT_GAP && !gap_nodes.contains(&n) {
+                    gap_nodes.push(n);
+                }
+            }
+        }
+        for n in gap_nodes {
+            let g = gaps[n as usize];
+            let p = reps[n as usize];
+            report.gaps_closed += 1;
+            report.max_gap = report.max_gap.max(g);
+            repairs.push(format!(
+                "gap of {} mm closed at [{}, {}]",
+                fmt_num(g),
+                fmt_num(p.x),
+                fmt_num(p.y)
+            ));
+        }
+        if !repairs.is_empty() {
+            repairs_out.push((out.items.len() as u32, repairs));
+        }
+        out.items.push(Item {
+            start,
+            len: out.seq.len() as u32 - start,
+            order,
+            layer,
+            closed: first == last,
+            reversed: false,
+        });
+    };
+    for n in 0..n_nodes as u32 {
+        if degree(n) == 2 {
+            continue;
+        }
+        let lo = start_idx[n as usize] as usize;
+        let hi = start_idx[n as usize + 1] as usize;
+        for &s in &adj[lo..hi] {
+            let s = s as usize;
+            if !used[s] {
+                let last = walk(n, s, &mut used, &mut run);
+                emit(&run, n, last);
+            }
+        }
+    }
+    for (i, &a) in alive.iter().enumerate() {
+        if a && !used[i] {
+            let last = walk(ends[i].0, i, &mut used, &mut run);
+            emit(&run, ends[i].0, last);
+        }
+    }
+}
