@@ -5,10 +5,18 @@
 //! Built here rather than taken from a crate (`bvh`, `obvhs`, `parry3d`):
 //! see docs/mesh.md for the reasons and figures. In short:
 //!
-//! - **Build**: binned surface-area heuristic (12 bins on each axis), leaves
-//!   of up to 4 triangles, the top levels built in parallel. Nodes are
-//!   flattened depth-first, 32 bytes each (an f32 box, rounded outward and
-//!   padded, plus two u32), so the left child is always the next node.
+//! - **Build**: binned surface-area heuristic (12 bins; the longest axis
+//!   above 256 triangles, all three below), leaves of up to 4 triangles,
+//!   children's bounds taken from the bins of the split, the top levels
+//!   built in parallel. Nodes are flattened depth-first, 32 bytes each (an
+//!   f32 box, rounded outward and padded, plus two u32), so the left child
+//!   is always the next node (nearest-point queries walk this tree).
+//! - **Ray traversal** walks a 4-wide tree collapsed from it: each quad
+//!   holds its four children's boxes as structure of arrays (128 bytes),
+//!   met by one ray with a few 4-lane operations, entry and exit rows
+//!   chosen by the sign of the direction, children visited nearest first.
+//!   Big batches of first-hit queries are cast in the order of a Morton
+//!   code of where each ray enters the mesh's box and of its direction.
 //! - **Ray-triangle test**: the watertight test of Woop, Benthin and Wald
 //!   (2013) in f64: a ray through a shared edge or vertex can never slip
 //!   between two triangles. On top of it a tie rule (a zero edge function
@@ -140,29 +148,34 @@ const PAR_MIN: usize = 1 << 15;
 
 /// A box during the build, in f32 rounded outward (half the memory of
 /// f64 to stream through at every level; the node boxes are f32 anyway).
+/// Four lanes (the fourth is not a coordinate) so a union is one 4-lane
+/// min and max.
 #[derive(Clone, Copy)]
+#[repr(C, align(16))]
 struct Aabb {
-    min: [f32; 3],
-    max: [f32; 3],
+    min: [f32; 4],
+    max: [f32; 4],
 }
 
 impl Aabb {
     const EMPTY: Aabb = Aabb {
-        min: [f32::INFINITY; 3],
-        max: [f32::NEG_INFINITY; 3],
+        min: [f32::INFINITY; 4],
+        max: [f32::NEG_INFINITY; 4],
     };
-    #[inline]
+    // Compare-and-select rather than f32::min/max (which order NaNs and
+    // cost several instructions each): the boxes are of finite corners.
+    #[inline(always)]
     fn grow(&mut self, o: &Aabb) {
-        for k in 0..3 {
-            self.min[k] = self.min[k].min(o.min[k]);
-            self.max[k] = self.max[k].max(o.max[k]);
+        for k in 0..4 {
+            self.min[k] = if o.min[k] < self.min[k] { o.min[k] } else { self.min[k] };
+            self.max[k] = if o.max[k] > self.max[k] { o.max[k] } else { self.max[k] };
         }
     }
-    #[inline]
-    fn grow_p(&mut self, p: &[f32; 3]) {
+    #[inline(always)]
+    fn grow_p(&mut self, p: &[f32; 4]) {
         for (k, &v) in p.iter().enumerate() {
-            self.min[k] = self.min[k].min(v);
-            self.max[k] = self.max[k].max(v);
+            self.min[k] = if v < self.min[k] { v } else { self.min[k] };
+            self.max[k] = if v > self.max[k] { v } else { self.max[k] };
         }
     }
     fn half_area(&self) -> f64 {
@@ -191,14 +204,21 @@ fn round_f32(x: f64, up: bool) -> f32 {
     }
 }
 
-/// A triangle during the build: box, centroid and index (40 bytes), moved
+/// A triangle during the build: box, centroid and index (48 bytes), moved
 /// together by the partitions so every pass over a node reads memory in
-/// order.
+/// order. The index rides in the centroid's fourth lane (as bits; the
+/// centroid boxes ignore that lane).
 #[derive(Clone, Copy)]
 struct Prim {
     b: Aabb,
-    c: [f32; 3],
-    id: u32,
+    c: [f32; 4],
+}
+
+impl Prim {
+    #[inline]
+    fn id(&self) -> u32 {
+        self.c[3].to_bits()
+    }
 }
 
 impl Bvh {
@@ -231,18 +251,21 @@ impl Bvh {
                         hi[k] = hi[k].max(p[k]);
                     }
                 }
+                let (lo4, hi4) = (lo.map(|v| round_f32(v, false)), hi.map(|v| round_f32(v, true)));
                 let b = Aabb {
-                    min: lo.map(|v| round_f32(v, false)),
-                    max: hi.map(|v| round_f32(v, true)),
+                    min: [lo4[0], lo4[1], lo4[2], 0.0],
+                    max: [hi4[0], hi4[1], hi4[2], 0.0],
                 };
                 let m = [0, 1, 2].map(|k| (0.5 * (lo[k] + hi[k])) as f32);
-                Prim { b, c: m, id: i as u32 }
+                Prim {
+                    b,
+                    c: [m[0], m[1], m[2], f32::from_bits(i as u32)],
+                }
             })
             .collect();
-        let mut all = Aabb::EMPTY;
-        for p in &prims {
-            all.grow(&p.b);
-        }
+        // The root's box and centroid box (each node's children get theirs
+        // from the bins of its split).
+        let (all, call) = bounds(&prims);
         // Absolute padding of every box: covers the f32 rounding of ray
         // origins and slab parameters for rays starting within a few scene
         // sizes of the mesh.
@@ -252,9 +275,9 @@ impl Bvh {
         let pad = scale * 1e-6 + 1e-12;
         let mut nodes = Vec::with_capacity(2 * n / MAX_LEAF + 1);
         if n > 0 {
-            build(&mut prims, 0, &mut nodes, pad);
+            build(&mut prims, 0, &mut nodes, pad, all, call);
         }
-        let ids: Vec<u32> = prims.iter().map(|p| p.id).collect();
+        let ids: Vec<u32> = prims.iter().map(|p| p.id()).collect();
         let tris = ids
             .par_iter()
             .with_min_len(4096)
@@ -969,21 +992,40 @@ fn to_node(b: &Aabb, pad: f64) -> Node {
     }
 }
 
-/// Build the subtree over `ids` (which start at `offset` in the full id
-/// list), appending nodes to `out` depth-first; returns its root index.
-fn build(ids: &mut [Prim], offset: usize, out: &mut Vec<Node>, pad: f64) -> u32 {
-    let mut bb = Aabb::EMPTY;
-    let mut cb = Aabb::EMPTY;
-    for q in ids.iter() {
-        bb.grow(&q.b);
-        cb.grow_p(&q.c);
+/// Box and centroid box of `ids` (in parallel for big slices: unions,
+/// the same result in any order).
+fn bounds(ids: &[Prim]) -> (Aabb, Aabb) {
+    let one = |c: &[Prim]| {
+        let (mut bb, mut cb) = (Aabb::EMPTY, Aabb::EMPTY);
+        for q in c {
+            bb.grow(&q.b);
+            cb.grow_p(&q.c);
+        }
+        (bb, cb)
+    };
+    if ids.len() < PAR_MIN {
+        return one(ids);
     }
+    ids.par_chunks(PAR_MIN / 4).map(one).reduce(
+        || (Aabb::EMPTY, Aabb::EMPTY),
+        |(mut a, mut b), (c, d)| {
+            a.grow(&c);
+            b.grow(&d);
+            (a, b)
+        },
+    )
+}
+
+/// Build the subtree over `ids` (which start at `offset` in the full id
+/// list; `bb` and `cb` their box and centroid box), appending nodes to
+/// `out` depth-first; returns its root index.
+fn build(ids: &mut [Prim], offset: usize, out: &mut Vec<Node>, pad: f64, bb: Aabb, cb: Aabb) -> u32 {
     let me = out.len() as u32;
     out.push(to_node(&bb, pad));
     let n = ids.len();
     let split = if n <= 2 { None } else { best_split(ids, &bb, &cb) };
-    let mid = match split {
-        Some(sp) => partition(ids, |q| sp.left(q)),
+    let (mid, kids) = match split {
+        Some((sp, kids)) => (partition(ids, |q| sp.left(q)), Some(kids)),
         None if n > MAX_LEAF => {
             // No useful SAH split (identical centroids, or a leaf would be
             // cheaper but too big): split at the median of the longest axis.
@@ -991,49 +1033,61 @@ fn build(ids: &mut [Prim], offset: usize, out: &mut Vec<Node>, pad: f64) -> u32 
                 .max_by(|&a, &b| (cb.max[a] - cb.min[a]).total_cmp(&(cb.max[b] - cb.min[b])))
                 .unwrap_or(0);
             ids.select_nth_unstable_by(n / 2, |x, y| x.c[axis].total_cmp(&y.c[axis]));
-            n / 2
+            (n / 2, None)
         }
-        None => 0,
+        None => (0, None),
     };
     if mid == 0 || mid == n {
         if n > MAX_LEAF {
             // Degenerate partition (all on one side): halve by position.
-            return finish_split(ids, offset, out, pad, me, n / 2);
+            return finish_split(ids, offset, out, pad, me, n / 2, None);
         }
         let nd = &mut out[me as usize];
         nd.a = offset as u32;
         nd.n = n as u32;
         return me;
     }
-    finish_split(ids, offset, out, pad, me, mid)
+    finish_split(ids, offset, out, pad, me, mid, kids)
 }
 
-fn finish_split(ids: &mut [Prim], offset: usize, out: &mut Vec<Node>, pad: f64, me: u32, mid: usize) -> u32 {
+/// Bounds of the two sides of a split: (box, centroid box) left, right.
+type Sides = [(Aabb, Aabb); 2];
+
+fn finish_split(
+    ids: &mut [Prim],
+    offset: usize,
+    out: &mut Vec<Node>,
+    pad: f64,
+    me: u32,
+    mid: usize,
+    kids: Option<Sides>,
+) -> u32 {
     let (l, r) = ids.split_at_mut(mid);
+    let [(lb, lc), (rb, rc)] = kids.unwrap_or_else(|| [bounds(l), bounds(r)]);
     if l.len() + r.len() >= PAR_MIN {
         let (mut lv, mut rv) = (Vec::new(), Vec::new());
         rayon::join(
-            || build(l, offset, &mut lv, pad),
-            || build(r, offset + mid, &mut rv, pad),
+            || build(l, offset, &mut lv, pad, lb, lc),
+            || build(r, offset + mid, &mut rv, pad, rb, rc),
         );
-        let lb = out.len() as u32;
+        let lbase = out.len() as u32;
         out.extend(lv.into_iter().map(|mut n| {
             if n.n == 0 {
-                n.a += lb;
+                n.a += lbase;
             }
             n
         }));
-        let rb = out.len() as u32;
+        let rbase = out.len() as u32;
         out.extend(rv.into_iter().map(|mut n| {
             if n.n == 0 {
-                n.a += rb;
+                n.a += rbase;
             }
             n
         }));
-        out[me as usize].a = rb;
+        out[me as usize].a = rbase;
     } else {
-        build(l, offset, out, pad);
-        let rr = build(r, offset + mid, out, pad);
+        build(l, offset, out, pad, lb, lc);
+        let rr = build(r, offset + mid, out, pad, rb, rc);
         out[me as usize].a = rr;
     }
     me
@@ -1053,7 +1107,9 @@ struct Split {
 impl Split {
     #[inline(always)]
     fn bin(axis: usize, lo: f32, k: f32, q: &Prim) -> usize {
-        (((q.c[axis] - lo) * k) as usize).min(BINS - 1)
+        // Through i32 (one conversion instruction; the clamp catches
+        // anything out of range).
+        (((q.c[axis] - lo) * k) as i32).clamp(0, BINS as i32 - 1) as usize
     }
     #[inline(always)]
     fn left(&self, q: &Prim) -> bool {
@@ -1061,31 +1117,34 @@ impl Split {
     }
 }
 
-type Bins = [(Aabb, u32); BINS];
+/// Per bin: box, centroid box, count.
+type Bins = [(Aabb, Aabb, u32); BINS];
 
 fn bin_prims(ids: &[Prim], axis: usize, lo: f32, k: f32) -> Bins {
-    let mut bins = [(Aabb::EMPTY, 0u32); BINS];
+    let mut bins = [(Aabb::EMPTY, Aabb::EMPTY, 0u32); BINS];
     for q in ids {
         let b = Split::bin(axis, lo, k, q);
         bins[b].0.grow(&q.b);
-        bins[b].1 += 1;
+        bins[b].1.grow_p(&q.c);
+        bins[b].2 += 1;
     }
     bins
 }
 
-/// Binned SAH over all three axes: the cheapest split, or None when
-/// keeping a leaf is cheaper (and allowed).
-fn best_split(ids: &[Prim], bb: &Aabb, cb: &Aabb) -> Option<Split> {
+/// Binned SAH over all three axes: the cheapest split and the bounds of
+/// its two sides, or None when keeping a leaf is cheaper (and allowed).
+fn best_split(ids: &[Prim], bb: &Aabb, cb: &Aabb) -> Option<(Split, Sides)> {
     let n = ids.len();
     let mut best = (f64::INFINITY, None);
-    // Large nodes: the longest centroid axis only (a third of the binning
-    // work where most of the build time goes, and the SAH rarely prefers
-    // another axis this high up).
+    let mut best_bins = [(Aabb::EMPTY, Aabb::EMPTY, 0u32); BINS];
+    // Nodes above 256 triangles: the longest centroid axis only (a third
+    // of the binning work where most of the build time goes; the SAH
+    // rarely prefers another axis there).
     let longest = (0..3)
         .max_by(|&a, &b| (cb.max[a] - cb.min[a]).total_cmp(&(cb.max[b] - cb.min[b])))
         .unwrap_or(0);
     for axis in 0..3 {
-        if n > 1024 && axis != longest {
+        if n > 256 && axis != longest {
             continue;
         }
         let lo = cb.min[axis];
@@ -1100,11 +1159,12 @@ fn best_split(ids: &[Prim], bb: &Aabb, cb: &Aabb) -> Option<Split> {
         let bins = if n >= PAR_MIN {
             // Box unions and counts: the same result in any order.
             ids.par_chunks(PAR_MIN / 4).map(|c| bin_prims(c, axis, lo, k)).reduce(
-                || [(Aabb::EMPTY, 0u32); BINS],
+                || [(Aabb::EMPTY, Aabb::EMPTY, 0u32); BINS],
                 |mut a, b| {
                     for (x, y) in a.iter_mut().zip(&b) {
                         x.0.grow(&y.0);
-                        x.1 += y.1;
+                        x.1.grow(&y.1);
+                        x.2 += y.2;
                     }
                     a
                 },
@@ -1118,18 +1178,23 @@ fn best_split(ids: &[Prim], bb: &Aabb, cb: &Aabb) -> Option<Split> {
         let mut cnt = 0u32;
         for j in (1..BINS).rev() {
             acc.grow(&bins[j].0);
-            cnt += bins[j].1;
+            cnt += bins[j].2;
             right[j] = acc.half_area() * cnt as f64;
         }
         let mut acc = Aabb::EMPTY;
         let mut cnt = 0u32;
+        let mut improved = false;
         for j in 0..BINS - 1 {
             acc.grow(&bins[j].0);
-            cnt += bins[j].1;
+            cnt += bins[j].2;
             let cost = acc.half_area() * cnt as f64 + right[j + 1];
             if cnt > 0 && (cnt as usize) < n && cost < best.0 {
                 best = (cost, Some(Split { axis, lo, k, last: j }));
+                improved = true;
             }
+        }
+        if improved {
+            best_bins = bins;
         }
     }
     let (cost, split) = best;
@@ -1140,7 +1205,13 @@ fn best_split(ids: &[Prim], bb: &Aabb, cb: &Aabb) -> Option<Split> {
     if n <= MAX_LEAF && leaf_cost <= split_cost {
         return None;
     }
-    Some(split)
+    let mut sides = [(Aabb::EMPTY, Aabb::EMPTY); 2];
+    for (j, b) in best_bins.iter().enumerate() {
+        let side = &mut sides[(j > split.last) as usize];
+        side.0.grow(&b.0);
+        side.1.grow(&b.1);
+    }
+    Some((split, sides))
 }
 
 fn partition(ids: &mut [Prim], left: impl Fn(&Prim) -> bool) -> usize {
