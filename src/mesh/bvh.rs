@@ -792,7 +792,7 @@ fn radix_sort_high32(v: &mut Vec<u64>) {
         for &x in v.iter() {
             count[((x >> shift) & 255) as usize + 1] += 1;
         }
-        if count.iter().any(|&c| c == v.len()) {
+        if count.contains(&v.len()) {
             continue;
         }
         for i in 1..257 {
