@@ -67,6 +67,18 @@ fn main() {
         best1 = best1.min(t.elapsed().as_secs_f64());
     }
     let rays_cpu_s = (cpu_s() - c1) / repeat as f64;
+    // The batch call (rays cast in sorted order) on one thread: the
+    // per-core figure of a batch; the answers must be the single ones.
+    let pool1 = rayon::ThreadPoolBuilder::new().num_threads(1).build().expect("pool");
+    let mut batch1 = f64::INFINITY;
+    let c1 = cpu_s();
+    for _ in 0..repeat {
+        let t = Instant::now();
+        let h = pool1.install(|| bvh.first_hits(&rays));
+        batch1 = batch1.min(t.elapsed().as_secs_f64());
+        assert!(h == hits, "batch answers differ from single ones");
+    }
+    let batch1_cpu_s = (cpu_s() - c1) / repeat as f64;
     // Every thread rayon has.
     let mut best_n = f64::INFINITY;
     for _ in 0..repeat {
@@ -100,7 +112,7 @@ fn main() {
         .map(|g| grid_bench(&m.mesh, &bvh, g, repeat))
         .unwrap_or_default();
     println!(
-        "{{\"weld_s\":{weld_s:.6},\"weld_cpu_s\":{weld_cpu_s:.3},\"welded_vertices\":{},\"read_cpu_s\":{read_cpu_s:.3},\"build_cpu_s\":{build_cpu_s:.3},{grid}\"triangles\":{},\"nodes\":{},\"read_s\":{read_s:.6},\"build_s\":{build_s:.6},\"read_build_cpu_s\":{read_build_cpu_s:.3},\"first_hit_1thread_cpu_s\":{rays_cpu_s:.3},\"rays\":{},\"hit\":{n_hit},\"first_hit_1thread_s\":{best1:.6},\"first_hit_par_s\":{best_n:.6},\"threads\":{},\"all_hits\":{n_all},\"all_hits_1thread_s\":{all_s:.6}}}",
+        "{{\"weld_s\":{weld_s:.6},\"weld_cpu_s\":{weld_cpu_s:.3},\"welded_vertices\":{},\"read_cpu_s\":{read_cpu_s:.3},\"build_cpu_s\":{build_cpu_s:.3},{grid}\"triangles\":{},\"nodes\":{},\"read_s\":{read_s:.6},\"build_s\":{build_s:.6},\"read_build_cpu_s\":{read_build_cpu_s:.3},\"first_hit_1thread_cpu_s\":{rays_cpu_s:.3},\"batch_1thread_s\":{batch1:.6},\"batch_1thread_cpu_s\":{batch1_cpu_s:.3},\"rays\":{},\"hit\":{n_hit},\"first_hit_1thread_s\":{best1:.6},\"first_hit_par_s\":{best_n:.6},\"threads\":{},\"all_hits\":{n_all},\"all_hits_1thread_s\":{all_s:.6}}}",
         welded.vertices.len(),
         m.mesh.triangles.len(),
         bvh.node_count(),

@@ -5,10 +5,18 @@
 //! Built here rather than taken from a crate (`bvh`, `obvhs`, `parry3d`):
 //! see docs/mesh.md for the reasons and figures. In short:
 //!
-//! - **Build**: binned surface-area heuristic (12 bins on each axis), leaves
-//!   of up to 4 triangles, the top levels built in parallel. Nodes are
-//!   flattened depth-first, 32 bytes each (an f32 box, rounded outward and
-//!   padded, plus two u32), so the left child is always the next node.
+//! - **Build**: binned surface-area heuristic (12 bins; the longest axis
+//!   above 256 triangles, all three below), leaves of up to 4 triangles,
+//!   children's bounds taken from the bins of the split, the top levels
+//!   built in parallel. Nodes are flattened depth-first, 32 bytes each (an
+//!   f32 box, rounded outward and padded, plus two u32), so the left child
+//!   is always the next node (nearest-point queries walk this tree).
+//! - **Ray traversal** walks a 4-wide tree collapsed from it: each quad
+//!   holds its four children's boxes as structure of arrays (128 bytes),
+//!   met by one ray with a few 4-lane operations, entry and exit rows
+//!   chosen by the sign of the direction, children visited nearest first.
+//!   Big batches of first-hit queries are cast in the order of a Morton
+//!   code of where each ray enters the mesh's box and of its direction.
 //! - **Ray-triangle test**: the watertight test of Woop, Benthin and Wald
 //!   (2013) in f64: a ray through a shared edge or vertex can never slip
 //!   between two triangles. On top of it a tie rule (a zero edge function
@@ -93,24 +101,43 @@ struct Node {
     n: u32,
 }
 
-/// An interior node for ray traversal: both children's boxes in one
-/// 64-byte cache line (one memory access per step down instead of two).
-#[derive(Debug, Clone, Copy, Default)]
+/// An interior node for ray traversal, 4 wide (the binary tree collapsed):
+/// the four children's boxes as structure of arrays, so one ray meets all
+/// four with the same few 4-lane f32 operations, in two cache lines.
+#[derive(Debug, Clone, Copy)]
 #[repr(C, align(64))]
-struct Pair {
-    /// Child boxes, by axis: lo[axis][child], hi[axis][child].
-    lo: [[f32; 2]; 3],
-    hi: [[f32; 2]; 3],
-    /// Child: pair index (count 0) or first triangle (count > 0).
-    child: [u32; 2],
-    count: [u32; 2],
+struct Quad {
+    /// Child boxes: rows min x, y, z, max x, y, z; columns the children.
+    b: [[f32; 4]; 6],
+    /// Child: quad index (count 0) or first triangle (count > 0).
+    child: [u32; 4],
+    /// 0 for an interior child, the triangle count of a leaf, EMPTY for
+    /// an unused slot.
+    count: [u32; 4],
+}
+
+const EMPTY: u32 = u32::MAX;
+
+impl Quad {
+    const NONE: Quad = Quad {
+        b: [
+            [f32::INFINITY; 4],
+            [f32::INFINITY; 4],
+            [f32::INFINITY; 4],
+            [f32::NEG_INFINITY; 4],
+            [f32::NEG_INFINITY; 4],
+            [f32::NEG_INFINITY; 4],
+        ],
+        child: [0; 4],
+        count: [EMPTY; 4],
+    };
 }
 
 /// The hierarchy, owning a copy of the triangles in leaf order.
 #[derive(Debug, Clone)]
 pub struct Bvh {
     nodes: Vec<Node>,
-    pairs: Vec<Pair>,
+    quads: Vec<Quad>,
     tris: Vec<[P3; 3]>,
     ids: Vec<u32>,
 }
@@ -121,29 +148,34 @@ const PAR_MIN: usize = 1 << 15;
 
 /// A box during the build, in f32 rounded outward (half the memory of
 /// f64 to stream through at every level; the node boxes are f32 anyway).
+/// Four lanes (the fourth is not a coordinate) so a union is one 4-lane
+/// min and max.
 #[derive(Clone, Copy)]
+#[repr(C, align(16))]
 struct Aabb {
-    min: [f32; 3],
-    max: [f32; 3],
+    min: [f32; 4],
+    max: [f32; 4],
 }
 
 impl Aabb {
     const EMPTY: Aabb = Aabb {
-        min: [f32::INFINITY; 3],
-        max: [f32::NEG_INFINITY; 3],
+        min: [f32::INFINITY; 4],
+        max: [f32::NEG_INFINITY; 4],
     };
-    #[inline]
+    // Compare-and-select rather than f32::min/max (which order NaNs and
+    // cost several instructions each): the boxes are of finite corners.
+    #[inline(always)]
     fn grow(&mut self, o: &Aabb) {
-        for k in 0..3 {
-            self.min[k] = self.min[k].min(o.min[k]);
-            self.max[k] = self.max[k].max(o.max[k]);
+        for k in 0..4 {
+            self.min[k] = if o.min[k] < self.min[k] { o.min[k] } else { self.min[k] };
+            self.max[k] = if o.max[k] > self.max[k] { o.max[k] } else { self.max[k] };
         }
     }
-    #[inline]
-    fn grow_p(&mut self, p: &[f32; 3]) {
+    #[inline(always)]
+    fn grow_p(&mut self, p: &[f32; 4]) {
         for (k, &v) in p.iter().enumerate() {
-            self.min[k] = self.min[k].min(v);
-            self.max[k] = self.max[k].max(v);
+            self.min[k] = if v < self.min[k] { v } else { self.min[k] };
+            self.max[k] = if v > self.max[k] { v } else { self.max[k] };
         }
     }
     fn half_area(&self) -> f64 {
@@ -172,14 +204,21 @@ fn round_f32(x: f64, up: bool) -> f32 {
     }
 }
 
-/// A triangle during the build: box, centroid and index (40 bytes), moved
+/// A triangle during the build: box, centroid and index (48 bytes), moved
 /// together by the partitions so every pass over a node reads memory in
-/// order.
+/// order. The index rides in the centroid's fourth lane (as bits; the
+/// centroid boxes ignore that lane).
 #[derive(Clone, Copy)]
 struct Prim {
     b: Aabb,
-    c: [f32; 3],
-    id: u32,
+    c: [f32; 4],
+}
+
+impl Prim {
+    #[inline]
+    fn id(&self) -> u32 {
+        self.c[3].to_bits()
+    }
 }
 
 impl Bvh {
@@ -212,18 +251,21 @@ impl Bvh {
                         hi[k] = hi[k].max(p[k]);
                     }
                 }
+                let (lo4, hi4) = (lo.map(|v| round_f32(v, false)), hi.map(|v| round_f32(v, true)));
                 let b = Aabb {
-                    min: lo.map(|v| round_f32(v, false)),
-                    max: hi.map(|v| round_f32(v, true)),
+                    min: [lo4[0], lo4[1], lo4[2], 0.0],
+                    max: [hi4[0], hi4[1], hi4[2], 0.0],
                 };
                 let m = [0, 1, 2].map(|k| (0.5 * (lo[k] + hi[k])) as f32);
-                Prim { b, c: m, id: i as u32 }
+                Prim {
+                    b,
+                    c: [m[0], m[1], m[2], f32::from_bits(i as u32)],
+                }
             })
             .collect();
-        let mut all = Aabb::EMPTY;
-        for p in &prims {
-            all.grow(&p.b);
-        }
+        // The root's box and centroid box (each node's children get theirs
+        // from the bins of its split).
+        let (all, call) = bounds(&prims);
         // Absolute padding of every box: covers the f32 rounding of ray
         // origins and slab parameters for rays starting within a few scene
         // sizes of the mesh.
@@ -233,18 +275,18 @@ impl Bvh {
         let pad = scale * 1e-6 + 1e-12;
         let mut nodes = Vec::with_capacity(2 * n / MAX_LEAF + 1);
         if n > 0 {
-            build(&mut prims, 0, &mut nodes, pad);
+            build(&mut prims, 0, &mut nodes, pad, all, call);
         }
-        let ids: Vec<u32> = prims.iter().map(|p| p.id).collect();
+        let ids: Vec<u32> = prims.iter().map(|p| p.id()).collect();
         let tris = ids
             .par_iter()
             .with_min_len(4096)
             .map(|&i| corners[i as usize])
             .collect();
-        let pairs = pairs_of(&nodes);
+        let quads = quads_of(&nodes);
         Bvh {
             nodes,
-            pairs,
+            quads,
             tris,
             ids,
         }
@@ -408,9 +450,79 @@ impl Bvh {
         (nodes.get(), tris.get())
     }
 
-    /// [`Bvh::first_hit`] for many rays, in parallel.
+    /// [`Bvh::first_hit`] for many rays, in parallel; the answers are
+    /// those of `first_hit` ray by ray, in the order given.
+    ///
+    /// Incoherent rays (random origins and directions) are cast in the
+    /// order of a key (a Morton code of where each ray enters the mesh's
+    /// box and of its direction), so consecutive rays walk mostly the same
+    /// nodes and find them in cache; the sort costs a few percent of the
+    /// casting and pays for itself several times over on random rays.
     pub fn first_hits(&self, rays: &[Ray]) -> Vec<Option<Hit>> {
-        rays.par_iter().with_min_len(256).map(|r| self.first_hit(r)).collect()
+        const SORT_MIN: usize = 4096;
+        if rays.len() < SORT_MIN || self.nodes.is_empty() {
+            return rays.par_iter().with_min_len(256).map(|r| self.first_hit(r)).collect();
+        }
+        let order = self.ray_order(rays);
+        let sorted: Vec<Option<Hit>> = order
+            .par_iter()
+            .with_min_len(1024)
+            .map(|&i| self.first_hit(&rays[i as usize]))
+            .collect();
+        let mut rank = vec![0u32; rays.len()];
+        for (p, &i) in order.iter().enumerate() {
+            rank[i as usize] = p as u32;
+        }
+        rank.par_iter()
+            .with_min_len(4096)
+            .map(|&p| sorted[p as usize])
+            .collect()
+    }
+
+    /// The indices of `rays` sorted by a 30-bit Morton code of where each
+    /// enters the root box (5 bits an axis) and of its unit direction (5
+    /// bits a component); rays that miss the box come last.
+    fn ray_order(&self, rays: &[Ray]) -> Vec<u32> {
+        let root = &self.nodes[0];
+        let lo = root.min.map(f64::from);
+        let ext = [0, 1, 2].map(|k| (root.max[k] as f64 - lo[k]).max(f64::MIN_POSITIVE));
+        let q = |x: f64| (x.clamp(0.0, 0.999_999) * 32.0) as u32;
+        let mut keys: Vec<u64> = rays
+            .par_iter()
+            .enumerate()
+            .with_min_len(4096)
+            .map(|(i, r)| {
+                let (o, d) = (r.origin, r.dir);
+                let (mut t0, mut t1) = (r.t_min.max(0.0), r.t_max);
+                for k in 0..3 {
+                    let a = (lo[k] - o[k]) / d[k];
+                    let b = (lo[k] + ext[k] - o[k]) / d[k];
+                    let (near, far) = if a < b { (a, b) } else { (b, a) };
+                    t0 = if near > t0 { near } else { t0 };
+                    t1 = if far < t1 { far } else { t1 };
+                }
+                let key = if t0 <= t1 && t0.is_finite() {
+                    let len = d.norm();
+                    let mut c = [0u32; 6];
+                    for k in 0..3 {
+                        c[k] = q((o[k] + d[k] * t0 - lo[k]) / ext[k]);
+                        c[k + 3] = q(0.5 + 0.5 * d[k] / len);
+                    }
+                    let mut m = 0u32;
+                    for bit in (0..5).rev() {
+                        for ck in c {
+                            m = (m << 1) | ((ck >> bit) & 1);
+                        }
+                    }
+                    m
+                } else {
+                    u32::MAX
+                };
+                ((key as u64) << 32) | i as u64
+            })
+            .collect();
+        radix_sort_high32(&mut keys);
+        keys.into_iter().map(|k| k as u32).collect()
     }
 
     /// [`Bvh::all_hits`] for many rays, in parallel.
@@ -443,52 +555,57 @@ impl Bvh {
             }
             return;
         }
-        let mut stack = [(0u32, 0f32); 64];
-        let mut sp = 0usize;
+        let mut stack = Stack::new();
         let mut node = 0u32;
+        let slack = 1.0 + 4.0 * f32::EPSILON;
         loop {
-            let p = &self.pairs[node as usize];
-            let tm = t_max(()) as f32;
-            let e = pre.slab2(p, t0, tm);
-            let mut next = [(0u32, 0f32); 2];
+            let q = &self.quads[node as usize];
+            let (e, hit) = pre.slab4(q, t0, t_max(()) as f32);
+            // The children the ray enters, nearest first.
+            let mut kids = [(0f32, 0u32); 4];
             let mut k = 0;
-            let order = if e[1] < e[0] { [1, 0] } else { [0, 1] };
-            for c in order {
-                if e[c].is_nan() {
-                    continue;
-                }
-                if p.count[c] > 0 {
-                    for i in p.child[c]..p.child[c] + p.count[c] {
-                        leaf(self, i as usize, &pre);
+            for c in 0..4 {
+                if hit[c] && q.count[c] != EMPTY {
+                    let mut j = k;
+                    while j > 0 && kids[j - 1].0 > e[c] {
+                        kids[j] = kids[j - 1];
+                        j -= 1;
                     }
-                } else {
-                    next[k] = (p.child[c], e[c]);
+                    kids[j] = (e[c], c as u32);
                     k += 1;
                 }
             }
-            match k {
-                2 => {
-                    if sp < stack.len() {
-                        stack[sp] = next[1];
-                        sp += 1;
+            // Leaves now (they shrink t_max); interior children onto the
+            // stack farthest first, and down into the nearest.
+            let mut down = None;
+            for &(entry, c) in kids[..k].iter().rev() {
+                let c = c as usize;
+                if q.count[c] > 0 {
+                    continue;
+                }
+                if let Some(d) = down {
+                    stack.push(d);
+                }
+                down = Some((q.child[c], entry));
+            }
+            for &(_, c) in &kids[..k] {
+                let c = c as usize;
+                if q.count[c] > 0 {
+                    for i in q.child[c]..q.child[c] + q.count[c] {
+                        leaf(self, i as usize, &pre);
                     }
-                    node = next[0].0;
-                    continue;
                 }
-                1 => {
-                    node = next[0].0;
-                    continue;
-                }
-                _ => {}
+            }
+            if let Some((n, entry)) = down
+                && entry <= t_max(()) as f32 * slack
+            {
+                node = n;
+                continue;
             }
             // Pop the next node the ray still enters before t_max.
             loop {
-                if sp == 0 {
-                    return;
-                }
-                sp -= 1;
-                let (n, entry) = stack[sp];
-                if entry <= t_max(()) as f32 * (1.0 + 4.0 * f32::EPSILON) {
+                let Some((n, entry)) = stack.pop() else { return };
+                if entry <= t_max(()) as f32 * slack {
                     node = n;
                     break;
                 }
@@ -605,6 +722,10 @@ struct Pre {
     sh: Shear,
     org: [f32; 3],
     inv: [f32; 3],
+    /// Rows of a quad's boxes the ray enters (near) and leaves (far) by,
+    /// per axis, from the sign of the direction.
+    near: [usize; 3],
+    far: [usize; 3],
 }
 
 impl Pre {
@@ -613,30 +734,36 @@ impl Pre {
         let sh = Shear::new(&d)?;
         let inv = [(1.0 / d.x) as f32, (1.0 / d.y) as f32, (1.0 / d.z) as f32];
         let org = [ray.origin.x as f32, ray.origin.y as f32, ray.origin.z as f32];
-        Some(Pre { sh, org, inv })
+        let near = [0, 1, 2].map(|k| if inv[k].is_sign_negative() { k + 3 } else { k });
+        let far = near.map(|r| (r + 3) % 6);
+        Some(Pre {
+            sh,
+            org,
+            inv,
+            near,
+            far,
+        })
     }
 
-    /// Entry parameters of the ray into both child boxes of a pair within
-    /// `[t0, t1]`; NaN for a miss.
+    /// Entry parameters of the ray into the four child boxes of a quad
+    /// within `[t0, t1]`, and which it enters at all.
     #[inline(always)]
-    fn slab2(&self, p: &Pair, t0: f32, t1: f32) -> [f32; 2] {
-        let mut lo = [t0; 2];
-        let mut hi = [t1 * (1.0 + 4.0 * f32::EPSILON); 2];
+    fn slab4(&self, q: &Quad, t0: f32, t1: f32) -> ([f32; 4], [bool; 4]) {
+        let mut lo = [t0; 4];
+        let mut hi = [t1 * (1.0 + 4.0 * f32::EPSILON); 4];
         for k in 0..3 {
-            for c in 0..2 {
-                let a = (p.lo[k][c] - self.org[k]) * self.inv[k];
-                let b = (p.hi[k][c] - self.org[k]) * self.inv[k];
+            let (nb, fb) = (&q.b[self.near[k]], &q.b[self.far[k]]);
+            let (o, inv) = (self.org[k], self.inv[k]);
+            for c in 0..4 {
+                let a = (nb[c] - o) * inv;
+                let b = (fb[c] - o) * inv;
                 // Comparisons, not f32::min/max: a NaN (0 * inf on a box
-                // face) falls through to the other operand, never culls.
-                let (near, far) = if a < b { (a, b) } else { (b, a) };
-                lo[c] = if near > lo[c] { near } else { lo[c] };
-                hi[c] = if far < hi[c] { far } else { hi[c] };
+                // face the ray runs in) falls through, never culls.
+                lo[c] = if a > lo[c] { a } else { lo[c] };
+                hi[c] = if b < hi[c] { b } else { hi[c] };
             }
         }
-        [
-            if lo[0] <= hi[0] { lo[0] } else { f32::NAN },
-            if lo[1] <= hi[1] { lo[1] } else { f32::NAN },
-        ]
+        (lo, [lo[0] <= hi[0], lo[1] <= hi[1], lo[2] <= hi[2], lo[3] <= hi[3]])
     }
 
     /// Entry parameter of the ray into the node box within `[t0, t1]`.
@@ -655,36 +782,115 @@ impl Pre {
     }
 }
 
-/// The traversal pairs of a depth-first node list: one per interior node.
-fn pairs_of(nodes: &[Node]) -> Vec<Pair> {
-    let mut index = vec![u32::MAX; nodes.len()];
-    let mut k = 0u32;
-    for (i, n) in nodes.iter().enumerate() {
-        if n.n == 0 {
-            index[i] = k;
-            k += 1;
+/// Sort by the high 32 bits (LSD radix, 4 passes of 8 bits; stable, so
+/// equal keys keep the order of the low bits' index).
+fn radix_sort_high32(v: &mut Vec<u64>) {
+    let mut tmp = vec![0u64; v.len()];
+    for pass in 0..4 {
+        let shift = 32 + 8 * pass;
+        let mut count = [0usize; 257];
+        for &x in v.iter() {
+            count[((x >> shift) & 255) as usize + 1] += 1;
         }
-    }
-    let mut out = Vec::with_capacity(k as usize);
-    for (i, n) in nodes.iter().enumerate() {
-        if n.n > 0 {
+        if count.contains(&v.len()) {
             continue;
         }
-        let mut p = Pair::default();
-        for (c, j) in [i + 1, n.a as usize].into_iter().enumerate() {
+        for i in 1..257 {
+            count[i] += count[i - 1];
+        }
+        for &x in v.iter() {
+            let b = ((x >> shift) & 255) as usize;
+            tmp[count[b]] = x;
+            count[b] += 1;
+        }
+        std::mem::swap(v, &mut tmp);
+    }
+}
+
+/// A small LIFO of (node, entry parameter) that spills to the heap only
+/// for trees deeper than any sensible build makes.
+struct Stack {
+    fixed: [(u32, f32); 48],
+    len: usize,
+    spill: Vec<(u32, f32)>,
+}
+
+impl Stack {
+    #[inline(always)]
+    fn new() -> Stack {
+        Stack {
+            fixed: [(0, 0.0); 48],
+            len: 0,
+            spill: Vec::new(),
+        }
+    }
+    #[inline(always)]
+    fn push(&mut self, x: (u32, f32)) {
+        if self.len < self.fixed.len() {
+            self.fixed[self.len] = x;
+            self.len += 1;
+        } else {
+            self.spill.push(x);
+        }
+    }
+    #[inline(always)]
+    fn pop(&mut self) -> Option<(u32, f32)> {
+        if let Some(x) = self.spill.pop() {
+            return Some(x);
+        }
+        if self.len == 0 {
+            return None;
+        }
+        self.len -= 1;
+        Some(self.fixed[self.len])
+    }
+}
+
+/// The 4-wide traversal tree of a depth-first binary node list whose root
+/// is interior: each quad takes up to four descendants of a binary node,
+/// opening the child with the largest box first.
+fn quads_of(nodes: &[Node]) -> Vec<Quad> {
+    let mut out = Vec::new();
+    if nodes.first().is_none_or(|r| r.n > 0) {
+        return out;
+    }
+    let area = |n: &Node| {
+        let d = [0, 1, 2].map(|k| (n.max[k] - n.min[k]).max(0.0));
+        d[0] * d[1] + d[1] * d[2] + d[2] * d[0]
+    };
+    out.push(Quad::NONE);
+    let mut todo = vec![(0usize, 0usize)];
+    while let Some((bn, qi)) = todo.pop() {
+        let mut kids = [bn + 1, nodes[bn].a as usize, 0, 0];
+        let mut k = 2;
+        while k < 4 {
+            let open = (0..k)
+                .filter(|&i| nodes[kids[i]].n == 0)
+                .max_by(|&i, &j| area(&nodes[kids[i]]).total_cmp(&area(&nodes[kids[j]])));
+            let Some(i) = open else { break };
+            let b = kids[i];
+            kids[i] = b + 1;
+            kids[k] = nodes[b].a as usize;
+            k += 1;
+        }
+        let mut q = Quad::NONE;
+        for (c, &j) in kids[..k].iter().enumerate() {
             let ch = &nodes[j];
             for ax in 0..3 {
-                p.lo[ax][c] = ch.min[ax];
-                p.hi[ax][c] = ch.max[ax];
+                q.b[ax][c] = ch.min[ax];
+                q.b[ax + 3][c] = ch.max[ax];
             }
             if ch.n > 0 {
-                p.child[c] = ch.a;
-                p.count[c] = ch.n;
+                q.child[c] = ch.a;
+                q.count[c] = ch.n;
             } else {
-                p.child[c] = index[j];
+                q.child[c] = out.len() as u32;
+                q.count[c] = 0;
+                out.push(Quad::NONE);
+                todo.push((j, q.child[c] as usize));
             }
         }
-        out.push(p);
+        out[qi] = q;
     }
     out
 }
@@ -786,21 +992,40 @@ fn to_node(b: &Aabb, pad: f64) -> Node {
     }
 }
 
-/// Build the subtree over `ids` (which start at `offset` in the full id
-/// list), appending nodes to `out` depth-first; returns its root index.
-fn build(ids: &mut [Prim], offset: usize, out: &mut Vec<Node>, pad: f64) -> u32 {
-    let mut bb = Aabb::EMPTY;
-    let mut cb = Aabb::EMPTY;
-    for q in ids.iter() {
-        bb.grow(&q.b);
-        cb.grow_p(&q.c);
+/// Box and centroid box of `ids` (in parallel for big slices: unions,
+/// the same result in any order).
+fn bounds(ids: &[Prim]) -> (Aabb, Aabb) {
+    let one = |c: &[Prim]| {
+        let (mut bb, mut cb) = (Aabb::EMPTY, Aabb::EMPTY);
+        for q in c {
+            bb.grow(&q.b);
+            cb.grow_p(&q.c);
+        }
+        (bb, cb)
+    };
+    if ids.len() < PAR_MIN {
+        return one(ids);
     }
+    ids.par_chunks(PAR_MIN / 4).map(one).reduce(
+        || (Aabb::EMPTY, Aabb::EMPTY),
+        |(mut a, mut b), (c, d)| {
+            a.grow(&c);
+            b.grow(&d);
+            (a, b)
+        },
+    )
+}
+
+/// Build the subtree over `ids` (which start at `offset` in the full id
+/// list; `bb` and `cb` their box and centroid box), appending nodes to
+/// `out` depth-first; returns its root index.
+fn build(ids: &mut [Prim], offset: usize, out: &mut Vec<Node>, pad: f64, bb: Aabb, cb: Aabb) -> u32 {
     let me = out.len() as u32;
     out.push(to_node(&bb, pad));
     let n = ids.len();
     let split = if n <= 2 { None } else { best_split(ids, &bb, &cb) };
-    let mid = match split {
-        Some(sp) => partition(ids, |q| sp.left(q)),
+    let (mid, kids) = match split {
+        Some((sp, kids)) => (partition(ids, |q| sp.left(q)), Some(kids)),
         None if n > MAX_LEAF => {
             // No useful SAH split (identical centroids, or a leaf would be
             // cheaper but too big): split at the median of the longest axis.
@@ -808,49 +1033,61 @@ fn build(ids: &mut [Prim], offset: usize, out: &mut Vec<Node>, pad: f64) -> u32 
                 .max_by(|&a, &b| (cb.max[a] - cb.min[a]).total_cmp(&(cb.max[b] - cb.min[b])))
                 .unwrap_or(0);
             ids.select_nth_unstable_by(n / 2, |x, y| x.c[axis].total_cmp(&y.c[axis]));
-            n / 2
+            (n / 2, None)
         }
-        None => 0,
+        None => (0, None),
     };
     if mid == 0 || mid == n {
         if n > MAX_LEAF {
             // Degenerate partition (all on one side): halve by position.
-            return finish_split(ids, offset, out, pad, me, n / 2);
+            return finish_split(ids, offset, out, pad, me, n / 2, None);
         }
         let nd = &mut out[me as usize];
         nd.a = offset as u32;
         nd.n = n as u32;
         return me;
     }
-    finish_split(ids, offset, out, pad, me, mid)
+    finish_split(ids, offset, out, pad, me, mid, kids)
 }
 
-fn finish_split(ids: &mut [Prim], offset: usize, out: &mut Vec<Node>, pad: f64, me: u32, mid: usize) -> u32 {
+/// Bounds of the two sides of a split: (box, centroid box) left, right.
+type Sides = [(Aabb, Aabb); 2];
+
+fn finish_split(
+    ids: &mut [Prim],
+    offset: usize,
+    out: &mut Vec<Node>,
+    pad: f64,
+    me: u32,
+    mid: usize,
+    kids: Option<Sides>,
+) -> u32 {
     let (l, r) = ids.split_at_mut(mid);
+    let [(lb, lc), (rb, rc)] = kids.unwrap_or_else(|| [bounds(l), bounds(r)]);
     if l.len() + r.len() >= PAR_MIN {
         let (mut lv, mut rv) = (Vec::new(), Vec::new());
         rayon::join(
-            || build(l, offset, &mut lv, pad),
-            || build(r, offset + mid, &mut rv, pad),
+            || build(l, offset, &mut lv, pad, lb, lc),
+            || build(r, offset + mid, &mut rv, pad, rb, rc),
         );
-        let lb = out.len() as u32;
+        let lbase = out.len() as u32;
         out.extend(lv.into_iter().map(|mut n| {
             if n.n == 0 {
-                n.a += lb;
+                n.a += lbase;
             }
             n
         }));
-        let rb = out.len() as u32;
+        let rbase = out.len() as u32;
         out.extend(rv.into_iter().map(|mut n| {
             if n.n == 0 {
-                n.a += rb;
+                n.a += rbase;
             }
             n
         }));
-        out[me as usize].a = rb;
+        out[me as usize].a = rbase;
     } else {
-        build(l, offset, out, pad);
-        let rr = build(r, offset + mid, out, pad);
+        build(l, offset, out, pad, lb, lc);
+        let rr = build(r, offset + mid, out, pad, rb, rc);
         out[me as usize].a = rr;
     }
     me
@@ -870,7 +1107,9 @@ struct Split {
 impl Split {
     #[inline(always)]
     fn bin(axis: usize, lo: f32, k: f32, q: &Prim) -> usize {
-        (((q.c[axis] - lo) * k) as usize).min(BINS - 1)
+        // Through i32 (one conversion instruction; the clamp catches
+        // anything out of range).
+        (((q.c[axis] - lo) * k) as i32).clamp(0, BINS as i32 - 1) as usize
     }
     #[inline(always)]
     fn left(&self, q: &Prim) -> bool {
@@ -878,31 +1117,34 @@ impl Split {
     }
 }
 
-type Bins = [(Aabb, u32); BINS];
+/// Per bin: box, centroid box, count.
+type Bins = [(Aabb, Aabb, u32); BINS];
 
 fn bin_prims(ids: &[Prim], axis: usize, lo: f32, k: f32) -> Bins {
-    let mut bins = [(Aabb::EMPTY, 0u32); BINS];
+    let mut bins = [(Aabb::EMPTY, Aabb::EMPTY, 0u32); BINS];
     for q in ids {
         let b = Split::bin(axis, lo, k, q);
         bins[b].0.grow(&q.b);
-        bins[b].1 += 1;
+        bins[b].1.grow_p(&q.c);
+        bins[b].2 += 1;
     }
     bins
 }
 
-/// Binned SAH over all three axes: the cheapest split, or None when
-/// keeping a leaf is cheaper (and allowed).
-fn best_split(ids: &[Prim], bb: &Aabb, cb: &Aabb) -> Option<Split> {
+/// Binned SAH over all three axes: the cheapest split and the bounds of
+/// its two sides, or None when keeping a leaf is cheaper (and allowed).
+fn best_split(ids: &[Prim], bb: &Aabb, cb: &Aabb) -> Option<(Split, Sides)> {
     let n = ids.len();
     let mut best = (f64::INFINITY, None);
-    // Large nodes: the longest centroid axis only (a third of the binning
-    // work where most of the build time goes, and the SAH rarely prefers
-    // another axis this high up).
+    let mut best_bins = [(Aabb::EMPTY, Aabb::EMPTY, 0u32); BINS];
+    // Nodes above 256 triangles: the longest centroid axis only (a third
+    // of the binning work where most of the build time goes; the SAH
+    // rarely prefers another axis there).
     let longest = (0..3)
         .max_by(|&a, &b| (cb.max[a] - cb.min[a]).total_cmp(&(cb.max[b] - cb.min[b])))
         .unwrap_or(0);
     for axis in 0..3 {
-        if n > 1024 && axis != longest {
+        if n > 256 && axis != longest {
             continue;
         }
         let lo = cb.min[axis];
@@ -917,11 +1159,12 @@ fn best_split(ids: &[Prim], bb: &Aabb, cb: &Aabb) -> Option<Split> {
         let bins = if n >= PAR_MIN {
             // Box unions and counts: the same result in any order.
             ids.par_chunks(PAR_MIN / 4).map(|c| bin_prims(c, axis, lo, k)).reduce(
-                || [(Aabb::EMPTY, 0u32); BINS],
+                || [(Aabb::EMPTY, Aabb::EMPTY, 0u32); BINS],
                 |mut a, b| {
                     for (x, y) in a.iter_mut().zip(&b) {
                         x.0.grow(&y.0);
-                        x.1 += y.1;
+                        x.1.grow(&y.1);
+                        x.2 += y.2;
                     }
                     a
                 },
@@ -935,18 +1178,23 @@ fn best_split(ids: &[Prim], bb: &Aabb, cb: &Aabb) -> Option<Split> {
         let mut cnt = 0u32;
         for j in (1..BINS).rev() {
             acc.grow(&bins[j].0);
-            cnt += bins[j].1;
+            cnt += bins[j].2;
             right[j] = acc.half_area() * cnt as f64;
         }
         let mut acc = Aabb::EMPTY;
         let mut cnt = 0u32;
+        let mut improved = false;
         for j in 0..BINS - 1 {
             acc.grow(&bins[j].0);
-            cnt += bins[j].1;
+            cnt += bins[j].2;
             let cost = acc.half_area() * cnt as f64 + right[j + 1];
             if cnt > 0 && (cnt as usize) < n && cost < best.0 {
                 best = (cost, Some(Split { axis, lo, k, last: j }));
+                improved = true;
             }
+        }
+        if improved {
+            best_bins = bins;
         }
     }
     let (cost, split) = best;
@@ -957,7 +1205,13 @@ fn best_split(ids: &[Prim], bb: &Aabb, cb: &Aabb) -> Option<Split> {
     if n <= MAX_LEAF && leaf_cost <= split_cost {
         return None;
     }
-    Some(split)
+    let mut sides = [(Aabb::EMPTY, Aabb::EMPTY); 2];
+    for (j, b) in best_bins.iter().enumerate() {
+        let side = &mut sides[(j > split.last) as usize];
+        side.0.grow(&b.0);
+        side.1.grow(&b.1);
+    }
+    Some((split, sides))
 }
 
 fn partition(ids: &mut [Prim], left: impl Fn(&Prim) -> bool) -> usize {

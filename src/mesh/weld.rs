@@ -104,18 +104,37 @@ pub fn weld(mesh: &Mesh, tol: f64) -> (Mesh, WeldReport) {
         .with_min_len(8192)
         .map(|p| (hash_of(&key_of(p)) % SHARDS) as u8)
         .collect();
+    // The used vertices of each shard, in file order (a counting sort, so
+    // each shard reads only its own vertices).
+    let mut start = vec![0usize; SHARDS as usize + 1];
+    for i in 0..n {
+        if used[i] {
+            start[shard[i] as usize + 1] += 1;
+        }
+    }
+    for s in 0..SHARDS as usize {
+        start[s + 1] += start[s];
+    }
+    let mut by_shard = vec![0u32; start[SHARDS as usize]];
+    let mut fill = start.clone();
+    for i in 0..n {
+        if used[i] {
+            let s = shard[i] as usize;
+            by_shard[fill[s]] = i as u32;
+            fill[s] += 1;
+        }
+    }
     // first[i]: the first vertex (file order) with i's coordinates.
-    let pairs: Vec<Vec<(u32, u32)>> = (0..SHARDS as u8)
+    let pairs: Vec<Vec<(u32, u32)>> = (0..SHARDS as usize)
         .into_par_iter()
         .map(|s| {
+            let mine = &by_shard[start[s]..start[s + 1]];
             let mut map: FastMap<Key, u32> = FastMap::default();
-            let mut out = Vec::new();
-            for (i, p) in mesh.vertices.iter().enumerate() {
-                if shard[i] != s || !used[i] {
-                    continue;
-                }
-                let f = *map.entry(key_of(p)).or_insert(i as u32);
-                out.push((i as u32, f));
+            map.reserve(mine.len());
+            let mut out = Vec::with_capacity(mine.len());
+            for &i in mine {
+                let f = *map.entry(key_of(&mesh.vertices[i as usize])).or_insert(i);
+                out.push((i, f));
             }
             out
         })
