@@ -851,8 +851,7 @@ fn emulator_killed(mode: &[&str], memory_words: i64, after: usize) {
     // The restarted controller's shutter, as its log last set it.
     let shutter = logs[1]
         .iter()
-        .filter(|e| e["ev"] == "var" && e["name"] == "M33")
-        .last()
+        .rfind(|e| e["ev"] == "var" && e["name"] == "M33")
         .map(|e| e["value"].as_f64().unwrap());
     assert_eq!(shutter, Some(0.0), "shutter not closed at the end");
 }
