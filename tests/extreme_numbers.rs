@@ -129,6 +129,11 @@ const CASES: &[Case] = &[
         input: Some("testdata/samples/dome.stl"),
     },
     Case {
+        tool: "pathgen",
+        args: &["fill", "--beam-diameter", "0.2", "--stepover", "0.3"],
+        input: Some("testdata/chains/plate.chains"),
+    },
+    Case {
         tool: "gsim",
         args: &[],
         input: Some("testdata/gcode/badge.ngc"),

@@ -722,3 +722,146 @@ fn dry_run_into_an_earlier_plan_leaves_no_stale_chunks() {
     assert!(many > files, "{many} {files}");
     assert_eq!(files, n + 1);
 }
+
+/// The emulator as a process of its own (`pmac-emu`), so it can be killed
+/// as a controller loses power: its memory, buffers and counters go.
+struct EmuProc {
+    child: std::process::Child,
+    port: u16,
+}
+
+impl Drop for EmuProc {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+fn emu_proc(dir: &Path, log: &str, port: u16, memory_words: i64) -> EmuProc {
+    use std::io::BufRead;
+    let deadline = Instant::now() + Duration::from_secs(20);
+    loop {
+        let mut child = Command::new(env!("CARGO_BIN_EXE_pmac-emu"))
+            .args(["--port", &port.to_string(), "--time-scale", "30", "--log", log])
+            .args(["--memory-words", &memory_words.to_string()])
+            .current_dir(dir)
+            .stdout(Stdio::piped())
+            .stderr(Stdio::null())
+            .spawn()
+            .unwrap();
+        let mut line = String::new();
+        let _ = std::io::BufReader::new(child.stdout.take().unwrap()).read_line(&mut line);
+        if let Ok(p) = line.trim().parse::<u16>() {
+            return EmuProc { child, port: p };
+        }
+        // The old port may still be held for a moment: try again.
+        let _ = child.kill();
+        let _ = child.wait();
+        assert!(Instant::now() < deadline, "pmac-emu would not listen on port {port}");
+        std::thread::sleep(Duration::from_millis(100));
+    }
+}
+
+fn send_to(dir: &Path, port: u16, extra: &[&str]) -> std::process::Child {
+    let host = format!("127.0.0.1:{port}");
+    Command::new(env!("CARGO_BIN_EXE_pmac-send"))
+        .args([
+            "job.pmac",
+            "--host",
+            &host,
+            "--poll-ms",
+            "5",
+            "--stall-s",
+            "10",
+            "--timeout-ms",
+            "2000",
+        ])
+        .args(extra)
+        .current_dir(dir)
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap()
+}
+
+fn finish(child: std::process::Child) -> (i32, String) {
+    let deadline = Instant::now() + Duration::from_secs(90);
+    let mut child = child;
+    while child.try_wait().unwrap().is_none() {
+        if Instant::now() > deadline {
+            let _ = child.kill();
+            panic!("pmac-send did not finish in 90 s");
+        }
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    let out = child.wait_with_output().unwrap();
+    (
+        out.status.code().unwrap_or(-1),
+        String::from_utf8_lossy(&out.stderr).to_string(),
+    )
+}
+
+/// SIGKILL of the emulator mid-chunk (the controller loses power): it is
+/// restarted empty on the same port, pmac-send stops (its safety stop
+/// reaching the restarted controller), and up to three `--resume` runs
+/// finish the job. The beam-on path is covered once, except what ran
+/// after the last counter pmac-send confirmed (the restart erases the
+/// counters, as a reset does: at most 3 mm in all), and the shutter is
+/// closed at the end.
+fn emulator_killed(mode: &[&str], memory_words: i64, after: usize) {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("job.pmac"), program(30)).unwrap();
+    let emu = emu_proc(dir.path(), "ev1.jsonl", 0, memory_words);
+    let port = emu.port;
+    let sender = send_to(dir.path(), port, mode);
+    let deadline = Instant::now() + Duration::from_secs(60);
+    while events(&dir.path().join("ev1.jsonl"))
+        .iter()
+        .filter(|v| v["ev"] == "move")
+        .count()
+        < after
+    {
+        assert!(Instant::now() < deadline, "no move {after} seen");
+        std::thread::sleep(Duration::from_millis(2));
+    }
+    let _ = Command::new("kill")
+        .args(["-KILL", &emu.child.id().to_string()])
+        .status();
+    drop(emu);
+    std::thread::sleep(Duration::from_millis(300));
+    let emu2 = emu_proc(dir.path(), "ev2.jsonl", port, memory_words);
+    let (code, stderr) = finish(sender);
+    assert_eq!(code, 1, "pmac-send after the emulator died: {stderr}");
+    assert!(stderr.contains("--resume"), "{stderr}");
+    let mut last = (code, stderr);
+    for _ in 0..3 {
+        if last.0 == 0 {
+            break;
+        }
+        last = finish(send_to(dir.path(), emu2.port, &[mode, &["--resume"]].concat()));
+    }
+    assert_eq!(last.0, 0, "{}", last.1);
+    let logs = [
+        events(&dir.path().join("ev1.jsonl")),
+        events(&dir.path().join("ev2.jsonl")),
+    ];
+    if let Err(msg) = coverage(&logs, &program(30), 3.0) {
+        panic!("emulator killed after move {after}: {msg}");
+    }
+    // The restarted controller's shutter, as its log last set it.
+    let shutter = logs[1]
+        .iter()
+        .rfind(|e| e["ev"] == "var" && e["name"] == "M33")
+        .map(|e| e["value"].as_f64().unwrap());
+    assert_eq!(shutter, Some(0.0), "shutter not closed at the end");
+}
+
+#[test]
+fn fault_matrix_split_emulator_killed() {
+    emulator_killed(&split_args(), small().memory_words, 110);
+}
+
+#[test]
+fn fault_matrix_rotary_emulator_killed() {
+    emulator_killed(&rotary_args(), Config::default().memory_words, 110);
+}

@@ -22,15 +22,29 @@ use thiserror::Error;
 pub enum PlanError {
     #[error("{0}")]
     Read(#[from] crate::gcode::GcodeError),
-    #[error("writing PMAC text: {0}")]
+    /// Starts "line N: " when the record came from a source line, so the
+    /// caller's file name makes it "file:N: ..." (`cli::CliError::in_file`).
+    #[error("{}", write_message(.0))]
     Write(#[from] crate::gcode::writer::WriteError),
     #[error(
         "no place to cut within {budget} words after line counter {counter}: the beam stays on for longer than a \
          buffer holds (use rotary mode or a larger buffer)"
     )]
     NoCut { budget: usize, counter: u64 },
-    #[error("the program has no moves")]
-    Empty,
+    #[error("the program has no moves{}", if *.lines > 0 { format!(" (no motion line in its {lines} lines)") } else { String::new() })]
+    Empty { lines: usize },
+}
+
+fn write_message(e: &crate::gcode::writer::WriteError) -> String {
+    use crate::gcode::writer::WriteError;
+    match e {
+        WriteError::Invalid {
+            record,
+            block: Some(line),
+            msg,
+        } => format!("line {line}: writing PMAC text: toolpath record {record}: {msg}"),
+        other => format!("writing PMAC text: {other}"),
+    }
 }
 
 /// Variable names used in the generated text.
@@ -106,7 +120,9 @@ impl Job {
         };
         let (dialect, records) = read_str(text, &opts)?;
         if !records.iter().any(|r| matches!(r, Record::Move(_))) {
-            return Err(PlanError::Empty);
+            return Err(PlanError::Empty {
+                lines: text.lines().count(),
+            });
         }
         Ok(Job {
             records,
@@ -352,7 +368,7 @@ impl Job {
                 }
             };
             let (k, Some(chunk)) = chosen else {
-                return Err(PlanError::Empty);
+                return Err(PlanError::Empty { lines: 0 });
             };
             let e = cand[k];
             for r in &self.records[s..e] {
@@ -533,6 +549,22 @@ fn trapezoid_estimate(records: &[Record], start: P3, unit: FeedUnit) -> f64 {
 
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn errors_name_the_line() {
+        let names = super::Names::default();
+        let e = super::Job::read("; nothing\nM33=0\n", &names).err().unwrap();
+        assert_eq!(
+            e.to_string(),
+            "the program has no moves (no motion line in its 2 lines)"
+        );
+        let job = super::Job::read("G21 G90\nG1 X1 F0.0000000001\nG1 X2 F10\n", &names).unwrap();
+        let e = job.chunks(None).err().unwrap().to_string();
+        assert!(
+            e.starts_with("line 2: writing PMAC text: toolpath record 1: feed"),
+            "{e}"
+        );
+    }
+
     use super::*;
 
     fn laser() -> Job {
