@@ -81,7 +81,9 @@ pub fn map_rgb(samples: &[Sample], xs: &[f64], ys: &[f64], band: f64) -> (usize,
     let h = hm + 2 * 8 + bar;
     let mut rgb = vec![255u8; w * h * 3];
     if nx > 0 && ny > 0 {
-        let cols: Vec<usize> = (0..w).map(|px| (((px as f64 + 0.5) / w as f64 * nx as f64) as usize).min(nx - 1)).collect();
+        let cols: Vec<usize> = (0..w)
+            .map(|px| (((px as f64 + 0.5) / w as f64 * nx as f64) as usize).min(nx - 1))
+            .collect();
         for row in 0..hm {
             // Row 0 is the top: the last sample row.
             let j = ny - 1 - (((row as f64 + 0.5) / hm as f64 * ny as f64) as usize).min(ny - 1);
@@ -297,9 +299,18 @@ mod tests {
         // 10..30: 41 × 81 samples on a 4.1 × 20.25 mm map. Scaled per sample
         // it came out 41:81 (about 1:2), in millimetres it is about 1:5.
         for (xs, ys) in [
-            (crate::verify::compare::steps(0.0, 4.0, 0.1), crate::verify::compare::steps(10.0, 30.0, 0.25)),
-            (crate::verify::compare::steps(0.0, 30.0, 0.5), crate::verify::compare::steps(0.0, 2.0, 0.01)),
-            (crate::verify::compare::steps(0.0, 5.0, 0.05), crate::verify::compare::steps(0.0, 5.0, 0.5)),
+            (
+                crate::verify::compare::steps(0.0, 4.0, 0.1),
+                crate::verify::compare::steps(10.0, 30.0, 0.25),
+            ),
+            (
+                crate::verify::compare::steps(0.0, 30.0, 0.5),
+                crate::verify::compare::steps(0.0, 2.0, 0.01),
+            ),
+            (
+                crate::verify::compare::steps(0.0, 5.0, 0.05),
+                crate::verify::compare::steps(0.0, 5.0, 0.5),
+            ),
         ] {
             let samples: Vec<Sample> = ys
                 .iter()
@@ -329,7 +340,10 @@ mod tests {
             let ppm = pw as f64 / wx;
             let red = (0..pw).filter(|&x| px[x * 3..x * 3 + 3] == GOUGE).count() as f64;
             let gouge_mm = (xs.iter().filter(|&&x| x < 1.0).count() as f64) * wx / xs.len() as f64;
-            assert!((red / ppm - gouge_mm).abs() <= 1.0 / ppm + 1e-9, "{red} px at {ppm} px/mm");
+            assert!(
+                (red / ppm - gouge_mm).abs() <= 1.0 / ppm + 1e-9,
+                "{red} px at {ppm} px/mm"
+            );
         }
     }
 }
