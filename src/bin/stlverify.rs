@@ -301,7 +301,7 @@ fn run(args: Args) -> Result<(), CliError> {
             )?;
         }
         if let Some(p) = args.png.as_deref() {
-            let (w, h, rgb) = plot::map_rgb(&samples, xs.len(), ys.len(), band);
+            let (w, h, rgb) = plot::map_rgb(&samples, &xs, &ys, band);
             let mut o = Output::new(Some(p));
             write_png(&mut o, w, h, &rgb).map_err(|e| CliError::failure(format!("{}: {e}", p.display())))?;
             o.commit()?;

@@ -130,11 +130,13 @@ impl Stock {
             let jb1 = jb0 + zband.len() / nx;
             let mut vols = vec![0.0; pieces.len()];
             let mut visited = 0;
+            let mut cache = RowCache::default();
             for (k, ((a, b), q)) in pieces.iter().zip(&reach).enumerate() {
                 let Some(q) = q else { continue };
+                cache.clear();
                 for j in q.j0.max(jb0)..q.j1.min(jb1) {
                     let zrow = &mut zband[(j - jb0) * nx..(j - jb0 + 1) * nx];
-                    let (v, n) = cut_row(&g, a, b, cutter, q, j, zrow);
+                    let (v, n) = cut_row(&g, a, b, cutter, q, j, zrow, &mut cache);
                     vols[k] += v;
                     visited += n;
                 }
@@ -144,11 +146,13 @@ impl Stock {
         if work < PAR_CELLS {
             // Small batches: straight through, no per-band bookkeeping.
             let mut vols = Vec::with_capacity(pieces.len());
+            let mut cache = RowCache::default();
             for ((a, b), q) in pieces.iter().zip(&reach) {
                 let mut v = 0.0;
+                cache.clear();
                 if let Some(q) = q {
                     for j in q.j0..q.j1 {
-                        let (dv, n) = cut_row(&g, a, b, cutter, q, j, &mut self.z[j * nx..(j + 1) * nx]);
+                        let (dv, n) = cut_row(&g, a, b, cutter, q, j, &mut self.z[j * nx..(j + 1) * nx], &mut cache);
                         v += dv;
                         self.cells_visited += n;
                     }
@@ -285,7 +289,17 @@ struct Grid {
 
 /// Cut one row `j` with the move a-b; returns the height removed (sum over
 /// cells, mm) and the cells examined.
-fn cut_row(g: &Grid, a: &P3, b: &P3, cutter: &Cutter, q: &Reach, j: usize, zrow: &mut [f64]) -> (f64, u64) {
+#[allow(clippy::too_many_arguments)]
+fn cut_row(
+    g: &Grid,
+    a: &P3,
+    b: &P3,
+    cutter: &Cutter,
+    q: &Reach,
+    j: usize,
+    zrow: &mut [f64],
+    cache: &mut RowCache,
+) -> (f64, u64) {
     let (x0, c, r) = (g.x0, g.c, cutter.radius());
     let py = g.y0 + (j as f64 + 0.5) * c;
     let mut removed = 0.0;
@@ -318,18 +332,42 @@ fn cut_row(g: &Grid, a: &P3, b: &P3, cutter: &Cutter, q: &Reach, j: usize, zrow:
     }
     if q.level {
         // Ball and torus on a level move: the underside over a cell is a
-        // function of its squared distance from the move's XY segment,
-        // branch-free so the loop vectorises like the flat one.
+        // function of its distance from the move's XY segment (see
+        // `level_run`).
         let removed = match *cutter {
-            Cutter::Ball { radius } => level_run(g, a, b, py, &mut zrow[ia..ib], ia, |rho2| {
-                radius - (radius * radius - rho2).max(0.0).sqrt()
-            }),
+            Cutter::Ball { radius } => {
+                let r2 = radius * radius;
+                let p = Profile {
+                    of_rho2: |rho2: f64| radius - (r2 - rho2).max(0.0).sqrt(),
+                    of_d: |d: f64| radius - (r2 - d * d).max(0.0).sqrt(),
+                    flat: 0.0,
+                };
+                level_run(g, a, b, py, &mut zrow[ia..ib], ia, &p, cache)
+            }
             Cutter::Torus { radius, corner } => {
                 let flat = radius - corner;
-                level_run(g, a, b, py, &mut zrow[ia..ib], ia, |rho2| {
-                    let u = (rho2.sqrt() - flat).max(0.0);
-                    corner - (corner * corner - u * u).max(0.0).sqrt()
-                })
+                let c2 = corner * corner;
+                let p = Profile {
+                    of_rho2: |rho2: f64| {
+                        let u = (rho2.sqrt() - flat).max(0.0);
+                        corner - (c2 - u * u).max(0.0).sqrt()
+                    },
+                    of_d: |d: f64| {
+                        let u = (d.abs() - flat).max(0.0);
+                        corner - (c2 - u * u).max(0.0).sqrt()
+                    },
+                    flat,
+                };
+                if b.y == a.y {
+                    level_run(g, a, b, py, &mut zrow[ia..ib], ia, &p, cache)
+                } else {
+                    // Not yet through the per-row spans: on rasters along Y
+                    // and diagonals the torus differs from the search by
+                    // 6e-6 of the volume, on this per-cell path as on the
+                    // spans; every cell's own distance until that is
+                    // understood.
+                    level_cells(g, a, b, py, &mut zrow[ia..ib], ia, &p.of_rho2)
+                }
             }
             Cutter::Flat { .. } => 0.0,
         };
@@ -350,43 +388,203 @@ fn cut_row(g: &Grid, a: &P3, b: &P3, cutter: &Cutter, q: &Reach, j: usize, zrow:
     (removed, (ib - ia) as u64)
 }
 
+/// A cutter's underside height above its tip, `h`, for a level move: as a
+/// function of the squared distance ρ² from the tool axis (the end caps,
+/// where the nearest point of the move is an end), and of the signed
+/// distance `d` across the move (beside the segment, where ρ = |d| needs no
+/// square root). Inside `|d| <= flat` the underside is the tip's plane.
+struct Profile<F: Fn(f64) -> f64, G: Fn(f64) -> f64> {
+    of_rho2: F,
+    of_d: G,
+    flat: f64,
+}
+
+/// Heights one move leaves beside its segment, kept across the rows of a
+/// band: for a move along Y every row beside the segment gets the same
+/// heights (the distance from the segment is the column's), so they are
+/// computed once per move and band instead of once per cell.
+#[derive(Default)]
+struct RowCache {
+    /// Column range the heights are for (empty: nothing cached).
+    i0: usize,
+    i1: usize,
+    hz: Vec<f64>,
+}
+
+impl RowCache {
+    fn clear(&mut self) {
+        self.i0 = 0;
+        self.i1 = 0;
+        self.hz.clear();
+    }
+}
+
 /// Lower the run of cells `zrun` (starting at column `i0`) of row `py` to
-/// the underside `a.z + h(ρ²)` of a level move a-b, ρ the XY distance from
-/// the cell centre to the segment; returns the height removed (sum, mm).
-/// Every cell of the run lies in the move's stadium, so ρ ≤ R up to
-/// rounding and `h` needs no test for "outside the tool".
+/// the underside `a.z + h` of a level move a-b; returns the height removed
+/// (sum, mm). Every cell of the run lies in the move's stadium, so ρ ≤ R up
+/// to rounding and `h` needs no test for "outside the tool".
 ///
-/// Heights are computed in blocks into a buffer (a loop without a
-/// reduction, so the square roots vectorise) and then applied like the
-/// flat tool's. A move along X has one height over the cells beside the
-/// segment (ρ is the row's distance from it), so those take the flat
-/// loop directly and only the end caps need square roots.
+/// The run splits into the cells whose nearest point of the segment is an
+/// end (the caps: [`level_cells`], the distance to that end) and those
+/// beside the segment, one span per row found from the segment's
+/// direction. Beside the segment the distance is linear along the row, so
+/// no square root gives it, and:
+/// - a move along X has one height there (the flat tool's loop);
+/// - a move along Y has the same heights in every row beside it: computed
+///   once per move and band ([`RowCache`]) and applied like the flat
+///   tool's;
+/// - any other direction computes `h(d)` per cell (one square root for the
+///   ball and the torus; none where the torus' flat bottom is, a span of
+///   its own).
+#[allow(clippy::too_many_arguments)]
 #[inline(always)]
-fn level_run(g: &Grid, a: &P3, b: &P3, py: f64, zrun: &mut [f64], i0: usize, h: impl Fn(f64) -> f64) -> f64 {
+fn level_run<F: Fn(f64) -> f64, G: Fn(f64) -> f64>(
+    g: &Grid,
+    a: &P3,
+    b: &P3,
+    py: f64,
+    zrun: &mut [f64],
+    i0: usize,
+    p: &Profile<F, G>,
+    cache: &mut RowCache,
+) -> f64 {
     let (dx, dy) = (b.x - a.x, b.y - a.y);
+    let l2 = dx * dx + dy * dy;
+    let n = zrun.len();
+    if l2 <= 0.0 || n == 0 {
+        return level_cells(g, a, b, py, zrun, i0, &p.of_rho2);
+    }
     let wy = py - a.y;
     let c = g.c;
     let xs = g.x0 + 0.5 * c - a.x;
-    let (ka, kb) = if dy == 0.0 && dx != 0.0 {
-        // Cells with 0 <= wx <= dx (or dx <= wx <= 0): beside the segment.
-        let (lo, hi) = (dx.min(0.0), dx.max(0.0));
-        let n = zrun.len() as f64;
-        let ka = ((lo - xs) / c - i0 as f64).ceil().clamp(0.0, n);
-        let kb = (((hi - xs) / c - i0 as f64).floor() + 1.0).clamp(ka, n);
-        (ka as usize, kb as usize)
+    let nf = n as f64;
+    // Columns k (of the run) whose projection on the segment lies inside
+    // it: 0 <= (wx·dx + wy·dy)/l2 <= 1, wx = xs + (i0 + k)·c.
+    let (ka, kb) = if dx == 0.0 {
+        let t = wy * dy / l2;
+        if (0.0..=1.0).contains(&t) { (0, n) } else { (0, 0) }
     } else {
-        (0, 0)
+        let (e0, e1) = (-wy * dy / dx, (l2 - wy * dy) / dx);
+        let (lo, hi) = (e0.min(e1), e0.max(e1));
+        let ka = ((lo - xs) / c - i0 as f64).ceil().clamp(0.0, nf);
+        let kb = (((hi - xs) / c - i0 as f64).floor() + 1.0).clamp(ka, nf);
+        (ka as usize, kb as usize)
     };
     let (head, rest) = zrun.split_at_mut(ka);
     let (mid, tail) = rest.split_at_mut(kb - ka);
-    let mut removed = level_cells(g, a, b, py, head, i0, &h);
-    let hz = (a.z + h(wy * wy)).max(g.bottom);
-    for zc in mid.iter_mut() {
+    let mut removed = level_cells(g, a, b, py, head, i0, &p.of_rho2);
+    removed += level_tail(g, a, b, py, tail, i0 + kb, &p.of_rho2);
+    let (z, bottom) = (a.z, g.bottom);
+    if mid.is_empty() {
+        return removed;
+    }
+    let l = l2.sqrt();
+    if dy == 0.0 {
+        // Along X: one distance, |wy|, beside the segment.
+        let hz = (z + (p.of_d)(wy)).max(bottom);
+        return removed + lower_to(mid, hz);
+    }
+    let mi0 = i0 + ka;
+    if dx == 0.0 {
+        // Along Y: the distance is the column's, the same in every row.
+        let mi1 = mi0 + mid.len();
+        if cache.i0 != mi0 || cache.i1 != mi1 || cache.hz.len() != mid.len() {
+            cache.i0 = mi0;
+            cache.i1 = mi1;
+            cache.hz.clear();
+            cache
+                .hz
+                .extend((mi0..mi1).map(|i| (z + (p.of_d)(xs + i as f64 * c)).max(bottom)));
+        }
+        return removed + lower_to_each(mid, &cache.hz);
+    }
+    // Any other direction: d = wx·dy/l - wy·dx/l, linear in the column.
+    let (sy, wyx) = (dy / l, wy * dx / l);
+    // The torus' flat bottom: |d| <= flat, a span of columns of its own.
+    let (fa, fb) = if p.flat > 0.0 {
+        let (e0, e1) = ((wyx - p.flat) / sy, (wyx + p.flat) / sy);
+        let (lo, hi) = (e0.min(e1), e0.max(e1));
+        let m = mid.len() as f64;
+        let fa = ((lo - xs) / c - mi0 as f64).ceil().clamp(0.0, m);
+        let fb = (((hi - xs) / c - mi0 as f64).floor() + 1.0).clamp(fa, m);
+        (fa as usize, fb as usize)
+    } else {
+        (0, 0)
+    };
+    let (m0, rest) = mid.split_at_mut(fa);
+    let (m1, m2) = rest.split_at_mut(fb - fa);
+    removed += beside_cells(m0, mi0, xs, c, sy, wyx, z, bottom, &p.of_d);
+    removed += lower_to(m1, (z + (p.of_d)(0.0)).max(bottom));
+    removed + beside_cells(m2, mi0 + fb, xs, c, sy, wyx, z, bottom, &p.of_d)
+}
+
+/// The tail cap: [`level_cells`] (a separate name keeps both calls inlined
+/// with their own code).
+#[inline(always)]
+fn level_tail(g: &Grid, a: &P3, b: &P3, py: f64, zrun: &mut [f64], i0: usize, h: &impl Fn(f64) -> f64) -> f64 {
+    level_cells(g, a, b, py, zrun, i0, h)
+}
+
+/// Lower every cell to `hz`; the height removed.
+#[inline(always)]
+fn lower_to(zrun: &mut [f64], hz: f64) -> f64 {
+    let mut removed = 0.0;
+    for zc in zrun.iter_mut() {
         let cut = (*zc - hz).max(0.0);
         removed += cut;
         *zc -= cut;
     }
-    removed + level_cells(g, a, b, py, tail, i0 + kb, &h)
+    removed
+}
+
+/// Lower each cell to its own height; the height removed.
+#[inline(always)]
+fn lower_to_each(zrun: &mut [f64], hz: &[f64]) -> f64 {
+    let mut removed = 0.0;
+    for (zc, &h) in zrun.iter_mut().zip(hz) {
+        // Rounding in the move's height must not count as a cut.
+        let cut = if h < *zc - 1e-12 { *zc - h } else { 0.0 };
+        removed += cut;
+        *zc = if h < *zc - 1e-12 { h } else { *zc };
+    }
+    removed
+}
+
+/// Cells beside a segment that is neither along X nor along Y: signed
+/// distance `d = wx·sy - wyx` across it (linear along the row: no square
+/// root for ρ), heights `z + h(d)` computed in blocks (a loop without a
+/// reduction, so the square root of the profile vectorises) and applied
+/// like the flat tool's.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn beside_cells(
+    zrun: &mut [f64],
+    i0: usize,
+    xs: f64,
+    c: f64,
+    sy: f64,
+    wyx: f64,
+    z: f64,
+    bottom: f64,
+    h: &impl Fn(f64) -> f64,
+) -> f64 {
+    const BLOCK: usize = 32;
+    let mut removed = 0.0;
+    let mut buf = [0.0f64; BLOCK];
+    let dd = c * sy;
+    for (bi, block) in zrun.chunks_mut(BLOCK).enumerate() {
+        let n = block.len();
+        let d0 = (xs + (i0 + bi * BLOCK) as f64 * c) * sy - wyx;
+        // The column offset counted in floats: no integer conversion per
+        // cell (u64 → f64 has no SSE2 vector form).
+        let mut k = 0.0;
+        for hv in buf[..n].iter_mut() {
+            *hv = (z + h(d0 + k * dd)).max(bottom);
+            k += 1.0;
+        }
+        removed += lower_to_each(block, &buf[..n]);
+    }
+    removed
 }
 
 /// [`level_run`]'s general case: every cell's own distance.
@@ -637,6 +835,58 @@ mod tests {
             for (f, s) in fast.z.iter().zip(&slow.z) {
                 assert!((f - s).abs() < 1e-9);
             }
+        }
+    }
+
+    #[test]
+    fn rasters_along_y_and_diagonals_in_parallel_bands_agree_with_the_search() {
+        // Level passes along Y (the per-band height cache), at 45° and at
+        // an odd angle (per-cell heights beside the segment, the torus'
+        // flat span), cut as one parallel batch, against the golden-section
+        // search cell by cell.
+        // The torus (radius 0.6, corner 0.25) on these rasters differs from
+        // the search by 6e-6 of the volume on the per-cell path too (before
+        // the per-row spans): not yet understood, so it is not in this test
+        // and keeps that path off the X direction.
+        for c in [Cutter::Ball { radius: 0.6 }] {
+            let mut fast = Stock::new(P3::new(0.0, 0.0, -2.0), P3::new(5.0, 5.0, 0.0), 0.02).unwrap();
+            let mut slow = fast.clone();
+            let mut pieces = Vec::new();
+            for k in 0..8 {
+                let x = 0.3 + 0.55 * k as f64;
+                let z = -0.2 - 0.03 * k as f64;
+                pieces.push((P3::new(x, -0.5, z), P3::new(x, 5.5, z)));
+                let y = 0.2 + 0.6 * k as f64;
+                pieces.push((P3::new(-0.3, y - 0.5, z), P3::new(2.9, y + 2.7, z)));
+                pieces.push((P3::new(4.6, y, z - 0.1), P3::new(0.7, y + 1.3, z - 0.1)));
+            }
+            let vf: f64 = fast.cut_lines(&pieces, &c).iter().sum();
+            let mut vs = 0.0;
+            for (a, b) in &pieces {
+                for j in 0..slow.ny {
+                    for i in 0..slow.nx {
+                        let (px, py) = (
+                            slow.x0 + (i as f64 + 0.5) * slow.cell,
+                            slow.y0 + (j as f64 + 0.5) * slow.cell,
+                        );
+                        let zc = &mut slow.z[j * slow.nx + i];
+                        if let Some(h) = lowest_on_move(px, py, a, &P3::new(b.x, b.y, b.z + 1e-13), &c)
+                            && h < *zc - 1e-9
+                        {
+                            vs += (*zc - h) * slow.cell * slow.cell;
+                            *zc = h;
+                        }
+                    }
+                }
+            }
+            assert!((vf - vs).abs() < 1e-6 * vs.max(1.0), "{c:?}: {vf} vs {vs}");
+            let worst = fast
+                .z
+                .iter()
+                .zip(&slow.z)
+                .map(|(f, s)| (f - s).abs())
+                .fold(0.0, f64::max);
+            assert!(worst < 1e-9, "{c:?}: {worst}");
         }
     }
 

@@ -30,31 +30,72 @@ fn hex(c: [u8; 3]) -> String {
     format!("#{:02x}{:02x}{:02x}", c[0], c[1], c[2])
 }
 
-/// Pixels per grid cell so the map is about 800 pixels on its long side.
-fn scale(nx: usize, ny: usize) -> usize {
-    (800 / nx.max(ny).max(1)).clamp(1, 40)
+/// Millimetres covered by the map along X and Y: the samples are the
+/// centres of cells `dx` × `dy` (the grid steps), so the map spans
+/// `nx·dx` × `ny·dy`. A single row or column takes the other axis' step
+/// (or 1 mm when both are single).
+pub fn extent_mm(xs: &[f64], ys: &[f64]) -> (f64, f64) {
+    let step = |v: &[f64]| {
+        (v.len() > 1)
+            .then(|| (v[v.len() - 1] - v[0]) / (v.len() - 1) as f64)
+            .filter(|d| d.is_finite() && *d > 0.0)
+    };
+    let (dx, dy) = match (step(xs), step(ys)) {
+        (Some(a), Some(b)) => (a, b),
+        (Some(a), None) => (a, a),
+        (None, Some(b)) => (b, b),
+        (None, None) => (1.0, 1.0),
+    };
+    (xs.len().max(1) as f64 * dx, ys.len().max(1) as f64 * dy)
 }
 
-/// RGB pixels of the map (`nx` × `ny` samples, row-major, y up) and a
-/// legend strip below: (width, height, rgb).
-pub fn map_rgb(samples: &[Sample], nx: usize, ny: usize, band: f64) -> (usize, usize, Vec<u8>) {
-    let s = scale(nx, ny);
-    let (w, h) = (nx * s, ny * s + 3 * s.max(8));
+/// Pixels per millimetre: about 800 pixels on the long side, at least one
+/// pixel per sample along each axis when that needs more, at most 4000
+/// pixels on the long side. The same scale on both axes, so the picture's
+/// aspect is the region's in millimetres whatever the steps.
+fn pixels_per_mm(nx: usize, ny: usize, wx: f64, wy: f64) -> f64 {
+    let long = wx.max(wy);
+    let want = (800.0 / long).max(nx as f64 / wx).max(ny as f64 / wy);
+    want.min(4000.0 / long)
+}
+
+/// The map's size in pixels: (width, height, pixels per mm).
+fn map_size(xs: &[f64], ys: &[f64]) -> (usize, usize, f64) {
+    let (wx, wy) = extent_mm(xs, ys);
+    let ppm = pixels_per_mm(xs.len(), ys.len(), wx, wy);
+    (
+        ((wx * ppm).round() as usize).max(1),
+        ((wy * ppm).round() as usize).max(1),
+        ppm,
+    )
+}
+
+/// RGB pixels of the map (`xs.len()` × `ys.len()` samples, row-major, y
+/// up, at the grid `xs` × `ys`) scaled by millimetres, not samples, and a
+/// legend strip below: (width, height, rgb). Each pixel shows the sample
+/// whose cell holds the pixel's centre.
+pub fn map_rgb(samples: &[Sample], xs: &[f64], ys: &[f64], band: f64) -> (usize, usize, Vec<u8>) {
+    let (nx, ny) = (xs.len(), ys.len());
+    let (w, hm, _) = map_size(xs, ys);
+    let bar = 16;
+    let h = hm + 2 * 8 + bar;
     let mut rgb = vec![255u8; w * h * 3];
-    for (k, p) in samples.iter().enumerate() {
-        let (i, j) = (k % nx, k / nx);
-        let c = colour(p.deviation(), band);
-        for py in 0..s {
-            let row = (ny - 1 - j) * s + py;
-            for px in 0..s {
-                let o = (row * w + i * s + px) * 3;
+    if nx > 0 && ny > 0 {
+        let cols: Vec<usize> = (0..w)
+            .map(|px| (((px as f64 + 0.5) / w as f64 * nx as f64) as usize).min(nx - 1))
+            .collect();
+        for row in 0..hm {
+            // Row 0 is the top: the last sample row.
+            let j = ny - 1 - (((row as f64 + 0.5) / hm as f64 * ny as f64) as usize).min(ny - 1);
+            for (px, &i) in cols.iter().enumerate() {
+                let c = samples.get(j * nx + i).map_or(GREY, |p| colour(p.deviation(), band));
+                let o = (row * w + px) * 3;
                 rgb[o..o + 3].copy_from_slice(&c);
             }
         }
     }
     // Legend: gouge, in band (from -band to +band), excess, as bars.
-    let y0 = ny * s + s.max(8) / 2;
-    let bar = 2 * s.max(8);
+    let y0 = hm + 8;
     for x in 0..w {
         let f = x as f64 / w.max(1) as f64;
         let d = -1.5 * band + 3.0 * band * f;
@@ -67,11 +108,13 @@ pub fn map_rgb(samples: &[Sample], nx: usize, ny: usize, band: f64) -> (usize, u
     (w, h, rgb)
 }
 
-/// The map as SVG with a labelled legend.
+/// The map as SVG with a labelled legend, scaled by millimetres like
+/// [`map_rgb`].
 pub fn map_svg(samples: &[Sample], xs: &[f64], ys: &[f64], band: f64, title: &str) -> String {
     let (nx, ny) = (xs.len(), ys.len());
-    let s = scale(nx, ny) as f64;
-    let (w, h) = (nx as f64 * s, ny as f64 * s);
+    let (wpx, hpx, _) = map_size(xs, ys);
+    let (w, h) = (wpx as f64, hpx as f64);
+    let (sx, sy) = (w / nx.max(1) as f64, h / ny.max(1) as f64);
     let mut o = format!(
         "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{}\" height=\"{}\" font-family=\"sans-serif\" font-size=\"12\">\n<title>{}</title>\n",
         w + 20.0,
@@ -79,12 +122,12 @@ pub fn map_svg(samples: &[Sample], xs: &[f64], ys: &[f64], band: f64, title: &st
         xml(title)
     );
     for (k, p) in samples.iter().enumerate() {
-        let (i, j) = (k % nx, k / nx);
+        let (i, j) = (k % nx.max(1), k / nx.max(1));
         let d = p.deviation();
         o.push_str(&format!(
-            "<rect x=\"{}\" y=\"{}\" width=\"{s}\" height=\"{s}\" fill=\"{}\"><title>x {:.3} y {:.3} dev {}</title></rect>\n",
-            10.0 + i as f64 * s,
-            10.0 + (ny - 1 - j) as f64 * s,
+            "<rect x=\"{:.3}\" y=\"{:.3}\" width=\"{sx:.3}\" height=\"{sy:.3}\" fill=\"{}\"><title>x {:.3} y {:.3} dev {}</title></rect>\n",
+            10.0 + i as f64 * sx,
+            10.0 + (ny.saturating_sub(1 + j)) as f64 * sy,
             hex(colour(d, band)),
             p.x,
             p.y,
@@ -199,11 +242,108 @@ mod tests {
             design_z: Some(0.0),
             machined_z: 0.5,
         };
-        let (w, h, rgb) = map_rgb(&[p, p], 2, 1, 0.1);
+        let (w, h, rgb) = map_rgb(&[p, p], &[0.0, 1.0], &[0.0], 0.1);
         assert_eq!(rgb.len(), w * h * 3);
         assert_eq!(&rgb[0..3], &EXCESS);
         let svg = map_svg(&[p, p], &[0.0, 1.0], &[0.0], 0.1, "t");
         assert!(svg.contains("excess") && svg.ends_with("</svg>\n"));
         assert!(profiles_svg(&[(1.0, vec![p, p])], 0.1).contains("y = 1 mm"));
+    }
+
+    /// Decode an 8-bit RGB PNG of stored deflate blocks (what
+    /// `write_png` writes): (width, height, pixels).
+    fn decode_png(b: &[u8]) -> (usize, usize, Vec<u8>) {
+        assert_eq!(&b[..8], b"\x89PNG\r\n\x1a\n");
+        let (mut i, mut w, mut h, mut z) = (8, 0, 0, Vec::new());
+        while i < b.len() {
+            let n = u32::from_be_bytes(b[i..i + 4].try_into().unwrap()) as usize;
+            let data = &b[i + 8..i + 8 + n];
+            match &b[i + 4..i + 8] {
+                b"IHDR" => {
+                    w = u32::from_be_bytes(data[0..4].try_into().unwrap()) as usize;
+                    h = u32::from_be_bytes(data[4..8].try_into().unwrap()) as usize;
+                    assert_eq!(&data[8..], &[8, 2, 0, 0, 0]);
+                }
+                b"IDAT" => z.extend_from_slice(data),
+                _ => {}
+            }
+            i += 12 + n;
+        }
+        let (mut k, mut raw) = (2, Vec::new());
+        loop {
+            let fin = z[k] & 1;
+            assert_eq!(z[k] >> 1 & 3, 0, "stored blocks");
+            let n = u16::from_le_bytes([z[k + 1], z[k + 2]]) as usize;
+            raw.extend_from_slice(&z[k + 5..k + 5 + n]);
+            k += 5 + n;
+            if fin == 1 {
+                break;
+            }
+        }
+        assert_eq!(raw.len(), h * (3 * w + 1));
+        let rgb = raw.chunks(3 * w + 1).flat_map(|r| r[1..].to_vec()).collect();
+        (w, h, rgb)
+    }
+
+    /// The map's rows: from the top down to the first all-white row (the
+    /// gap above the legend).
+    fn map_rows(w: usize, h: usize, rgb: &[u8]) -> usize {
+        (0..h)
+            .find(|&r| rgb[r * w * 3..(r + 1) * w * 3].iter().all(|&c| c == 255))
+            .unwrap_or(h)
+    }
+
+    #[test]
+    fn the_png_map_follows_millimetres_not_samples() {
+        // The thesis' grid: 0.1 mm along X over 0..4, 0.25 mm along Y over
+        // 10..30: 41 × 81 samples on a 4.1 × 20.25 mm map. Scaled per sample
+        // it came out 41:81 (about 1:2), in millimetres it is about 1:5.
+        for (xs, ys) in [
+            (
+                crate::verify::compare::steps(0.0, 4.0, 0.1),
+                crate::verify::compare::steps(10.0, 30.0, 0.25),
+            ),
+            (
+                crate::verify::compare::steps(0.0, 30.0, 0.5),
+                crate::verify::compare::steps(0.0, 2.0, 0.01),
+            ),
+            (
+                crate::verify::compare::steps(0.0, 5.0, 0.05),
+                crate::verify::compare::steps(0.0, 5.0, 0.5),
+            ),
+        ] {
+            let samples: Vec<Sample> = ys
+                .iter()
+                .flat_map(|&y| {
+                    xs.iter().map(move |&x| Sample {
+                        x,
+                        y,
+                        // Gouges left of x = 1 mm, in band elsewhere.
+                        design_z: Some(0.0),
+                        machined_z: if x < 1.0 { -0.5 } else { 0.0 },
+                    })
+                })
+                .collect();
+            let (w, h, rgb) = map_rgb(&samples, &xs, &ys, 0.1);
+            let mut png = Vec::new();
+            crate::sim::picture::write_png(&mut png, w, h, &rgb).unwrap();
+            let (pw, ph, px) = decode_png(&png);
+            assert_eq!((pw, ph), (w, h));
+            let rows = map_rows(pw, ph, &px);
+            let (wx, wy) = extent_mm(&xs, &ys);
+            let want = wx / wy;
+            let got = pw as f64 / rows as f64;
+            // Within a pixel of rounding on either side.
+            let slack = want * (1.0 / pw as f64 + 1.0 / rows as f64);
+            assert!((got - want).abs() <= slack, "{got} vs {want} ({pw} x {rows} px)");
+            // The gouge stripe (x < 1 mm, ~10 samples) is 1 mm wide in pixels.
+            let ppm = pw as f64 / wx;
+            let red = (0..pw).filter(|&x| px[x * 3..x * 3 + 3] == GOUGE).count() as f64;
+            let gouge_mm = (xs.iter().filter(|&&x| x < 1.0).count() as f64) * wx / xs.len() as f64;
+            assert!(
+                (red / ppm - gouge_mm).abs() <= 1.0 / ppm + 1e-9,
+                "{red} px at {ppm} px/mm"
+            );
+        }
     }
 }
