@@ -306,7 +306,9 @@ impl IsoInterpreter {
         } else {
             Some(self.feed_mm_per_min(lineno)?)
         };
-        Ok(Record::Move(Motion::from_block(kind, to, feed, self.beam, lineno)))
+        let mut m = Motion::from_block(kind, to, feed, self.beam, lineno);
+        m.tool = self.tool_state();
+        Ok(Record::Move(m))
     }
 
     fn comp_line_record(&self, rapid: bool, to: P3, lineno: u64) -> Result<Record, GcodeError> {

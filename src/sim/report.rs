@@ -115,6 +115,8 @@ pub struct Simulator<W: Write> {
     machine: Machine,
     feed_factor: f64,
     pos: P3,
+    /// Rotary axes after the last move that carried them (degrees).
+    abc: Option<[f64; 3]>,
     index: u64,
     summary: Summary,
     time: TimeModel,
@@ -142,6 +144,7 @@ impl<W: Write> Simulator<W> {
         Simulator {
             feed_factor: header.feed_unit.to_mm_per_s(),
             pos: start,
+            abc: None,
             index: 0,
             summary: Summary::new(header.feed_unit, start),
             time: TimeModel::new(&machine),
@@ -269,6 +272,7 @@ impl<W: Write> Simulator<W> {
                             beam: false,
                             beam_switch: None,
                             chain: None,
+                            rotary_deg: 0.0,
                         }
                     }
                     _ => {
@@ -281,6 +285,11 @@ impl<W: Write> Simulator<W> {
                 block.beam = m.beam;
                 block.beam_switch = m.beam_switch;
                 block.chain = m.chain;
+                if let Some(abc) = m.tool.abc {
+                    let old = self.abc.unwrap_or([0.0; 3]);
+                    block.rotary_deg = ((0..3).map(|k| (abc[k] - old[k]).powi(2)).sum::<f64>()).sqrt();
+                    self.abc = Some(abc);
+                }
                 if let Some(r) = self.removal.as_mut() {
                     let index = self.index;
                     r.cut(&block, &from, &m.to, &m.kind).map_err(|e| match e {
@@ -662,6 +671,7 @@ mod tests {
             role: None,
             chain: None,
             block: None,
+            tool: Default::default(),
         });
         let e = s.add(&rec).unwrap_err().to_string();
         assert_eq!(e, "record 1: feed move with feed 0");
