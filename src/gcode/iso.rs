@@ -12,8 +12,10 @@
 //! a structure's lines are held in memory from its opening line to its
 //! closing line, then run; straight-line code streams through untouched.
 //!
-//! What it cannot honour (cutter compensation, canned cycles, inverse-time
-//! feed, rotary axes) is an error naming the line.
+//! Cutter compensation (`comp.rs`), canned cycles (`cycles.rs`), rotary
+//! axes A/B/C and the G93/G94/G95 feed modes are interpreted as LinuxCNC's
+//! `rs274` does. What it cannot honour (lathe cycles, probing, threading,
+//! splines) is an error naming the line.
 
 #[path = "arcs.rs"]
 mod arcs;
@@ -21,6 +23,8 @@ mod arcs;
 mod comp;
 #[path = "cycles.rs"]
 mod cycles;
+#[path = "splines.rs"]
+pub(crate) mod splines;
 
 use super::expr::{Cursor, ParamRef, Params};
 use super::oword::{self, OKeyword, OLine};
@@ -48,6 +52,8 @@ enum MotionMode {
     Ccw,
     /// A canned cycle, by its G code times ten (G81 -> 810).
     Cycle(u16),
+    /// G5 (50) or G5.1 (51).
+    Spline(u16),
 }
 
 /// How F is read (G93, G94, G95).
@@ -229,6 +235,8 @@ pub struct IsoInterpreter {
     /// Rotary travel (degrees) of the block being run, for G93.
     abc_step: f64,
     feed_mode: FeedMode,
+    /// P and Q of the last G5, for a following G5 without I and J.
+    spline_pq: Option<(f64, f64)>,
 }
 
 /// Lines of a control structure read so far, from its opening line.
@@ -304,6 +312,7 @@ impl IsoInterpreter {
             abc_used: false,
             abc_step: 0.0,
             feed_mode: FeedMode::PerMinute,
+            spline_pq: None,
         }
     }
 
@@ -793,7 +802,7 @@ impl IsoInterpreter {
                 382..=385 => Some("probing (G38.x)"),
                 760 => Some("the lathe threading cycle (G76)"),
                 700..=722 => Some("the lathe turning cycles (G70-G72)"),
-                50..=53 => Some("splines (G5, G5.1, G5.2, G5.3): LinuxCNC hands them to its motion planner as NURBS"),
+                52 | 53 => Some("NURBS blocks (G5.2, G5.3)"),
                 171 | 181 | 191 => Some("the planes G17.1-G19.1"),
                 70 | 80 => Some("lathe diameter/radius modes (G7/G8)"),
                 960 => Some("constant surface speed (G96)"),
@@ -889,6 +898,7 @@ impl IsoInterpreter {
                 20 => self.motion = Some(MotionMode::Cw),
                 30 => self.motion = Some(MotionMode::Ccw),
                 800 => self.motion = None,
+                50 | 51 => self.motion = Some(MotionMode::Spline(code)),
                 c if cycles::is_cycle(c) => self.motion = Some(MotionMode::Cycle(c)),
                 _ => {}
             }
@@ -931,7 +941,7 @@ impl IsoInterpreter {
                     MotionMode::Feed => 10,
                     MotionMode::Cw => 20,
                     MotionMode::Ccw => 30,
-                    MotionMode::Cycle(c) => c,
+                    MotionMode::Cycle(c) | MotionMode::Spline(c) => c,
                 }),
                 _ => None,
             });
@@ -1166,6 +1176,10 @@ impl IsoInterpreter {
             || has_rotary;
         let g53 = b.has_g(530);
         self.abc_step = 0.0;
+        if has_axes && self.motion != Some(MotionMode::Spline(50)) {
+            // Only a G5 right after a G5 may leave out I and J.
+            self.spline_pq = None;
+        }
         if has_rotary {
             self.rotary_target(rotary, axes_used, g53, lineno)?;
         }
@@ -1185,6 +1199,9 @@ impl IsoInterpreter {
                 Some(MotionMode::Cycle(code)) if has_axes || b.has_g(code) => {
                     let same = before == Some(MotionMode::Cycle(code));
                     self.canned_cycle(b, code, same, lineno, out)?;
+                }
+                Some(MotionMode::Spline(code)) if has_axes => {
+                    self.spline(b, code, lineno, out)?;
                 }
                 Some(m @ (MotionMode::Cw | MotionMode::Ccw)) if has_axes || (explicit_motion && arc_words) => {
                     self.arc(b, m == MotionMode::Ccw, lineno, out)?;

@@ -96,6 +96,12 @@ pub struct Removal<W: Write> {
     header_written: bool,
     /// The path drawn for `--png`.
     pub overlay: Option<Overlay>,
+    /// The cutter of each tool number, when each section of the program
+    /// cuts with its own tool ([`Simulator::with_tool_cutters`]); empty
+    /// when one cutter cuts everything.
+    pub tools: std::collections::BTreeMap<u32, Cutter>,
+    /// The tool whose cutter is in the engine.
+    pub tool: Option<u32>,
 }
 
 /// Most steps one block may be cut in with `--flutes` (per block, so the
@@ -173,7 +179,21 @@ impl<W: Write> Simulator<W> {
             rpm: None,
             header_written: false,
             overlay: None,
+            tools: std::collections::BTreeMap::new(),
+            tool: None,
         });
+        self
+    }
+
+    /// Cut each move with the cutter of its tool number (`tool` in the
+    /// toolpath): a tool change switches the cutter. Moves before the
+    /// first tool number cut with the cutter given to
+    /// [`Self::with_removal`]; a move of a tool not in `tools` is an error
+    /// naming its line. Call after [`Self::with_removal`].
+    pub fn with_tool_cutters(mut self, tools: std::collections::BTreeMap<u32, Cutter>) -> Self {
+        if let Some(r) = self.removal.as_mut() {
+            r.tools = tools;
+        }
         self
     }
 
@@ -289,6 +309,31 @@ impl<W: Write> Simulator<W> {
                     let old = self.abc.unwrap_or([0.0; 3]);
                     block.rotary_deg = ((0..3).map(|k| (abc[k] - old[k]).powi(2)).sum::<f64>()).sqrt();
                     self.abc = Some(abc);
+                }
+                if let Some(n) = m.tool.number {
+                    let switch = match self.removal.as_ref() {
+                        Some(r) if !r.tools.is_empty() && r.tool != Some(n) => Some(r.tools.get(&n).copied()),
+                        _ => None,
+                    };
+                    match switch {
+                        Some(Some(c)) => {
+                            if let Some(r) = self.removal.as_mut() {
+                                // Cut what the old tool has queued with it.
+                                r.flush()?;
+                                r.engine.cutter = c;
+                                r.tool = Some(n);
+                            }
+                        }
+                        Some(None) => {
+                            return Err(self.err(
+                                m.block,
+                                format!(
+                                    "tool T{n} has no cutter: it is neither in the tool table (with a diameter) nor in the program's tool comments; --tool sets one cutter for the whole program"
+                                ),
+                            ));
+                        }
+                        None => {}
+                    }
                 }
                 if let Some(r) = self.removal.as_mut() {
                     let index = self.index;
