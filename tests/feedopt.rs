@@ -279,7 +279,11 @@ M5 M2
         let out = ok(&feedopt(&["--mode", mode], &p));
         let orig: Vec<&str> = program.split_inclusive('\n').collect();
         let kept: Vec<&str> = out.split_inclusive('\n').collect();
-        assert_eq!(kept.len(), orig.len(), "{mode}: lines added or lost (no sub-blocks in G91 or under compensation)\n{out}");
+        assert_eq!(
+            kept.len(),
+            orig.len(),
+            "{mode}: lines added or lost (no sub-blocks in G91 or under compensation)\n{out}"
+        );
         let mut changed = 0;
         for (a, b) in orig.iter().zip(&kept) {
             assert_eq!(without_f(a), without_f(b), "{mode}");

@@ -340,9 +340,9 @@ fn run(args: Args) -> Result<(), CliError> {
                     (first, Some(tools))
                 }
             };
-            let smallest = per_tool
-                .as_ref()
-                .map_or(cutter.radius(), |t| t.values().map(Cutter::radius).fold(f64::INFINITY, f64::min));
+            let smallest = per_tool.as_ref().map_or(cutter.radius(), |t| {
+                t.values().map(Cutter::radius).fold(f64::INFINITY, f64::min)
+            });
             let b = microcam::cli::parse_numbers::<6>(st, "--stock", "X0,Y0,Z0,X1,Y1,Z1")?;
             let cell = args.cell_mm.unwrap_or(smallest / 25.0);
             let stock = Stock::new(P3::new(b[0], b[1], b[2]), P3::new(b[3], b[4], b[5]), cell)

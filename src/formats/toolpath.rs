@@ -3,8 +3,8 @@
 use super::{
     FormatError, LineSource, check_schema, parse_json, point_from, push_num, push_point3, push_str_lit, push_uint,
 };
-use crate::geometry::{P3, Plane};
 use crate::geometry::V3;
+use crate::geometry::{P3, Plane};
 use crate::model::toolpath::{ArcData, FeedUnit, Header, Motion, MotionKind, Record, Role, ShutterSwitch, ToolState};
 use serde::Deserialize;
 use std::io::{BufRead, Write};
@@ -244,7 +244,11 @@ fn decode(w: WireRecord, line: u64, pos: Option<P3>) -> Result<Record, FormatErr
 fn tool_state(w: &WireRecord, line: u64) -> Result<ToolState, FormatError> {
     let abc = match w.abc.as_deref() {
         None => None,
-        Some([a, b, c]) => Some([finite(*a, line, "abc")?, finite(*b, line, "abc")?, finite(*c, line, "abc")?]),
+        Some([a, b, c]) => Some([
+            finite(*a, line, "abc")?,
+            finite(*b, line, "abc")?,
+            finite(*c, line, "abc")?,
+        ]),
         Some(v) => {
             return Err(FormatError::invalid(
                 line,
@@ -476,11 +480,20 @@ mod tests {
         assert_eq!(String::from_utf8(w.finish().unwrap()).unwrap(), text);
         // A tool axis is normalised; bad ones are named.
         let head = "{\"schema\":\"microcam.toolpath/1\"}\n";
-        let recs = read(&format!("{head}{{\"type\":\"rapid\",\"to\":[0,0,0],\"tool_axis\":[0,0,2]}}\n")).unwrap();
+        let recs = read(&format!(
+            "{head}{{\"type\":\"rapid\",\"to\":[0,0,0],\"tool_axis\":[0,0,2]}}\n"
+        ))
+        .unwrap();
         assert_eq!(recs[0].motion().unwrap().tool.axis, Some(V3::new(0.0, 0.0, 1.0)));
         for (rec, needle) in [
-            (r#"{"type":"rapid","to":[0,0,0],"tool_axis":[0,0,0]}"#, "non-zero direction"),
-            (r#"{"type":"rapid","to":[0,0,0],"abc":[1,2]}"#, "'abc' must be [a, b, c]"),
+            (
+                r#"{"type":"rapid","to":[0,0,0],"tool_axis":[0,0,0]}"#,
+                "non-zero direction",
+            ),
+            (
+                r#"{"type":"rapid","to":[0,0,0],"abc":[1,2]}"#,
+                "'abc' must be [a, b, c]",
+            ),
             (r#"{"type":"rapid","to":[0,0,0],"tool":-1}"#, "line 2"),
         ] {
             let e = read(&format!("{head}{rec}\n")).unwrap_err().to_string();

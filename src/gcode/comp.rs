@@ -731,7 +731,12 @@ mod tests {
             assert_eq!(a.len(), b.len(), "G4{side}");
             assert!(a.len() >= 8, "G4{side}: {} moves", a.len());
             for (m, n) in a.iter().zip(&b) {
-                assert!((cycle(&m.to) - n.to).norm() < 1e-9, "G4{side}: {:?} vs {:?}", m.to, n.to);
+                assert!(
+                    (cycle(&m.to) - n.to).norm() < 1e-9,
+                    "G4{side}: {:?} vs {:?}",
+                    m.to,
+                    n.to
+                );
                 match (m.kind, n.kind) {
                     (MotionKind::Arc(p), MotionKind::Arc(q)) => {
                         assert!((cycle(&p.center) - q.center).norm() < 1e-9, "G4{side}");

@@ -98,7 +98,9 @@ impl IsoInterpreter {
             )));
         }
         if self.feed_mode == super::FeedMode::InverseTime {
-            return Err(err(format!("{name}: canned cycles cannot be used in inverse time feed mode (G93)")));
+            return Err(err(format!(
+                "{name}: canned cycles cannot be used in inverse time feed mode (G93)"
+            )));
         }
         if self.feed_mm_per_min <= 0.0 {
             return Err(err(format!("{name} with no feed rate set (F is zero or missing)")));

@@ -848,7 +848,9 @@ impl IsoInterpreter {
             };
             if let Some(mode) = mode {
                 if mode != self.feed_mode && self.comp.side.is_some() {
-                    return Err(err("cannot change the feed mode with cutter radius compensation on".into()));
+                    return Err(err(
+                        "cannot change the feed mode with cutter radius compensation on".into()
+                    ));
                 }
                 // LinuxCNC sets the feed rate to zero on every feed mode
                 // code: a feed move needs a new F.
@@ -1227,7 +1229,13 @@ impl IsoInterpreter {
 
     /// A block's A, B, C words: where the rotary axes go (degrees; no
     /// offsets apply to them). Only straight and arc moves may turn them.
-    fn rotary_target(&mut self, words: [Option<f64>; 3], axes_used: bool, g53: bool, lineno: u64) -> Result<(), GcodeError> {
+    fn rotary_target(
+        &mut self,
+        words: [Option<f64>; 3],
+        axes_used: bool,
+        g53: bool,
+        lineno: u64,
+    ) -> Result<(), GcodeError> {
         let err = |m: &str| GcodeError::at(lineno, m.to_string());
         if axes_used {
             return Err(err(
@@ -1253,8 +1261,8 @@ impl IsoInterpreter {
                 to[k] = if self.incremental && !g53 { self.abc[k] + v } else { v };
             }
         }
-        self.abc_step = ((to[0] - self.abc[0]).powi(2) + (to[1] - self.abc[1]).powi(2) + (to[2] - self.abc[2]).powi(2))
-            .sqrt();
+        self.abc_step =
+            ((to[0] - self.abc[0]).powi(2) + (to[1] - self.abc[1]).powi(2) + (to[2] - self.abc[2]).powi(2)).sqrt();
         self.abc = to;
         self.abc_used = true;
         Ok(())
@@ -1681,9 +1689,7 @@ mod tests {
 
     #[test]
     fn rotary_axes_are_carried_on_every_later_move() {
-        let m = moves(
-            "G0 X1 Y0 Z0\nT3 M6\nG0 A90\nG91 G1 X1 B-45 C10 F100\nG90 G3 X3 Y1 I0 J1 A0\nG1 X4\nG28\n",
-        );
+        let m = moves("G0 X1 Y0 Z0\nT3 M6\nG0 A90\nG91 G1 X1 B-45 C10 F100\nG90 G3 X3 Y1 I0 J1 A0\nG1 X4\nG28\n");
         assert_eq!(m[0].tool.abc, None, "before any rotary word");
         assert_eq!(m[0].tool.number, None, "no tool before M6");
         assert_eq!(m[1].tool.number, Some(3));
@@ -1691,7 +1697,11 @@ mod tests {
         assert_eq!(m[2].tool.abc, Some([90.0, -45.0, 10.0]), "G91 adds");
         assert!(matches!(m[3].kind, MotionKind::Arc(_)) && m[3].tool.abc == Some([0.0, -45.0, 10.0]));
         assert_eq!(m[4].tool.abc, Some([0.0, -45.0, 10.0]), "unchanged axes are carried");
-        assert_eq!(m.last().unwrap().tool.abc, Some([0.0; 3]), "G28 homes the rotary axes too");
+        assert_eq!(
+            m.last().unwrap().tool.abc,
+            Some([0.0; 3]),
+            "G28 homes the rotary axes too"
+        );
         // Degrees stay degrees in an inch program.
         let m = moves("G20 G0 X1 A30\n");
         assert!(close(&m[0].to, [25.4, 0.0, 0.0]) && m[0].tool.abc == Some([30.0, 0.0, 0.0]));
@@ -1701,12 +1711,16 @@ mod tests {
     fn feed_modes_as_linuxcnc() {
         // G93: the feed that makes the move take 1/F minutes; a rotary-only
         // move counts its degrees; F is no length and ignores G20.
-        let m = moves(
-            "G0 X0 Y0\nG93 G1 X10 F2\nG2 X20 Y0 I5 J0 F4\nG1 A90 F1\nG20 G1 X1 F3\nG21 G94 G1 X0 F50\n",
-        );
+        let m = moves("G0 X0 Y0\nG93 G1 X10 F2\nG2 X20 Y0 I5 J0 F4\nG1 A90 F1\nG20 G1 X1 F3\nG21 G94 G1 X0 F50\n");
         let feeds: Vec<f64> = m.iter().skip(1).map(|m| m.feed.unwrap()).collect();
         // F on the G21 line is read in inches, as LinuxCNC does.
-        let want = [20.0, 4.0 * 5.0 * std::f64::consts::PI, 90.0, (25.4 - 20.0) * 3.0, 50.0 * 25.4];
+        let want = [
+            20.0,
+            4.0 * 5.0 * std::f64::consts::PI,
+            90.0,
+            (25.4 - 20.0) * 3.0,
+            50.0 * 25.4,
+        ];
         for (f, w) in feeds.iter().zip(want) {
             assert!((f - w).abs() < 1e-9, "{feeds:?}");
         }
@@ -1714,7 +1728,10 @@ mod tests {
         let m = moves("S2000 M3\nG95 G1 X1 F0.01\nS500\nG1 X2\nG20\nG1 X1 F0.001\n");
         let feeds: Vec<f64> = m.iter().map(|m| m.feed.unwrap()).collect();
         assert_eq!(feeds.len(), 3);
-        assert!((feeds[0] - 20.0).abs() < 1e-9 && (feeds[1] - 5.0).abs() < 1e-9, "{feeds:?}");
+        assert!(
+            (feeds[0] - 20.0).abs() < 1e-9 && (feeds[1] - 5.0).abs() < 1e-9,
+            "{feeds:?}"
+        );
         assert!((feeds[2] - 0.001 * 25.4 * 500.0).abs() < 1e-9, "{feeds:?}");
     }
 

@@ -89,7 +89,9 @@ impl IsoInterpreter {
             )));
         }
         if self.feed_mode == FeedMode::InverseTime {
-            return Err(err(&format!("{name} splines in inverse time feed (G93) are not supported")));
+            return Err(err(&format!(
+                "{name} splines in inverse time feed (G93) are not supported"
+            )));
         }
         if b.word(b'Z').is_some() || b.word(b'A').is_some() || b.word(b'B').is_some() || b.word(b'C').is_some() {
             return Err(err(&format!("{name} splines move X and Y only (no Z, A, B, C words)")));
@@ -113,7 +115,12 @@ impl IsoInterpreter {
                 return Err(err("G5 needs P and Q (the second control point from the end)"));
             };
             self.spline_pq = Some((p, q));
-            [p0, p0 + crate::geometry::V2::new(i, j), p3 + crate::geometry::V2::new(p, q), p3]
+            [
+                p0,
+                p0 + crate::geometry::V2::new(i, j),
+                p3 + crate::geometry::V2::new(p, q),
+                p3,
+            ]
         } else {
             let (Some(i), Some(j)) = (word(b'I'), word(b'J')) else {
                 return Err(err("G5.1 needs I and J (the control point from the start)"));
@@ -125,7 +132,13 @@ impl IsoInterpreter {
         flatten_cubic(curve, SPLINE_TOL_MM, &mut pts);
         let z = self.pos.z;
         for p in pts {
-            let mut m = Motion::from_block(MotionKind::Line, crate::geometry::P3::new(p.x, p.y, z), Some(feed), self.beam, lineno);
+            let mut m = Motion::from_block(
+                MotionKind::Line,
+                crate::geometry::P3::new(p.x, p.y, z),
+                Some(feed),
+                self.beam,
+                lineno,
+            );
             m.tool = self.tool_state();
             out.push_back(Record::Move(m));
         }
@@ -151,8 +164,18 @@ mod tests {
     #[test]
     fn flattened_splines_stay_within_the_tolerance() {
         let curves = [
-            [P2::new(0.0, 0.0), P2::new(0.0, 3.0), P2::new(1.0, -2.0), P2::new(1.0, 1.0)],
-            [P2::new(10.0, 10.0), P2::new(30.0, 70.0), P2::new(30.0, -30.0), P2::new(30.0, 30.0)],
+            [
+                P2::new(0.0, 0.0),
+                P2::new(0.0, 3.0),
+                P2::new(1.0, -2.0),
+                P2::new(1.0, 1.0),
+            ],
+            [
+                P2::new(10.0, 10.0),
+                P2::new(30.0, 70.0),
+                P2::new(30.0, -30.0),
+                P2::new(30.0, 30.0),
+            ],
             quadratic_as_cubic([P2::new(0.0, 0.0), P2::new(5.0, 10.0), P2::new(10.0, 0.0)]),
         ];
         for c in curves {
@@ -163,7 +186,10 @@ mod tests {
             // Every curve point is within the tolerance of the polyline.
             for k in 0..=2000 {
                 let p = cubic_at(&c, k as f64 / 2000.0);
-                let d = pts.windows(2).map(|w| seg_dist(p, w[0], w[1])).fold(f64::INFINITY, f64::min);
+                let d = pts
+                    .windows(2)
+                    .map(|w| seg_dist(p, w[0], w[1]))
+                    .fold(f64::INFINITY, f64::min);
                 assert!(d <= SPLINE_TOL_MM * (1.0 + 1e-9), "{d} at t = {}", k as f64 / 2000.0);
             }
         }
@@ -184,7 +210,8 @@ mod tests {
             dialect: Some(crate::gcode::Dialect::Iso),
             ..Default::default()
         };
-        let text = "G0 X10 Y10 Z-1\nG1 F100\nG5 I0 J60 P0 Q-60 X30 Y30\nG5 P0 Q-60 X50 Y50\nG5.1 X0 I-50 J-150\nG1 X1\n";
+        let text =
+            "G0 X10 Y10 Z-1\nG1 F100\nG5 I0 J60 P0 Q-60 X30 Y30\nG5 P0 Q-60 X50 Y50\nG5.1 X0 I-50 J-150\nG1 X1\n";
         let (_, recs) = crate::gcode::read_str(text, &opts).unwrap();
         let lines: Vec<&Motion> = recs.iter().filter_map(Record::motion).collect();
         let end_of = |block: u64| lines.iter().rev().find(|m| m.block == Some(block)).unwrap().to;
@@ -196,7 +223,9 @@ mod tests {
         let first4 = lines.iter().find(|m| m.block == Some(4)).unwrap().to;
         assert!((first4.x - 30.0).abs() < 0.02 * (first4.y - 30.0).abs(), "{first4:?}");
         assert!(
-            lines[1..].iter().all(|m| m.kind == MotionKind::Line && m.feed == Some(100.0)),
+            lines[1..]
+                .iter()
+                .all(|m| m.kind == MotionKind::Line && m.feed == Some(100.0)),
             "every piece is a feed line at the block's feed"
         );
         for (text, needle) in [

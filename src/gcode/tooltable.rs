@@ -243,9 +243,19 @@ mod tests {
         let table = ToolTable::parse("T1 D6\nT7 D0.5\nT8 D0\n", false).unwrap();
         let cutters = tool_cutters(Some(&table), &cam_tool_comments(text, false));
         use crate::cutter::Cutter;
-        assert_eq!(cutters.get(&1), Some(&Cutter::Flat { radius: 1.35 }), "the comment wins");
+        assert_eq!(
+            cutters.get(&1),
+            Some(&Cutter::Flat { radius: 1.35 }),
+            "the comment wins"
+        );
         assert_eq!(cutters.get(&2), Some(&Cutter::Ball { radius: 1.5875 }));
-        assert_eq!(cutters.get(&3), Some(&Cutter::Torus { radius: 0.0625, corner: 0.02 }));
+        assert_eq!(
+            cutters.get(&3),
+            Some(&Cutter::Torus {
+                radius: 0.0625,
+                corner: 0.02
+            })
+        );
         assert_eq!(cutters.get(&7), Some(&Cutter::Flat { radius: 0.25 }));
         assert_eq!(cutters.get(&8), None, "no diameter, no cutter");
         assert!(first_units_are_inch("(G21 in a comment)\nG90 G20\nG21\n"));

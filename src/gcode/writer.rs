@@ -625,7 +625,9 @@ impl<W: Write> GcodeWriter<W> {
         }
         let pmac = self.opts.dialect == Dialect::Pmac;
         if pmac && a.extra_turns > 0 && self.abc_next.is_some() && self.abc_next != self.abc {
-            return Err("an arc of more than one turn that also turns a rotary axis cannot be written for a PMAC".into());
+            return Err(
+                "an arc of more than one turn that also turns a rotary axis cannot be written for a PMAC".into(),
+            );
         }
         if pmac && a.extra_turns > MAX_PMAC_TURNS {
             return Err(format!(
@@ -1413,8 +1415,7 @@ M30
         ];
         let iso = write(opts(Dialect::Iso), FeedUnit::MmPerMin, &recs);
         assert!(
-            iso.contains("T2 M6\nG0 X0 Y0 Z5 A0 B0 C0\nA90\n")
-                && iso.contains("G1 X1 B45.5 F1\nT5 M6\nX2\n"),
+            iso.contains("T2 M6\nG0 X0 Y0 Z5 A0 B0 C0\nA90\n") && iso.contains("G1 X1 B45.5 F1\nT5 M6\nX2\n"),
             "{iso}"
         );
         let pmac = write(opts(Dialect::Pmac), FeedUnit::MmPerS, &recs);

@@ -315,7 +315,9 @@ impl Record {
                     for (v, axis) in abc.iter().zip(["A", "B", "C"]) {
                         num(*v, "rotary axis")?;
                         if v.abs() > MAX_COORD_MM {
-                            return Err(format!("rotary axis {axis} = {v:e} degrees is beyond what a machine can mean"));
+                            return Err(format!(
+                                "rotary axis {axis} = {v:e} degrees is beyond what a machine can mean"
+                            ));
                         }
                     }
                 }
