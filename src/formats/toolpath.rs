@@ -265,7 +265,7 @@ fn tool_state(w: &WireRecord, line: u64) -> Result<ToolState, FormatError> {
                 finite(*k, line, "tool_axis")?,
             );
             let n = v.norm();
-            if !(n > 1e-9) || !n.is_finite() {
+            if !n.is_finite() || n <= 1e-9 {
                 return Err(FormatError::invalid(line, "'tool_axis' must be a non-zero direction"));
             }
             Some(v / n)
