@@ -66,6 +66,30 @@ impl Cutter {
         Ok(c)
     }
 
+    /// The cutter of diameter `d` and corner radius `cr` (mm), as tool
+    /// tables and CAM tool comments give them: flat when `cr` is 0, ball
+    /// when it is half the diameter, torus between; `None` unless
+    /// `d > 0` and `0 <= cr <= d/2`.
+    ///
+    /// ```
+    /// use microcam::cutter::Cutter;
+    /// assert_eq!(Cutter::from_diameter_corner(2.0, 1.0), Some(Cutter::Ball { radius: 1.0 }));
+    /// assert_eq!(Cutter::from_diameter_corner(2.0, 0.0), Some(Cutter::Flat { radius: 1.0 }));
+    /// ```
+    pub fn from_diameter_corner(d: f64, cr: f64) -> Option<Cutter> {
+        if !(d.is_finite() && d > 0.0 && cr.is_finite() && cr >= 0.0 && cr <= d / 2.0 + 1e-12) {
+            return None;
+        }
+        let radius = d / 2.0;
+        Some(if cr == 0.0 {
+            Cutter::Flat { radius }
+        } else if (cr - radius).abs() <= 1e-9 * radius {
+            Cutter::Ball { radius }
+        } else {
+            Cutter::Torus { radius, corner: cr }
+        })
+    }
+
     /// Tool radius (half the diameter).
     pub fn radius(&self) -> f64 {
         match *self {

@@ -166,6 +166,14 @@ fn record_table_messages_are_real() {
             "{\"type\":\"line\",\"to\":[1,0],\"feed\":0}",
             "feed must be positive, got 0",
         ),
+        (
+            "{\"type\":\"rapid\",\"to\":[0,0],\"abc\":[1,2]}",
+            "'abc' must be [a, b, c] (degrees), got 2 numbers",
+        ),
+        (
+            "{\"type\":\"rapid\",\"to\":[0,0],\"tool_axis\":[0,0,0]}",
+            "'tool_axis' must be a non-zero direction",
+        ),
         ("{\"type\":\"dwell\",\"seconds\":-1}", "dwell 'seconds' is negative"),
         ("{\"type\":\"accel\"}", "'accel' record needs 'ta_ms' or 'ts_ms'"),
         (

@@ -233,6 +233,78 @@ fn only_f_words_change_and_a_second_run_changes_nothing() {
     }
 }
 
+/// A program with canned cycles (G81 with L repeats in G91, G83 pecks)
+/// and cutter compensation (G41.1 round a square with an arc) passes
+/// through feedopt with nothing but its F words changed: the cycles and
+/// the compensation words stay as written, and the result reads to the
+/// same path.
+#[test]
+fn cycles_and_compensation_pass_through_with_only_f_changed() {
+    let d = dir("cycles-comp");
+    let program = "\
+(cycles and compensation, feedopt pass-through)
+G21 G17 G90 G94 G40 G80
+S60000 M3
+G0 X-1.5 Y-1.5 Z0.5
+G91 G81 X0.5 Y0 Z-0.3 R-0.2 L3 F60 (three holes)
+G90 G80
+G98 G83 X1.2 Y-1.2 Z-0.4 R0.2 Q0.15 F50
+G80 G0 X-1.6 Y-1.6 Z0.5
+G41.1 D0.794 G1 X-1 Y-1 F80
+G1 Z-0.2
+X1 (side one)
+Y0.5
+G3 X0.5 Y1 R0.5
+G1 X-1
+Y-1
+G40 G1 X-1.6 Y-1.6
+G0 Z0.5
+M5 M2
+";
+    let p = write(&d, "cc.ngc", program);
+    let read = |text: &str| {
+        let opts = ReadOptions {
+            dialect: Some(Dialect::Iso),
+            ..Default::default()
+        };
+        let (_, recs) = read_str(text, &opts).unwrap();
+        recs.into_iter()
+            .filter_map(|r| match r {
+                Record::Move(m) => Some((m.to, std::mem::discriminant(&m.kind))),
+                _ => None,
+            })
+            .collect::<Vec<_>>()
+    };
+    for mode in ["per-block", "split"] {
+        let out = ok(&feedopt(&["--mode", mode], &p));
+        let orig: Vec<&str> = program.split_inclusive('\n').collect();
+        let kept: Vec<&str> = out.split_inclusive('\n').collect();
+        assert_eq!(
+            kept.len(),
+            orig.len(),
+            "{mode}: lines added or lost (no sub-blocks in G91 or under compensation)\n{out}"
+        );
+        let mut changed = 0;
+        for (a, b) in orig.iter().zip(&kept) {
+            assert_eq!(without_f(a), without_f(b), "{mode}");
+            changed += usize::from(a != b);
+        }
+        assert!(changed > 0, "{mode}: feedopt changed no F word\n{out}");
+        let (pa, pb) = (read(program), read(&out));
+        assert_eq!(pa.len(), pb.len(), "{mode}");
+        for (a, b) in pa.iter().zip(&pb) {
+            assert!((a.0 - b.0).norm() < 1e-12 && a.1 == b.1, "{mode}: {a:?} vs {b:?}");
+        }
+    }
+    // G93 and G95 feeds are no mm/min: refused, naming the mode.
+    for (text, needle) in [("G93 G1 X1 F2\n", "G93"), ("S1000 M3\nG95 G1 X1 F0.01\n", "G95")] {
+        let p = write(&d, "fm.ngc", text);
+        let o = feedopt(&[], &p);
+        assert_eq!(o.status.code(), Some(2), "{text}");
+        assert!(String::from_utf8_lossy(&o.stderr).contains(needle), "{text}");
+    }
+}
+
 /// A line without its F words, blanks collapsed.
 fn without_f(l: &str) -> String {
     let mut s = String::new();

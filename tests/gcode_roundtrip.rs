@@ -123,6 +123,7 @@ fn motion(kind: MotionKind, to: P3, feed: Option<f64>, beam: bool) -> Record {
         role: None,
         chain: None,
         block: None,
+        tool: Default::default(),
     })
 }
 

@@ -248,6 +248,7 @@ class Motion:
     center: tuple[float, float, float] | None = None
     plane: str | None = None
     rotation: int = 0  # +n ccw, -n cw
+    abc: tuple[float, float, float] = (0.0, 0.0, 0.0)  # rotary axes, degrees (program frame)
 
     @property
     def ccw(self) -> bool:
@@ -286,11 +287,18 @@ def parse_canon(text: str, frame: str = "machine") -> Canon:
     c = Canon()
     units = "mm"  # rs274 always starts with USE_LENGTH_UNITS(CANON_UNITS_MM)
     plane = "xy"
-    feed = 0.0
     pos = [0.0, 0.0, 0.0]  # program frame, in `units`
     g5x = [0.0, 0.0, 0.0]  # mm
     g92 = [0.0, 0.0, 0.0]  # mm
     rot = 0.0  # degrees
+    feed_per_rev = False  # SET_FEED_MODE(.., 1): G95
+    rpm = 0.0
+    feed_word = 0.0
+
+    def feed_now():
+        # In G95 rs274 prints the feed per revolution; the machine moves
+        # at that times the spindle speed, which is what gsim reports.
+        return feed_word * rpm if feed_per_rev else feed_word
 
     def place(p):
         """Program point (in `units`) -> the reported frame (in `units`)."""
@@ -316,18 +324,19 @@ def parse_canon(text: str, frame: str = "machine") -> Canon:
             if new != units:
                 k = UNIT_MM[units] / UNIT_MM[new]
                 pos = [v * k for v in pos]
-                feed *= k
+                feed_word *= k
                 units = new
         elif name == "SELECT_PLANE":
             plane = PLANES.get(args.strip(), args.strip())
         elif name == "SET_FEED_RATE":
-            feed = _nums(args)[0]
+            feed_word = _nums(args)[0]
         elif name in ("STRAIGHT_TRAVERSE", "STRAIGHT_FEED"):
             v = _nums(args)
             to = (v[0], v[1], v[2])
             kind = "rapid" if name == "STRAIGHT_TRAVERSE" else "line"
             c.motions.append(Motion(kind, place(to), units, counter, nword,
-                                    feed=None if kind == "rapid" else feed))
+                                    feed=None if kind == "rapid" else feed_now(),
+                                    abc=tuple(v[3:6]) if len(v) >= 6 else (0.0, 0.0, 0.0)))
             c.units_seen.add(units)
             pos = list(to)
         elif name == "ARC_FEED":
@@ -338,8 +347,9 @@ def parse_canon(text: str, frame: str = "machine") -> Canon:
             to[i1], to[i2], to[n] = fe, se, ae
             cen = [0.0, 0.0, 0.0]
             cen[i1], cen[i2], cen[n] = fa, sa, pos[n]
-            c.motions.append(Motion("arc", place(to), units, counter, nword, feed=feed,
-                                    center=place(cen), plane=plane, rotation=int(v[4])))
+            c.motions.append(Motion("arc", place(to), units, counter, nword, feed=feed_now(),
+                                    center=place(cen), plane=plane, rotation=int(v[4]),
+                                    abc=tuple(v[6:9]) if len(v) >= 9 else (0.0, 0.0, 0.0)))
             c.units_seen.add(units)
             pos = to
         elif name in EXOTIC_MOTION:
@@ -353,9 +363,13 @@ def parse_canon(text: str, frame: str = "machine") -> Canon:
         elif name == "SET_SPINDLE_SPEED":
             v = _nums(args)
             c.spindle.append(v[-1])
+            rpm = v[-1]
         else:
-            if name == "SET_FEED_MODE" and any(x != 0 for x in _nums(args)):
-                c.feed_mode_nonzero = True
+            if name == "SET_FEED_MODE":
+                v = _nums(args)
+                feed_per_rev = len(v) >= 2 and v[1] == 1
+                if any(x != 0 for x in v):
+                    c.feed_mode_nonzero = True
             if name in ("SET_G92_OFFSET", "SET_G5X_OFFSET", "SET_XY_ROTATION"):
                 v = _nums(args)
                 vals = v[1:] if name == "SET_G5X_OFFSET" else v

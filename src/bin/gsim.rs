@@ -123,14 +123,12 @@ struct Args {
     #[arg(long, default_value_t = 0.1)]
     chain_tol_mm: f64,
     /// Stock box for material removal, mm: XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX.
-    #[arg(
-        long,
-        value_name = "X0,Y0,Z0,X1,Y1,Z1",
-        allow_hyphen_values = true,
-        requires = "tool"
-    )]
+    /// Without --tool each tool cuts with its own cutter, from the tool
+    /// table and the program's CAM tool comments (`(T1 D=3 CR=0.5 ...)`).
+    #[arg(long, value_name = "X0,Y0,Z0,X1,Y1,Z1", allow_hyphen_values = true)]
     stock: Option<String>,
-    /// Cutter for material removal: flat:D, ball:D or torus:D:RC (mm).
+    /// Cutter for material removal: flat:D, ball:D or torus:D:RC (mm); one
+    /// cutter for the whole program.
     #[arg(long, requires = "stock")]
     tool: Option<String>,
     /// LinuxCNC tool table (.tbl) for ISO programs: cutter radius
@@ -213,6 +211,26 @@ fn sim_error(source: &str, e: SimError) -> CliError {
     }
 }
 
+/// The first lines of a program (where CAM posts list their tools), or
+/// nothing when it cannot be read here (the reader names that error).
+fn program_head(p: &std::path::Path) -> String {
+    use std::io::BufRead;
+    let Ok(f) = std::fs::File::open(p) else {
+        return String::new();
+    };
+    let mut text = String::new();
+    for line in std::io::BufReader::new(f).lines().take(2000) {
+        match line {
+            Ok(l) => {
+                text.push_str(&l);
+                text.push('\n');
+            }
+            Err(_) => break,
+        }
+    }
+    text
+}
+
 fn run(args: Args) -> Result<(), CliError> {
     let dialect = args
         .dialect
@@ -235,7 +253,7 @@ fn run(args: Args) -> Result<(), CliError> {
         shutter_var: args.shutter_var.to_ascii_uppercase(),
         line_counter_var: args.line_counter_var.to_ascii_uppercase(),
         start,
-        tool_table,
+        tool_table: tool_table.clone(),
         subroutine_path: args
             .subroutine_path
             .iter()
@@ -302,14 +320,43 @@ fn run(args: Args) -> Result<(), CliError> {
         if args.chains.is_some() {
             sim = sim.with_chain_probes();
         }
-        if let (Some(st), Some(tool)) = (args.stock.as_deref(), args.tool.as_deref()) {
-            let cutter = Cutter::parse(tool).map_err(|e| CliError::input(format!("--tool: {e}")))?;
+        if let Some(st) = args.stock.as_deref() {
+            // One cutter (--tool), or one per tool number.
+            let (cutter, per_tool) = match args.tool.as_deref() {
+                Some(tool) => (
+                    Cutter::parse(tool).map_err(|e| CliError::input(format!("--tool: {e}")))?,
+                    None,
+                ),
+                None => {
+                    let text = match args.file.as_deref() {
+                        Some(p) if p != std::path::Path::new("-") => program_head(p),
+                        _ => String::new(),
+                    };
+                    let cam = microcam::gcode::tooltable::cam_tool_comments(
+                        &text,
+                        microcam::gcode::tooltable::first_units_are_inch(&text),
+                    );
+                    let tools = microcam::gcode::tooltable::tool_cutters(tool_table.as_deref(), &cam);
+                    let first = tools.values().next().copied().ok_or_else(|| {
+                        CliError::input(
+                            "--stock needs a cutter: --tool, or tools with a diameter in --tool-table or in the program's CAM tool comments ((T1 D=3 CR=0.5 ...))",
+                        )
+                    })?;
+                    (first, Some(tools))
+                }
+            };
+            let smallest = per_tool.as_ref().map_or(cutter.radius(), |t| {
+                t.values().map(Cutter::radius).fold(f64::INFINITY, f64::min)
+            });
             let b = microcam::cli::parse_numbers::<6>(st, "--stock", "X0,Y0,Z0,X1,Y1,Z1")?;
-            let cell = args.cell_mm.unwrap_or(cutter.radius() / 25.0);
+            let cell = args.cell_mm.unwrap_or(smallest / 25.0);
             let stock = Stock::new(P3::new(b[0], b[1], b[2]), P3::new(b[3], b[4], b[5]), cell)
                 .map_err(|e| CliError::input(format!("--stock: {e}")))?;
             let rcsv = args.removal.as_deref().map(|p| Output::new(Some(p)));
             sim = sim.with_removal(stock, cutter, rcsv);
+            if let Some(tools) = per_tool {
+                sim = sim.with_tool_cutters(tools);
+            }
             if args.png.is_some() {
                 sim = sim.with_picture();
             }

@@ -25,6 +25,7 @@ fn mv(kind: MotionKind, to: P3, feed: Option<f64>, role: Role) -> Record {
         role: Some(role),
         chain: None,
         block: None,
+        tool: Default::default(),
     })
 }
 

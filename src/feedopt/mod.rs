@@ -55,6 +55,8 @@ pub enum FeedoptError {
     NeverCuts,
     #[error("inch programs (G20) are not supported: feedopt writes F in mm/min")]
     Inch,
+    #[error("{0} programs are not supported: feedopt writes F in mm/min (G94)")]
+    FeedMode(&'static str),
     #[error(
         "the simulation would take about {steps:.3e} steps of {step_mm:e} mm (more than {max}): raise --step-mm or --fz-min-um"
     )]
@@ -210,6 +212,11 @@ pub fn optimise(input: &str, o: &Options) -> Result<Outcome, FeedoptError> {
     ropts.dialect = Some(dialect);
     if dialect == Dialect::Iso && text::has_inch(input) {
         return Err(FeedoptError::Inch);
+    }
+    if dialect == Dialect::Iso
+        && let Some(mode) = text::feed_mode(input)
+    {
+        return Err(FeedoptError::FeedMode(mode));
     }
     let base = strip_marked(input, dialect);
     let (_, recs) = read_str(&base, &ropts)?;

@@ -287,6 +287,21 @@ pub fn has_inch(text: &str) -> bool {
         .any(|l| word_present(&l.body[..code_end(l.body, Dialect::Iso)].to_ascii_uppercase(), "G20"))
 }
 
+/// The name of a feed mode other than G94 that ISO text sets anywhere
+/// (G93 inverse time, G95 per revolution): there F is no mm/min.
+pub fn feed_mode(text: &str) -> Option<&'static str> {
+    lines(text).iter().find_map(|l| {
+        let code = l.body[..code_end(l.body, Dialect::Iso)].to_ascii_uppercase();
+        if word_present(&code, "G93") {
+            Some("inverse time (G93)")
+        } else if word_present(&code, "G95") {
+            Some("feed per revolution (G95)")
+        } else {
+            None
+        }
+    })
+}
+
 /// `w` occurs in `code` not followed by a digit or point and not preceded
 /// by a letter (`G20` but not `G200`, `G91` but not `G91.1`, `INC` but not
 /// `SINC`).
@@ -357,6 +372,8 @@ mod tests {
         assert!(has_incremental("INC\nX1\n", Dialect::Pmac));
         assert!(has_incremental("INC(X,Y)\n", Dialect::Pmac));
         assert!(has_inch("G20 G0 X1\n"));
+        assert_eq!(feed_mode("G0 X1 (G93)\nG95 G1 X2\n"), Some("feed per revolution (G95)"));
+        assert_eq!(feed_mode("G94 G1 X1 F2 G930\n"), None);
         assert!(!has_inch("G200\n(G20)\n"));
     }
 

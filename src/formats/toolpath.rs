@@ -3,8 +3,9 @@
 use super::{
     FormatError, LineSource, check_schema, parse_json, point_from, push_num, push_point3, push_str_lit, push_uint,
 };
+use crate::geometry::V3;
 use crate::geometry::{P3, Plane};
-use crate::model::toolpath::{ArcData, FeedUnit, Header, Motion, MotionKind, Record, Role, ShutterSwitch};
+use crate::model::toolpath::{ArcData, FeedUnit, Header, Motion, MotionKind, Record, Role, ShutterSwitch, ToolState};
 use serde::Deserialize;
 use std::io::{BufRead, Write};
 
@@ -42,6 +43,9 @@ struct WireRecord {
     value: Option<f64>,
     sync: Option<bool>,
     schema: Option<String>,
+    abc: Option<Vec<f64>>,
+    tool: Option<u32>,
+    tool_axis: Option<Vec<f64>>,
 }
 
 /// Streaming reader: `ToolpathReader::new(input)?` reads and checks the
@@ -154,6 +158,7 @@ fn decode(w: WireRecord, line: u64, pos: Option<P3>) -> Result<Record, FormatErr
         }
         Ok(f)
     };
+    let tool = tool_state(&w, line)?;
     let motion = |mk: MotionKind, to: P3, feed: Option<f64>| Motion {
         kind: mk,
         to,
@@ -163,6 +168,7 @@ fn decode(w: WireRecord, line: u64, pos: Option<P3>) -> Result<Record, FormatErr
         role,
         chain: w.chain,
         block,
+        tool,
     };
     Ok(match kind.as_str() {
         "rapid" => {
@@ -230,6 +236,51 @@ fn decode(w: WireRecord, line: u64, pos: Option<P3>) -> Result<Record, FormatErr
                 format!("unknown record type '{other}' (rapid, line, arc, dwell, spindle, accel, var)"),
             ));
         }
+    })
+}
+
+/// The optional milling fields of a move: `abc` (three numbers, degrees),
+/// `tool` (a tool number) and `tool_axis` (a direction, normalised here).
+fn tool_state(w: &WireRecord, line: u64) -> Result<ToolState, FormatError> {
+    let abc = match w.abc.as_deref() {
+        None => None,
+        Some([a, b, c]) => Some([
+            finite(*a, line, "abc")?,
+            finite(*b, line, "abc")?,
+            finite(*c, line, "abc")?,
+        ]),
+        Some(v) => {
+            return Err(FormatError::invalid(
+                line,
+                format!("'abc' must be [a, b, c] (degrees), got {} numbers", v.len()),
+            ));
+        }
+    };
+    let axis = match w.tool_axis.as_deref() {
+        None => None,
+        Some([i, j, k]) => {
+            let v = V3::new(
+                finite(*i, line, "tool_axis")?,
+                finite(*j, line, "tool_axis")?,
+                finite(*k, line, "tool_axis")?,
+            );
+            let n = v.norm();
+            if !n.is_finite() || n <= 1e-9 {
+                return Err(FormatError::invalid(line, "'tool_axis' must be a non-zero direction"));
+            }
+            Some(v / n)
+        }
+        Some(v) => {
+            return Err(FormatError::invalid(
+                line,
+                format!("'tool_axis' must be [i, j, k], got {} numbers", v.len()),
+            ));
+        }
+    };
+    Ok(ToolState {
+        abc,
+        number: w.tool,
+        axis,
     })
 }
 
@@ -326,6 +377,18 @@ pub fn format_record(b: &mut String, r: &Record) {
                 b.push_str(",\"chain\":");
                 push_uint(b, c);
             }
+            if let Some(abc) = &m.tool.abc {
+                b.push_str(",\"abc\":");
+                push_point3(b, &P3::new(abc[0], abc[1], abc[2]));
+            }
+            if let Some(t) = m.tool.number {
+                b.push_str(",\"tool\":");
+                push_uint(b, u64::from(t));
+            }
+            if let Some(a) = &m.tool.axis {
+                b.push_str(",\"tool_axis\":");
+                push_point3(b, &P3::from(*a));
+            }
             push_block(b, m.block);
         }
         Record::Dwell { seconds, block } => {
@@ -391,6 +454,52 @@ mod tests {
 {"type":"arc","to":[10,10,0],"center":[10,5,0],"ccw":true,"plane":"xy","feed":2,"beam":true,"role":"cut","chain":1}
 {"type":"dwell","seconds":0.05}
 "#;
+
+    #[test]
+    fn milling_fields_are_optional_and_round_trip() {
+        let text = r#"{"schema":"microcam.toolpath/1","units":"mm","feed_units":"mm/min"}
+{"type":"rapid","to":[0,0,5],"abc":[0,90,-45.5],"tool":3}
+{"type":"line","to":[1,0,5],"feed":100,"beam":true,"abc":[0,91,-45.5],"tool":3,"tool_axis":[0,0.6,0.8],"block":7}
+{"type":"line","to":[2,0,5],"feed":100,"beam":true}
+"#;
+        let recs = read(text).unwrap();
+        let m: Vec<&Motion> = recs.iter().filter_map(Record::motion).collect();
+        assert_eq!(m[0].tool.abc, Some([0.0, 90.0, -45.5]));
+        assert_eq!(m[1].tool.number, Some(3));
+        assert_eq!(m[1].tool.axis, Some(V3::new(0.0, 0.6, 0.8)));
+        assert!(m[2].tool.is_empty(), "an old-style move has none of them");
+        let mut w = ToolpathWriter::new(Vec::new());
+        w.header(&Header {
+            feed_unit: FeedUnit::MmPerMin,
+            source: None,
+        })
+        .unwrap();
+        for r in &recs {
+            w.record(r).unwrap();
+        }
+        assert_eq!(String::from_utf8(w.finish().unwrap()).unwrap(), text);
+        // A tool axis is normalised; bad ones are named.
+        let head = "{\"schema\":\"microcam.toolpath/1\"}\n";
+        let recs = read(&format!(
+            "{head}{{\"type\":\"rapid\",\"to\":[0,0,0],\"tool_axis\":[0,0,2]}}\n"
+        ))
+        .unwrap();
+        assert_eq!(recs[0].motion().unwrap().tool.axis, Some(V3::new(0.0, 0.0, 1.0)));
+        for (rec, needle) in [
+            (
+                r#"{"type":"rapid","to":[0,0,0],"tool_axis":[0,0,0]}"#,
+                "non-zero direction",
+            ),
+            (
+                r#"{"type":"rapid","to":[0,0,0],"abc":[1,2]}"#,
+                "'abc' must be [a, b, c]",
+            ),
+            (r#"{"type":"rapid","to":[0,0,0],"tool":-1}"#, "line 2"),
+        ] {
+            let e = read(&format!("{head}{rec}\n")).unwrap_err().to_string();
+            assert!(e.contains(needle), "{rec}: {e}");
+        }
+    }
 
     #[test]
     fn the_documented_example_round_trips_byte_for_byte() {
@@ -532,6 +641,7 @@ mod stream_tests {
                     role: None,
                     chain: None,
                     block: Some(i as u64 + 1),
+                    tool: Default::default(),
                 })
             })
             .collect()

@@ -123,6 +123,11 @@ impl IsoInterpreter {
         let extra_turns = turns as u32 - 1;
         let end2 = plane.project(&to);
         if self.comp.active() {
+            if self.feed_mode == super::FeedMode::InverseTime {
+                return Err(err(
+                    "inverse time feed (G93) with cutter radius compensation on is not supported".into(),
+                ));
+            }
             if b.has_g(530) {
                 return Err(err("G53 cannot be used with cutter radius compensation on".into()));
             }
@@ -145,13 +150,16 @@ impl IsoInterpreter {
             plane,
             extra_turns,
         };
-        out.push_back(Record::Move(Motion::from_block(
-            MotionKind::Arc(arc),
-            to,
-            Some(feed),
-            self.beam,
-            lineno,
-        )));
+        let feed = if self.feed_mode == super::FeedMode::InverseTime {
+            let len = crate::geometry::Arc3::new(arc.center, self.pos, to, ccw, plane, extra_turns)
+                .map_or(0.0, |a| a.length());
+            self.inverse_time_feed(len)
+        } else {
+            feed
+        };
+        let mut m = Motion::from_block(MotionKind::Arc(arc), to, Some(feed), self.beam, lineno);
+        m.tool = self.tool_state();
+        out.push_back(Record::Move(m));
         self.pos = to;
         Ok(())
     }

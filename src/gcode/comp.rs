@@ -2,7 +2,10 @@
 //! reader, as LinuxCNC 2.9's interpreter computes it.
 //!
 //! The tool centre runs one tool radius to the left (G41) or right (G42)
-//! of the programmed path, in the XY or XZ plane:
+//! of the programmed path, in the XY, XZ or YZ plane. LinuxCNC refuses
+//! the YZ plane ("allowed only in XY, XZ planes"); we compensate there by
+//! the same rules, left and right seen from +X as G2/G3 are, which is the
+//! XY plane's result turned by the axis cycle X→Y→Z→X (tested):
 //!
 //! - The first move after G41/G42 (the entry) goes from where the tool is
 //!   to the programmed end point offset perpendicular to the entry
@@ -249,11 +252,6 @@ impl IsoInterpreter {
                 "{name}: cutter radius compensation is already on (G40 first)"
             )));
         }
-        if self.plane == Plane::Yz {
-            return Err(err(format!(
-                "{name}: cutter radius compensation works in the XY and XZ planes only (G17, G18)"
-            )));
-        }
         let diameter = if dynamic {
             let d = b
                 .word(b'D')
@@ -306,7 +304,9 @@ impl IsoInterpreter {
         } else {
             Some(self.feed_mm_per_min(lineno)?)
         };
-        Ok(Record::Move(Motion::from_block(kind, to, feed, self.beam, lineno)))
+        let mut m = Motion::from_block(kind, to, feed, self.beam, lineno);
+        m.tool = self.tool_state();
+        Ok(Record::Move(m))
     }
 
     fn comp_line_record(&self, rapid: bool, to: P3, lineno: u64) -> Result<Record, GcodeError> {
@@ -662,8 +662,8 @@ impl IsoInterpreter {
 #[cfg(test)]
 mod tests {
     use crate::gcode::{Dialect, ReadOptions, read_str};
-    use crate::geometry::{P2, Plane};
-    use crate::model::toolpath::{MotionKind, Record};
+    use crate::geometry::{P2, P3, Plane};
+    use crate::model::toolpath::{Motion, MotionKind, Record};
     use proptest::prelude::*;
 
     /// 'T'/'F' with (x, y, z), or 'A' with end and centre (x, y) and sense.
@@ -710,6 +710,43 @@ mod tests {
     }
 
     use M::{A, F, T};
+
+    #[test]
+    fn the_yz_plane_compensates_as_the_xy_plane_turned_by_the_axis_cycle() {
+        let xy = "G17 G0 X-5 Y-5 Z1\nG4?.1 D2 G1 X0 Y0 F10\nX10\nG3 X10 Y10 R5\nG2 X0 Y10 R5\nG1 Y0\nG40 G1 X-5 Y-5\n";
+        // X->Y, Y->Z, Z->X; I->J, J->K.
+        let yz = "G19 G0 Y-5 Z-5 X1\nG4?.1 D2 G1 Y0 Z0 F10\nY10\nG3 Y10 Z10 R5\nG2 Y0 Z10 R5\nG1 Z0\nG40 G1 Y-5 Z-5\n";
+        let opts = ReadOptions {
+            dialect: Some(Dialect::Iso),
+            ..Default::default()
+        };
+        let cycle = |p: &P3| P3::new(p.z, p.x, p.y);
+        for side in ["1", "2"] {
+            let (_, a) = read_str(&xy.replace('?', side), &opts).unwrap();
+            let (_, b) = read_str(&yz.replace('?', side), &opts).unwrap();
+            let (a, b): (Vec<&Motion>, Vec<&Motion>) = (
+                a.iter().filter_map(Record::motion).collect(),
+                b.iter().filter_map(Record::motion).collect(),
+            );
+            assert_eq!(a.len(), b.len(), "G4{side}");
+            assert!(a.len() >= 8, "G4{side}: {} moves", a.len());
+            for (m, n) in a.iter().zip(&b) {
+                assert!(
+                    (cycle(&m.to) - n.to).norm() < 1e-9,
+                    "G4{side}: {:?} vs {:?}",
+                    m.to,
+                    n.to
+                );
+                match (m.kind, n.kind) {
+                    (MotionKind::Arc(p), MotionKind::Arc(q)) => {
+                        assert!((cycle(&p.center) - q.center).norm() < 1e-9, "G4{side}");
+                        assert_eq!((p.ccw, q.plane), (q.ccw, Plane::Yz));
+                    }
+                    (k, l) => assert_eq!(std::mem::discriminant(&k), std::mem::discriminant(&l)),
+                }
+            }
+        }
+    }
 
     #[test]
     fn squares_inside_and_outside_as_rs274() {
@@ -798,7 +835,6 @@ mod tests {
         for (text, line, needle) in [
             ("G41 D1\nG1 X1 F1\n", 1, "--tool-table"),
             ("G41.1 D1\nG41.1 D1\n", 2, "already on"),
-            ("G19 G41.1 D1\n", 1, "XY and XZ"),
             ("G41.1\n", 1, "needs a D"),
             ("G41.1 D4\nG1 X1 F1\n", 2, "entry move"),
             ("G41.1 D2\nG1 X10 F1\nG18\n", 3, "planes"),

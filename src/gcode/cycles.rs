@@ -69,6 +69,7 @@ struct Emit<'a> {
     axes: (usize, usize, usize),
     lineno: u64,
     feed: f64,
+    tool: crate::model::toolpath::ToolState,
 }
 
 impl IsoInterpreter {
@@ -94,6 +95,11 @@ impl IsoInterpreter {
         if self.comp.side.is_some() {
             return Err(err(format!(
                 "{name}: canned cycles cannot be used with cutter radius compensation on"
+            )));
+        }
+        if self.feed_mode == super::FeedMode::InverseTime {
+            return Err(err(format!(
+                "{name}: canned cycles cannot be used in inverse time feed mode (G93)"
             )));
         }
         if self.feed_mm_per_min <= 0.0 {
@@ -191,12 +197,13 @@ impl IsoInterpreter {
         if matches!(code, 730 | 830) && q_mm <= 0.0 {
             return Err(err(format!("{name} needs a positive Q (peck depth), got Q{q}")));
         }
-        let feed = self.feed_mm_per_min;
+        let feed = self.feed_mm_per_min(lineno)?;
         let mut e = Emit {
             out,
             axes,
             lineno,
             feed,
+            tool: self.tool_state(),
         };
         let mut pos = current;
         let mut level = old_level;
@@ -311,8 +318,9 @@ impl Emit<'_> {
         } else {
             (MotionKind::Line, Some(self.feed))
         };
-        self.out
-            .push_back(Record::Move(Motion::from_block(kind, to, feed, beam, self.lineno)));
+        let mut m = Motion::from_block(kind, to, feed, beam, self.lineno);
+        m.tool = self.tool;
+        self.out.push_back(Record::Move(m));
         *pos = to;
     }
 

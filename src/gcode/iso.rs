@@ -12,8 +12,10 @@
 //! a structure's lines are held in memory from its opening line to its
 //! closing line, then run; straight-line code streams through untouched.
 //!
-//! What it cannot honour (cutter compensation, canned cycles, inverse-time
-//! feed, rotary axes) is an error naming the line.
+//! Cutter compensation (`comp.rs`), canned cycles (`cycles.rs`), rotary
+//! axes A/B/C and the G93/G94/G95 feed modes are interpreted as LinuxCNC's
+//! `rs274` does. What it cannot honour (lathe cycles, probing, threading,
+//! splines) is an error naming the line.
 
 #[path = "arcs.rs"]
 mod arcs;
@@ -21,13 +23,15 @@ mod arcs;
 mod comp;
 #[path = "cycles.rs"]
 mod cycles;
+#[path = "splines.rs"]
+pub(crate) mod splines;
 
 use super::expr::{Cursor, ParamRef, Params};
 use super::oword::{self, OKeyword, OLine};
 use super::tooltable::ToolTable;
 use super::{GcodeError, LineInterpreter, ReadOptions};
 use crate::geometry::{P3, Plane, V3};
-use crate::model::toolpath::{Motion, MotionKind, Record};
+use crate::model::toolpath::{Motion, MotionKind, Record, ToolState};
 use std::collections::HashMap;
 use std::collections::VecDeque;
 use std::rc::Rc;
@@ -48,6 +52,19 @@ enum MotionMode {
     Ccw,
     /// A canned cycle, by its G code times ten (G81 -> 810).
     Cycle(u16),
+    /// G5 (50) or G5.1 (51).
+    Spline(u16),
+}
+
+/// How F is read (G93, G94, G95).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum FeedMode {
+    /// G94: length units per minute.
+    PerMinute,
+    /// G93: inverse time, F is 1 / minutes for each move.
+    InverseTime,
+    /// G95: length units per spindle revolution.
+    PerRevolution,
 }
 
 /// Codes of one block, G and M codes kept as ten times their value
@@ -211,6 +228,15 @@ pub struct IsoInterpreter {
     /// Tool in the spindle (M6, M61), and the one a T word selected.
     tool_current: u32,
     tool_selected: Option<u32>,
+    /// Rotary axes A, B, C (degrees), and whether the program has moved
+    /// any of them (then every move carries them).
+    abc: [f64; 3],
+    abc_used: bool,
+    /// Rotary travel (degrees) of the block being run, for G93.
+    abc_step: f64,
+    feed_mode: FeedMode,
+    /// P and Q of the last G5, for a following G5 without I and J.
+    spline_pq: Option<(f64, f64)>,
 }
 
 /// Lines of a control structure read so far, from its opening line.
@@ -282,6 +308,11 @@ impl IsoInterpreter {
             sub_path: opts.subroutine_path.clone(),
             tool_current: 0,
             tool_selected: None,
+            abc: [0.0; 3],
+            abc_used: false,
+            abc_step: 0.0,
+            feed_mode: FeedMode::PerMinute,
+            spline_pq: None,
         }
     }
 
@@ -758,17 +789,10 @@ impl IsoInterpreter {
 
     fn execute(&mut self, b: &Block, lineno: u64, out: &mut VecDeque<Record>) -> Result<(), GcodeError> {
         let err = |msg: String| GcodeError::at(lineno, msg);
-        for (letter, name) in [
-            (b'A', "A"),
-            (b'B', "B"),
-            (b'C', "C"),
-            (b'U', "U"),
-            (b'V', "V"),
-            (b'W', "W"),
-        ] {
+        for (letter, name) in [(b'U', "U"), (b'V', "V"), (b'W', "W")] {
             if b.word(letter).is_some() {
                 return Err(err(format!(
-                    "rotary/extra axis word {name} is not supported (X, Y, Z only)"
+                    "extra axis word {name} is not supported (X, Y, Z and the rotary A, B, C only)"
                 )));
             }
         }
@@ -778,9 +802,7 @@ impl IsoInterpreter {
                 382..=385 => Some("probing (G38.x)"),
                 760 => Some("the lathe threading cycle (G76)"),
                 700..=722 => Some("the lathe turning cycles (G70-G72)"),
-                50..=53 => Some("splines (G5, G5.1, G5.2, G5.3): LinuxCNC hands them to its motion planner as NURBS"),
-                930 => Some("inverse time feed (G93)"),
-                950 => Some("feed per revolution (G95)"),
+                52 | 53 => Some("NURBS blocks (G5.2, G5.3)"),
                 171 | 181 | 191 => Some("the planes G17.1-G19.1"),
                 70 | 80 => Some("lathe diameter/radius modes (G7/G8)"),
                 960 => Some("constant surface speed (G96)"),
@@ -800,16 +822,52 @@ impl IsoInterpreter {
             )));
         }
         self.check_words(b).map_err(|m| err(m.to_string()))?;
+        if b.other_g
+            && (b.word(b'A').is_some() || b.word(b'B').is_some() || b.word(b'C').is_some())
+            && [100u16, 280, 300, 520, 920].iter().any(|&c| b.has_g(c))
+        {
+            return Err(err(
+                "rotary axis words (A, B, C) with G10, G28, G30, G52 or G92 are not supported: no rotary offsets or homes"
+                    .into(),
+            ));
+        }
         // Parameters take their new values once the whole line is read.
         for (r, v) in self.assigns.drain(..) {
             self.params.set(&r, v);
         }
-        // RS274 order of execution.
+        // RS274 order of execution: feed mode, then F.
+        if b.other_g {
+            let mode = if b.has_g(930) {
+                Some(FeedMode::InverseTime)
+            } else if b.has_g(940) {
+                Some(FeedMode::PerMinute)
+            } else if b.has_g(950) {
+                Some(FeedMode::PerRevolution)
+            } else {
+                None
+            };
+            if let Some(mode) = mode {
+                if mode != self.feed_mode && self.comp.side.is_some() {
+                    return Err(err(
+                        "cannot change the feed mode with cutter radius compensation on".into()
+                    ));
+                }
+                // LinuxCNC sets the feed rate to zero on every feed mode
+                // code: a feed move needs a new F.
+                self.feed_mode = mode;
+                self.feed_mm_per_min = 0.0;
+            }
+        }
         if let Some(f) = b.word(b'F') {
             if f < 0.0 {
                 return Err(err(format!("negative feed rate F{f}")));
             }
-            self.feed_mm_per_min = f * self.unit();
+            // Inverse time has no length unit: F is 1/minutes.
+            self.feed_mm_per_min = if self.feed_mode == FeedMode::InverseTime {
+                f
+            } else {
+                f * self.unit()
+            };
         }
         if let Some(s) = b.word(b'S') {
             if s < 0.0 {
@@ -842,6 +900,7 @@ impl IsoInterpreter {
                 20 => self.motion = Some(MotionMode::Cw),
                 30 => self.motion = Some(MotionMode::Ccw),
                 800 => self.motion = None,
+                50 | 51 => self.motion = Some(MotionMode::Spline(code)),
                 c if cycles::is_cycle(c) => self.motion = Some(MotionMode::Cycle(c)),
                 _ => {}
             }
@@ -884,7 +943,7 @@ impl IsoInterpreter {
                     MotionMode::Feed => 10,
                     MotionMode::Cw => 20,
                     MotionMode::Ccw => 30,
-                    MotionMode::Cycle(c) => c,
+                    MotionMode::Cycle(c) | MotionMode::Spline(c) => c,
                 }),
                 _ => None,
             });
@@ -1110,11 +1169,30 @@ impl IsoInterpreter {
         out: &mut VecDeque<Record>,
     ) -> Result<(), GcodeError> {
         let err = |msg: String| GcodeError::at(lineno, msg);
+        let rotary = [b.word(b'A'), b.word(b'B'), b.word(b'C')];
+        let has_rotary = rotary.iter().any(Option::is_some);
         let has_axes = b.word(b'X').is_some()
             || b.word(b'Y').is_some()
             || b.word(b'Z').is_some()
-            || b.polar.iter().any(Option::is_some);
+            || b.polar.iter().any(Option::is_some)
+            || has_rotary;
         let g53 = b.has_g(530);
+        self.abc_step = 0.0;
+        if has_axes && self.motion != Some(MotionMode::Spline(50)) {
+            // Only a G5 right after a G5 may leave out I and J.
+            self.spline_pq = None;
+        }
+        if has_rotary {
+            self.rotary_target(rotary, axes_used, g53, lineno)?;
+        }
+        if self.feed_mode == FeedMode::InverseTime
+            && !axes_used
+            && has_axes
+            && matches!(self.motion, Some(MotionMode::Feed | MotionMode::Cw | MotionMode::Ccw))
+            && b.word(b'F').is_none()
+        {
+            return Err(err("F word missing with an inverse time (G93) feed move".into()));
+        }
         let arc_words =
             b.word(b'I').is_some() || b.word(b'J').is_some() || b.word(b'K').is_some() || b.word(b'R').is_some();
         if !axes_used {
@@ -1123,6 +1201,9 @@ impl IsoInterpreter {
                 Some(MotionMode::Cycle(code)) if has_axes || b.has_g(code) => {
                     let same = before == Some(MotionMode::Cycle(code));
                     self.canned_cycle(b, code, same, lineno, out)?;
+                }
+                Some(MotionMode::Spline(code)) if has_axes => {
+                    self.spline(b, code, lineno, out)?;
                 }
                 Some(m @ (MotionMode::Cw | MotionMode::Ccw)) if has_axes || (explicit_motion && arc_words) => {
                     self.arc(b, m == MotionMode::Ccw, lineno, out)?;
@@ -1144,6 +1225,57 @@ impl IsoInterpreter {
             self.comp_off(out);
         }
         Ok(())
+    }
+
+    /// A block's A, B, C words: where the rotary axes go (degrees; no
+    /// offsets apply to them). Only straight and arc moves may turn them.
+    fn rotary_target(
+        &mut self,
+        words: [Option<f64>; 3],
+        axes_used: bool,
+        g53: bool,
+        lineno: u64,
+    ) -> Result<(), GcodeError> {
+        let err = |m: &str| GcodeError::at(lineno, m.to_string());
+        if axes_used {
+            return Err(err(
+                "rotary axis words (A, B, C) with G10, G28, G30, G52 or G92 are not supported: no rotary offsets or homes",
+            ));
+        }
+        if !matches!(
+            self.motion,
+            Some(MotionMode::Rapid | MotionMode::Feed | MotionMode::Cw | MotionMode::Ccw)
+        ) {
+            return Err(err(
+                "rotary axis words (A, B, C) are supported on G0, G1, G2 and G3 moves only",
+            ));
+        }
+        if self.comp.side.is_some() {
+            return Err(err(
+                "rotary axis words (A, B, C) with cutter radius compensation on are not supported",
+            ));
+        }
+        let mut to = self.abc;
+        for (k, w) in words.iter().enumerate() {
+            if let Some(v) = *w {
+                to[k] = if self.incremental && !g53 { self.abc[k] + v } else { v };
+            }
+        }
+        self.abc_step =
+            ((to[0] - self.abc[0]).powi(2) + (to[1] - self.abc[1]).powi(2) + (to[2] - self.abc[2]).powi(2)).sqrt();
+        self.abc = to;
+        self.abc_used = true;
+        Ok(())
+    }
+
+    /// The milling state every move carries: rotary axes once the program
+    /// has used one, the tool in the spindle once one is named.
+    fn tool_state(&self) -> ToolState {
+        ToolState {
+            abc: self.abc_used.then_some(self.abc),
+            number: (self.tool_current != 0).then_some(self.tool_current),
+            axis: None,
+        }
     }
 
     /// The X and Y (machine frame, mm) that a block's polar words `@`
@@ -1197,6 +1329,9 @@ impl IsoInterpreter {
         Ok(to)
     }
 
+    /// The feed of a G94/G95 move in mm/min (G95: F times the spindle
+    /// speed); in G93 the F word itself (1/min), which the move's length
+    /// turns into a feed ([`Self::inverse_time_feed`]).
     fn feed_mm_per_min(&self, lineno: u64) -> Result<f64, GcodeError> {
         let f = self.feed_mm_per_min;
         if f <= 0.0 {
@@ -1205,13 +1340,36 @@ impl IsoInterpreter {
                 "feed move with no feed rate set (F is zero or missing)",
             ));
         }
+        if self.feed_mode == FeedMode::PerRevolution {
+            return match self.spindle_rpm {
+                Some(rpm) if rpm > 0.0 => Ok(f * rpm),
+                _ => Err(GcodeError::at(
+                    lineno,
+                    "feed per revolution (G95) with no spindle speed: set S first",
+                )),
+            };
+        }
         Ok(f)
+    }
+
+    /// G93: the feed (mm/min, or degrees/min for a rotary-only move) that
+    /// makes a move of `length_mm` take 1/F minutes, as LinuxCNC computes
+    /// it: the XYZ length, or the rotary travel when XYZ do not move.
+    fn inverse_time_feed(&self, length_mm: f64) -> f64 {
+        let len = if length_mm > 1e-12 { length_mm } else { self.abc_step };
+        self.feed_mm_per_min * len
     }
 
     fn straight(&mut self, rapid: bool, to: P3, lineno: u64, out: &mut VecDeque<Record>) -> Result<(), GcodeError> {
         if self.comp.active() {
             if !rapid {
                 self.feed_mm_per_min(lineno)?;
+                if self.feed_mode == FeedMode::InverseTime {
+                    return Err(GcodeError::at(
+                        lineno,
+                        "inverse time feed (G93) with cutter radius compensation on is not supported",
+                    ));
+                }
             }
             return self.comp_straight(rapid, to, lineno, out);
         }
@@ -1219,9 +1377,17 @@ impl IsoInterpreter {
         let (kind, feed) = if rapid {
             (MotionKind::Rapid, None)
         } else {
-            (MotionKind::Line, Some(self.feed_mm_per_min(lineno)?))
+            let f = self.feed_mm_per_min(lineno)?;
+            let f = if self.feed_mode == FeedMode::InverseTime {
+                self.inverse_time_feed((to - self.pos).norm())
+            } else {
+                f
+            };
+            (MotionKind::Line, Some(f))
         };
-        out.push_back(Record::Move(Motion::from_block(kind, to, feed, self.beam, lineno)));
+        let mut m = Motion::from_block(kind, to, feed, self.beam, lineno);
+        m.tool = self.tool_state();
+        out.push_back(Record::Move(m));
         self.pos = to;
         Ok(())
     }
@@ -1292,6 +1458,15 @@ impl IsoInterpreter {
             }
             end
         } else {
+            if self.abc_used {
+                // LinuxCNC homes the rotary axes too (#5164-#5166, #5184-#5186).
+                let base = if b.has_g(280) { 5164 } else { 5184 };
+                let old = self.abc;
+                for k in 0..3 {
+                    self.abc[k] = self.params.get(&ParamRef::Num(base + k)).unwrap_or(0.0);
+                }
+                self.abc_step = ((0..3).map(|k| (self.abc[k] - old[k]).powi(2)).sum::<f64>()).sqrt();
+            }
             home
         };
         self.straight(true, end, lineno, out)
@@ -1513,6 +1688,54 @@ mod tests {
     }
 
     #[test]
+    fn rotary_axes_are_carried_on_every_later_move() {
+        let m = moves("G0 X1 Y0 Z0\nT3 M6\nG0 A90\nG91 G1 X1 B-45 C10 F100\nG90 G3 X3 Y1 I0 J1 A0\nG1 X4\nG28\n");
+        assert_eq!(m[0].tool.abc, None, "before any rotary word");
+        assert_eq!(m[0].tool.number, None, "no tool before M6");
+        assert_eq!(m[1].tool.number, Some(3));
+        assert!(close(&m[1].to, [1.0, 0.0, 0.0]) && m[1].tool.abc == Some([90.0, 0.0, 0.0]));
+        assert_eq!(m[2].tool.abc, Some([90.0, -45.0, 10.0]), "G91 adds");
+        assert!(matches!(m[3].kind, MotionKind::Arc(_)) && m[3].tool.abc == Some([0.0, -45.0, 10.0]));
+        assert_eq!(m[4].tool.abc, Some([0.0, -45.0, 10.0]), "unchanged axes are carried");
+        assert_eq!(
+            m.last().unwrap().tool.abc,
+            Some([0.0; 3]),
+            "G28 homes the rotary axes too"
+        );
+        // Degrees stay degrees in an inch program.
+        let m = moves("G20 G0 X1 A30\n");
+        assert!(close(&m[0].to, [25.4, 0.0, 0.0]) && m[0].tool.abc == Some([30.0, 0.0, 0.0]));
+    }
+
+    #[test]
+    fn feed_modes_as_linuxcnc() {
+        // G93: the feed that makes the move take 1/F minutes; a rotary-only
+        // move counts its degrees; F is no length and ignores G20.
+        let m = moves("G0 X0 Y0\nG93 G1 X10 F2\nG2 X20 Y0 I5 J0 F4\nG1 A90 F1\nG20 G1 X1 F3\nG21 G94 G1 X0 F50\n");
+        let feeds: Vec<f64> = m.iter().skip(1).map(|m| m.feed.unwrap()).collect();
+        // F on the G21 line is read in inches, as LinuxCNC does.
+        let want = [
+            20.0,
+            4.0 * 5.0 * std::f64::consts::PI,
+            90.0,
+            (25.4 - 20.0) * 3.0,
+            50.0 * 25.4,
+        ];
+        for (f, w) in feeds.iter().zip(want) {
+            assert!((f - w).abs() < 1e-9, "{feeds:?}");
+        }
+        // G95: F per revolution times the spindle speed in force.
+        let m = moves("S2000 M3\nG95 G1 X1 F0.01\nS500\nG1 X2\nG20\nG1 X1 F0.001\n");
+        let feeds: Vec<f64> = m.iter().map(|m| m.feed.unwrap()).collect();
+        assert_eq!(feeds.len(), 3);
+        assert!(
+            (feeds[0] - 20.0).abs() < 1e-9 && (feeds[1] - 5.0).abs() < 1e-9,
+            "{feeds:?}"
+        );
+        assert!((feeds[2] - 0.001 * 25.4 * 500.0).abs() < 1e-9, "{feeds:?}");
+    }
+
+    #[test]
     fn what_we_cannot_honour_is_an_error_naming_the_line() {
         let cases = [
             ("G1 X1 F10\nG41 D1\n", 2, "cutter radius compensation"),
@@ -1521,7 +1744,14 @@ mod tests {
             ("o1 while [1]\no1 endwhile\n", 1, "endless"),
             ("o1 if [1]\nG0 X1\n", 2, "ends inside o1 if"),
             ("o1 endif\n", 1, "without its opening line"),
-            ("G0 A10\n", 1, "A is not supported"),
+            ("G0 W10\n", 1, "W is not supported"),
+            ("G92 A10\n", 1, "no rotary offsets"),
+            ("G1 X1 F10\nG81 X1 Z-1 R1 A10\n", 2, "G0, G1, G2 and G3 moves only"),
+            ("G0 X0\nG41.1 D1\nG1 X5 F10\nG1 X10 A5\n", 4, "compensation on"),
+            ("G93 G1 X1 F2\nG1 X2\n", 2, "F word missing"),
+            ("G93 G1 X1 F2\nG81 X1 Z-1 R1 F3\n", 2, "inverse time"),
+            ("G95 G1 X1 F0.1\n", 1, "no spindle speed"),
+            ("G1 X1 F10\nG94\nG1 X2\n", 3, "no feed rate"),
             ("G1 X1\n", 1, "no feed rate"),
             ("G0 X0 Y0\nG2 X2 Y0 I0.5 F10\n", 2, "not on the circle"),
             ("G2 X0 Y1 R0.1 F1\n", 1, "too small"),

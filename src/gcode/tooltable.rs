@@ -128,9 +128,140 @@ impl ToolTable {
     }
 }
 
+/// A tool as a CAM post describes it in a header comment: number,
+/// diameter and corner radius (mm).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CamTool {
+    pub number: u32,
+    pub diameter_mm: f64,
+    /// Corner radius: 0 for a flat end mill, half the diameter for a ball.
+    pub corner_mm: f64,
+}
+
+/// The tools a CAM post lists in comment lines of the program, as Fusion
+/// 360 and its kin write them: `(T1 D=3 CR=0.5 - ZMIN=-5 - bullnose end
+/// mill)`: a comment line starting with `T` and the tool number, with
+/// `D=` the diameter and optionally `CR=` the corner radius (0 when
+/// absent), in the program's units (`inch` for a G20 program). Lines that
+/// do not have this shape are not tool descriptions and are passed over;
+/// the first description of a number counts.
+pub fn cam_tool_comments(text: &str, inch: bool) -> Vec<CamTool> {
+    let scale = if inch { 25.4 } else { 1.0 };
+    let mut out: Vec<CamTool> = Vec::new();
+    for line in text.lines() {
+        let t = line.trim();
+        let Some(body) = t.strip_prefix('(').and_then(|b| b.strip_suffix(')')) else {
+            continue;
+        };
+        let mut words = body.split_whitespace();
+        let Some(n) = words
+            .next()
+            .and_then(|w| w.strip_prefix(['T', 't']))
+            .and_then(|n| n.parse::<u32>().ok())
+        else {
+            continue;
+        };
+        let mut d = None;
+        let mut cr = 0.0;
+        for w in words {
+            let num = |v: &str| v.parse::<f64>().ok().filter(|x| x.is_finite() && *x >= 0.0);
+            if let Some(v) = w.strip_prefix("D=") {
+                d = num(v);
+            } else if let Some(v) = w.strip_prefix("CR=") {
+                cr = num(v).unwrap_or(0.0);
+            }
+        }
+        if let Some(d) = d.filter(|d| *d > 0.0)
+            && !out.iter().any(|c| c.number == n)
+        {
+            out.push(CamTool {
+                number: n,
+                diameter_mm: d * scale,
+                corner_mm: (cr * scale).min(d * scale / 2.0),
+            });
+        }
+    }
+    out
+}
+
+/// The cutter of each tool for material removal: the tool table's tools
+/// with a diameter (flat end mills: a `.tbl` gives no corner radius), then
+/// the program's CAM tool comments, which give the corner radius too and
+/// win over the table for the same number.
+pub fn tool_cutters(table: Option<&ToolTable>, cam: &[CamTool]) -> BTreeMap<u32, crate::cutter::Cutter> {
+    let mut out = BTreeMap::new();
+    if let Some(t) = table {
+        for e in t.tools.values() {
+            if let Some(c) = crate::cutter::Cutter::from_diameter_corner(e.diameter_mm, 0.0) {
+                out.insert(e.number, c);
+            }
+        }
+    }
+    for t in cam {
+        if let Some(c) = crate::cutter::Cutter::from_diameter_corner(t.diameter_mm, t.corner_mm) {
+            out.insert(t.number, c);
+        }
+    }
+    out
+}
+
+/// True when the first G20/G21 in ISO text (outside comments) is G20.
+pub fn first_units_are_inch(text: &str) -> bool {
+    for line in text.lines() {
+        let code = line.split(['(', ';']).next().unwrap_or("").to_ascii_uppercase();
+        let b = code.as_bytes();
+        for (i, _) in code.match_indices('G') {
+            let mut j = i + 1;
+            while j < b.len() && b[j] == b' ' {
+                j += 1;
+            }
+            let k = b[j..].iter().take_while(|c| c.is_ascii_digit()).count();
+            match code[j..j + k].trim_start_matches('0') {
+                "20" => return true,
+                "21" => return false,
+                _ => {}
+            }
+        }
+    }
+    false
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn cam_header_comments_give_the_cutters() {
+        let text = "%\n(T1  D=2.7 CR=0 - ZMIN=-13.3 - flat end mill)\n(  T2 D=3.175 CR=1.5875 - ball end mill )\n\
+                    (T3 D=0.125 CR=0.02 - bull nose)\n(T4 no diameter)\n(T1 D=9 - again)\n(TOOL T5 D=1)\nG21\n";
+        let t = cam_tool_comments(text, false);
+        assert_eq!(t.len(), 3, "{t:?}");
+        assert_eq!((t[0].number, t[0].diameter_mm, t[0].corner_mm), (1, 2.7, 0.0));
+        assert_eq!((t[1].number, t[1].corner_mm), (2, 1.5875));
+        let t = cam_tool_comments(text, true);
+        assert!((t[2].diameter_mm - 3.175).abs() < 1e-12 && (t[2].corner_mm - 0.508).abs() < 1e-12);
+        let table = ToolTable::parse("T1 D6\nT7 D0.5\nT8 D0\n", false).unwrap();
+        let cutters = tool_cutters(Some(&table), &cam_tool_comments(text, false));
+        use crate::cutter::Cutter;
+        assert_eq!(
+            cutters.get(&1),
+            Some(&Cutter::Flat { radius: 1.35 }),
+            "the comment wins"
+        );
+        assert_eq!(cutters.get(&2), Some(&Cutter::Ball { radius: 1.5875 }));
+        assert_eq!(
+            cutters.get(&3),
+            Some(&Cutter::Torus {
+                radius: 0.0625,
+                corner: 0.02
+            })
+        );
+        assert_eq!(cutters.get(&7), Some(&Cutter::Flat { radius: 0.25 }));
+        assert_eq!(cutters.get(&8), None, "no diameter, no cutter");
+        assert!(first_units_are_inch("(G21 in a comment)\nG90 G20\nG21\n"));
+        assert!(!first_units_are_inch("G0 X1\nG21 G90\n"));
+        assert!(!first_units_are_inch("G200\n"));
+    }
 
     #[test]
     fn linuxcnc_tables_read() {

@@ -262,6 +262,7 @@ fn plane_word(d: Dialect, p: Plane) -> &'static str {
 
 const AXIS: [&str; 3] = ["X", "Y", "Z"];
 const CENTRE: [&str; 3] = ["I", "J", "K"];
+const ROTARY: [&str; 3] = ["A", "B", "C"];
 
 /// The arc words of one motion block, already validated and scaled.
 #[derive(Clone, Copy)]
@@ -309,6 +310,12 @@ pub struct GcodeWriter<W: Write> {
     tag: Option<(Option<u64>, Option<Role>)>,
     /// Records seen, for error messages.
     records: u64,
+    /// Rotary axes A, B, C as written (scaled degrees), once a move has
+    /// carried them; and those of the move being written.
+    abc: Option<[i64; 3]>,
+    abc_next: Option<[i64; 3]>,
+    /// Tool number last written (ISO `T.. M6`).
+    tool: Option<u32>,
 }
 
 impl<W: Write> GcodeWriter<W> {
@@ -336,6 +343,9 @@ impl<W: Write> GcodeWriter<W> {
             next_n,
             tag: None,
             records: 0,
+            abc: None,
+            abc_next: None,
+            tool: None,
             opts,
         }
     }
@@ -546,6 +556,22 @@ impl<W: Write> GcodeWriter<W> {
 
     fn write_move(&mut self, m: &Motion) -> Result<(), String> {
         let to = self.point(&m.to, "end point")?;
+        self.abc_next = match &m.tool.abc {
+            Some(abc) => Some([
+                self.scaled(abc[0], "rotary axis A")?,
+                self.scaled(abc[1], "rotary axis B")?,
+                self.scaled(abc[2], "rotary axis C")?,
+            ]),
+            None => None,
+        };
+        if let (Some(t), Dialect::Iso) = (m.tool.number, self.opts.dialect)
+            && self.tool != Some(t)
+        {
+            // A tool change: ISO `T.. M6` on its own line (PMAC has no
+            // tool changer of its own; the number stays in the toolpath).
+            self.text_line(&format!("T{t} M6"));
+            self.tool = Some(t);
+        }
         let feed = match (m.kind, m.feed) {
             (MotionKind::Rapid, _) | (_, None) => None,
             (_, Some(f)) => {
@@ -598,6 +624,11 @@ impl<W: Write> GcodeWriter<W> {
             ));
         }
         let pmac = self.opts.dialect == Dialect::Pmac;
+        if pmac && a.extra_turns > 0 && self.abc_next.is_some() && self.abc_next != self.abc {
+            return Err(
+                "an arc of more than one turn that also turns a rotary axis cannot be written for a PMAC".into(),
+            );
+        }
         if pmac && a.extra_turns > MAX_PMAC_TURNS {
             return Err(format!(
                 "arc with {} extra turns: more than {MAX_PMAC_TURNS} full circles",
@@ -680,6 +711,13 @@ impl<W: Write> GcodeWriter<W> {
         for (i, w) in axes.iter_mut().enumerate() {
             *w = !self.positioned || to[i] != self.pos[i];
         }
+        // Rotary words: all three the first time, then those that change.
+        let mut rot = [false; 3];
+        if let Some(n) = self.abc_next {
+            for (i, w) in rot.iter_mut().enumerate() {
+                *w = self.abc.is_none_or(|o| o[i] != n[i]);
+            }
+        }
         match &arc {
             Some(a) => {
                 let (ia, ib, _) = a.plane.axes();
@@ -689,7 +727,7 @@ impl<W: Write> GcodeWriter<W> {
                 }
             }
             None => {
-                if !axes.iter().any(|&w| w) {
+                if !axes.iter().any(|&w| w) && !rot.iter().any(|&w| w) {
                     axes[0] = true;
                 }
             }
@@ -698,6 +736,14 @@ impl<W: Write> GcodeWriter<W> {
             if axes[i] {
                 self.push_value(AXIS[i], to[i]);
             }
+        }
+        if let Some(n) = self.abc_next {
+            for i in 0..3 {
+                if rot[i] {
+                    self.push_value(ROTARY[i], n[i]);
+                }
+            }
+            self.abc = Some(n);
         }
         if let Some(a) = &arc {
             for (i, v) in a.centre {
@@ -1024,6 +1070,7 @@ mod tests {
             role: None,
             chain: None,
             block: None,
+            tool: Default::default(),
         })
     }
 
@@ -1348,6 +1395,47 @@ M30
         o.dialect = Dialect::Iso;
         let text = write(o, FeedUnit::MmPerS, &recs[..3]);
         assert!(text.contains("(chain 7 cut)\nM3 Y6.3977"), "{text}");
+    }
+
+    #[test]
+    fn rotary_axes_and_tools_are_written_in_both_dialects() {
+        let with = |r: Record, abc: [f64; 3], tool: Option<u32>| match r {
+            Record::Move(mut m) => {
+                m.tool.abc = Some(abc);
+                m.tool.number = tool;
+                Record::Move(m)
+            }
+            r => r,
+        };
+        let recs = [
+            with(rapid([0.0, 0.0, 5.0]), [0.0, 0.0, 0.0], Some(2)),
+            with(rapid([0.0, 0.0, 5.0]), [90.0, 0.0, 0.0], Some(2)),
+            with(line([1.0, 0.0, 5.0], 1.0, true), [90.0, 45.5, 0.0], Some(2)),
+            with(line([2.0, 0.0, 5.0], 1.0, true), [90.0, 45.5, 0.0], Some(5)),
+        ];
+        let iso = write(opts(Dialect::Iso), FeedUnit::MmPerMin, &recs);
+        assert!(
+            iso.contains("T2 M6\nG0 X0 Y0 Z5 A0 B0 C0\nA90\n") && iso.contains("G1 X1 B45.5 F1\nT5 M6\nX2\n"),
+            "{iso}"
+        );
+        let pmac = write(opts(Dialect::Pmac), FeedUnit::MmPerS, &recs);
+        assert!(pmac.contains("RAPID X0 Y0 Z5 A0 B0 C0 P400=1\nA90 P400=2\n"), "{pmac}");
+        assert!(!pmac.contains("M6"), "{pmac}");
+        // Read back: the same rotary positions and tools.
+        let (_, back) = crate::gcode::read_str(
+            &iso,
+            &crate::gcode::ReadOptions {
+                dialect: Some(Dialect::Iso),
+                ..Default::default()
+            },
+        )
+        .unwrap();
+        let m: Vec<&Motion> = back.iter().filter_map(Record::motion).collect();
+        assert_eq!(m.len(), 4);
+        for (a, b) in m.iter().zip(&recs) {
+            let b = b.motion().unwrap();
+            assert_eq!((a.tool.abc, a.tool.number), (b.tool.abc, b.tool.number), "{iso}");
+        }
     }
 
     #[test]

@@ -345,6 +345,7 @@ mod tests {
             role: None,
             chain: None,
             block: None,
+            tool: Default::default(),
         })
     }
 

@@ -568,6 +568,7 @@ pub fn to_records(pieces: &[Piece], m: &LaserSetup, chain: Option<u64>, out: &mu
         role: Some(Role::Link),
         chain,
         block: None,
+        tool: Default::default(),
     }));
     let mut pace = Pace::Ramp;
     for p in pieces {
@@ -593,6 +594,7 @@ pub fn to_records(pieces: &[Piece], m: &LaserSetup, chain: Option<u64>, out: &mu
             role: Some(p.role),
             chain,
             block: None,
+            tool: Default::default(),
         }));
     }
 }

@@ -148,6 +148,22 @@ pub struct Machine {
     /// The milling spindle; absent on a machine without one.
     #[serde(default)]
     pub spindle: Option<Spindle>,
+    /// The rotary axes (A, B, C); absent: their moves are timed with the
+    /// linear figures read as degrees ([`Machine::rotary_or_linear`]).
+    #[serde(default)]
+    pub rotary: Option<Rotary>,
+}
+
+/// Speed limits of the rotary axes A, B, C, each on its own.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Rotary {
+    /// Highest feed speed of a rotary axis, degrees/s.
+    pub max_deg_s: f64,
+    /// Rapid speed of a rotary axis, degrees/s.
+    pub rapid_deg_s: f64,
+    /// Acceleration of a rotary axis, degrees/s².
+    pub accel_deg_s2: f64,
 }
 
 /// A milling spindle's speed range (rev/min).
@@ -190,6 +206,17 @@ impl Machine {
         let p = Path::new(spec);
         let text = std::fs::read_to_string(p).map_err(|e| MachineError::Io(spec.into(), e))?;
         Machine::from_json(&text, spec)
+    }
+
+    /// The rotary limits, or, for a profile without a `rotary` section,
+    /// the linear ones read as degrees (1 degree counts as 1 mm: the
+    /// maximum feed, the rapid speed and the rapid acceleration).
+    pub fn rotary_or_linear(&self) -> Rotary {
+        self.rotary.unwrap_or(Rotary {
+            max_deg_s: self.max_feed_mm_s,
+            rapid_deg_s: self.rapid_mm_s,
+            accel_deg_s2: self.rapid_accel_mm_s2,
+        })
     }
 
     /// A built-in profile; panics only if a shipped file is broken, which
@@ -265,6 +292,17 @@ impl Machine {
             ("ts_ms", self.ts_ms),
             ("block_rate_hz", self.block_rate_hz),
         ];
+        if let Some(r) = &self.rotary {
+            for (k, v) in [
+                ("rotary.max_deg_s", r.max_deg_s),
+                ("rotary.rapid_deg_s", r.rapid_deg_s),
+                ("rotary.accel_deg_s2", r.accel_deg_s2),
+            ] {
+                if !(v.is_finite() && v > 0.0) {
+                    return Err(format!("'{k}' must be a positive number, got {v}"));
+                }
+            }
+        }
         if let Some(sh) = &self.shutter {
             non_negative.extend([
                 ("shutter.open_delay_ms", sh.open_delay_ms),

@@ -5,7 +5,7 @@
 //! serialises exactly this model, so toolpath -> G-code -> toolpath is
 //! lossless within the output precision.
 
-use crate::geometry::{P3, Plane};
+use crate::geometry::{P3, Plane, V3};
 use serde::{Deserialize, Serialize};
 
 /// How far (mm) an arc's end may be off the circle through its start, on
@@ -192,6 +192,33 @@ pub struct Motion {
     pub chain: Option<u64>,
     /// Source line number (1-based) when read from G-code.
     pub block: Option<u64>,
+    /// What milling adds: rotary axes, tool number, tool axis.
+    pub tool: ToolState,
+}
+
+/// The milling side of a move: where the rotary axes end, which tool is
+/// in the spindle and which way it points. Every field is optional, so
+/// toolpaths without them (laser jobs, old files) mean what they meant.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct ToolState {
+    /// Rotary axes A, B, C at the end of the move, degrees, absolute
+    /// (machine frame). `None`: the program commands no rotary axis, they
+    /// stay where they are. A reader that has seen a rotary axis word sets
+    /// all three on every later move.
+    pub abc: Option<[f64; 3]>,
+    /// The tool in the spindle (T number after M6), when known.
+    pub number: Option<u32>,
+    /// The tool axis as a unit vector from the tip towards the holder
+    /// (5-axis); `None` means +Z. No kinematics are applied here: a
+    /// 5-axis generator states it, G-code readers do not derive it.
+    pub axis: Option<V3>,
+}
+
+impl ToolState {
+    /// True when no field is set (a 3-axis move with no tool named).
+    pub fn is_empty(&self) -> bool {
+        self.abc.is_none() && self.number.is_none() && self.axis.is_none()
+    }
 }
 
 impl Motion {
@@ -207,6 +234,7 @@ impl Motion {
             role: None,
             chain: None,
             block: Some(block),
+            tool: ToolState::default(),
         }
     }
 }
@@ -282,6 +310,21 @@ impl Record {
                 }
                 if let Some(f) = m.feed {
                     num(f, "feed")?;
+                }
+                if let Some(abc) = &m.tool.abc {
+                    for (v, axis) in abc.iter().zip(["A", "B", "C"]) {
+                        num(*v, "rotary axis")?;
+                        if v.abs() > MAX_COORD_MM {
+                            return Err(format!(
+                                "rotary axis {axis} = {v:e} degrees is beyond what a machine can mean"
+                            ));
+                        }
+                    }
+                }
+                if let Some(a) = &m.tool.axis {
+                    for v in a.iter() {
+                        num(*v, "tool axis")?;
+                    }
                 }
                 Ok(())
             }

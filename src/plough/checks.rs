@@ -15,6 +15,7 @@ fn mv(kind: MotionKind, x: f64, y: f64, feed: Option<f64>) -> Record {
         role: None,
         chain: None,
         block: None,
+        tool: Default::default(),
     })
 }
 

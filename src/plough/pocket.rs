@@ -68,6 +68,7 @@ impl Pocket {
                 role: None,
                 chain: None,
                 block: None,
+                tool: Default::default(),
             })
         };
         let ccw = |ox: f64, oy: f64| {

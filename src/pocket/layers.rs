@@ -55,6 +55,7 @@ impl Program {
             role: Some(role),
             chain: None,
             block: None,
+            tool: Default::default(),
         }));
         self.kinds.push(pk);
         self.pos = Some(to);

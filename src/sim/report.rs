@@ -96,6 +96,12 @@ pub struct Removal<W: Write> {
     header_written: bool,
     /// The path drawn for `--png`.
     pub overlay: Option<Overlay>,
+    /// The cutter of each tool number, when each section of the program
+    /// cuts with its own tool ([`Simulator::with_tool_cutters`]); empty
+    /// when one cutter cuts everything.
+    pub tools: std::collections::BTreeMap<u32, Cutter>,
+    /// The tool whose cutter is in the engine.
+    pub tool: Option<u32>,
 }
 
 /// Most steps one block may be cut in with `--flutes` (per block, so the
@@ -115,6 +121,8 @@ pub struct Simulator<W: Write> {
     machine: Machine,
     feed_factor: f64,
     pos: P3,
+    /// Rotary axes after the last move that carried them (degrees).
+    abc: Option<[f64; 3]>,
     index: u64,
     summary: Summary,
     time: TimeModel,
@@ -142,6 +150,7 @@ impl<W: Write> Simulator<W> {
         Simulator {
             feed_factor: header.feed_unit.to_mm_per_s(),
             pos: start,
+            abc: None,
             index: 0,
             summary: Summary::new(header.feed_unit, start),
             time: TimeModel::new(&machine),
@@ -170,7 +179,21 @@ impl<W: Write> Simulator<W> {
             rpm: None,
             header_written: false,
             overlay: None,
+            tools: std::collections::BTreeMap::new(),
+            tool: None,
         });
+        self
+    }
+
+    /// Cut each move with the cutter of its tool number (`tool` in the
+    /// toolpath): a tool change switches the cutter. Moves before the
+    /// first tool number cut with the cutter given to
+    /// [`Self::with_removal`]; a move of a tool not in `tools` is an error
+    /// naming its line. Call after [`Self::with_removal`].
+    pub fn with_tool_cutters(mut self, tools: std::collections::BTreeMap<u32, Cutter>) -> Self {
+        if let Some(r) = self.removal.as_mut() {
+            r.tools = tools;
+        }
         self
     }
 
@@ -269,6 +292,7 @@ impl<W: Write> Simulator<W> {
                             beam: false,
                             beam_switch: None,
                             chain: None,
+                            rotary_deg: 0.0,
                         }
                     }
                     _ => {
@@ -281,6 +305,36 @@ impl<W: Write> Simulator<W> {
                 block.beam = m.beam;
                 block.beam_switch = m.beam_switch;
                 block.chain = m.chain;
+                if let Some(abc) = m.tool.abc {
+                    let old = self.abc.unwrap_or([0.0; 3]);
+                    block.rotary_deg = ((0..3).map(|k| (abc[k] - old[k]).powi(2)).sum::<f64>()).sqrt();
+                    self.abc = Some(abc);
+                }
+                if let Some(n) = m.tool.number {
+                    let switch = match self.removal.as_ref() {
+                        Some(r) if !r.tools.is_empty() && r.tool != Some(n) => Some(r.tools.get(&n).copied()),
+                        _ => None,
+                    };
+                    match switch {
+                        Some(Some(c)) => {
+                            if let Some(r) = self.removal.as_mut() {
+                                // Cut what the old tool has queued with it.
+                                r.flush()?;
+                                r.engine.cutter = c;
+                                r.tool = Some(n);
+                            }
+                        }
+                        Some(None) => {
+                            return Err(self.err(
+                                m.block,
+                                format!(
+                                    "tool T{n} has no cutter: it is neither in the tool table (with a diameter) nor in the program's tool comments; --tool sets one cutter for the whole program"
+                                ),
+                            ));
+                        }
+                        None => {}
+                    }
+                }
                 if let Some(r) = self.removal.as_mut() {
                     let index = self.index;
                     r.cut(&block, &from, &m.to, &m.kind).map_err(|e| match e {
@@ -662,6 +716,7 @@ mod tests {
             role: None,
             chain: None,
             block: None,
+            tool: Default::default(),
         });
         let e = s.add(&rec).unwrap_err().to_string();
         assert_eq!(e, "record 1: feed move with feed 0");

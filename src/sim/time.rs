@@ -114,6 +114,9 @@ pub struct Block {
     /// program says (PMAC `==` / `=`).
     pub beam_switch: Option<crate::model::toolpath::ShutterSwitch>,
     pub chain: Option<u64>,
+    /// Travel of the rotary axes A, B, C (degrees, the length of their
+    /// joint displacement); 0 for a 3-axis move.
+    pub rotary_deg: f64,
 }
 
 impl Block {
@@ -134,6 +137,7 @@ impl Block {
             beam: false,
             beam_switch: None,
             chain: None,
+            rotary_deg: 0.0,
         }
     }
 }
@@ -226,6 +230,7 @@ pub enum Event {
 pub struct TimeModel {
     inner: Inner,
     out: VecDeque<Event>,
+    rotary: crate::machine::Rotary,
 }
 
 enum Inner {
@@ -242,14 +247,79 @@ impl TimeModel {
         TimeModel {
             inner,
             out: VecDeque::new(),
+            rotary: m.rotary_or_linear(),
         }
     }
 
-    pub fn push_move(&mut self, b: Block) {
+    /// A move. Rotary axes (the documented rule, docs/gsim.md): a move that
+    /// turns only rotary axes (an indexing move) stops the linear axes and
+    /// takes the rotary trapezoid's time (feed in degrees per unit time, at
+    /// most the rotary maximum, or the rotary rapid speed; the rotary
+    /// acceleration), covering no path; a move that turns them while the
+    /// linear axes move has its feed lowered so that no rotary axis turns
+    /// faster than its maximum. A rapid's rotary travel beside linear
+    /// travel is not timed.
+    pub fn push_move(&mut self, mut b: Block) {
+        if b.rotary_deg > 0.0 {
+            if b.length_mm <= 0.0 {
+                self.push_rotary_only(b);
+                return;
+            }
+            if b.class != MoveClass::Rapid {
+                let cap = b.length_mm * self.rotary.max_deg_s / b.rotary_deg;
+                if cap < b.feed_mm_s {
+                    b.feed_mm_s = cap;
+                }
+            }
+        }
         match &mut self.inner {
             Inner::Pmac(p) => p.push_move(b, &mut self.out),
             Inner::Lookahead(l) => l.push_move(b, &mut self.out),
         }
+    }
+
+    /// A move of the rotary axes alone: motion stops, the axes turn.
+    fn push_rotary_only(&mut self, b: Block) {
+        let r = self.rotary;
+        let v = if b.class == MoveClass::Rapid {
+            r.rapid_deg_s
+        } else {
+            b.feed_mm_s.min(r.max_deg_s)
+        };
+        let (theta, a) = (b.rotary_deg, r.accel_deg_s2);
+        // Trapezoid from rest to rest, or a triangle when too short.
+        let time = if theta >= v * v / a {
+            theta / v + v / a
+        } else {
+            2.0 * (theta / a).sqrt()
+        };
+        let t = match &mut self.inner {
+            Inner::Pmac(p) => {
+                p.stop(&mut self.out);
+                let t = p.t;
+                p.t += time;
+                t
+            }
+            Inner::Lookahead(l) => {
+                l.stop(&mut self.out);
+                let t = l.t;
+                l.t += time;
+                t
+            }
+        };
+        let mut pieces = [Piece::default(); MAX_PIECES];
+        pieces[0].dt = time;
+        self.out.push_back(Event::Block(TimedBlock {
+            t_start_s: t,
+            time_s: time,
+            exec_start_s: t,
+            pieces,
+            n_pieces: 1,
+            achieved_feed_mm_s: 0.0,
+            commanded_feed_mm_s: v,
+            limited_by: Limit::None,
+            block: b,
+        }));
     }
 
     /// A dwell: motion stops, then waits.
@@ -965,6 +1035,39 @@ mod tests {
         let t = run(&m, &[line(0.01, 0.0, 3.0)]);
         assert_eq!(t[0].limited_by, Limit::BlockRate);
         assert!(close(t[0].time_s, 0.011, 1e-12), "{}", t[0].time_s);
+    }
+
+    #[test]
+    fn rotary_moves_take_the_rotary_axes_time() {
+        for c in [Controller::Pmac, Controller::Lookahead] {
+            let mut m = machine(c);
+            m.rotary = Some(crate::machine::Rotary {
+                max_deg_s: 30.0,
+                rapid_deg_s: 90.0,
+                accel_deg_s2: 300.0,
+            });
+            // Indexing: 90 degrees at F 60 deg/s capped to 30, 0.1 s ramps.
+            let mut index = Block::straight(MoveClass::Line, V3::zeros(), 60.0);
+            index.rotary_deg = 90.0;
+            // Rapid indexing: 9 degrees cannot reach 90 deg/s: a triangle.
+            let mut rapid = Block::straight(MoveClass::Rapid, V3::zeros(), 0.0);
+            rapid.rotary_deg = 9.0;
+            // Both: 1 mm at 3 mm/s while turning 60 degrees: the rotary
+            // maximum (30 deg/s) holds the feed to 0.5 mm/s.
+            let mut both = line(1.0, 0.0, 3.0);
+            both.rotary_deg = 60.0;
+            let t = run(&m, &[line(1.0, 0.0, 3.0), index, rapid, both]);
+            check_consistent(&t);
+            assert!(close(t[1].time_s, 3.0 + 0.1, 1e-12), "{c:?}: {}", t[1].time_s);
+            assert!(close(t[2].time_s, 2.0 * (9.0f64 / 300.0).sqrt(), 1e-12), "{c:?}");
+            assert!(close(t[2].t_start_s, t[1].t_start_s + t[1].time_s, 1e-12), "{c:?}");
+            assert!(close(t[3].block.feed_mm_s, 0.5, 1e-12), "{c:?}");
+            assert!(t[3].time_s >= 2.0 - 1e-12, "{c:?}: {}", t[3].time_s);
+        }
+        // Without a rotary section the linear figures count, as degrees.
+        let m = machine(Controller::Pmac);
+        let r = m.rotary_or_linear();
+        assert_eq!((r.max_deg_s, r.rapid_deg_s), (m.max_feed_mm_s, m.rapid_mm_s));
     }
 
     #[test]
