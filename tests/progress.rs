@@ -8,6 +8,7 @@ fn tool(name: &str) -> Command {
         "gsim" => env!("CARGO_BIN_EXE_gsim"),
         "plough2d" => env!("CARGO_BIN_EXE_plough2d"),
         "pathgen" => env!("CARGO_BIN_EXE_pathgen"),
+        "stlverify" => env!("CARGO_BIN_EXE_stlverify"),
         other => panic!("no binary {other}"),
     })
 }
@@ -51,6 +52,7 @@ fn every_long_job_tool_has_quiet() {
         &["plough2d"],
         &["pathgen", "slice"],
         &["pathgen", "dropcutter"],
+        &["stlverify"],
     ] {
         let out = tool(args[0]).args(&args[1..]).arg("--help").output().unwrap();
         let help = String::from_utf8_lossy(&out.stdout);

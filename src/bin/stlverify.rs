@@ -10,6 +10,7 @@ use microcam::mesh::read::{ReadOptions as MeshOptions, read_path};
 use microcam::sim::picture::write_png;
 use microcam::sim::stl::{Heights, write_heights_stl};
 use microcam::source::ToolpathSource;
+use microcam::progress::{Meter, Show};
 use microcam::verify::compare::{Design, Sample, Stats, points_csv, profiles_csv, sample, steps};
 use microcam::verify::{Job, cl, plot, simulate};
 use serde_json::json;
@@ -55,6 +56,9 @@ enum Format {
 struct Args {
     /// CL data or program ('-' for stdin).
     file: Option<PathBuf>,
+    /// No progress bar on stderr (warnings and errors still appear).
+    #[arg(short, long)]
+    quiet: bool,
     /// Input format (default: from the extension, else CL data).
     #[arg(long, value_enum)]
     format: Option<Format>,
@@ -196,7 +200,9 @@ fn run(args: Args) -> Result<(), CliError> {
         sweep_tol,
         locations,
     };
+    let meter = Meter::start("stlverify", "cutting (tile, move) pairs", 0, Show::from_flags(args.quiet, false));
     let sim = simulate(&job).map_err(|e| CliError::input(format!("--stock/--spacing: {e}")))?;
+    meter.finish();
     let vols = sim.dexels.volumes();
     let bv = sim.dexels.box_volume();
     let buried = job

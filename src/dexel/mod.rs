@@ -157,6 +157,8 @@ impl Family {
                 }
             }
         }
+        // Progress in (tile, move) pairs: the unit of work below.
+        crate::progress::add_total(bins.iter().map(|b| b.len() as u64).sum());
         let mut tiles = std::mem::take(&mut self.tiles);
         let fam = &*self;
         let (lo, hi) = (self.lo as f32, self.hi as f32);
@@ -167,7 +169,9 @@ impl Family {
             .filter(|(_, (_, b))| !b.is_empty())
             .map(|(t, (slot, bin))| {
                 let tile = slot.get_or_insert_with(|| Box::new(Tile::full(lo, hi)));
-                fam.cut_tile(t, tile, bin, sweeps)
+                let st = fam.cut_tile(t, tile, bin, sweeps);
+                crate::progress::advance(bin.len() as u64);
+                st
             })
             .reduce(CutStats::default, |a, b| a + b);
         self.tiles = tiles;
