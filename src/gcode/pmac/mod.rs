@@ -62,25 +62,40 @@
 //! expressions and no panicking index, so any input yields records or an
 //! error.
 
+mod buffers;
 mod expr;
 mod lexer;
+mod online;
+mod preprocess;
 mod program;
 
-use super::{GcodeError, LineInterpreter, ReadOptions, make_arc};
+use super::{GcodeError, LineInterpreter, Notes, ReadOptions, make_arc};
 use crate::geometry::{P3, Plane};
 use crate::model::toolpath::{Record, ShutterSwitch};
-use expr::{Var, Vars};
-use lexer::{Cursor, find_word};
+use expr::{Var, VarKind, Vars};
+use lexer::{Cursor, find_word, is_ws, match_keyword};
+use preprocess::{Defines, Directive, MAX_INCLUDE_DEPTH};
 use program::{MoveMode, PendingMove};
 use std::collections::VecDeque;
+use std::path::PathBuf;
+
+/// Lines held while the reader cannot yet tell a bare program from a
+/// download file's preamble; past this many it reads them as a program.
+const HOLD_MAX: usize = 10_000;
 
 /// Where in the file's buffer structure the reader is.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Buffer {
-    /// No buffer command seen yet: a bare motion program, interpreted.
+    /// Nothing yet tells a bare program from a download file: on-line
+    /// commands (`&1`, `#1->`, `DELETE GATHER`, ranges) are executed,
+    /// variable assignments held until an `OPEN` (a download file: they
+    /// were on-line) or program text (a bare program: they are its first
+    /// lines) decides.
+    Undecided,
+    /// A bare motion program, interpreted.
     Bare,
-    /// After CLOSE (or another on-line buffer command): on-line commands,
-    /// ignored until the next OPEN.
+    /// A download file between buffers: on-line commands until the next
+    /// OPEN.
     Outside,
     /// Inside OPEN PROG / OPEN ROT: interpreted.
     Open,
@@ -89,11 +104,125 @@ enum Buffer {
     Skip,
 }
 
-/// Words looked for between buffers: OPEN starts the next buffer; a move
-/// mode word there means program text outside its buffer (a CLOSE too
-/// early), and a second CLOSE is unbalanced. Other on-line text (`&1B1R`,
-/// `#1->1000X`, `I5=2`) is sent at download time and ignored.
-const OUTSIDE_WORDS: &[&str] = &["OPEN", "CLOSE", "LINEAR", "RAPID", "CIRCLE"];
+/// How a line read before the file's kind is known counts.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum LineClass {
+    Blank,
+    /// Opens a buffer: a download file.
+    Open,
+    /// Only an on-line command starts so (`&`, `#`, `Mn->`, `I1,8=`,
+    /// `DELETE`, `CLOSE` ...).
+    Online,
+    /// A variable assignment (`P1=2`, `NAME = 3`): on-line or program.
+    Held,
+    /// Program text: a bare program.
+    Program,
+}
+
+fn classify(text: &str) -> LineClass {
+    let b = text.as_bytes();
+    let mut i = 0;
+    while b.get(i).copied().is_some_and(is_ws) {
+        i += 1;
+    }
+    let Some(&c) = b.get(i) else {
+        return LineClass::Blank;
+    };
+    if c == b';' {
+        return LineClass::Blank;
+    }
+    if find_word(b, i, &["OPEN"]).is_some() {
+        return LineClass::Open;
+    }
+    if c == b'&' || c == b'#' {
+        return LineClass::Online;
+    }
+    if !c.is_ascii_alphabetic() {
+        return LineClass::Program;
+    }
+    let letters = b[i..]
+        .iter()
+        .position(|c| !c.is_ascii_alphabetic())
+        .map_or(b.len(), |k| i + k);
+    let ident = b[i..]
+        .iter()
+        .position(|c| !(c.is_ascii_alphanumeric() || *c == b'_'))
+        .map_or(b.len(), |k| i + k);
+    let assignment_at = |mut j: usize| {
+        while b.get(j).copied().is_some_and(is_ws) {
+            j += 1;
+        }
+        b.get(j) == Some(&b'=') && b.get(j + 1) != Some(&b'=')
+    };
+    if letters == i + 1 && VarKind::from_letter(c).is_some() {
+        let mut j = letters;
+        if b.get(j).is_some_and(u8::is_ascii_digit) {
+            while b.get(j).is_some_and(u8::is_ascii_digit) {
+                j += 1;
+            }
+        } else if b.get(j) == Some(&b'(') {
+            let mut depth = 0usize;
+            while let Some(&c) = b.get(j) {
+                j += 1;
+                depth = match c {
+                    b'(' => depth + 1,
+                    b')' => depth.saturating_sub(1),
+                    _ => depth,
+                };
+                if depth == 0 {
+                    break;
+                }
+            }
+        } else {
+            return LineClass::Program;
+        }
+        if b.get(j) == Some(&b',') || b.get(j..j + 2) == Some(b"..") {
+            return LineClass::Online;
+        }
+        let mut k = j;
+        while b.get(k).copied().is_some_and(is_ws) {
+            k += 1;
+        }
+        if b.get(k..k + 2) == Some(b"->") {
+            return LineClass::Online;
+        }
+        if b.get(k..k + 2) == Some(b"==") {
+            // Synchronous assignment: program text only.
+            return LineClass::Program;
+        }
+        return if assignment_at(j) {
+            LineClass::Held
+        } else if c.eq_ignore_ascii_case(&b'M') {
+            // M30: a subroutine call in a program.
+            LineClass::Program
+        } else {
+            // P1, I130 alone: a query (no program text reads so).
+            LineClass::Online
+        };
+    }
+    let run = &b[i..letters];
+    if online::is_setup_word(run) {
+        return LineClass::Online;
+    }
+    if ident > i + 1
+        && assignment_at(ident)
+        && !(ident == letters && match_keyword(run).is_some_and(|(k, _)| k.len() == run.len()))
+    {
+        return LineClass::Held;
+    }
+    LineClass::Program
+}
+
+/// `e` with `prefix` (where in an #include the line is) before its message.
+fn located(e: GcodeError, prefix: &str) -> GcodeError {
+    if prefix.is_empty() {
+        return e;
+    }
+    match e {
+        GcodeError::Invalid { line, msg } => GcodeError::at(line, format!("{prefix}{msg}")),
+        GcodeError::Io { line, source } => GcodeError::at(line, format!("{prefix}{source}")),
+    }
+}
 
 /// The Turbo PMAC motion-program interpreter.
 pub struct PmacInterpreter {
@@ -106,6 +235,13 @@ pub struct PmacInterpreter {
     pos: P3,
     mode: MoveMode,
     abs_axes: [bool; 3],
+    /// A B C U V W: where they are (they never move) and ABS/INC.
+    extra_pos: [f64; 6],
+    abs_extra: [bool; 6],
+    /// FRAX: which of X Y Z the feed F is the vector speed of.
+    frax_axes: [bool; 3],
+    /// TM: feed moves take this many ms each (until an F).
+    move_time: Option<f64>,
     abs_center: bool,
     plane: Plane,
     /// NORMAL points along the positive axis: CIRCLE1/2 senses swap.
@@ -125,6 +261,23 @@ pub struct PmacInterpreter {
     pending: PendingMove,
     ta: Option<f64>,
     ts: Option<f64>,
+    /// `#define`s made so far.
+    defines: Defines,
+    /// Where the line being read is when it comes from an `#include`
+    /// (`in defs.pmc:3: `, nested ones in turn), for notes and errors.
+    loc: String,
+    /// The files being read, outermost first (the program's own file when
+    /// known): `#include` names are relative to the last.
+    include_stack: Vec<PathBuf>,
+    notes: Notes,
+    /// `--program n`.
+    program_choice: Option<u32>,
+    /// The motion buffer read (`PROG 10`), once one is.
+    program_read: Option<String>,
+    /// Every motion buffer met, for messages.
+    buffers_seen: Vec<String>,
+    /// Lines held while undecided: line, `loc`, text.
+    held: Vec<(u64, String, String)>,
 }
 
 impl PmacInterpreter {
@@ -152,6 +305,10 @@ impl PmacInterpreter {
             pos: opts.start,
             mode: MoveMode::Linear,
             abs_axes: [true; 3],
+            extra_pos: [0.0; 6],
+            abs_extra: [true; 6],
+            frax_axes: [true; 3],
+            move_time: None,
             abs_center: false,
             plane: Plane::Xy,
             normal_positive: false,
@@ -159,14 +316,174 @@ impl PmacInterpreter {
             beam: false,
             moved_beam: false,
             last_switch: ShutterSwitch::Sync,
-            buffer: Buffer::Bare,
+            buffer: Buffer::Undecided,
             opened_at: 0,
             buffer_has_records: false,
             ended: false,
             pending: PendingMove::default(),
             ta: None,
             ts: None,
+            defines: Defines::default(),
+            loc: String::new(),
+            include_stack: opts.source_path.iter().cloned().collect(),
+            notes: opts.notes.clone(),
+            program_choice: opts.pmac_program,
+            program_read: None,
+            buffers_seen: Vec::new(),
+            held: Vec::new(),
         }
+    }
+
+    /// An interpreter for the lines of one program buffer (what a
+    /// controller runs), not a file: no download-file preamble to tell
+    /// apart, so every line is program text from the first.
+    pub fn program_body(opts: &ReadOptions) -> Self {
+        let mut p = Self::new(opts);
+        p.buffer = Buffer::Bare;
+        p
+    }
+
+    /// Leave a note on `lineno` (prefixed with where in an #include).
+    fn note(&self, lineno: u64, text: impl AsRef<str>) {
+        self.notes.push(lineno, format!("{}{}", self.loc, text.as_ref()));
+    }
+
+    /// One line of a source file (the program's or an included one's), as
+    /// the downloader sees it: a directive, or text with defines
+    /// substituted. `lineno` is the program file's line.
+    fn source_line(&mut self, text: &str, lineno: u64, out: &mut VecDeque<Record>) -> Result<(), GcodeError> {
+        if let Some(d) = preprocess::directive(text) {
+            let r = match d {
+                Err(m) => Err(GcodeError::at(lineno, m)),
+                Ok(Directive::Define { name, text }) => {
+                    self.defines.define(name, text);
+                    Ok(())
+                }
+                Ok(Directive::Undefine(name)) => {
+                    self.defines.undefine(name);
+                    Ok(())
+                }
+                Ok(Directive::Include(name)) => return self.include(name, lineno, out),
+            };
+            return r.map_err(|e| located(e, &self.loc));
+        }
+        let expanded = match self.defines.expand(text) {
+            Ok(t) => t,
+            Err(m) => return Err(located(GcodeError::at(lineno, m), &self.loc)),
+        };
+        self.logical_line(&expanded, lineno, out)
+    }
+
+    /// `#include "name"` on line `lineno`: the file's lines in place.
+    fn include(&mut self, name: &str, lineno: u64, out: &mut VecDeque<Record>) -> Result<(), GcodeError> {
+        let fail = |s: &Self, msg: String| Err(located(GcodeError::at(lineno, msg), &s.loc));
+        if self.include_stack.len() > MAX_INCLUDE_DEPTH {
+            return fail(
+                self,
+                format!("#include \"{name}\": includes nested deeper than {MAX_INCLUDE_DEPTH}"),
+            );
+        }
+        let dir = self
+            .include_stack
+            .last()
+            .and_then(|p| p.parent())
+            .map(PathBuf::from)
+            .unwrap_or_default();
+        let path = dir.join(name);
+        let bytes = match std::fs::read(&path) {
+            Ok(b) => b,
+            Err(e) => {
+                return fail(
+                    self,
+                    format!("#include \"{name}\": cannot read {}: {e}", path.display()),
+                );
+            }
+        };
+        let same = |a: &PathBuf| match (a.canonicalize(), path.canonicalize()) {
+            (Ok(x), Ok(y)) => x == y,
+            _ => false,
+        };
+        if let Some(k) = self.include_stack.iter().position(same) {
+            let chain: Vec<String> = self.include_stack[k..]
+                .iter()
+                .map(|p| p.display().to_string())
+                .chain(std::iter::once(path.display().to_string()))
+                .collect();
+            return fail(
+                self,
+                format!("#include \"{name}\": a cycle ({})", chain.join(" includes ")),
+            );
+        }
+        let Ok(text) = String::from_utf8(bytes) else {
+            return fail(
+                self,
+                format!("#include \"{name}\": {} is not UTF-8 text", path.display()),
+            );
+        };
+        let outer = std::mem::take(&mut self.loc);
+        self.include_stack.push(path.clone());
+        let mut r = Ok(());
+        for (k, l) in text.lines().enumerate() {
+            self.loc = format!("{outer}in {}:{}: ", path.display(), k + 1);
+            r = self.source_line(l, lineno, out);
+            if r.is_err() || self.ended {
+                break;
+            }
+        }
+        self.include_stack.pop();
+        self.loc = outer;
+        r
+    }
+
+    /// A line after the preprocessor.
+    fn logical_line(&mut self, text: &str, lineno: u64, out: &mut VecDeque<Record>) -> Result<(), GcodeError> {
+        if self.buffer == Buffer::Undecided {
+            match classify(text) {
+                LineClass::Blank => return Ok(()),
+                LineClass::Held if self.held.len() < HOLD_MAX => {
+                    self.held.push((lineno, self.loc.clone(), text.to_string()));
+                    return Ok(());
+                }
+                LineClass::Online => {
+                    let mut cur = Cursor::new(text);
+                    return self.online(&mut cur, lineno).map_err(|e| located(e, &self.loc));
+                }
+                LineClass::Open => self.decide(true, out)?,
+                LineClass::Held | LineClass::Program => self.decide(false, out)?,
+            }
+        }
+        let mut cur = Cursor::new(text);
+        let r = self.run(&mut cur, lineno, out);
+        if r.is_err() {
+            self.pending = PendingMove::default();
+            self.ta = None;
+            self.ts = None;
+        }
+        r.map_err(|e| located(e, &self.loc))
+    }
+
+    /// The file is a download file (`download`) or a bare program: read
+    /// the held lines as what they are.
+    fn decide(&mut self, download: bool, out: &mut VecDeque<Record>) -> Result<(), GcodeError> {
+        self.buffer = if download { Buffer::Outside } else { Buffer::Bare };
+        let held = std::mem::take(&mut self.held);
+        let here = std::mem::take(&mut self.loc);
+        for (l, loc, t) in held {
+            self.loc = loc;
+            let mut cur = Cursor::new(&t);
+            let r = if download {
+                self.online(&mut cur, l)
+            } else {
+                self.run(&mut cur, l, out)
+            };
+            if let Err(e) = r {
+                let e = located(e, &self.loc);
+                self.loc = here;
+                return Err(e);
+            }
+        }
+        self.loc = here;
+        Ok(())
     }
 
     fn push(&mut self, out: &mut VecDeque<Record>, rec: Record) {
@@ -177,20 +494,13 @@ impl PmacInterpreter {
     fn run(&mut self, cur: &mut Cursor, lineno: u64, out: &mut VecDeque<Record>) -> Result<(), GcodeError> {
         loop {
             match self.buffer {
-                Buffer::Outside => match find_word(cur.b, cur.i, OUTSIDE_WORDS) {
-                    Some((p, 0 | 1)) => cur.i = p,
-                    Some((p, _)) => {
-                        return Err(GcodeError::at(
-                            lineno,
-                            format!(
-                                "'{}' after CLOSE and before the next OPEN: motion outside a program buffer \
-                                 is not part of the program",
-                                cur.snippet(p)
-                            ),
-                        ));
+                Buffer::Outside | Buffer::Undecided => {
+                    self.online(cur, lineno)?;
+                    if matches!(self.buffer, Buffer::Outside | Buffer::Undecided) {
+                        break;
                     }
-                    None => break,
-                },
+                    continue;
+                }
                 Buffer::Skip => match find_word(cur.b, cur.i, &["CLOSE"]) {
                     Some((p, _)) => {
                         cur.i = p + 5;
@@ -239,17 +549,14 @@ impl LineInterpreter for PmacInterpreter {
                 format!("not UTF-8 text (byte {} of the line)", e.valid_up_to() + 1),
             )
         })?;
-        let mut cur = Cursor::new(text);
-        let r = self.run(&mut cur, lineno, out);
-        if r.is_err() {
-            self.pending = PendingMove::default();
-            self.ta = None;
-            self.ts = None;
-        }
-        r
+        self.source_line(text, lineno, out)
     }
 
-    fn finish(&mut self, lineno: u64, _out: &mut VecDeque<Record>) -> Result<(), GcodeError> {
+    fn finish(&mut self, lineno: u64, out: &mut VecDeque<Record>) -> Result<(), GcodeError> {
+        if self.buffer == Buffer::Undecided {
+            // Assignments only, or nothing: a bare program.
+            self.decide(false, out)?;
+        }
         if matches!(self.buffer, Buffer::Open | Buffer::Skip) {
             return Err(GcodeError::at(
                 lineno,
@@ -259,7 +566,7 @@ impl LineInterpreter for PmacInterpreter {
                 ),
             ));
         }
-        Ok(())
+        self.check_program_found(lineno)
     }
 
     fn ended(&self) -> bool {

@@ -5,7 +5,7 @@ use super::expr::{VAR_MAX, Var, VarKind};
 use super::lexer::{Cursor, Kw, is_ws, letter_name, match_keyword};
 use super::{Buffer, GcodeError, PmacInterpreter, make_arc};
 use crate::geometry::planar::center_from_radius;
-use crate::geometry::{EPS_LEN, P2, P3, Plane};
+use crate::geometry::{Arc3, EPS_LEN, P2, P3, Plane};
 use crate::model::toolpath::{ArcData, Motion, MotionKind, Record, ShutterSwitch, arc_end_tolerance};
 use std::collections::VecDeque;
 
@@ -37,10 +37,15 @@ impl MoveMode {
 #[derive(Debug, Clone, Copy, Default)]
 pub(super) struct PendingMove {
     axes: [Option<f64>; 3],
+    /// A B C U V W: accepted only where they stay put.
+    extra: [Option<f64>; 6],
     center: [Option<f64>; 3],
     radius: Option<f64>,
     pub(super) active: bool,
 }
+
+/// The axes besides X Y Z, in the order of `PendingMove::extra`.
+pub(super) const EXTRA_AXES: [u8; 6] = *b"ABCUVW";
 
 impl PmacInterpreter {
     pub(super) fn command(
@@ -75,8 +80,7 @@ impl PmacInterpreter {
             b'&' | b'#' if self.buffer == Buffer::Bare => {
                 // On-line addressing (`&1B1R`, `#1J/`) in a bare file: sent to
                 // the controller, not part of the program.
-                cur.i = cur.b.len();
-                Ok(())
+                self.online(cur, lineno)
             }
             b'&' | b'#' => Err(GcodeError::at(
                 lineno,
@@ -155,6 +159,7 @@ impl PmacInterpreter {
                     return Err(GcodeError::at(lineno, format!("feed rate F{v} must be positive")));
                 }
                 self.feed = Some(v);
+                self.move_time = None;
                 Ok(())
             }
             b'P' | b'Q' | b'M' => {
@@ -194,18 +199,19 @@ impl PmacInterpreter {
                 }
                 Ok(())
             }
-            b'A' | b'B' | b'C' | b'U' | b'V' | b'W' => Err(GcodeError::at(
-                lineno,
-                format!(
-                    "axis {} is not supported (the toolpath has X, Y and Z only){}",
-                    letter as char,
-                    if letter == b'B' && self.buffer == Buffer::Bare {
-                        "; an on-line B{n} (point to a program) belongs after CLOSE"
-                    } else {
-                        ""
-                    }
-                ),
-            )),
+            b'A' | b'B' | b'C' | b'U' | b'V' | b'W' => {
+                // Kept to check at the move that the axis stays where it is.
+                let k = EXTRA_AXES.iter().position(|&a| a == letter).unwrap_or(0);
+                let v = self.vars.data(cur, letter_name(letter), lineno)?;
+                if self.pending.extra[k].replace(v).is_some() {
+                    return Err(GcodeError::at(
+                        lineno,
+                        format!("{} given twice in one move", letter as char),
+                    ));
+                }
+                self.pending.active = true;
+                Ok(())
+            }
             _ => Err(GcodeError::at(lineno, format!("unknown word '{}'", cur.snippet(start)))),
         }
     }
@@ -232,10 +238,17 @@ impl PmacInterpreter {
                 return Ok(());
             }
             Kw::Tm => {
-                return Err(GcodeError::at(
-                    lineno,
-                    "TM (move time) is not supported: give the speed with F",
-                ));
+                // Move time, ms: later feed moves take it until an F.
+                let v = self.vars.data(cur, name, lineno)?;
+                if v < 0.0 {
+                    return Err(GcodeError::at(lineno, format!("TM{v}: time must not be negative")));
+                }
+                self.move_time = Some(v);
+                return Ok(());
+            }
+            Kw::Frax => {
+                self.frax(cur, lineno)?;
+                return Ok(());
             }
             Kw::Flow => {
                 return Err(GcodeError::at(
@@ -283,31 +296,7 @@ impl PmacInterpreter {
                 );
             }
             Kw::Open => self.open(cur, lineno)?,
-            Kw::Close => {
-                // CLOSE before any OPEN and before any program text is the
-                // safe download preamble: the file may still be a bare
-                // program, so stay in it. Any other CLOSE with no buffer
-                // open is unbalanced.
-                match self.buffer {
-                    Buffer::Bare if self.buffer_has_records => {
-                        return Err(GcodeError::at(
-                            lineno,
-                            "CLOSE without OPEN: the program text above it is in no buffer (OPEN PROG n first)",
-                        ));
-                    }
-                    Buffer::Bare => {}
-                    Buffer::Outside => {
-                        return Err(GcodeError::at(
-                            lineno,
-                            format!(
-                                "CLOSE without OPEN: the buffer opened at line {} is closed already",
-                                self.opened_at
-                            ),
-                        ));
-                    }
-                    Buffer::Open | Buffer::Skip => self.buffer = Buffer::Outside,
-                }
-            }
+            Kw::Close => self.close(lineno)?,
             Kw::Clear => {
                 if self.buffer_has_records {
                     return Err(GcodeError::at(
@@ -336,48 +325,8 @@ impl PmacInterpreter {
                     cur.i = cur.b.len();
                 }
             }
-            Kw::Ta | Kw::Ts | Kw::Tm | Kw::Flow | Kw::Unsupported => {}
+            Kw::Ta | Kw::Ts | Kw::Tm | Kw::Frax | Kw::Flow | Kw::Unsupported => {}
         }
-        Ok(())
-    }
-
-    pub(super) fn open(&mut self, cur: &mut Cursor, lineno: u64) -> Result<(), GcodeError> {
-        if matches!(self.buffer, Buffer::Open | Buffer::Skip) {
-            return Err(GcodeError::at(
-                lineno,
-                format!(
-                    "OPEN while the buffer opened at line {} is still open (CLOSE missing)",
-                    self.opened_at
-                ),
-            ));
-        }
-        cur.skip_ws();
-        let start = cur.i;
-        let end = cur.letters_end(start);
-        let w = cur.b.get(start..end).unwrap_or(&[]);
-        cur.i = end;
-        let is = |s: &str| w.eq_ignore_ascii_case(s.as_bytes());
-        self.buffer = if is("PROG") || is("PROGRAM") {
-            cur.skip_ws();
-            if cur.uint().is_none() {
-                return Err(GcodeError::at(lineno, "OPEN PROG needs a program number"));
-            }
-            Buffer::Open
-        } else if is("ROT") || is("ROTARY") {
-            Buffer::Open
-        } else if ["PLC", "PLCC", "FORWARD", "FWD", "INVERSE", "INV", "BIN", "BINARY"]
-            .iter()
-            .any(|s| is(s))
-        {
-            Buffer::Skip
-        } else {
-            return Err(GcodeError::at(
-                lineno,
-                format!("OPEN {}: expected OPEN PROG n or OPEN ROT", cur.snippet(start)),
-            ));
-        };
-        self.opened_at = lineno;
-        self.buffer_has_records = false;
         Ok(())
     }
 
@@ -388,6 +337,7 @@ impl PmacInterpreter {
         cur.skip_ws();
         if !cur.eat(b'(') {
             self.abs_axes = [abs; 3];
+            self.abs_extra = [abs; 6];
             return Ok(());
         }
         let mut any = false;
@@ -405,15 +355,16 @@ impl PmacInterpreter {
                 b'Z' => self.abs_axes[2] = abs,
                 b'R' => self.abs_center = abs,
                 c @ (b'A' | b'B' | b'C' | b'U' | b'V' | b'W') => {
-                    return Err(GcodeError::at(
-                        lineno,
-                        format!("{word}({}): axis not supported (X, Y, Z and R only)", c as char),
-                    ));
+                    let k = EXTRA_AXES.iter().position(|&a| a == c).unwrap_or(0);
+                    self.abs_extra[k] = abs;
                 }
                 _ => {
                     return Err(GcodeError::at(
                         lineno,
-                        format!("{word}(...): expected X, Y, Z or R, found '{}'", c as char),
+                        format!(
+                            "{word}(...): expected an axis (X Y Z A B C U V W) or R, found '{}'",
+                            c as char
+                        ),
                     ));
                 }
             }
@@ -594,15 +545,36 @@ impl PmacInterpreter {
         if !(to.x.is_finite() && to.y.is_finite() && to.z.is_finite()) {
             return Err(GcodeError::at(lineno, "move end point is not a finite number"));
         }
-        let feed = if self.mode == MoveMode::Rapid {
+        for (k, v) in pm.extra.iter().enumerate() {
+            let Some(v) = *v else { continue };
+            let at = self.extra_pos[k];
+            let end = if self.abs_extra[k] { v } else { at + v };
+            if (end - at).abs() > EPS_LEN {
+                let letter = EXTRA_AXES[k] as char;
+                return Err(GcodeError::at(
+                    lineno,
+                    format!(
+                        "axis {letter} moves (from {at} to {end}): the toolpath has X, Y and Z only, \
+                         so axes A B C U V W are read only where they stay put{}",
+                        if letter == 'B' && self.buffer == Buffer::Bare {
+                            "; an on-line B{n} (point to a program) belongs after CLOSE"
+                        } else {
+                            ""
+                        }
+                    ),
+                ));
+            }
+        }
+        let feed = if self.mode == MoveMode::Rapid || self.move_time.is_some() {
             None
         } else {
-            Some(self.feed.ok_or_else(|| {
+            let f = self.feed.ok_or_else(|| {
                 GcodeError::at(
                     lineno,
-                    format!("no feed rate: set F before the first {} move", self.mode.name()),
+                    format!("no feed rate: set F (or TM) before the first {} move", self.mode.name()),
                 )
-            })?)
+            })?;
+            Some(self.frax_feed(f, &to, lineno)?)
         };
         let has_center = pm.center.iter().any(Option::is_some);
         let kind = match self.mode {
@@ -627,6 +599,39 @@ impl PmacInterpreter {
                 MotionKind::Arc(self.arc(&pm, &to, ccw, lineno)?)
             }
         };
+        let feed = match (self.mode, self.move_time) {
+            (MoveMode::Rapid, _) | (_, None) => feed,
+            (_, Some(tm)) => {
+                let length = match &kind {
+                    MotionKind::Arc(a) => {
+                        Arc3::new(a.center, self.pos, to, a.ccw, a.plane, a.extra_turns).map_or(0.0, |a| a.length())
+                    }
+                    _ => (to - self.pos).norm(),
+                };
+                if length <= EPS_LEN {
+                    // Nowhere to go: the move is its time in place.
+                    self.push(
+                        out,
+                        Record::Dwell {
+                            seconds: tm / 1000.0,
+                            block: Some(lineno),
+                        },
+                    );
+                    self.pos = to;
+                    return Ok(());
+                }
+                if tm <= 0.0 {
+                    return Err(GcodeError::at(
+                        lineno,
+                        format!(
+                            "TM{tm}: a {length:.6} mm move in no time (a controller stretches it to its \
+                             acceleration time, which the program does not give); set TM > 0 or F"
+                        ),
+                    ));
+                }
+                Some(length / (tm / 1000.0))
+            }
+        };
         let mut motion = Motion::from_block(kind, to, feed, self.beam, lineno);
         if self.beam != self.moved_beam {
             motion.beam_switch = Some(self.last_switch);
@@ -635,6 +640,71 @@ impl PmacInterpreter {
         self.push(out, Record::Move(motion));
         self.pos = to;
         Ok(())
+    }
+
+    /// `FRAX(X,Y,...)`: the axes whose vector speed F is.
+    fn frax(&mut self, cur: &mut Cursor, lineno: u64) -> Result<(), GcodeError> {
+        cur.skip_ws();
+        if !cur.eat(b'(') {
+            return Err(GcodeError::at(lineno, "FRAX needs an axis list, e.g. FRAX(X,Y,Z)"));
+        }
+        let mut set = [false; 3];
+        loop {
+            cur.skip_ws();
+            let Some(c) = cur.peek() else {
+                return Err(GcodeError::at(lineno, "FRAX( without ')'"));
+            };
+            cur.i += 1;
+            match c.to_ascii_uppercase() {
+                b')' => break,
+                b',' => {}
+                c @ (b'X' | b'Y' | b'Z') => set[usize::from(c - b'X')] = true,
+                b'A' | b'B' | b'C' | b'U' | b'V' | b'W' => {}
+                _ => {
+                    return Err(GcodeError::at(
+                        lineno,
+                        format!("FRAX(...): expected axes (X Y Z A B C U V W), found '{}'", c as char),
+                    ));
+                }
+            }
+        }
+        self.frax_axes = set;
+        Ok(())
+    }
+
+    /// The model's path feed for F when some moving axes are not feedrate
+    /// axes (FRAX): F is the speed of the FRAX axes alone, so the whole
+    /// move goes faster by |move| / |FRAX part of the move|.
+    fn frax_feed(&self, f: f64, to: &P3, lineno: u64) -> Result<f64, GcodeError> {
+        if self.frax_axes == [true; 3] {
+            return Ok(f);
+        }
+        let d = to - self.pos;
+        let all = d.norm();
+        if all <= EPS_LEN {
+            return Ok(f);
+        }
+        let part = (0..3)
+            .filter(|&k| self.frax_axes[k])
+            .map(|k| d[k] * d[k])
+            .sum::<f64>()
+            .sqrt();
+        if (all - part).abs() <= EPS_LEN {
+            return Ok(f);
+        }
+        if self.mode != MoveMode::Linear {
+            return Err(GcodeError::at(
+                lineno,
+                "a CIRCLE move along an axis FRAX leaves out: its speed is not modelled (LINEAR only)",
+            ));
+        }
+        if part <= EPS_LEN {
+            return Err(GcodeError::at(
+                lineno,
+                "the move has no FRAX axis: a controller times it by Isx86 (not modelled); add the axis to FRAX",
+            ));
+        }
+        Ok(f * all / part)
     }
 
     pub(super) fn arc(&self, pm: &PendingMove, to: &P3, ccw: bool, lineno: u64) -> Result<ArcData, GcodeError> {

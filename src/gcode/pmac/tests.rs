@@ -365,7 +365,7 @@ fn variables_are_recorded_except_shutter_and_counter() {
     assert_eq!(line, 1);
     assert!(msg.contains("M-variables only"), "{msg}");
     assert!(read_err("P9000=1").1.contains("out of range"));
-    assert!(read_err("P12").1.contains("not an assignment"));
+    assert!(read_err("LINEAR X1 F1\nP12").1.contains("not an assignment"));
     assert!(read_err("P(P1+1) = 2").1.contains("indirect"));
 }
 
@@ -468,7 +468,7 @@ fn accel_times_and_dwells() {
     );
     assert!(read_err("DWELL -5").1.contains("negative"));
     assert!(read_err("TA-1").1.contains("negative"));
-    assert!(read_err("TM100").1.contains("TM"));
+    assert!(read_err("TM-1").1.contains("negative"));
 }
 
 #[test]
@@ -508,17 +508,48 @@ fn error_cases_name_their_line() {
 
 #[test]
 fn buffer_structure() {
-    // On-line commands outside buffers are ignored, several buffers read
-    // in order, a PLC skipped, and RETURN ends a program.
+    // On-line commands outside buffers are noted, the first motion buffer
+    // read (or the one chosen), a PLC skipped, and RETURN ends a program.
     let text = "&1 #1J/ I5=2\nCLOSE DELETE GATHER DEFINE ROT 100 OPEN PROG 5 CLEAR LINEAR X1 F1\nCLOSE\n\
-                I6=1 X9 garbage\nOPEN PLC 1 CLEAR\nIF (M1=1) CMD\"CLOSE\" ENDIF\nCLOSE\nOPEN ROT\nX2\nRETURN\n\
+                I6=1 X9 garbage\nOPEN PLC 1 CLEAR\nIF (M1=1) CMD\"CLOSE\" ENDIF\nCLOSE\nOPEN ROT\nLINEAR X2 F1\nRETURN\n\
                 N100 WHILE(1) ENDWHILE\nCLOSE &1B0R\n";
-    let recs = read(text);
+    let opts = pmac_opts();
+    let (_, recs) = read_str(text, &opts).unwrap();
     let m = moves(&recs);
-    assert_eq!(recs.len(), 2, "{recs:?}");
+    assert_eq!(recs.len(), 1, "{recs:?}");
     assert_eq!(m[0].block, Some(2));
-    assert_pt(&m[1].to, &p(2.0, 0.0, 0.0));
-    assert_eq!(m[1].block, Some(9));
+    let notes = opts.notes.take();
+    let lines: Vec<u64> = notes.iter().map(|n| n.0).collect();
+    assert_eq!(lines, [1, 1, 1, 2, 2, 4, 4, 4, 5, 8, 12, 12], "{notes:?}");
+    assert!(notes[2].1.contains("I5 = 2 stored"), "{notes:?}");
+    assert!(notes[8].1.contains("PLC program skipped"), "{notes:?}");
+    assert!(notes[9].1.contains("rotary buffer (OPEN ROT) skipped"), "{notes:?}");
+    // The rotary buffer chosen instead: PROG 5 is the first, so only
+    // --program picks another; a rotary buffer has no number.
+    let opts = ReadOptions {
+        pmac_program: Some(5),
+        ..pmac_opts()
+    };
+    assert_eq!(moves(&read_str(text, &opts).unwrap().1)[0].block, Some(2));
+    let two = "OPEN PROG 1 CLEAR\nLINEAR X1 F1\nCLOSE\nOPEN PROG 2 CLEAR\nLINEAR X2 F1\nCLOSE\n";
+    let opts = ReadOptions {
+        pmac_program: Some(2),
+        ..pmac_opts()
+    };
+    let (_, recs) = read_str(two, &opts).unwrap();
+    assert_eq!((moves(&recs).len(), moves(&recs)[0].block), (1, Some(5)));
+    assert!(opts.notes.take()[0].1.contains("PROG 1 skipped: --program 2"));
+    let opts = ReadOptions {
+        pmac_program: Some(3),
+        ..pmac_opts()
+    };
+    let e = read_str(two, &opts).unwrap_err();
+    assert_eq!(e.line(), 6);
+    assert!(
+        e.to_string()
+            .contains("no OPEN PROG 3 (motion programs in it: PROG 1, PROG 2)"),
+        "{e}"
+    );
     // Unclosed buffers, nested OPEN, CLEAR after records, on-line text inside.
     let (line, msg) = read_err("OPEN PROG 1\nLINEAR X1 F1\n");
     assert_eq!(line, 2);
@@ -653,4 +684,206 @@ fn numbers_parse_exactly() {
     assert_eq!(got, [1.8183, 0.5, 5.0, 12345678901234567.25, 0.1]);
     assert_eq!(Cursor::new("x").number(), None);
     assert_eq!(Cursor::new("FFFFFFFFFFFFFFFFF").hex(), None);
+}
+
+/// Read with fresh options; the records and the notes left.
+fn read_noted(text: &str, opts: ReadOptions) -> (Vec<Record>, Vec<(u64, String)>) {
+    let (_, recs) = read_str(text, &opts).unwrap_or_else(|e| panic!("unexpected error: {e}\n{text}"));
+    (recs, opts.notes.take())
+}
+
+#[test]
+fn online_assignments_are_applied_and_ranges_cover_every_variable() {
+    let text = "CLOSE\nP10=2.5 Q(3+4)=P10*2\nI5213,3,100=10 P20..22=7\nM33=1\n\
+                OPEN PROG 1 CLEAR\nLINEAR X(P10) Y(Q7) Z(P22+I5413) F(P21)\nCLOSE\n";
+    let (recs, notes) = read_noted(text, pmac_opts());
+    let m = moves(&recs);
+    assert_eq!(recs.len(), 1, "on-line assignments make no records: {recs:?}");
+    assert_pt(&m[0].to, &p(2.5, 5.0, 17.0));
+    assert_eq!(m[0].feed, Some(7.0));
+    // M33 = 1 on-line: the program starts with the shutter open.
+    assert!(m[0].beam);
+    assert!(m[0].beam_switch.is_none());
+    // Only the I-variables are noted (P/Q/M are applied silently).
+    assert_eq!(notes.len(), 1, "{notes:?}");
+    assert!(
+        notes[0].1.contains("I5213..I5413 (3 variables, step 100) = 10"),
+        "{notes:?}"
+    );
+    // Out-of-range ranges and unevaluable values are noted, not applied.
+    let (_, notes) = read_noted("I8190,5,1=1\nP1=$(X)\nQ(P1)=\nOPEN PROG 1\nCLOSE\n", pmac_opts());
+    assert_eq!(notes.len(), 3, "{notes:?}");
+    assert!(notes[0].1.contains("runs past I8191"), "{notes:?}");
+    assert!(notes[1].1.contains("template macro"), "{notes:?}");
+    assert!(notes[2].1.contains("not applied"), "{notes:?}");
+}
+
+#[test]
+fn online_definitions_addressing_and_buffer_commands_are_noted() {
+    let text = "CLOSE\nUNDEFINE ALL\n&1 #1->1000X #2->1000Y\nM1->Y:$78800,0,1 M2->*\n#3J/ &2B1R\n\
+                DEFINE LOOKAHEAD 50,10 DEL GAT ENABLE PLC 3\nP1 SAVE\nWhoKnows = 3\n\
+                OPEN PROG 1\nLINEAR X1 F1\nCLOSE\n";
+    let (recs, notes) = read_noted(text, pmac_opts());
+    assert_eq!(moves(&recs).len(), 1);
+    let texts: Vec<&str> = notes.iter().map(|n| n.1.as_str()).collect();
+    let want = [
+        (2, "UNDEFINE ALL: on-line buffer"),
+        (3, "&1: coordinate system 1 addressed"),
+        (3, "#1->1000X: motor axis definition"),
+        (3, "#2->1000Y: motor axis definition"),
+        (4, "M1->Y:$78800,0,1: M-variable definition"),
+        (4, "M2->*: M-variable definition"),
+        (5, "#3J/: motor command"),
+        (5, "&2: coordinate system 2"),
+        (5, "B1R: on-line command"),
+        (6, "DEFINE LOOKAHEAD 50,10: on-line buffer"),
+        (6, "DEL GAT: on-line buffer"),
+        (6, "ENABLE PLC 3: on-line buffer"),
+        (7, "P1: query"),
+        (7, "SAVE: on-line buffer"),
+        (8, "'WhoKnows = 3': not an on-line command"),
+    ];
+    assert_eq!(notes.len(), want.len(), "{texts:#?}");
+    for ((line, text), (l, t)) in notes.iter().zip(want) {
+        assert_eq!(*line, l, "{text}");
+        assert!(text.starts_with(t), "{text} does not start with {t}");
+    }
+}
+
+#[test]
+fn a_file_of_plcs_only_reads_as_no_motion_with_notes() {
+    let text = "// Power PMAC style\nOPEN PLC 18\n  X=Motor[3].ActPos // comment\nCLOSE\n\
+                open plc 19\n  #define Gap Q82\n  Gap = 1;\nclose\nOPEN FORWARD\nCLEAR\nQ7=1\nCLOSE\n";
+    let (recs, notes) = read_noted(text, pmac_opts());
+    assert!(recs.is_empty(), "{recs:?}");
+    let texts: Vec<&str> = notes.iter().map(|n| n.1.as_str()).collect();
+    assert_eq!(notes.len(), 4, "{texts:#?}");
+    assert!(texts[0].starts_with("OPEN PLC 18: PLC program skipped"));
+    assert!(texts[1].starts_with("OPEN PLC 19: PLC program skipped"));
+    assert!(texts[2].starts_with("OPEN FORWARD: kinematic subroutine skipped"));
+    assert_eq!(notes[3].0, 12);
+    assert!(texts[3].starts_with("no motion program"));
+}
+
+#[test]
+fn defines_substitute_in_programs_and_online_commands() {
+    let text = "#define STATE Q69\n#define FAST F(SPEED*2)\n#define SPEED 5\nCLOSE\nSTATE = 3\n\
+                OPEN PROG 11\nCLEAR\nLINEAR X(STATE) FAST\n#undefine STATE\nCLOSE\n";
+    let (recs, notes) = read_noted(text, pmac_opts());
+    let m = moves(&recs);
+    assert_eq!(recs.len(), 1, "{recs:?}");
+    assert_pt(&m[0].to, &p(3.0, 0.0, 0.0));
+    assert_eq!(m[0].feed, Some(10.0));
+    assert!(notes.is_empty(), "{notes:?}");
+    // A bare program with defines, and an undefined name after #undefine.
+    let (recs, _) = read_noted("#define GO LINEAR X1 F2\nGO\n", pmac_opts());
+    assert_eq!(moves(&recs).len(), 1);
+    let (line, msg) = read_err("#define GO X1\n#undef GO\nLINEAR F1\nGO\n");
+    assert_eq!(line, 4);
+    assert!(msg.contains("unknown word 'GO'"), "{msg}");
+    // Malformed directives and runaway nesting are errors on their line.
+    assert_eq!(read_err("LINEAR F1\n#define\n").0, 2);
+    let mut deep = String::new();
+    for k in 0..40 {
+        deep.push_str(&format!("#define N{k} N{}\n", k + 1));
+    }
+    deep.push_str("LINEAR X1 F1 N0\n");
+    let (line, msg) = read_err(&deep);
+    assert_eq!(line, 41);
+    assert!(msg.contains("deeper than"), "{msg}");
+}
+
+#[test]
+fn includes_are_relative_to_the_including_file_and_errors_name_both_lines() {
+    let d = tempfile::tempdir().unwrap();
+    let sub = d.path().join("sub");
+    std::fs::create_dir_all(&sub).unwrap();
+    std::fs::write(
+        sub.join("defs.pmc"),
+        "; header\n#define SPEED 4\n#include \"more.pmc\"\n",
+    )
+    .unwrap();
+    std::fs::write(sub.join("more.pmc"), "#define TARGET X2\n").unwrap();
+    std::fs::write(sub.join("bad.pmc"), "\n\nLINEAR X1 FOO3\n").unwrap();
+    std::fs::write(sub.join("loop.pmc"), "#include \"loop2.pmc\"\n").unwrap();
+    std::fs::write(sub.join("loop2.pmc"), "#include \"loop.pmc\"\n").unwrap();
+    let main = d.path().join("main.pmc");
+    let with = |text: &str| {
+        std::fs::write(&main, text).unwrap();
+        let opts = ReadOptions {
+            source_path: Some(main.clone()),
+            ..pmac_opts()
+        };
+        read_str(text, &opts)
+    };
+    let (_, recs) = with("#include \"sub/defs.pmc\"\nOPEN PROG 1\nLINEAR TARGET F(SPEED)\nCLOSE\n").unwrap();
+    assert_eq!(moves(&recs)[0].feed, Some(4.0));
+    assert_pt(&moves(&recs)[0].to, &p(2.0, 0.0, 0.0));
+    // An error inside an included file names the include line and its own.
+    let e = with("OPEN PROG 1\n#include \"sub/bad.pmc\"\nCLOSE\n").unwrap_err();
+    assert_eq!(e.line(), 2);
+    assert!(e.to_string().contains("bad.pmc:3: unknown word 'FOO3'"), "{e}");
+    // A missing file, a cycle.
+    let e = with("CLOSE\n#include \"nope.pmc\"\n").unwrap_err();
+    assert_eq!(e.line(), 2);
+    assert!(e.to_string().contains("#include \"nope.pmc\": cannot read"), "{e}");
+    let e = with("#include \"sub/loop.pmc\"\n").unwrap_err();
+    assert_eq!(e.line(), 1);
+    let msg = e.to_string();
+    assert!(msg.contains("a cycle") && msg.contains("loop2.pmc:1:"), "{msg}");
+    // Self-inclusion of the program's own file.
+    let e = with("#include \"main.pmc\"\n").unwrap_err();
+    assert!(e.to_string().contains("a cycle"), "{e}");
+}
+
+#[test]
+fn held_assignments_belong_to_a_bare_program_when_motion_follows() {
+    // No OPEN: the assignments are the program's first lines (records).
+    let recs = read("P1=2\nQ5=P1+1\nLINEAR X(Q5) F1\n");
+    assert_eq!(recs.len(), 3, "{recs:?}");
+    assert_eq!(recs[0].block(), Some(1));
+    assert_pt(&moves(&recs)[0].to, &p(3.0, 0.0, 0.0));
+    // Assignments only: still a bare program.
+    assert_eq!(read("P1=2\n").len(), 1);
+    // An unknown name in a bare program is an error on its line.
+    let (line, msg) = read_err("Speed = 3\nLINEAR X1 F1\n");
+    assert_eq!(line, 1);
+    assert!(msg.contains("unknown word"), "{msg}");
+}
+
+#[test]
+fn move_time_frax_and_axes_that_stay_put() {
+    // TM gives the move its time: feed = length / time; F returns to feeds.
+    let recs = read("LINEAR TM500 X1 Y1\nX2 Y1 F3\nTM(250)\nCIRCLE1 X3 Y0 I0 J-1\n");
+    let m = moves(&recs);
+    assert!((m[0].feed.unwrap() - 2f64.sqrt() / 0.5).abs() < 1e-12);
+    assert_eq!(m[1].feed, Some(3.0));
+    assert!((m[2].feed.unwrap() - std::f64::consts::FRAC_PI_2 / 0.25).abs() < 1e-9);
+    // A move of no length in TM mode is its time in place; TM0 with length is refused.
+    let recs = read("LINEAR TM(Q70) X0 Y0 A(Q71) W0\nDWELL0\n");
+    assert_eq!(
+        recs,
+        [
+            Record::Dwell {
+                seconds: 0.0,
+                block: Some(1)
+            },
+            Record::Dwell {
+                seconds: 0.0,
+                block: Some(2)
+            }
+        ]
+    );
+    assert!(read_err("LINEAR TM0 X1").1.contains("in no time"));
+    // FRAX(X,Y): F is the XY speed; Z rides along, so the path is faster.
+    let m = read("FRAX(X,Y) LINEAR X3 Z4 F3\nX6 F3\n");
+    assert_eq!(moves(&m)[0].feed, Some(5.0));
+    assert_eq!(moves(&m)[1].feed, Some(3.0));
+    assert!(read_err("FRAX(X,Y) LINEAR Z1 F1").1.contains("no FRAX axis"));
+    assert_eq!(moves(&read("FRAX(A,B,C,U,V,W,X,Y,Z) LINEAR X1 F1"))[0].feed, Some(1.0));
+    // Other axes are read where they stay put, and refused where they move.
+    let (line, msg) = read_err("LINEAR F1 X1 A0\nINC A0 B0\nABS X2 B1\n");
+    assert_eq!(line, 3);
+    assert!(msg.contains("axis B moves (from 0 to 1)"), "{msg}");
+    assert!(read_err("INC LINEAR F1 X1 U0.5").1.contains("axis U moves"));
 }
