@@ -7,7 +7,9 @@
 //! variable sets the beam the program starts with. I-variables are stored
 //! the same way (so `I130` in an expression reads them), with a note that
 //! the controller setting itself is not modelled. Everything else is noted
-//! and ignored: coordinate-system and motor addressing, axis and M-variable
+//! and ignored, except the routine download and run sequence (`&1`,
+//! `B1R`, `DELETE GATHER`, `DEFINE ROT n`), which is silent: motor
+//! addressing, axis and M-variable
 //! definitions, buffer management, queries, and text that is no command
 //! (such as a name no `#define` gives). A move-mode word outside a buffer
 //! (`LINEAR`, `RAPID`, `CIRCLE`) stays an error: it is program text that
@@ -60,12 +62,8 @@ impl PmacInterpreter {
                     cur.i += 1;
                     cur.skip_ws();
                     match cur.uint() {
-                        Some(n) => self.note(
-                            lineno,
-                            format!(
-                                "&{n}: coordinate system {n} addressed; noted only (one coordinate system is simulated)"
-                            ),
-                        ),
+                        // Part of the routine run sequence (`&1B1R`): silent.
+                        Some(_) => {}
                         None => {
                             let end = command_end(cur, start);
                             self.note(
@@ -135,10 +133,12 @@ impl PmacInterpreter {
                             cur.i += 1;
                         }
                         let text = slice(cur, start, cur.i).trim_end().to_string();
-                        self.note(
-                            lineno,
-                            format!("{text}: on-line buffer or set-up command; nothing to simulate"),
-                        );
+                        if !is_routine_download(&text) {
+                            self.note(
+                                lineno,
+                                format!("{text}: on-line buffer or set-up command; nothing to simulate"),
+                            );
+                        }
                         continue;
                     }
                     if run.len() == 1 {
@@ -146,10 +146,13 @@ impl PmacInterpreter {
                         let end = command_end(cur, start);
                         let text = slice(cur, start, end).to_string();
                         cur.i = end;
-                        self.note(
-                            lineno,
-                            format!("{text}: on-line command; ignored (not part of a program)"),
-                        );
+                        // B1R, R, A, Q: the routine run sequence, silent.
+                        if !text.bytes().all(|c| c.is_ascii_digit() || b"BRAQSHbraqsh".contains(&c)) {
+                            self.note(
+                                lineno,
+                                format!("{text}: on-line command; ignored (not part of a program)"),
+                            );
+                        }
                         continue;
                     }
                     self.note_rest(cur, start, lineno);
@@ -307,6 +310,17 @@ impl PmacInterpreter {
         };
         self.note(lineno, format!("'{text}': not applied ({why}){hint}; ignored"));
     }
+}
+
+/// The safe download sequence (`DELETE GATHER`, `DEFINE ROT n`,
+/// `DELETE ROT`), sent before every program: silent, not noted.
+fn is_routine_download(text: &str) -> bool {
+    let mut w = text.split_whitespace().map(str::to_ascii_uppercase);
+    let (Some(verb), Some(object)) = (w.next(), w.next()) else {
+        return false;
+    };
+    matches!(verb.as_str(), "DELETE" | "DEL" | "DEFINE" | "DEF")
+        && matches!(object.as_str(), "GATHER" | "GAT" | "ROT" | "ROTARY")
 }
 
 fn slice<'a>(cur: &Cursor<'a>, from: usize, to: usize) -> &'a str {
