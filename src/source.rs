@@ -47,7 +47,12 @@ impl ToolpathSource {
                 inner: Inner::Json(r),
             })
         } else {
-            let r = ProgramReader::new(input.reader, opts).map_err(|e| CliError::in_file(&name, e))?;
+            let mut opts = opts.clone();
+            if name != "<stdin>" && opts.source_path.is_none() {
+                // PMAC #include names are relative to the including file.
+                opts.source_path = Some(std::path::PathBuf::from(&name));
+            }
+            let r = ProgramReader::new(input.reader, &opts).map_err(|e| CliError::in_file(&name, e))?;
             let d = r.dialect();
             Ok(ToolpathSource {
                 header: Header {

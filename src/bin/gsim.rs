@@ -143,6 +143,10 @@ struct Args {
     /// SUBROUTINE_PATH); repeat the option or separate folders with ':'.
     #[arg(long, value_name = "DIR[:DIR...]")]
     subroutine_path: Vec<String>,
+    /// PMAC download files: read motion program N (`OPEN PROG N`);
+    /// default: the first motion program in the file.
+    #[arg(long, value_name = "N")]
+    program: Option<u32>,
     /// Height-field cell size, mm (default: tool diameter / 50).
     #[arg(long)]
     cell_mm: Option<f64>,
@@ -261,10 +265,28 @@ fn run(args: Args) -> Result<(), CliError> {
             .filter(|p| !p.is_empty())
             .map(PathBuf::from)
             .collect(),
+        pmac_program: args.program,
+        ..ReadOptions::default()
     };
     let input = cli::open_input(args.file.as_deref())?;
     let source = ToolpathSource::open(input, &opts)?;
     let title = source.name().to_string();
+    // What the reader accepted without acting on it (PMAC on-line
+    // commands, skipped PLCs), on stderr as `file:line: note: ...`.
+    let notes = opts.notes.clone();
+    let print_notes = || {
+        for (line, text) in notes.take() {
+            eprintln!("gsim: {title}:{line}: note: {text}");
+        }
+    };
+    let r = simulate(&args, source, start, &title);
+    print_notes();
+    r
+}
+
+#[allow(clippy::too_many_lines)]
+fn simulate(args: &Args, source: ToolpathSource, start: P3, title: &str) -> Result<(), CliError> {
+    let title = title.to_string();
     let mut out = Output::new(args.output.as_deref());
     let mut preview = args.svg.as_ref().map(|_| Preview::new(start));
     let mut observe = |r: &Record| {

@@ -101,6 +101,52 @@ pub struct ReadOptions {
     /// Folders searched, in order, for `name.ngc` when an ISO program
     /// calls `o<name>` it does not define (LinuxCNC's SUBROUTINE_PATH).
     pub subroutine_path: Vec<std::path::PathBuf>,
+    /// The program's file, when it is one: PMAC `#include` names are
+    /// relative to it (to the working directory when `None`).
+    pub source_path: Option<std::path::PathBuf>,
+    /// PMAC download files: read `OPEN PROG n` for this n; `None` reads
+    /// the first motion program in the file.
+    pub pmac_program: Option<u32>,
+    /// Where a reader leaves remarks on input it accepted without acting
+    /// on it (PMAC on-line commands, skipped PLC buffers).
+    pub notes: Notes,
+}
+
+/// Remarks a reader makes on text it accepted but did not act on, each
+/// with its 1-based line; shared by clones, so a tool keeps one handle
+/// and prints what the reader left after reading. At most
+/// [`Notes::MAX`] are kept (then one saying how many more there were).
+#[derive(Debug, Clone, Default)]
+pub struct Notes(std::sync::Arc<std::sync::Mutex<(Vec<(u64, String)>, u64)>>);
+
+impl Notes {
+    pub const MAX: usize = 1000;
+
+    pub fn push(&self, line: u64, text: impl Into<String>) {
+        if let Ok(mut g) = self.0.lock() {
+            if g.0.len() < Self::MAX {
+                g.0.push((line, text.into()));
+            } else {
+                g.1 += 1;
+            }
+        }
+    }
+
+    /// The notes so far (emptied), the last one counting any left out.
+    pub fn take(&self) -> Vec<(u64, String)> {
+        let Ok(mut g) = self.0.lock() else {
+            return Vec::new();
+        };
+        let mut v = std::mem::take(&mut g.0);
+        // In line order (a reader may leave a note on a held line late).
+        v.sort_by_key(|n| n.0);
+        let more = std::mem::take(&mut g.1);
+        if more > 0 {
+            let line = v.last().map_or(0, |n| n.0);
+            v.push((line, format!("{more} more notes not shown")));
+        }
+        v
+    }
 }
 
 impl Default for ReadOptions {
@@ -112,6 +158,9 @@ impl Default for ReadOptions {
             start: P3::origin(),
             tool_table: None,
             subroutine_path: Vec::new(),
+            source_path: None,
+            pmac_program: None,
+            notes: Notes::default(),
         }
     }
 }

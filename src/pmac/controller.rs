@@ -812,6 +812,7 @@ impl Controller {
             start: self.pos,
             tool_table: None,
             subroutine_path: Vec::new(),
+            ..ReadOptions::default()
         };
         self.runs += 1;
         let id = self.runs;
@@ -827,7 +828,7 @@ impl Controller {
         self.run = Some(Run {
             id,
             source,
-            interp: PmacInterpreter::new(&opts),
+            interp: PmacInterpreter::program_body(&opts),
             pending: VecDeque::new(),
             lineno: 0,
             moved: false,
