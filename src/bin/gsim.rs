@@ -279,13 +279,19 @@ fn run(args: Args) -> Result<(), CliError> {
             eprintln!("gsim: {title}:{line}: note: {text}");
         }
     };
-    let r = simulate(&args, source, start, &title);
+    let r = simulate(&args, source, start, &title, tool_table.as_deref());
     print_notes();
     r
 }
 
 #[allow(clippy::too_many_lines)]
-fn simulate(args: &Args, source: ToolpathSource, start: P3, title: &str) -> Result<(), CliError> {
+fn simulate(
+    args: &Args,
+    source: ToolpathSource,
+    start: P3,
+    title: &str,
+    tool_table: Option<&microcam::gcode::tooltable::ToolTable>,
+) -> Result<(), CliError> {
     let title = title.to_string();
     let mut out = Output::new(args.output.as_deref());
     let mut preview = args.svg.as_ref().map(|_| Preview::new(start));
@@ -358,7 +364,7 @@ fn simulate(args: &Args, source: ToolpathSource, start: P3, title: &str) -> Resu
                         &text,
                         microcam::gcode::tooltable::first_units_are_inch(&text),
                     );
-                    let tools = microcam::gcode::tooltable::tool_cutters(tool_table.as_deref(), &cam);
+                    let tools = microcam::gcode::tooltable::tool_cutters(tool_table, &cam);
                     let first = tools.values().next().copied().ok_or_else(|| {
                         CliError::input(
                             "--stock needs a cutter: --tool, or tools with a diameter in --tool-table or in the program's CAM tool comments ((T1 D=3 CR=0.5 ...))",
