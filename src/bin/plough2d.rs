@@ -32,7 +32,7 @@ spindle speed comes from S words or --rpm (which wins).
 Rapids do not cut; feed moves cut in XY (Z is ignored). Outputs appear only
 when the whole run succeeds. Exit status: 0 ok, 1 failure, 2 bad usage or
 bad input (no spindle speed, tool larger than the stock, a resolution that
-needs more than --max-memory-mib; the message names the file and line).";
+needs more than --max-memory-mib or more cutter steps than --max-steps; the message names the file and line).";
 
 #[derive(Clone, Copy, ValueEnum)]
 enum MethodArg {
@@ -83,6 +83,10 @@ struct Args {
     /// Memory cap for the stock and the series, MiB.
     #[arg(long, default_value_t = 1024.0)]
     max_memory_mib: f64,
+    /// Most cutter steps the run may take (refused before the move that
+    /// would pass it: bounds the time).
+    #[arg(long, default_value_t = microcam::plough::DEFAULT_MAX_STEPS)]
+    max_steps: u64,
     /// G-code dialect (default: detected).
     #[arg(long, value_parser = ["iso", "pmac"])]
     dialect: Option<String>,
@@ -148,6 +152,7 @@ fn run(args: Args) -> Result<(), CliError> {
             MethodArg::Both => Method::Both,
         },
         max_memory_mib: args.max_memory_mib,
+        max_steps: args.max_steps,
     };
     let dialect = args
         .dialect

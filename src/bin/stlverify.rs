@@ -7,10 +7,10 @@ use microcam::cutter::Cutter;
 use microcam::dexel::tool::ToolShape;
 use microcam::geometry::P3;
 use microcam::mesh::read::{ReadOptions as MeshOptions, read_path};
+use microcam::progress::{Meter, Show};
 use microcam::sim::picture::write_png;
 use microcam::sim::stl::{Heights, write_heights_stl};
 use microcam::source::ToolpathSource;
-use microcam::progress::{Meter, Show};
 use microcam::verify::compare::{Design, Sample, Stats, points_csv, profiles_csv, sample, steps};
 use microcam::verify::{Job, cl, plot, simulate};
 use serde_json::json;
@@ -200,7 +200,12 @@ fn run(args: Args) -> Result<(), CliError> {
         sweep_tol,
         locations,
     };
-    let meter = Meter::start("stlverify", "cutting (tile, move) pairs", 0, Show::from_flags(args.quiet, false));
+    let meter = Meter::start(
+        "stlverify",
+        "cutting (tile, move) pairs",
+        0,
+        Show::from_flags(args.quiet, false),
+    );
     let sim = simulate(&job).map_err(|e| CliError::input(format!("--stock/--spacing: {e}")))?;
     meter.finish();
     let vols = sim.dexels.volumes();

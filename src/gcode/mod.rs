@@ -117,7 +117,10 @@ pub struct ReadOptions {
 /// and prints what the reader left after reading. At most
 /// [`Notes::MAX`] are kept (then one saying how many more there were).
 #[derive(Debug, Clone, Default)]
-pub struct Notes(std::sync::Arc<std::sync::Mutex<(Vec<(u64, String)>, u64)>>);
+pub struct Notes(std::sync::Arc<std::sync::Mutex<NoteList>>);
+
+/// The notes kept (line, text) and how many more were left out.
+type NoteList = (Vec<(u64, String)>, u64);
 
 impl Notes {
     pub const MAX: usize = 1000;

@@ -31,6 +31,7 @@ fn params(stock: [f64; 4], res: f64, method: Method) -> Params {
         rpm: Some(60_000.0),
         method,
         max_memory_mib: 512.0,
+        max_steps: super::DEFAULT_MAX_STEPS,
     }
 }
 
@@ -247,6 +248,18 @@ fn bad_parameters_are_refused() {
     let mut pl = Plough::new(p, FeedUnit::MmPerS, P3::new(1.0, 1.0, 0.0)).unwrap();
     let e = pl.add(&mv(MotionKind::Line, 2.0, 1.0, Some(1.0))).unwrap_err();
     assert!(e.to_string().contains("spindle speed"), "{e}");
+}
+
+#[test]
+fn a_run_past_the_step_cap_is_refused_before_its_work() {
+    // F120 mm/min is 101 steps of 10 µm on this 1 mm move: a cap of 50
+    // refuses the move before any of its steps is cut.
+    let mut p = params([0.0, 0.0, 3.0, 2.0], 0.01, Method::Dexel);
+    p.max_steps = 50;
+    let mut pl = Plough::new(p, FeedUnit::MmPerMin, P3::new(1.0, 1.0, 0.0)).unwrap();
+    let e = pl.add(&mv(MotionKind::Line, 2.0, 1.0, Some(120.0))).unwrap_err();
+    assert!(e.to_string().contains("--max-steps"), "{e}");
+    assert!(pl.steps.is_empty(), "{} steps cut before the refusal", pl.steps.len());
 }
 
 #[test]

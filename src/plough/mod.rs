@@ -76,7 +76,15 @@ pub struct Params {
     pub method: Method,
     /// Largest memory the stock and the series may take, MiB.
     pub max_memory_mib: f64,
+    /// Most cutter steps a run may take: each costs tens of µs, so this
+    /// bounds the time (a spindle speed of 1e9 rpm asks for ~1e5x the
+    /// thesis pocket's steps). Checked before the move that would pass it.
+    pub max_steps: u64,
 }
+
+/// Default of [`Params::max_steps`]: 50x the thesis-like pocket at its
+/// slowest feed (9,554 steps), a few seconds of work.
+pub const DEFAULT_MAX_STEPS: u64 = 500_000;
 
 /// Why a simulation cannot run.
 #[derive(Debug, thiserror::Error, PartialEq)]
@@ -87,6 +95,10 @@ pub enum PloughError {
     ToolTooLarge { d: f64, w: f64, h: f64 },
     #[error("{what} would need about {need_mib:.0} MiB, over the {cap_mib:.0} MiB cap (--max-memory-mib)")]
     Memory { what: String, need_mib: f64, cap_mib: f64 },
+    #[error(
+        "the series would pass {cap} cutter steps ({steps:.0} by the end of this move, at {step_mm:.3e} mm per step; raise --max-steps or check the feed and spindle speed)"
+    )]
+    Steps { steps: f64, step_mm: f64, cap: u64 },
     #[error("line {line}: {msg}")]
     Line { line: u64, msg: String },
     #[error("record {index}: {msg}")]
@@ -338,6 +350,14 @@ impl Plough {
         } else {
             0.0
         };
+        if self.steps.len() as f64 + n + 1.0 > self.p.max_steps as f64 {
+            let steps = PloughError::Steps {
+                steps: self.steps.len() as f64 + n,
+                step_mm: step,
+                cap: self.p.max_steps,
+            };
+            return Err(self.err(m.block, steps.to_string()));
+        }
         if self.steps.len() as f64 + n + 1.0 > self.max_steps as f64 {
             return Err(PloughError::Memory {
                 what: format!(
