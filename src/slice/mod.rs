@@ -522,25 +522,10 @@ fn loop_segments(l: &Loop, z: f64, arc_tol: Option<f64>) -> Vec<Segment> {
     }
 }
 
-/// Signed area enclosed by a closed chain of lines and XY arcs (mm²).
+/// Signed area enclosed by a closed chain of lines and XY arcs (mm²):
+/// the DXF chainer's exact area, the one formula for both.
 pub fn chain_area(c: &Chain) -> f64 {
-    let mut a = 0.0;
-    for s in &c.segments {
-        let (p, q) = (s.start(), s.end());
-        a += 0.5 * (p.x * q.y - q.x * p.y);
-        if let Segment::Arc {
-            start,
-            end,
-            center,
-            ccw,
-        } = s
-        {
-            let th = crate::model::chain::arc_sweep(start, end, center, *ccw);
-            let r2 = (start - center).xy().norm_squared();
-            a += 0.5 * r2 * (th - th.sin());
-        }
-    }
-    a
+    crate::dxf::chain::signed_area(&c.segments)
 }
 
 #[cfg(test)]
