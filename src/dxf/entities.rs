@@ -8,6 +8,7 @@
 
 use super::reader::{DxfError, Pos, Reader};
 use crate::geometry::{P3, V3};
+use std::rc::Rc;
 
 /// A typed drawing entity we can turn into geometry.
 #[derive(Debug, Clone, PartialEq)]
@@ -82,7 +83,9 @@ pub struct Insert {
 /// An entity with its layer name and where it started in the file.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Entity {
-    pub layer: String,
+    /// Shared by the entities of a run on one layer (one allocation per
+    /// run, not per entity).
+    pub layer: Rc<str>,
     pub shape: Shape,
     pub pos: Pos,
 }
@@ -100,6 +103,8 @@ pub enum Read {
 #[derive(Default)]
 pub struct Scratch {
     layer: String,
+    /// The layer name of the last entity read, shared.
+    last_layer: Option<Rc<str>>,
     name: String,
     p10: Vec<P3>,
     bulge: Vec<f64>,
@@ -140,6 +145,21 @@ impl Scratch {
         self.i72 = 0;
         self.paper = false;
         self.ext = V3::z();
+    }
+}
+
+impl Scratch {
+    /// The layer just read, as the shared name of the previous entity's
+    /// when it is the same.
+    fn layer_rc(&mut self) -> Rc<str> {
+        match &self.last_layer {
+            Some(l) if **l == *self.layer => l.clone(),
+            _ => {
+                let l: Rc<str> = Rc::from(self.layer.as_str());
+                self.last_layer = Some(l.clone());
+                l
+            }
+        }
     }
 }
 
@@ -306,7 +326,7 @@ pub fn read_entity(kind: &str, r: &mut Reader, s: &mut Scratch) -> Result<Read, 
         return Err(bad("non-finite coordinate"));
     }
     Ok(Read::Entity(Entity {
-        layer: s.layer.clone(),
+        layer: s.layer_rc(),
         shape,
         pos,
     }))
@@ -325,7 +345,7 @@ fn shape_finite(s: &Shape) -> bool {
 fn read_polyline(r: &mut Reader, s: &mut Scratch, pos: Pos) -> Result<Read, DxfError> {
     let flags = s.i70;
     let paper = s.paper;
-    let layer = s.layer.clone();
+    let layer = s.layer_rc();
     let elevation = s.p10.first().map(|p| p.z).unwrap_or(0.0);
     let ext = s.ext;
     let mut verts2 = Vec::new();
@@ -410,7 +430,7 @@ mod tests {
     fn lwpolyline_bulges_belong_to_their_vertex() {
         let t = "0\nLWPOLYLINE\n8\nCUT\n90\n3\n70\n1\n10\n0\n20\n0\n10\n1\n20\n0\n42\n0.5\n10\n1\n20\n1\n0\nEOF\n";
         let Read::Entity(e) = read(t) else { panic!() };
-        assert_eq!(e.layer, "CUT");
+        assert_eq!(&*e.layer, "CUT");
         let Shape::Poly2 { verts, closed, .. } = e.shape else {
             panic!()
         };

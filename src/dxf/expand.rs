@@ -174,8 +174,8 @@ impl Expander<'_> {
     /// replaces "0" inside blocks.
     pub fn entity(&self, e: &Entity, t: &Affine, inherit: Option<&str>, depth: usize, sink: &mut Sink) {
         let layer = match inherit {
-            Some(l) if e.layer == "0" => l,
-            _ => e.layer.as_str(),
+            Some(l) if &*e.layer == "0" => l,
+            _ => &e.layer,
         };
         if sink.stopped() {
             return;

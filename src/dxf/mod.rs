@@ -111,6 +111,8 @@ pub fn import(input: Box<dyn BufRead>, opts: &ImportOptions) -> Result<Import, D
     let mut tops: Option<Vec<Affine>> = None;
     let mut seen_anything = false;
     let mut saw_eof = false;
+    // The current `0` tag's text, in one buffer reused for every entity.
+    let mut tag = String::new();
 
     while let Some(code) = r.next_tag()? {
         seen_anything = true;
@@ -129,7 +131,8 @@ pub fn import(input: Box<dyn BufRead>, opts: &ImportOptions) -> Result<Import, D
         if code != 0 {
             continue;
         }
-        let tag = r.text().trim().to_string();
+        tag.clear();
+        tag.push_str(r.text().trim());
         match tag.as_str() {
             "SECTION" => {
                 section = match r.next_tag()? {

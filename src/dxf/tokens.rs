@@ -175,8 +175,16 @@ fn fast_float(b: &[u8], mut i: usize) -> Option<(f64, usize)> {
 
 /// Tokenize a block of whole lines.
 pub fn tokenize(bytes: Vec<u8>) -> Block {
+    tokenize_into(bytes, Vec::new())
+}
+
+/// [`tokenize`] into `tags` (cleared first): the reader hands back the
+/// arrays of blocks it is done with, so a file is read with the same few
+/// buffers throughout.
+pub fn tokenize_into(bytes: Vec<u8>, mut tags: Vec<Tag>) -> Block {
     let b = &bytes[..];
-    let mut tags: Vec<Tag> = Vec::with_capacity(b.len() / 12);
+    tags.clear();
+    tags.reserve(b.len() / 12);
     let mut lossy: Vec<String> = Vec::new();
     let mut pos = 0usize;
     let mut line: u32 = 0;
@@ -327,9 +335,12 @@ pub fn tokenize(bytes: Vec<u8>) -> Block {
             val,
         });
     };
-    // Lines: every `\n`, plus a last line without one.
+    // Lines: every `\n`, plus a last line without one. A clean end has
+    // consumed every line, each ending at a `\n` or at the block's end, and
+    // counted it.
     let lines = match &end {
-        End::Clean | End::Blank { .. } => {
+        End::Clean => u64::from(line),
+        End::Blank { .. } => {
             let nl = bytes.iter().filter(|&&c| c == b'\n').count() as u64;
             nl + u64::from(bytes.last().is_some_and(|&c| c != b'\n'))
         }
