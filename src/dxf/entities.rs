@@ -12,7 +12,7 @@ use std::rc::Rc;
 
 /// A typed drawing entity we can turn into geometry.
 #[derive(Debug, Clone, PartialEq)]
-pub enum Shape {
+pub enum EntityShape {
     Line {
         a: P3,
         b: P3,
@@ -86,7 +86,7 @@ pub struct Entity {
     /// Shared by the entities of a run on one layer (one allocation per
     /// run, not per entity).
     pub layer: Rc<str>,
-    pub shape: Shape,
+    pub shape: EntityShape,
     pub pos: Pos,
 }
 
@@ -247,14 +247,14 @@ pub fn read_entity(kind: &str, r: &mut Reader, s: &mut Scratch) -> Result<Read, 
             let b = s.p11.first().copied().ok_or_else(|| bad("no end point (group 11)"))?;
             // LINE is a world-coordinate entity; its extrusion only gives
             // thickness a direction.
-            Shape::Line { a, b }
+            EntityShape::Line { a, b }
         }
         "ARC" => {
             let r0 = s.f40.first().copied().ok_or_else(|| bad("no radius (group 40)"))?;
             // Code 50 is the start angle, 51 the end angle (stored in f41
             // because ARC has no group 41).
             let a1 = s.f41.first().copied().ok_or_else(|| bad("no end angle (group 51)"))?;
-            Shape::Arc {
+            EntityShape::Arc {
                 c: first(&s.p10),
                 r: r0,
                 a0: s.f50,
@@ -262,12 +262,12 @@ pub fn read_entity(kind: &str, r: &mut Reader, s: &mut Scratch) -> Result<Read, 
                 ext: s.ext,
             }
         }
-        "CIRCLE" => Shape::Circle {
+        "CIRCLE" => EntityShape::Circle {
             c: first(&s.p10),
             r: s.f40.first().copied().ok_or_else(|| bad("no radius (group 40)"))?,
             ext: s.ext,
         },
-        "LWPOLYLINE" => Shape::Poly2 {
+        "LWPOLYLINE" => EntityShape::Poly2 {
             verts: s.p10.iter().zip(&s.bulge).map(|(p, b)| (p.x, p.y, *b)).collect(),
             closed: s.i70 & 1 != 0,
             elevation: s.f38,
@@ -282,7 +282,7 @@ pub fn read_entity(kind: &str, r: &mut Reader, s: &mut Scratch) -> Result<Read, 
                 .map(|p| p.coords)
                 .ok_or_else(|| bad("no major axis (group 11)"))?;
             let ratio = s.f40.first().copied().ok_or_else(|| bad("no axis ratio (group 40)"))?;
-            Shape::Ellipse {
+            EntityShape::Ellipse {
                 c: first(&s.p10),
                 major,
                 ratio,
@@ -291,7 +291,7 @@ pub fn read_entity(kind: &str, r: &mut Reader, s: &mut Scratch) -> Result<Read, 
                 ext: s.ext,
             }
         }
-        "SPLINE" => Shape::Spline {
+        "SPLINE" => EntityShape::Spline {
             degree: s.i71.clamp(0, 64) as usize,
             knots: s.f40.clone(),
             ctrl: s.p10.clone(),
@@ -299,7 +299,7 @@ pub fn read_entity(kind: &str, r: &mut Reader, s: &mut Scratch) -> Result<Read, 
             fit: s.p11.clone(),
             closed: s.i70 & 1 != 0,
         },
-        "POINT" => Shape::Point { p: first(&s.p10) },
+        "POINT" => EntityShape::Point { p: first(&s.p10) },
         "INSERT" | "MINSERT" => {
             if s.name.is_empty() {
                 return Err(bad("no block name (group 2)"));
@@ -308,7 +308,7 @@ pub fn read_entity(kind: &str, r: &mut Reader, s: &mut Scratch) -> Result<Read, 
             let sx = s.f41.first().copied().unwrap_or(1.0);
             let sy = s.f42.unwrap_or(1.0);
             let sz = s.f43.unwrap_or(1.0);
-            Shape::Insert(Box::new(Insert {
+            EntityShape::Insert(Box::new(Insert {
                 block: s.name.clone(),
                 p: first(&s.p10),
                 scale: V3::new(sx, sy, sz),
@@ -332,11 +332,11 @@ pub fn read_entity(kind: &str, r: &mut Reader, s: &mut Scratch) -> Result<Read, 
     }))
 }
 
-fn shape_finite(s: &Shape) -> bool {
+fn shape_finite(s: &EntityShape) -> bool {
     match s {
-        Shape::Line { a, b } => finite_p(a) && finite_p(b),
-        Shape::Arc { c, r, a0, a1, .. } => finite_p(c) && r.is_finite() && a0.is_finite() && a1.is_finite(),
-        Shape::Circle { c, r, .. } => finite_p(c) && r.is_finite(),
+        EntityShape::Line { a, b } => finite_p(a) && finite_p(b),
+        EntityShape::Arc { c, r, a0, a1, .. } => finite_p(c) && r.is_finite() && a0.is_finite() && a1.is_finite(),
+        EntityShape::Circle { c, r, .. } => finite_p(c) && r.is_finite(),
         _ => true,
     }
 }
@@ -392,9 +392,9 @@ fn read_polyline(r: &mut Reader, s: &mut Scratch, pos: Pos) -> Result<Read, DxfE
     }
     let closed = flags & 1 != 0;
     let shape = if flags & 8 != 0 {
-        Shape::Poly3 { verts: verts3, closed }
+        EntityShape::Poly3 { verts: verts3, closed }
     } else {
-        Shape::Poly2 {
+        EntityShape::Poly2 {
             verts: verts2,
             closed,
             elevation,
@@ -431,7 +431,7 @@ mod tests {
         let t = "0\nLWPOLYLINE\n8\nCUT\n90\n3\n70\n1\n10\n0\n20\n0\n10\n1\n20\n0\n42\n0.5\n10\n1\n20\n1\n0\nEOF\n";
         let Read::Entity(e) = read(t) else { panic!() };
         assert_eq!(&*e.layer, "CUT");
-        let Shape::Poly2 { verts, closed, .. } = e.shape else {
+        let EntityShape::Poly2 { verts, closed, .. } = e.shape else {
             panic!()
         };
         assert!(closed);
@@ -443,7 +443,7 @@ mod tests {
         let t =
             "0\nPOLYLINE\n66\n1\n70\n1\n0\nVERTEX\n10\n0\n20\n0\n42\n1\n0\nVERTEX\n10\n2\n20\n0\n0\nSEQEND\n0\nEOF\n";
         let Read::Entity(e) = read(t) else { panic!() };
-        let Shape::Poly2 { verts, closed, .. } = e.shape else {
+        let EntityShape::Poly2 { verts, closed, .. } = e.shape else {
             panic!()
         };
         assert!(closed);

@@ -7,7 +7,7 @@
 //! group code implies: a malformed number is reported at the exact line (or
 //! byte offset, for binary files) where it sits, not later where it is used.
 
-use super::tokens::{self, Block, End, Tag};
+use super::tokens::{self, End, Tag, TokenBlock};
 use std::collections::VecDeque;
 use std::fmt;
 use std::io::{BufRead, BufReader, Cursor, Read};
@@ -156,8 +156,8 @@ const AHEAD: usize = 3;
 /// A block being tokenized on its own thread, or (the whole of a small
 /// input) already done.
 enum Pending {
-    Ready(Block),
-    Thread(std::thread::JoinHandle<Block>),
+    Ready(TokenBlock),
+    Thread(std::thread::JoinHandle<TokenBlock>),
 }
 
 /// ASCII input: the file is read in blocks of whole lines, each tokenized
@@ -167,7 +167,7 @@ struct Ascii {
     carry: Vec<u8>,
     eof: bool,
     ahead: VecDeque<Pending>,
-    cur: Block,
+    cur: TokenBlock,
     /// Next tag of `cur`.
     idx: usize,
     /// Lines before `cur`'s first line.
@@ -237,7 +237,7 @@ impl Ascii {
 
     /// Make `next` the current block; the old one's buffers are kept for
     /// the blocks to come.
-    fn advance(&mut self, next: Block) {
+    fn advance(&mut self, next: TokenBlock) {
         let old = std::mem::replace(&mut self.cur, next);
         if self.spare_bytes.len() < 2 {
             self.spare_bytes.push(old.bytes);
@@ -248,7 +248,7 @@ impl Ascii {
     }
 
     /// The next block in file order, or `None` at the end.
-    fn next_block(&mut self, input: &mut dyn BufRead) -> std::io::Result<Option<Block>> {
+    fn next_block(&mut self, input: &mut dyn BufRead) -> std::io::Result<Option<TokenBlock>> {
         self.fill(input)?;
         match self.ahead.pop_front() {
             None => Ok(None),

@@ -13,7 +13,7 @@
 //!
 //! The thesis' method compares every pair of segments; this one never does.
 //!
-//! Every change to the drawing is counted in [`Report`] and noted on the
+//! Every change to the drawing is counted in [`ChainReport`] and noted on the
 //! chain it touched (`repairs`).
 
 mod nodes;
@@ -30,7 +30,7 @@ pub use orient::signed_area;
 
 /// What chaining changed, for the stderr summary.
 #[derive(Debug, Default, Clone, PartialEq)]
-pub struct Report {
+pub struct ChainReport {
     pub zero_length: u64,
     pub duplicates: u64,
     pub overlaps: u64,
@@ -199,9 +199,14 @@ impl Chains {
 
 /// Join `segments` (each with a layer index into `layers`) into chains
 /// within `tol`, and attach POINT entities as per-layer point chains.
-pub fn build(segments: Vec<(Segment, u32)>, points: &[(P3, u32)], layers: &[String], tol: f64) -> (Chains, Report) {
+pub fn build(
+    segments: Vec<(Segment, u32)>,
+    points: &[(P3, u32)],
+    layers: &[String],
+    tol: f64,
+) -> (Chains, ChainReport) {
     let tol = if tol.is_finite() { tol.max(0.0) } else { 0.0 };
-    let mut report = Report::default();
+    let mut report = ChainReport::default();
     let layer_of: Vec<u32> = segments.iter().map(|(_, l)| *l).collect();
     // In place (same size and alignment): no second copy of the drawing.
     let mut work: Vec<Work> = segments
@@ -381,7 +386,7 @@ mod tests {
         v
     }
 
-    fn build_vec(s: Vec<(Segment, u32)>, p: &[(P3, u32)], l: &[String], tol: f64) -> (Vec<Chain>, Report) {
+    fn build_vec(s: Vec<(Segment, u32)>, p: &[(P3, u32)], l: &[String], tol: f64) -> (Vec<Chain>, ChainReport) {
         let (c, r) = build(s, p, l, tol);
         (c.iter().collect(), r)
     }

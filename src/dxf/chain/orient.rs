@@ -2,7 +2,7 @@
 //! through a grid over their boxes and exact point-in-chain tests (arcs
 //! included, no tessellation).
 
-use super::{Chains, Report, midpoint};
+use super::{ChainReport, Chains, midpoint};
 use crate::geometry::P3;
 use crate::model::chain::{Segment, arc_sweep};
 
@@ -118,7 +118,7 @@ fn box_and_area(segs: &[Segment], quarter: &[(f64, f64); 4]) -> ((f64, f64), (f6
 
 /// Orient closed chains by nesting depth: even depth (outer contours)
 /// counter-clockwise, odd depth (holes) clockwise.
-pub(super) fn orient(chains: &mut Chains, tol: f64, report: &mut Report) {
+pub(super) fn orient(chains: &mut Chains, tol: f64, report: &mut ChainReport) {
     struct Info {
         idx: usize,
         lo: (f64, f64),

@@ -3,7 +3,7 @@
 //! nodes. Each repair is counted in the report and noted on its piece.
 
 use super::nodes::NONE;
-use super::{Notes, Report, Work, fmt_num, midpoint};
+use super::{ChainReport, Notes, Work, fmt_num, midpoint};
 use crate::geometry::{P3, V3};
 use crate::model::chain::Segment;
 
@@ -15,7 +15,7 @@ use crate::model::chain::Segment;
 /// bucket boundary), is swept in order along its direction, comparing each
 /// line only with the lines whose span it reaches. Rows of equal lines (a
 /// grid of parts) therefore cost n log n, not n squared.
-pub(super) fn merge_collinear(w: &mut [Work], notes: &mut Notes, tol: f64, report: &mut Report) {
+pub(super) fn merge_collinear(w: &mut [Work], notes: &mut Notes, tol: f64, report: &mut ChainReport) {
     const ANGLE_BUCKET: f64 = 1e-4;
     let off_bucket = (2.0 * tol).max(1e-9);
     let n_ang = (std::f64::consts::PI / ANGLE_BUCKET).ceil() as i64;
@@ -240,7 +240,7 @@ const CHORD_SHORTCUT_TOL: f64 = 1e-5;
 /// computed. The sweep's round-off is far below that margin whenever the
 /// tolerance is at least [`CHORD_SHORTCUT_TOL`] (radii are below 1e10 mm
 /// after the range check); below it every arc is measured.
-pub(super) fn zero_length(w: &mut [Work], tol: f64, report: &mut Report) {
+pub(super) fn zero_length(w: &mut [Work], tol: f64, report: &mut ChainReport) {
     for x in w.iter_mut() {
         if !x.alive {
             continue;
@@ -298,7 +298,7 @@ pub(super) fn remove_duplicates(
     n_nodes: usize,
     notes: &mut Notes,
     tol: f64,
-    report: &mut Report,
+    report: &mut ChainReport,
 ) {
     for (i, x) in w.iter_mut().enumerate() {
         if x.alive && ends[i].0 == ends[i].1 && matches!(x.seg, Segment::Line { .. }) {
