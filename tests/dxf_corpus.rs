@@ -33,7 +33,7 @@ fn own(rel: &str) -> PathBuf {
 struct Run {
     imp: dxf::Import,
     chains: Vec<Chain>,
-    report: chain::Report,
+    report: chain::ChainReport,
     text: Vec<u8>,
 }
 

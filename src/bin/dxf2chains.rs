@@ -79,6 +79,16 @@ struct Args {
 }
 
 fn main() -> ExitCode {
+    // Blocks of a megabyte and more (the reader's buffers, the chaining's
+    // arrays) are mapped and unmapped rather than left in the heap: with
+    // glibc's sliding threshold, the memory of one phase stays held
+    // through the next and the peak grows by a quarter of the file.
+    #[cfg(all(target_os = "linux", target_env = "gnu"))]
+    // SAFETY: sets one tuning parameter of the C allocator, before any
+    // thread exists; no memory is touched.
+    unsafe {
+        libc::mallopt(libc::M_MMAP_THRESHOLD, 1 << 20);
+    }
     let args = microcam::cli::parse::<Args>();
     cli::run("dxf2chains", || run(args))
 }

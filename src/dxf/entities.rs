@@ -8,10 +8,11 @@
 
 use super::reader::{DxfError, Pos, Reader};
 use crate::geometry::{P3, V3};
+use std::rc::Rc;
 
 /// A typed drawing entity we can turn into geometry.
 #[derive(Debug, Clone, PartialEq)]
-pub enum Shape {
+pub enum EntityShape {
     Line {
         a: P3,
         b: P3,
@@ -82,8 +83,10 @@ pub struct Insert {
 /// An entity with its layer name and where it started in the file.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Entity {
-    pub layer: String,
-    pub shape: Shape,
+    /// Shared by the entities of a run on one layer (one allocation per
+    /// run, not per entity).
+    pub layer: Rc<str>,
+    pub shape: EntityShape,
     pub pos: Pos,
 }
 
@@ -100,6 +103,8 @@ pub enum Read {
 #[derive(Default)]
 pub struct Scratch {
     layer: String,
+    /// The layer name of the last entity read, shared.
+    last_layer: Option<Rc<str>>,
     name: String,
     p10: Vec<P3>,
     bulge: Vec<f64>,
@@ -140,6 +145,21 @@ impl Scratch {
         self.i72 = 0;
         self.paper = false;
         self.ext = V3::z();
+    }
+}
+
+impl Scratch {
+    /// The layer just read, as the shared name of the previous entity's
+    /// when it is the same.
+    fn layer_rc(&mut self) -> Rc<str> {
+        match &self.last_layer {
+            Some(l) if **l == *self.layer => l.clone(),
+            _ => {
+                let l: Rc<str> = Rc::from(self.layer.as_str());
+                self.last_layer = Some(l.clone());
+                l
+            }
+        }
     }
 }
 
@@ -227,14 +247,14 @@ pub fn read_entity(kind: &str, r: &mut Reader, s: &mut Scratch) -> Result<Read, 
             let b = s.p11.first().copied().ok_or_else(|| bad("no end point (group 11)"))?;
             // LINE is a world-coordinate entity; its extrusion only gives
             // thickness a direction.
-            Shape::Line { a, b }
+            EntityShape::Line { a, b }
         }
         "ARC" => {
             let r0 = s.f40.first().copied().ok_or_else(|| bad("no radius (group 40)"))?;
             // Code 50 is the start angle, 51 the end angle (stored in f41
             // because ARC has no group 41).
             let a1 = s.f41.first().copied().ok_or_else(|| bad("no end angle (group 51)"))?;
-            Shape::Arc {
+            EntityShape::Arc {
                 c: first(&s.p10),
                 r: r0,
                 a0: s.f50,
@@ -242,12 +262,12 @@ pub fn read_entity(kind: &str, r: &mut Reader, s: &mut Scratch) -> Result<Read, 
                 ext: s.ext,
             }
         }
-        "CIRCLE" => Shape::Circle {
+        "CIRCLE" => EntityShape::Circle {
             c: first(&s.p10),
             r: s.f40.first().copied().ok_or_else(|| bad("no radius (group 40)"))?,
             ext: s.ext,
         },
-        "LWPOLYLINE" => Shape::Poly2 {
+        "LWPOLYLINE" => EntityShape::Poly2 {
             verts: s.p10.iter().zip(&s.bulge).map(|(p, b)| (p.x, p.y, *b)).collect(),
             closed: s.i70 & 1 != 0,
             elevation: s.f38,
@@ -262,7 +282,7 @@ pub fn read_entity(kind: &str, r: &mut Reader, s: &mut Scratch) -> Result<Read, 
                 .map(|p| p.coords)
                 .ok_or_else(|| bad("no major axis (group 11)"))?;
             let ratio = s.f40.first().copied().ok_or_else(|| bad("no axis ratio (group 40)"))?;
-            Shape::Ellipse {
+            EntityShape::Ellipse {
                 c: first(&s.p10),
                 major,
                 ratio,
@@ -271,7 +291,7 @@ pub fn read_entity(kind: &str, r: &mut Reader, s: &mut Scratch) -> Result<Read, 
                 ext: s.ext,
             }
         }
-        "SPLINE" => Shape::Spline {
+        "SPLINE" => EntityShape::Spline {
             degree: s.i71.clamp(0, 64) as usize,
             knots: s.f40.clone(),
             ctrl: s.p10.clone(),
@@ -279,7 +299,7 @@ pub fn read_entity(kind: &str, r: &mut Reader, s: &mut Scratch) -> Result<Read, 
             fit: s.p11.clone(),
             closed: s.i70 & 1 != 0,
         },
-        "POINT" => Shape::Point { p: first(&s.p10) },
+        "POINT" => EntityShape::Point { p: first(&s.p10) },
         "INSERT" | "MINSERT" => {
             if s.name.is_empty() {
                 return Err(bad("no block name (group 2)"));
@@ -288,7 +308,7 @@ pub fn read_entity(kind: &str, r: &mut Reader, s: &mut Scratch) -> Result<Read, 
             let sx = s.f41.first().copied().unwrap_or(1.0);
             let sy = s.f42.unwrap_or(1.0);
             let sz = s.f43.unwrap_or(1.0);
-            Shape::Insert(Box::new(Insert {
+            EntityShape::Insert(Box::new(Insert {
                 block: s.name.clone(),
                 p: first(&s.p10),
                 scale: V3::new(sx, sy, sz),
@@ -306,17 +326,17 @@ pub fn read_entity(kind: &str, r: &mut Reader, s: &mut Scratch) -> Result<Read, 
         return Err(bad("non-finite coordinate"));
     }
     Ok(Read::Entity(Entity {
-        layer: s.layer.clone(),
+        layer: s.layer_rc(),
         shape,
         pos,
     }))
 }
 
-fn shape_finite(s: &Shape) -> bool {
+fn shape_finite(s: &EntityShape) -> bool {
     match s {
-        Shape::Line { a, b } => finite_p(a) && finite_p(b),
-        Shape::Arc { c, r, a0, a1, .. } => finite_p(c) && r.is_finite() && a0.is_finite() && a1.is_finite(),
-        Shape::Circle { c, r, .. } => finite_p(c) && r.is_finite(),
+        EntityShape::Line { a, b } => finite_p(a) && finite_p(b),
+        EntityShape::Arc { c, r, a0, a1, .. } => finite_p(c) && r.is_finite() && a0.is_finite() && a1.is_finite(),
+        EntityShape::Circle { c, r, .. } => finite_p(c) && r.is_finite(),
         _ => true,
     }
 }
@@ -325,7 +345,7 @@ fn shape_finite(s: &Shape) -> bool {
 fn read_polyline(r: &mut Reader, s: &mut Scratch, pos: Pos) -> Result<Read, DxfError> {
     let flags = s.i70;
     let paper = s.paper;
-    let layer = s.layer.clone();
+    let layer = s.layer_rc();
     let elevation = s.p10.first().map(|p| p.z).unwrap_or(0.0);
     let ext = s.ext;
     let mut verts2 = Vec::new();
@@ -372,9 +392,9 @@ fn read_polyline(r: &mut Reader, s: &mut Scratch, pos: Pos) -> Result<Read, DxfE
     }
     let closed = flags & 1 != 0;
     let shape = if flags & 8 != 0 {
-        Shape::Poly3 { verts: verts3, closed }
+        EntityShape::Poly3 { verts: verts3, closed }
     } else {
-        Shape::Poly2 {
+        EntityShape::Poly2 {
             verts: verts2,
             closed,
             elevation,
@@ -410,8 +430,8 @@ mod tests {
     fn lwpolyline_bulges_belong_to_their_vertex() {
         let t = "0\nLWPOLYLINE\n8\nCUT\n90\n3\n70\n1\n10\n0\n20\n0\n10\n1\n20\n0\n42\n0.5\n10\n1\n20\n1\n0\nEOF\n";
         let Read::Entity(e) = read(t) else { panic!() };
-        assert_eq!(e.layer, "CUT");
-        let Shape::Poly2 { verts, closed, .. } = e.shape else {
+        assert_eq!(&*e.layer, "CUT");
+        let EntityShape::Poly2 { verts, closed, .. } = e.shape else {
             panic!()
         };
         assert!(closed);
@@ -423,7 +443,7 @@ mod tests {
         let t =
             "0\nPOLYLINE\n66\n1\n70\n1\n0\nVERTEX\n10\n0\n20\n0\n42\n1\n0\nVERTEX\n10\n2\n20\n0\n0\nSEQEND\n0\nEOF\n";
         let Read::Entity(e) = read(t) else { panic!() };
-        let Shape::Poly2 { verts, closed, .. } = e.shape else {
+        let EntityShape::Poly2 { verts, closed, .. } = e.shape else {
             panic!()
         };
         assert!(closed);

@@ -3,7 +3,7 @@
 //! entity; curves leave here as exact lines and arcs.
 
 use super::curves::{Conic, Curve, FitPoints, Nurbs, fit_biarcs};
-use super::entities::{Entity, Insert, Shape};
+use super::entities::{Entity, EntityShape, Insert};
 use super::ocs::Affine;
 use super::reader::Pos;
 use crate::geometry::{P3, V3};
@@ -13,7 +13,7 @@ use std::f64::consts::TAU;
 
 /// A block definition.
 #[derive(Debug, Default)]
-pub struct Block {
+pub struct BlockDef {
     pub base: P3,
     pub entities: Vec<Entity>,
 }
@@ -52,7 +52,7 @@ pub struct Sink {
 
 /// How to expand: tolerance and layer filter.
 pub struct Expander<'a> {
-    pub blocks: &'a HashMap<String, Block>,
+    pub blocks: &'a HashMap<String, BlockDef>,
     pub arc_tol: f64,
     /// Empty: every layer.
     pub layers: &'a [String],
@@ -174,8 +174,8 @@ impl Expander<'_> {
     /// replaces "0" inside blocks.
     pub fn entity(&self, e: &Entity, t: &Affine, inherit: Option<&str>, depth: usize, sink: &mut Sink) {
         let layer = match inherit {
-            Some(l) if e.layer == "0" => l,
-            _ => e.layer.as_str(),
+            Some(l) if &*e.layer == "0" => l,
+            _ => &e.layer,
         };
         if sink.stopped() {
             return;
@@ -185,7 +185,7 @@ impl Expander<'_> {
             sink.overflow = true;
             return;
         }
-        if let Shape::Insert(ins) = &e.shape {
+        if let EntityShape::Insert(ins) = &e.shape {
             self.insert(ins, e.pos, t, layer, depth, sink);
             return;
         }
@@ -195,7 +195,7 @@ impl Expander<'_> {
         let lid = sink.layer_id(layer);
         let before = sink.segments.len();
         let name = match &e.shape {
-            Shape::Line { a, b } => {
+            EntityShape::Line { a, b } => {
                 sink.segments.push((
                     Segment::Line {
                         start: t.apply(a),
@@ -205,7 +205,7 @@ impl Expander<'_> {
                 ));
                 "LINE"
             }
-            Shape::Arc { c, r, a0, a1, ext } => {
+            EntityShape::Arc { c, r, a0, a1, ext } => {
                 let t = t.then_after(&Affine::ocs(*ext));
                 let a0r = a0.to_radians();
                 let mut sweep = (a1 - a0).to_radians().rem_euclid(TAU);
@@ -215,12 +215,12 @@ impl Expander<'_> {
                 self.conic(&t, c, *r, (a0r, sweep), lid, sink);
                 "ARC"
             }
-            Shape::Circle { c, r, ext } => {
+            EntityShape::Circle { c, r, ext } => {
                 let t = t.then_after(&Affine::ocs(*ext));
                 self.conic(&t, c, *r, (0.0, TAU), lid, sink);
                 "CIRCLE"
             }
-            Shape::Poly2 {
+            EntityShape::Poly2 {
                 verts,
                 closed,
                 elevation,
@@ -231,7 +231,7 @@ impl Expander<'_> {
                 self.poly2(&t, verts, *closed, *elevation, lid, sink);
                 if *lw { "LWPOLYLINE" } else { "POLYLINE" }
             }
-            Shape::Poly3 { verts, closed } => {
+            EntityShape::Poly3 { verts, closed } => {
                 let n = verts.len();
                 let pairs = if *closed && n > 2 { n } else { n.saturating_sub(1) };
                 for i in 0..pairs {
@@ -245,7 +245,7 @@ impl Expander<'_> {
                 }
                 "POLYLINE"
             }
-            Shape::Ellipse {
+            EntityShape::Ellipse {
                 c,
                 major,
                 ratio,
@@ -273,7 +273,7 @@ impl Expander<'_> {
                 self.place_conic(conic, lid, sink);
                 "ELLIPSE"
             }
-            Shape::Spline {
+            EntityShape::Spline {
                 degree,
                 knots,
                 ctrl,
@@ -302,7 +302,7 @@ impl Expander<'_> {
                 }
                 "SPLINE"
             }
-            Shape::Point { p } => {
+            EntityShape::Point { p } => {
                 let q = t.apply(p);
                 if !in_range(&q) {
                     sink.out_of_range(e.pos, &q);
@@ -311,7 +311,7 @@ impl Expander<'_> {
                 sink.points.push((q, lid));
                 "POINT"
             }
-            Shape::Insert(_) => "INSERT",
+            EntityShape::Insert(_) => "INSERT",
         };
         let flat = self.arc_tol.max(1e-9);
         for (s, _) in &mut sink.segments[before..] {
@@ -535,7 +535,7 @@ mod tests {
     use super::*;
     use crate::dxf::reader::Pos;
 
-    fn ent(shape: Shape) -> Entity {
+    fn ent(shape: EntityShape) -> Entity {
         Entity {
             layer: "0".into(),
             shape,
@@ -543,7 +543,7 @@ mod tests {
         }
     }
 
-    fn expand(e: &Entity, blocks: &HashMap<String, Block>) -> Sink {
+    fn expand(e: &Entity, blocks: &HashMap<String, BlockDef>) -> Sink {
         let x = Expander {
             blocks,
             arc_tol: 0.001,
@@ -557,7 +557,7 @@ mod tests {
 
     #[test]
     fn mirrored_ocs_arc_turns_clockwise() {
-        let e = ent(Shape::Arc {
+        let e = ent(EntityShape::Arc {
             c: P3::new(10.0, 0.0, 0.0),
             r: 1.0,
             a0: 0.0,
@@ -585,7 +585,7 @@ mod tests {
 
     #[test]
     fn bulge_semicircle() {
-        let e = ent(Shape::Poly2 {
+        let e = ent(EntityShape::Poly2 {
             verts: vec![(0.0, 0.0, 1.0), (2.0, 0.0, 0.0)],
             closed: false,
             elevation: 0.0,
@@ -605,15 +605,15 @@ mod tests {
         let mut blocks = HashMap::new();
         blocks.insert(
             "B".to_string(),
-            Block {
+            BlockDef {
                 base: P3::new(1.0, 0.0, 0.0),
-                entities: vec![ent(Shape::Line {
+                entities: vec![ent(EntityShape::Line {
                     a: P3::new(1.0, 0.0, 0.0),
                     b: P3::new(2.0, 0.0, 0.0),
                 })],
             },
         );
-        let ins = ent(Shape::Insert(Box::new(Insert {
+        let ins = ent(EntityShape::Insert(Box::new(Insert {
             block: "B".into(),
             p: P3::new(10.0, 0.0, 0.0),
             scale: V3::new(-2.0, 1.0, 1.0),
@@ -642,7 +642,7 @@ mod tests {
     #[test]
     fn self_inserting_block_is_stopped() {
         let mut blocks = HashMap::new();
-        let me = ent(Shape::Insert(Box::new(Insert {
+        let me = ent(EntityShape::Insert(Box::new(Insert {
             block: "A".into(),
             p: P3::origin(),
             scale: V3::new(1.0, 1.0, 1.0),
@@ -655,7 +655,7 @@ mod tests {
         })));
         blocks.insert(
             "A".to_string(),
-            Block {
+            BlockDef {
                 base: P3::origin(),
                 entities: vec![me.clone()],
             },

@@ -2,7 +2,7 @@
 //! to exact lines and arcs in millimetres, ready for chaining.
 //!
 //! - [`reader`]: the streaming group-code tokenizer (ASCII and binary).
-//! - [`entities`]: one entity's tags to a typed [`entities::Shape`].
+//! - [`entities`]: one entity's tags to a typed [`entities::EntityShape`].
 //! - [`ocs`]: affine maps and the Object Coordinate System.
 //! - [`expand`]: blocks, inserts, units and transforms applied; curves fitted.
 //! - [`curves`]: ellipses and splines as biarcs within a tolerance.
@@ -28,8 +28,8 @@ pub mod tokens;
 pub mod transform;
 pub mod units;
 
-use entities::{Entity, Read, Scratch, Shape};
-use expand::{Block, Expander, Sink};
+use entities::{Entity, EntityShape, Read, Scratch};
+use expand::{BlockDef, Expander, Sink};
 use ocs::Affine;
 use reader::{DxfError, Reader};
 use std::collections::{BTreeMap, HashMap};
@@ -100,7 +100,7 @@ enum Section {
 pub fn import(input: Box<dyn BufRead>, opts: &ImportOptions) -> Result<Import, DxfError> {
     let mut r = Reader::new(input)?;
     let binary = r.is_binary();
-    let mut blocks: HashMap<String, Block> = HashMap::new();
+    let mut blocks: HashMap<String, BlockDef> = HashMap::new();
     let mut skipped: BTreeMap<String, u64> = BTreeMap::new();
     let mut pending: Vec<Entity> = Vec::new();
     let mut sink = Sink::default();
@@ -111,6 +111,8 @@ pub fn import(input: Box<dyn BufRead>, opts: &ImportOptions) -> Result<Import, D
     let mut tops: Option<Vec<Affine>> = None;
     let mut seen_anything = false;
     let mut saw_eof = false;
+    // The current `0` tag's text, in one buffer reused for every entity.
+    let mut tag = String::new();
 
     while let Some(code) = r.next_tag()? {
         seen_anything = true;
@@ -129,7 +131,8 @@ pub fn import(input: Box<dyn BufRead>, opts: &ImportOptions) -> Result<Import, D
         if code != 0 {
             continue;
         }
-        let tag = r.text().trim().to_string();
+        tag.clear();
+        tag.push_str(r.text().trim());
         match tag.as_str() {
             "SECTION" => {
                 section = match r.next_tag()? {
@@ -171,7 +174,7 @@ pub fn import(input: Box<dyn BufRead>, opts: &ImportOptions) -> Result<Import, D
                 match entities::read_entity(&tag, &mut r, &mut scratch)? {
                     Read::Skipped(k) => *skipped.entry(k).or_default() += 1,
                     Read::Entity(mut e) => {
-                        if let Shape::Insert(ins) = &mut e.shape {
+                        if let EntityShape::Insert(ins) = &mut e.shape {
                             ins.block = ins.block.to_uppercase();
                             if !blocks.contains_key(&ins.block) {
                                 // BLOCKS after ENTITIES (non-standard): place later.
@@ -274,7 +277,7 @@ fn read_block(
     r: &mut Reader,
     scratch: &mut Scratch,
     skipped: &mut BTreeMap<String, u64>,
-) -> Result<(String, Block), DxfError> {
+) -> Result<(String, BlockDef), DxfError> {
     let start = r.pos;
     let mut name = String::new();
     let mut base = crate::geometry::P3::origin();
@@ -291,7 +294,7 @@ fn read_block(
             _ => {}
         }
     }
-    let mut block = Block {
+    let mut block = BlockDef {
         base,
         entities: Vec::new(),
     };
@@ -332,7 +335,7 @@ fn read_block(
             _ => match entities::read_entity(&tag, r, scratch)? {
                 Read::Skipped(k) => *skipped.entry(k).or_default() += 1,
                 Read::Entity(mut e) => {
-                    if let Shape::Insert(ins) = &mut e.shape {
+                    if let EntityShape::Insert(ins) = &mut e.shape {
                         ins.block = ins.block.to_uppercase();
                     }
                     block.entities.push(e);

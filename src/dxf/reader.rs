@@ -7,7 +7,7 @@
 //! group code implies: a malformed number is reported at the exact line (or
 //! byte offset, for binary files) where it sits, not later where it is used.
 
-use super::tokens::{self, Block, End, Tag};
+use super::tokens::{self, End, Tag, TokenBlock};
 use std::collections::VecDeque;
 use std::fmt;
 use std::io::{BufRead, BufReader, Cursor, Read};
@@ -58,7 +58,27 @@ pub enum Kind {
     Binary,
 }
 
+/// The kinds of group codes 0 to 1071 (one load per tag instead of a
+/// chain of range tests).
+static KINDS: [Kind; 1072] = {
+    let mut t = [Kind::Str; 1072];
+    let mut c = 0;
+    while c < 1072 {
+        t[c] = kind_by_range(c as i32);
+        c += 1;
+    }
+    t
+};
+
+#[inline]
 pub fn kind_of(code: i32) -> Kind {
+    match usize::try_from(code) {
+        Ok(c) if c < KINDS.len() => KINDS[c],
+        _ => Kind::Str,
+    }
+}
+
+const fn kind_by_range(code: i32) -> Kind {
     match code {
         0..=9 => Kind::Str,
         10..=59 => Kind::Float,
@@ -131,13 +151,13 @@ pub struct Reader {
 /// Bytes per block handed to a tokenizing thread, and blocks in flight:
 /// enough to keep both cores busy, little next to the geometry.
 const BLOCK: usize = 2 << 20;
-const AHEAD: usize = 4;
+const AHEAD: usize = 3;
 
 /// A block being tokenized on its own thread, or (the whole of a small
 /// input) already done.
 enum Pending {
-    Ready(Block),
-    Thread(std::thread::JoinHandle<Block>),
+    Ready(TokenBlock),
+    Thread(std::thread::JoinHandle<TokenBlock>),
 }
 
 /// ASCII input: the file is read in blocks of whole lines, each tokenized
@@ -147,11 +167,16 @@ struct Ascii {
     carry: Vec<u8>,
     eof: bool,
     ahead: VecDeque<Pending>,
-    cur: Block,
+    cur: TokenBlock,
     /// Next tag of `cur`.
     idx: usize,
     /// Lines before `cur`'s first line.
     base: u64,
+    /// Buffers of consumed blocks, to be filled again: the same few
+    /// megabytes serve the whole file (allocating and freeing one block
+    /// after another leaves the allocator holding far more).
+    spare_bytes: Vec<Vec<u8>>,
+    spare_tags: Vec<Vec<Tag>>,
 }
 
 impl Ascii {
@@ -160,6 +185,7 @@ impl Ascii {
         loop {
             if !self.eof && self.carry.len() < BLOCK {
                 let want = BLOCK - self.carry.len();
+                self.carry.reserve_exact(want);
                 let n = input.take(want as u64).read_to_end(&mut self.carry)?;
                 if n < want {
                     self.eof = true;
@@ -173,7 +199,10 @@ impl Ascii {
             }
             match tokens::cut(&self.carry) {
                 Some(k) => {
-                    let rest = self.carry.split_off(k);
+                    let mut rest = self.spare_bytes.pop().unwrap_or_default();
+                    rest.clear();
+                    rest.extend_from_slice(&self.carry[k..]);
+                    self.carry.truncate(k);
                     return Ok(Some(std::mem::replace(&mut self.carry, rest)));
                 }
                 // One line longer than a block: read on.
@@ -193,19 +222,33 @@ impl Ascii {
             let Some(bytes) = self.read_block(input)? else {
                 break;
             };
+            let tags = self.spare_tags.pop().unwrap_or_default();
             if self.eof && self.carry.is_empty() && self.ahead.is_empty() {
                 // The last block and nothing else to wait for: no thread.
-                self.ahead.push_back(Pending::Ready(tokens::tokenize(bytes)));
+                self.ahead.push_back(Pending::Ready(tokens::tokenize_into(bytes, tags)));
             } else {
-                self.ahead
-                    .push_back(Pending::Thread(std::thread::spawn(move || tokens::tokenize(bytes))));
+                self.ahead.push_back(Pending::Thread(std::thread::spawn(move || {
+                    tokens::tokenize_into(bytes, tags)
+                })));
             }
         }
         Ok(())
     }
 
+    /// Make `next` the current block; the old one's buffers are kept for
+    /// the blocks to come.
+    fn advance(&mut self, next: TokenBlock) {
+        let old = std::mem::replace(&mut self.cur, next);
+        if self.spare_bytes.len() < 2 {
+            self.spare_bytes.push(old.bytes);
+        }
+        if self.spare_tags.len() < 2 {
+            self.spare_tags.push(old.tags);
+        }
+    }
+
     /// The next block in file order, or `None` at the end.
-    fn next_block(&mut self, input: &mut dyn BufRead) -> std::io::Result<Option<Block>> {
+    fn next_block(&mut self, input: &mut dyn BufRead) -> std::io::Result<Option<TokenBlock>> {
         self.fill(input)?;
         match self.ahead.pop_front() {
             None => Ok(None),
@@ -249,6 +292,8 @@ impl Reader {
                     cur: tokens::tokenize(Vec::new()),
                     idx: 0,
                     base: 0,
+                    spare_bytes: Vec::new(),
+                    spare_tags: Vec::new(),
                 };
                 a.fill(&mut input)?;
                 (input, Some(a))
@@ -345,7 +390,7 @@ impl Reader {
                         return Ok(None);
                     };
                     a.base += a.cur.lines;
-                    a.cur = next;
+                    a.advance(next);
                     a.idx = 0;
                     self.tag = None;
                 }

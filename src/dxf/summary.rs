@@ -1,7 +1,7 @@
 //! The stderr summary of an import: what was read, skipped, fitted and
 //! repaired. Deterministic text (sorted counts), one topic per line.
 
-use super::chain::Report;
+use super::chain::ChainReport;
 use super::{Import, UnitSource};
 
 fn counts<'a>(it: impl Iterator<Item = (&'a str, u64)>) -> String {
@@ -16,7 +16,7 @@ fn num(x: f64) -> String {
 /// Lines for stderr, without the tool prefix.
 /// `requested` are the `--layer` names: one that brought no geometry is
 /// most often a typo, so it is named.
-pub fn lines(imp: &Import, rep: &Report, arc_tol: f64, point_chains: usize, requested: &[String]) -> Vec<String> {
+pub fn lines(imp: &Import, rep: &ChainReport, arc_tol: f64, point_chains: usize, requested: &[String]) -> Vec<String> {
     let mut out = Vec::new();
     let kind = if imp.binary { "binary" } else { "ASCII" };
     let ver = imp.version.as_deref().unwrap_or("no version");

@@ -17,11 +17,11 @@ use super::reader::{Kind, kind_of};
 pub struct Tag {
     pub code: i16,
     /// The string value was not UTF-8: its lossy decoding is
-    /// `Block::lossy[val]`.
+    /// `TokenBlock::lossy[val]`.
     pub lossy: bool,
     pub line: u32,
     /// f64 bits (floats), i64 (integers) or `start | len << 32` (strings:
-    /// the text, without its line end, in `Block::bytes`).
+    /// the text, without its line end, in `TokenBlock::bytes`).
     pub val: u64,
 }
 
@@ -43,7 +43,7 @@ pub enum End {
 
 /// A tokenized block of lines.
 #[derive(Debug)]
-pub struct Block {
+pub struct TokenBlock {
     pub bytes: Vec<u8>,
     pub tags: Vec<Tag>,
     pub lossy: Vec<String>,
@@ -54,7 +54,7 @@ pub struct Block {
     pub blank_only: bool,
 }
 
-impl Block {
+impl TokenBlock {
     /// The text of string tag `t`.
     pub fn text(&self, t: &Tag) -> &str {
         if t.lossy {
@@ -174,9 +174,17 @@ fn fast_float(b: &[u8], mut i: usize) -> Option<(f64, usize)> {
 }
 
 /// Tokenize a block of whole lines.
-pub fn tokenize(bytes: Vec<u8>) -> Block {
+pub fn tokenize(bytes: Vec<u8>) -> TokenBlock {
+    tokenize_into(bytes, Vec::new())
+}
+
+/// [`tokenize`] into `tags` (cleared first): the reader hands back the
+/// arrays of blocks it is done with, so a file is read with the same few
+/// buffers throughout.
+pub fn tokenize_into(bytes: Vec<u8>, mut tags: Vec<Tag>) -> TokenBlock {
     let b = &bytes[..];
-    let mut tags: Vec<Tag> = Vec::with_capacity(b.len() / 12);
+    tags.clear();
+    tags.reserve(b.len() / 12);
     let mut lossy: Vec<String> = Vec::new();
     let mut pos = 0usize;
     let mut line: u32 = 0;
@@ -327,15 +335,18 @@ pub fn tokenize(bytes: Vec<u8>) -> Block {
             val,
         });
     };
-    // Lines: every `\n`, plus a last line without one.
+    // Lines: every `\n`, plus a last line without one. A clean end has
+    // consumed every line, each ending at a `\n` or at the block's end, and
+    // counted it.
     let lines = match &end {
-        End::Clean | End::Blank { .. } => {
+        End::Clean => u64::from(line),
+        End::Blank { .. } => {
             let nl = bytes.iter().filter(|&&c| c == b'\n').count() as u64;
             nl + u64::from(bytes.last().is_some_and(|&c| c != b'\n'))
         }
         _ => 0,
     };
-    Block {
+    TokenBlock {
         bytes,
         tags,
         lossy,

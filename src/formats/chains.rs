@@ -227,6 +227,25 @@ impl<W: Write> ChainsWriter<W> {
     }
 }
 
+/// A segment's start: a copy of the previous end's text `b[from..to]` when
+/// it is the same point (equal points print the same text: `-0` and `0`
+/// both print `0`), else formatted.
+fn push_start(b: &mut String, p: &P3, prev: Option<(P3, usize, usize)>) {
+    if let Some((q, from, to)) = prev
+        && q == *p
+        && to - from <= 128
+    {
+        let mut tmp = [0u8; 128];
+        let n = to - from;
+        tmp[..n].copy_from_slice(&b.as_bytes()[from..to]);
+        if let Ok(t) = std::str::from_utf8(&tmp[..n]) {
+            b.push_str(t);
+            return;
+        }
+    }
+    push_point_2or3(b, p);
+}
+
 /// Append one chain as a JSON object (no newline).
 pub fn format_chain(b: &mut String, c: &Chain) {
     b.push_str("{\"id\":");
@@ -241,6 +260,10 @@ pub fn format_chain(b: &mut String, c: &Chain) {
         ",\"closed\":false"
     });
     b.push_str(",\"segments\":[");
+    // The previous segment's end and where its text is in `b`: the next
+    // segment starts there (chains share their ends exactly), so that text
+    // is copied instead of formatted again.
+    let mut prev: Option<(P3, usize, usize)> = None;
     for (i, s) in c.segments.iter().enumerate() {
         if i > 0 {
             b.push(',');
@@ -248,9 +271,11 @@ pub fn format_chain(b: &mut String, c: &Chain) {
         match s {
             Segment::Line { start, end } => {
                 b.push_str("{\"type\":\"line\",\"start\":");
-                push_point_2or3(b, start);
+                push_start(b, start, prev);
                 b.push_str(",\"end\":");
+                let at = b.len();
                 push_point_2or3(b, end);
+                prev = Some((*end, at, b.len()));
             }
             Segment::Arc {
                 start,
@@ -259,9 +284,11 @@ pub fn format_chain(b: &mut String, c: &Chain) {
                 ccw,
             } => {
                 b.push_str("{\"type\":\"arc\",\"start\":");
-                push_point_2or3(b, start);
+                push_start(b, start, prev);
                 b.push_str(",\"end\":");
+                let at = b.len();
                 push_point_2or3(b, end);
+                prev = Some((*end, at, b.len()));
                 b.push_str(",\"center\":");
                 push_point_2or3(b, center);
                 b.push_str(if *ccw { ",\"ccw\":true" } else { ",\"ccw\":false" });

@@ -272,7 +272,15 @@ pub fn push_point_2or3(out: &mut String, p: &P3) {
 
 /// Append a JSON string literal.
 pub fn push_str_lit(out: &mut String, s: &str) {
-    // serde_json's escaping is the reference; strings are rare and short.
+    // serde_json's escaping is the reference. It escapes only `"`, `\`
+    // and control characters below 0x20: a string without any of them is
+    // written as it is (layer names, on every chain), the rest by serde.
+    if !s.bytes().any(|c| c < 0x20 || c == b'"' || c == b'\\') {
+        out.push('"');
+        out.push_str(s);
+        out.push('"');
+        return;
+    }
     out.push_str(&serde_json::to_string(s).unwrap_or_else(|_| "\"\"".into()));
 }
 
@@ -380,6 +388,28 @@ mod tests {
             let mut s = String::new();
             push_num(&mut s, x);
             assert_eq!(s, reference(x), "{x:e}");
+        }
+    }
+
+    #[test]
+    fn string_literals_are_serde_json_s() {
+        for t in [
+            "",
+            "CUT",
+            "Layer 1",
+            "a\"b",
+            "back\\slash",
+            "tab\there",
+            "nl\n",
+            "\u{1}\u{1f}",
+            "\u{7f}",
+            "Ü-Schicht",
+            "\u{2028}",
+            "名前",
+        ] {
+            let mut s = String::new();
+            push_str_lit(&mut s, t);
+            assert_eq!(s, serde_json::to_string(t).unwrap(), "{t:?}");
         }
     }
 

@@ -13,7 +13,7 @@
 //!
 //! The thesis' method compares every pair of segments; this one never does.
 //!
-//! Every change to the drawing is counted in [`Report`] and noted on the
+//! Every change to the drawing is counted in [`ChainReport`] and noted on the
 //! chain it touched (`repairs`).
 
 mod nodes;
@@ -30,7 +30,7 @@ pub use orient::signed_area;
 
 /// What chaining changed, for the stderr summary.
 #[derive(Debug, Default, Clone, PartialEq)]
-pub struct Report {
+pub struct ChainReport {
     pub zero_length: u64,
     pub duplicates: u64,
     pub overlaps: u64,
@@ -104,6 +104,7 @@ pub(super) fn midpoint(s: &Segment) -> P3 {
 
 /// One piece being chained: the same size as the `(Segment, u32)` it is
 /// made from, so the conversion reuses the input's memory.
+#[derive(Clone, Copy)]
 struct Work {
     seg: Segment,
     order: u32,
@@ -198,9 +199,14 @@ impl Chains {
 
 /// Join `segments` (each with a layer index into `layers`) into chains
 /// within `tol`, and attach POINT entities as per-layer point chains.
-pub fn build(segments: Vec<(Segment, u32)>, points: &[(P3, u32)], layers: &[String], tol: f64) -> (Chains, Report) {
+pub fn build(
+    segments: Vec<(Segment, u32)>,
+    points: &[(P3, u32)],
+    layers: &[String],
+    tol: f64,
+) -> (Chains, ChainReport) {
     let tol = if tol.is_finite() { tol.max(0.0) } else { 0.0 };
-    let mut report = Report::default();
+    let mut report = ChainReport::default();
     let layer_of: Vec<u32> = segments.iter().map(|(_, l)| *l).collect();
     // In place (same size and alignment): no second copy of the drawing.
     let mut work: Vec<Work> = segments
@@ -218,9 +224,10 @@ pub fn build(segments: Vec<(Segment, u32)>, points: &[(P3, u32)], layers: &[Stri
             report.non_finite += 1;
         }
     }
-    if !layer_of.is_sorted() {
-        work.sort_unstable_by_key(|x| (layer_of[x.order as usize], x.order));
-    }
+    // Layer by layer, in drawing order within each layer: a stable
+    // counting sort (layers are few), applied in place by cycles so the
+    // 88-byte records are neither sorted by comparison nor copied.
+    let runs = group_by_layer(&mut work, layer_of, layers.len());
     let mut out = Chains {
         layers: layers.to_vec(),
         ..Default::default()
@@ -229,10 +236,7 @@ pub fn build(segments: Vec<(Segment, u32)>, points: &[(P3, u32)], layers: &[Stri
     // of this array's memory unused at the peak.
     out.seq.reserve_exact(work.iter().filter(|x| x.alive).count());
     let mut repairs: Vec<(u32, Vec<String>)> = Vec::new();
-    let mut from = 0;
-    while from < work.len() {
-        let l = layer_of[work[from].order as usize];
-        let to = from + work[from..].partition_point(|x| layer_of[x.order as usize] == l);
+    for (l, from, to) in runs {
         walk::chain_layer(
             &mut work[from..to],
             from as u32,
@@ -242,19 +246,24 @@ pub fn build(segments: Vec<(Segment, u32)>, points: &[(P3, u32)], layers: &[Stri
             &mut out,
             &mut repairs,
         );
-        from = to;
     }
-    drop(layer_of);
     out.work = work;
     orient::orient(&mut out, tol, &mut report);
-    // Output order: by each chain's first piece in the drawing.
-    let mut perm: Vec<u32> = (0..out.items.len() as u32).collect();
-    perm.sort_unstable_by_key(|&k| out.items[k as usize].order);
+    // Output order: by each chain's first piece in the drawing (the orders
+    // are distinct, so sorting (order, chain) words is the same order).
+    let mut perm: Vec<u64> = out
+        .items
+        .iter()
+        .enumerate()
+        .map(|(k, it)| (u64::from(it.order) << 32) | k as u64)
+        .collect();
+    perm.sort_unstable();
     let mut rank = vec![0u32; perm.len()];
     for (pos, &k) in perm.iter().enumerate() {
-        rank[k as usize] = pos as u32;
+        rank[(k & 0xffff_ffff) as usize] = pos as u32;
     }
-    out.items = perm.iter().map(|&k| out.items[k as usize]).collect();
+    out.items = perm.iter().map(|&k| out.items[(k & 0xffff_ffff) as usize]).collect();
+    drop(perm);
     out.repairs = repairs.into_iter().map(|(k, v)| (rank[k as usize], v)).collect();
     for (l, _) in layers.iter().enumerate() {
         let pts: Vec<P3> = points
@@ -274,6 +283,72 @@ pub fn build(segments: Vec<(Segment, u32)>, points: &[(P3, u32)], layers: &[Stri
         }
     }
     (out, report)
+}
+
+/// Reorder `work` (piece `i` on layer `layer_of[i]`, `order == i`) by
+/// layer, keeping the drawing order within a layer (what sorting by
+/// (layer, order) gives), and return each non-empty layer's range in
+/// ascending layer order.
+///
+/// Without a comparison sort and without a second copy of the drawing:
+/// the pieces of the other layers than the largest are copied aside, the
+/// largest layer's pieces slide (in order, each once) to where their layer
+/// goes, and the others are put back around them. All passes are
+/// sequential; the extra memory is the smaller layers' pieces.
+fn group_by_layer(work: &mut [Work], layer_of: Vec<u32>, n_layers: usize) -> Vec<(u32, usize, usize)> {
+    let n_layers = n_layers.max(layer_of.iter().map(|&l| l as usize + 1).max().unwrap_or(0));
+    let mut start = vec![0usize; n_layers + 1];
+    for &l in &layer_of {
+        start[l as usize + 1] += 1;
+    }
+    for k in 0..n_layers {
+        start[k + 1] += start[k];
+    }
+    let runs: Vec<(u32, usize, usize)> = (0..n_layers)
+        .filter(|&k| start[k + 1] > start[k])
+        .map(|k| (k as u32, start[k], start[k + 1]))
+        .collect();
+    if layer_of.is_sorted() {
+        return runs;
+    }
+    let Some(&(big, s, e)) = runs.iter().max_by_key(|r| (r.2 - r.1, std::cmp::Reverse(r.0))) else {
+        return runs;
+    };
+    let side: Vec<Work> = work
+        .iter()
+        .zip(&layer_of)
+        .filter(|&(_, &l)| l != big)
+        .map(|(x, _)| *x)
+        .collect();
+    // The k-th piece of the largest layer goes from p_k to s + k. With
+    // m_k = p_k - k (the other pieces before it, growing with k), those
+    // with m_k >= s move left and are moved first, in increasing order;
+    // then those with m_k < s move right, in decreasing order. Every slot
+    // written is free by then (its piece was copied aside or moved).
+    let big_at: Vec<u32> = (0..work.len() as u32)
+        .filter(|&i| layer_of[i as usize] == big)
+        .collect();
+    let first_left = (0..big_at.len())
+        .find(|&k| big_at[k] as usize - k >= s)
+        .unwrap_or(big_at.len());
+    for k in first_left..big_at.len() {
+        let p = big_at[k] as usize;
+        work[s + k] = work[p];
+    }
+    for k in (0..first_left).rev() {
+        let p = big_at[k] as usize;
+        work[s + k] = work[p];
+    }
+    debug_assert_eq!(e - s, big_at.len());
+    drop(big_at);
+    // The other layers, in order, around it.
+    let mut fill = start;
+    for x in side {
+        let l = layer_of[x.order as usize] as usize;
+        work[fill[l]] = x;
+        fill[l] += 1;
+    }
+    runs
 }
 
 /// Short, stable number text for repair notes.
@@ -311,7 +386,7 @@ mod tests {
         v
     }
 
-    fn build_vec(s: Vec<(Segment, u32)>, p: &[(P3, u32)], l: &[String], tol: f64) -> (Vec<Chain>, Report) {
+    fn build_vec(s: Vec<(Segment, u32)>, p: &[(P3, u32)], l: &[String], tol: f64) -> (Vec<Chain>, ChainReport) {
         let (c, r) = build(s, p, l, tol);
         (c.iter().collect(), r)
     }
@@ -423,5 +498,53 @@ mod tests {
         let (ch, _) = build_vec(vec![(c, 0)], &[], &layers(), 0.001);
         assert!(ch[0].closed);
         assert!(signed_area(&ch[0].segments) > 0.0);
+    }
+
+    #[test]
+    fn grouping_by_layer_is_a_stable_sort() {
+        let mut x: u64 = 0x1234_5678;
+        let mut rnd = |m: u64| {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            x % m
+        };
+        for case in 0..200 {
+            let n = rnd(60) as usize;
+            let n_layers = 1 + rnd(5) as usize;
+            // Some cases with one dominant layer, some with even layers.
+            let layer_of: Vec<u32> = (0..n)
+                .map(|_| {
+                    if case % 2 == 0 && rnd(4) != 0 {
+                        (case % n_layers) as u32
+                    } else {
+                        rnd(n_layers as u64) as u32
+                    }
+                })
+                .collect();
+            let mut work: Vec<Work> = (0..n)
+                .map(|i| Work {
+                    seg: line(i as f64, 0.0, i as f64, 1.0).0,
+                    order: i as u32,
+                    alive: true,
+                })
+                .collect();
+            let mut want: Vec<u32> = (0..n as u32).collect();
+            want.sort_by_key(|&i| layer_of[i as usize]);
+            let runs = group_by_layer(&mut work, layer_of.clone(), n_layers);
+            let got: Vec<u32> = work.iter().map(|w| w.order).collect();
+            assert_eq!(got, want, "case {case}: {layer_of:?}");
+            for w in &work {
+                assert_eq!(w.seg.start().x, w.order as f64);
+            }
+            let mut at = 0;
+            for (l, from, to) in runs {
+                assert_eq!(from, at);
+                assert!(to > from);
+                assert!(work[from..to].iter().all(|w| layer_of[w.order as usize] == l));
+                at = to;
+            }
+            assert_eq!(at, n);
+        }
     }
 }

@@ -2,7 +2,7 @@
 //! through a grid over their boxes and exact point-in-chain tests (arcs
 //! included, no tessellation).
 
-use super::{Chains, Report, midpoint};
+use super::{ChainReport, Chains, midpoint};
 use crate::geometry::P3;
 use crate::model::chain::{Segment, arc_sweep};
 
@@ -16,34 +16,6 @@ fn on_sweep(a0: f64, sweep: f64, t: f64) -> bool {
         (a0 - t).rem_euclid(tau)
     };
     off <= sweep.abs()
-}
-
-/// The XY box of a segment, arcs included exactly (their axis extremes).
-fn seg_box(s: &Segment, lo: &mut (f64, f64), hi: &mut (f64, f64)) {
-    let mut grow = |x: f64, y: f64| {
-        *lo = (lo.0.min(x), lo.1.min(y));
-        *hi = (hi.0.max(x), hi.1.max(y));
-    };
-    let (p, q) = (s.start(), s.end());
-    grow(p.x, p.y);
-    grow(q.x, q.y);
-    if let Segment::Arc {
-        start,
-        end,
-        center,
-        ccw,
-    } = s
-    {
-        let r = (start - center).xy().norm();
-        let a0 = (start.y - center.y).atan2(start.x - center.x);
-        let sw = arc_sweep(start, end, center, *ccw);
-        for k in 0..4 {
-            let t = k as f64 * std::f64::consts::FRAC_PI_2;
-            if on_sweep(a0, sw, t) {
-                grow(center.x + r * t.cos(), center.y + r * t.sin());
-            }
-        }
-    }
 }
 
 /// Point in a closed chain: the parity of crossings of the ray from `p`
@@ -112,9 +84,41 @@ pub fn signed_area(segs: &[Segment]) -> f64 {
     a
 }
 
+/// The XY box of a closed chain (arcs included exactly: their ends and the
+/// axis extremes they pass) and its signed area, the same arithmetic as
+/// [`signed_area`], with each arc's angles computed once for both.
+/// `quarter` holds (cos, sin) of 0, pi/2, pi and 3 pi/2.
+fn box_and_area(segs: &[Segment], quarter: &[(f64, f64); 4]) -> ((f64, f64), (f64, f64), f64) {
+    let mut lo = (f64::INFINITY, f64::INFINITY);
+    let mut hi = (f64::NEG_INFINITY, f64::NEG_INFINITY);
+    let mut area = 0.0;
+    for s in segs {
+        let (p, q) = (s.start(), s.end());
+        lo = (lo.0.min(p.x), lo.1.min(p.y));
+        hi = (hi.0.max(p.x), hi.1.max(p.y));
+        lo = (lo.0.min(q.x), lo.1.min(q.y));
+        hi = (hi.0.max(q.x), hi.1.max(q.y));
+        area += 0.5 * (p.x * q.y - q.x * p.y);
+        if let Some(a) = s.arc_xy() {
+            for (k, &(c, sn)) in quarter.iter().enumerate() {
+                let t = k as f64 * std::f64::consts::FRAC_PI_2;
+                if on_sweep(a.start_angle, a.sweep, t) {
+                    let (x, y) = (a.center.x + a.radius * c, a.center.y + a.radius * sn);
+                    lo = (lo.0.min(x), lo.1.min(y));
+                    hi = (hi.0.max(x), hi.1.max(y));
+                }
+            }
+            let (dx, dy) = (p.x - a.center.x, p.y - a.center.y);
+            let r2 = dx * dx + dy * dy;
+            area += 0.5 * r2 * (a.sweep - a.sweep.sin());
+        }
+    }
+    (lo, hi, area)
+}
+
 /// Orient closed chains by nesting depth: even depth (outer contours)
 /// counter-clockwise, odd depth (holes) clockwise.
-pub(super) fn orient(chains: &mut Chains, tol: f64, report: &mut Report) {
+pub(super) fn orient(chains: &mut Chains, tol: f64, report: &mut ChainReport) {
     struct Info {
         idx: usize,
         lo: (f64, f64),
@@ -124,22 +128,22 @@ pub(super) fn orient(chains: &mut Chains, tol: f64, report: &mut Report) {
     }
     let mut infos: Vec<Info> = Vec::new();
     let mut buf: Vec<Segment> = Vec::new();
+    let quarter: [(f64, f64); 4] = std::array::from_fn(|k| {
+        let t = k as f64 * std::f64::consts::FRAC_PI_2;
+        (t.cos(), t.sin())
+    });
     for (idx, it) in chains.items.iter().enumerate() {
         if !it.closed || it.len == 0 {
             continue;
         }
         chains.segments_into(it, &mut buf);
         let segs = &buf[..];
-        let mut lo = (f64::INFINITY, f64::INFINITY);
-        let mut hi = (f64::NEG_INFINITY, f64::NEG_INFINITY);
-        for s in segs {
-            seg_box(s, &mut lo, &mut hi);
-        }
+        let (lo, hi, area) = box_and_area(segs, &quarter);
         infos.push(Info {
             idx,
             lo,
             hi,
-            area: signed_area(segs),
+            area,
             probe: midpoint(&segs[0]),
         });
     }

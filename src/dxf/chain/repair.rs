@@ -3,7 +3,7 @@
 //! nodes. Each repair is counted in the report and noted on its piece.
 
 use super::nodes::NONE;
-use super::{Notes, Report, Work, fmt_num, midpoint};
+use super::{ChainReport, Notes, Work, fmt_num, midpoint};
 use crate::geometry::{P3, V3};
 use crate::model::chain::Segment;
 
@@ -15,13 +15,13 @@ use crate::model::chain::Segment;
 /// bucket boundary), is swept in order along its direction, comparing each
 /// line only with the lines whose span it reaches. Rows of equal lines (a
 /// grid of parts) therefore cost n log n, not n squared.
-pub(super) fn merge_collinear(w: &mut [Work], notes: &mut Notes, tol: f64, report: &mut Report) {
+pub(super) fn merge_collinear(w: &mut [Work], notes: &mut Notes, tol: f64, report: &mut ChainReport) {
     const ANGLE_BUCKET: f64 = 1e-4;
     let off_bucket = (2.0 * tol).max(1e-9);
     let n_ang = (std::f64::consts::PI / ANGLE_BUCKET).ceil() as i64;
     // (bucket, line) sorted: each bucket is a contiguous range, found by
     // binary search; no table of vectors.
-    let mut keyed: Vec<((i64, i64), u32)> = Vec::new();
+    let mut keyed: Vec<Keyed> = Vec::new();
     for (i, x) in w.iter().enumerate() {
         let Segment::Line { start: a, end: b } = x.seg else {
             continue;
@@ -37,7 +37,7 @@ pub(super) fn merge_collinear(w: &mut [Work], notes: &mut Notes, tol: f64, repor
         }
         let ai = ((d.y.atan2(d.x) / ANGLE_BUCKET).floor() as i64).clamp(0, n_ang - 1);
         let off = d.x * a.y - d.y * a.x;
-        keyed.push(((ai, (off / off_bucket).floor() as i64), i as u32));
+        keyed.push(Keyed::new(ai, (off / off_bucket).floor() as i64, i as u32));
     }
     keyed.sort_unstable();
     // Each direction bucket's range of `keyed` (an array over the
@@ -47,26 +47,26 @@ pub(super) fn merge_collinear(w: &mut [Work], notes: &mut Notes, tol: f64, repor
     let mut by_angle: Vec<(u32, u32)> = vec![(0, 0); n_ang as usize];
     let mut g = 0;
     while g < keyed.len() {
-        let a = keyed[g].0.0;
-        let end = g + keyed[g..].partition_point(|e| e.0.0 == a);
+        let a = keyed[g].ang();
+        let end = g + keyed[g..].partition_point(|e| e.ang() == a);
         by_angle[a as usize] = (g as u32, end as u32);
         g = end;
     }
     let range_of = |k: (i64, i64)| {
         let (lo, hi) = by_angle[k.0 as usize];
         let s = &keyed[lo as usize..hi as usize];
-        let a = s.partition_point(|e| e.0.1 < k.1);
-        let b = a + s[a..].partition_point(|e| e.0.1 == k.1);
+        let a = s.partition_point(|e| e.off() < k.1);
+        let b = a + s[a..].partition_point(|e| e.off() == k.1);
         lo as usize + a..lo as usize + b
     };
     let mut cand: Vec<usize> = Vec::new();
     let mut active: Vec<usize> = Vec::new();
     let mut g = 0;
     while g < keyed.len() {
-        let key = keyed[g].0;
-        let first = keyed[g].1 as usize;
+        let key = keyed[g].bucket();
+        let first = keyed[g].idx() as usize;
         let g0 = g;
-        g += keyed[g..].partition_point(|e| e.0 == key);
+        g += keyed[g..].partition_point(|e| e.bucket() == key);
         let (a_lo, a_hi) = by_angle[key.0 as usize];
         cand.clear();
         for da in -1..=1 {
@@ -83,18 +83,20 @@ pub(super) fn merge_collinear(w: &mut [Work], notes: &mut Notes, tol: f64, repor
                 let range = if da == 0 && !wrapped {
                     match dofs {
                         0 => g0..g,
-                        -1 if g0 > a_lo as usize && keyed[g0 - 1].0 == (a_key, o_key) => {
-                            a_lo as usize + keyed[a_lo as usize..g0].partition_point(|e| e.0.1 < o_key)..g0
+                        -1 if g0 > a_lo as usize && keyed[g0 - 1].bucket() == (a_key, o_key) => {
+                            a_lo as usize + keyed[a_lo as usize..g0].partition_point(|e| e.off() < o_key)..g0
                         }
-                        1 if g < a_hi as usize && keyed[g].0 == (a_key, o_key) => {
-                            g..g + keyed[g..a_hi as usize].partition_point(|e| e.0.1 == o_key)
+                        1 if g < a_hi as usize && keyed[g].bucket() == (a_key, o_key) => {
+                            g..g + keyed[g..a_hi as usize].partition_point(|e| e.off() == o_key)
                         }
                         _ => 0..0,
                     }
                 } else {
                     range_of((a_key, o_key))
                 };
-                cand.extend(keyed[range].iter().map(|e| e.1 as usize).filter(|&i| w[i].alive));
+                // Dead lines are skipped by the sweep: not looking at them here
+                // spares a cache miss per line alone in its bucket.
+                cand.extend(keyed[range].iter().map(|e| e.idx() as usize));
             }
         }
         if cand.len() < 2 {
@@ -147,6 +149,30 @@ pub(super) fn merge_collinear(w: &mut [Work], notes: &mut Notes, tol: f64, repor
                 active.push(i);
             }
         }
+    }
+}
+
+/// A line's collinear bucket (direction, offset) and index in one word,
+/// ordered as the tuple `(direction, offset, index)`: the direction needs
+/// 15 bits, the offset (sign bit flipped) 64, the index 32.
+#[derive(Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+struct Keyed(u128);
+
+impl Keyed {
+    fn new(ang: i64, off: i64, idx: u32) -> Keyed {
+        Keyed(((ang as u128) << 96) | (((off as u64) ^ (1 << 63)) as u128) << 32 | idx as u128)
+    }
+    fn ang(self) -> i64 {
+        (self.0 >> 96) as i64
+    }
+    fn off(self) -> i64 {
+        (((self.0 >> 32) as u64) ^ (1 << 63)) as i64
+    }
+    fn idx(self) -> u32 {
+        self.0 as u32
+    }
+    fn bucket(self) -> (i64, i64) {
+        (self.ang(), self.off())
     }
 }
 
@@ -204,14 +230,30 @@ pub(super) fn snap(s: &Segment, a: P3, b: P3) -> Segment {
     }
 }
 
+/// See [`zero_length`].
+const CHORD_SHORTCUT_TOL: f64 = 1e-5;
+
 /// Pieces shorter than the tolerance (or arcs of a radius below it).
-pub(super) fn zero_length(w: &mut [Work], tol: f64, report: &mut Report) {
+///
+/// An arc is never shorter than its chord: an arc whose chord is more than
+/// twice the tolerance is kept without its sweep (two `atan2`s) being
+/// computed. The sweep's round-off is far below that margin whenever the
+/// tolerance is at least [`CHORD_SHORTCUT_TOL`] (radii are below 1e10 mm
+/// after the range check); below it every arc is measured.
+pub(super) fn zero_length(w: &mut [Work], tol: f64, report: &mut ChainReport) {
     for x in w.iter_mut() {
-        let r = match x.seg {
-            Segment::Arc { start, center, .. } => (start - center).xy().norm(),
-            _ => f64::INFINITY,
+        if !x.alive {
+            continue;
+        }
+        let short = match x.seg {
+            Segment::Arc { start, end, center, .. } => {
+                let r = (start - center).xy().norm();
+                r <= tol
+                    || (!(tol >= CHORD_SHORTCUT_TOL && (end - start).xy().norm() > 2.0 * tol) && x.seg.length() <= tol)
+            }
+            Segment::Line { .. } => x.seg.length() <= tol,
         };
-        if x.alive && (x.seg.length() <= tol || r <= tol) {
+        if short {
             x.alive = false;
             report.zero_length += 1;
         }
@@ -256,7 +298,7 @@ pub(super) fn remove_duplicates(
     n_nodes: usize,
     notes: &mut Notes,
     tol: f64,
-    report: &mut Report,
+    report: &mut ChainReport,
 ) {
     for (i, x) in w.iter_mut().enumerate() {
         if x.alive && ends[i].0 == ends[i].1 && matches!(x.seg, Segment::Line { .. }) {

@@ -4,7 +4,7 @@
 
 use super::nodes::Nodes;
 use super::repair::{adjacency, merge_collinear, remove_duplicates, snap, zero_length};
-use super::{Chains, Item, Notes, REPORT_GAP, Report, Work, fmt_num};
+use super::{ChainReport, Chains, Item, Notes, REPORT_GAP, Work, fmt_num};
 
 /// Chain the pieces of one layer (`w`, whose first piece is number `base`
 /// of the drawing) into `out`.
@@ -13,7 +13,7 @@ pub(super) fn chain_layer(
     base: u32,
     layer: u32,
     tol: f64,
-    report: &mut Report,
+    report: &mut ChainReport,
     out: &mut Chains,
     repairs_out: &mut Vec<(u32, Vec<String>)>,
 ) {
