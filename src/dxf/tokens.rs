@@ -110,7 +110,9 @@ fn fast_int(b: &[u8], mut i: usize) -> Option<(i64, usize)> {
     let d0 = i;
     let mut v: i64 = 0;
     while i < b.len() && b[i].is_ascii_digit() {
-        v = v * 10 + (b[i] - b'0') as i64;
+        // Wrapping: a run of more than 18 digits overflows here, and is
+        // sent to the general path below whatever its value.
+        v = v.wrapping_mul(10).wrapping_add((b[i] - b'0') as i64);
         i += 1;
     }
     if i == d0 || i - d0 > 18 {

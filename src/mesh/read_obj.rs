@@ -14,6 +14,36 @@ use super::Mesh;
 use super::read::{Group, LoadedMesh, MeshError};
 use crate::geometry::{P3, V3};
 
+/// The file with its `vt` and `vn` lines blanked (line count kept), or the
+/// file itself when it has none. A mesh for machining uses positions only,
+/// and tobj 4.0.5 checks a face's texture-coordinate and normal indices
+/// with unchecked arithmetic (`vt * 2 + 1`): an index near `usize::MAX`
+/// overflows there (found by the `obj_read` fuzz target). Without those
+/// lines tobj never reaches that code; the face words' `/vt/vn` parts are
+/// then ignored.
+fn without_texcoords_and_normals(bytes: &[u8]) -> std::borrow::Cow<'_, [u8]> {
+    let is_attr = |line: &[u8]| {
+        let t = line.trim_ascii_start();
+        t.len() >= 2
+            && t[0] == b'v'
+            && (t[1] == b't' || t[1] == b'n')
+            && t.get(2).is_none_or(|c| c.is_ascii_whitespace())
+    };
+    if !bytes.split(|&c| c == b'\n').any(is_attr) {
+        return std::borrow::Cow::Borrowed(bytes);
+    }
+    let mut out = Vec::with_capacity(bytes.len());
+    for (k, line) in bytes.split(|&c| c == b'\n').enumerate() {
+        if k > 0 {
+            out.push(b'\n');
+        }
+        if !is_attr(line) {
+            out.extend_from_slice(line);
+        }
+    }
+    std::borrow::Cow::Owned(out)
+}
+
 /// Read an OBJ file (materials are not loaded).
 pub fn read_obj(bytes: &[u8]) -> Result<LoadedMesh, MeshError> {
     let opts = tobj::LoadOptions {
@@ -22,7 +52,8 @@ pub fn read_obj(bytes: &[u8]) -> Result<LoadedMesh, MeshError> {
         ignore_points: true,
         ignore_lines: true,
     };
-    let mut rd = std::io::BufReader::new(bytes);
+    let positions_only = without_texcoords_and_normals(bytes);
+    let mut rd = std::io::BufReader::new(positions_only.as_ref());
     let (models, _materials) = match tobj::load_obj_buf(&mut rd, &opts, |_| Err(tobj::LoadError::OpenFileFailed)) {
         Ok(r) => r,
         Err(e) => return Err(locate(bytes).unwrap_or(MeshError::Refused(format!("OBJ: {e}")))),
@@ -252,6 +283,21 @@ mod tests {
         assert_eq!(r.groups.len(), 2);
         assert_eq!(r.groups[1].name, "b");
         assert!(r.notes.iter().any(|n| n.contains("line elements")), "{:?}", r.notes);
+    }
+
+    #[test]
+    fn texture_and_normal_indices_are_never_looked_at() {
+        // Indices tobj would check with overflowing arithmetic, and ones
+        // past the end: positions are all a machining mesh uses.
+        let obj = b"v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\n  vn 0 0 1\nf 1/9223372036854775807/1 2/1/-9223372036854775807 3/7/9\n";
+        let r = read_obj(obj).unwrap();
+        assert_eq!(r.mesh.triangles.len(), 1);
+        assert_eq!(r.mesh.vertices.len(), 3);
+        // Line numbers in errors still count the blanked lines.
+        let e = read_obj(b"vt 0 0\nvn 0 0 1\nv 0 0 0\nv 1 0 0\nv 0 1 x\nf 1 2 3\n")
+            .unwrap_err()
+            .to_string();
+        assert!(e.starts_with("line 5:"), "{e}");
     }
 
     #[test]
