@@ -122,6 +122,13 @@ impl IsoInterpreter {
         }
         let extra_turns = turns as u32 - 1;
         let end2 = plane.project(&to);
+        // LinuxCNC's `arc_not_allowed`: only a straight move clears it,
+        // so a G41/G42 between G40 and the arc does not.
+        if self.comp.exit {
+            return Err(err(
+                "the first move after G40 (cutter radius compensation off) cannot be an arc".into(),
+            ));
+        }
         if self.comp.active() {
             if self.feed_mode == super::FeedMode::InverseTime {
                 return Err(err(
@@ -136,11 +143,6 @@ impl IsoInterpreter {
             let turn = if ccw { turns as i32 } else { -(turns as i32) };
             let r = b.word(b'R').map(|r| r * self.unit());
             return self.comp_arc(to, turn, center, r, lineno, out);
-        }
-        if self.comp.exit {
-            return Err(err(
-                "the first move after G40 (cutter radius compensation off) cannot be an arc".into(),
-            ));
         }
         let start2 = plane.project(&self.pos);
         let center = self.arc_center(b, start2, end2, ccw, lineno)?;
