@@ -694,14 +694,14 @@ impl IsoInterpreter {
         let mut g80 = false;
         while let Some(ch) = c.peek() {
             if ch == b'#' {
-                let r = c.param_ref(&self.params).map_err(err)?;
+                let r = c.param_ref(&self.params).map_err(|e| err(e.to_string()))?;
                 if c.peek() != Some(b'=') {
                     return Err(err(
                         "a parameter outside an expression must be assigned: '#n=value'".into()
                     ));
                 }
                 c.pos += 1;
-                let v = c.real_value(&self.params).map_err(err)?;
+                let v = c.real_value(&self.params).map_err(|e| err(e.to_string()))?;
                 self.assigns.push((r, v));
                 continue;
             }

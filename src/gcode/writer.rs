@@ -218,6 +218,48 @@ pub enum WriteError {
     },
 }
 
+/// Why one record (or the start point) has no G-code form; carried as the
+/// message of [`WriteError::Invalid`].
+#[derive(Debug, Clone, PartialEq, Error)]
+enum RecordError {
+    #[error("{what} is not a finite number ({x})")]
+    NotFinite { what: &'static str, x: f64 },
+    #[error("{what} {x} is too large to write with {decimals} decimals")]
+    TooLarge { what: &'static str, x: f64, decimals: u32 },
+    #[error("feed must be a positive number, not {0}")]
+    BadFeed(f64),
+    #[error("feed {feed} {unit} rounds to zero with {decimals} decimals")]
+    FeedRoundsToZero {
+        feed: f64,
+        unit: &'static str,
+        decimals: u32,
+    },
+    #[error("arc of zero radius: its centre is on its start point at the output precision")]
+    ZeroRadiusAtStart,
+    #[error("arc of zero radius: its centre is on its end point at the output precision")]
+    ZeroRadiusAtEnd,
+    #[error("arc end is not on its circle: radius {r0} mm at the start, {r1} mm at the end")]
+    EndOffCircle { r0: f64, r1: f64 },
+    #[error("an arc of more than one turn that also turns a rotary axis cannot be written for a PMAC")]
+    TurnsWithRotary,
+    #[error("arc with {0} extra turns: more than {MAX_PMAC_TURNS} full circles")]
+    TooManyTurns(u32),
+    #[error("dwell must be zero or more seconds, not {0}")]
+    BadDwell(f64),
+    #[error("spindle speed must be zero or more rpm, not {0}")]
+    BadSpindle(f64),
+    #[error("{name} must be zero or more milliseconds, not {t}")]
+    BadAccel { name: &'static str, t: f64 },
+    #[error("'{0}' is not a PMAC variable name")]
+    NotPmacVariable(String),
+    #[error("variable {0} is the shutter or line counter; the writer drives it from the moves")]
+    DrivenVariable(String),
+    #[error("{0}==: synchronous assignment exists for M-variables only on a Turbo PMAC")]
+    SyncNotM(String),
+    #[error("'{0}' is not a variable name")]
+    NotVariable(String),
+}
+
 fn source_block(b: &Option<u64>) -> String {
     match b {
         Some(n) => format!(" (source line {n})"),
@@ -378,10 +420,10 @@ impl<W: Write> GcodeWriter<W> {
         }
         self.begun = true;
         let start = self.opts.start;
-        self.pos = self.point(&start, "start point").map_err(|msg| WriteError::Invalid {
+        self.pos = self.point(&start, "start point").map_err(|e| WriteError::Invalid {
             record: 0,
             block: None,
-            msg,
+            msg: e.to_string(),
         })?;
         self.buf.clear();
         let custom = self.opts.header.take();
@@ -426,10 +468,10 @@ impl<W: Write> GcodeWriter<W> {
             Record::Accel { ta_ms, ts_ms, .. } => self.write_accel(*ta_ms, *ts_ms),
             Record::Var { name, value, sync, .. } => self.write_var(name, *value, *sync),
         };
-        res.map_err(|msg| WriteError::Invalid {
+        res.map_err(|e| WriteError::Invalid {
             record: self.records,
             block: r.block(),
-            msg,
+            msg: e.to_string(),
         })?;
         self.out.write_all(self.buf.as_bytes())?;
         Ok(())
@@ -457,21 +499,22 @@ impl<W: Write> GcodeWriter<W> {
 
     /// Round `x` to output units, refusing NaN, infinities and magnitudes
     /// the fixed-point form cannot hold.
-    fn scaled(&self, x: f64, what: &str) -> Result<i64, String> {
+    fn scaled(&self, x: f64, what: &'static str) -> Result<i64, RecordError> {
         if !x.is_finite() {
-            return Err(format!("{what} is not a finite number ({x})"));
+            return Err(RecordError::NotFinite { what, x });
         }
         let s = (x * self.scale).round();
         if s.abs() >= MAX_SCALED {
-            return Err(format!(
-                "{what} {x} is too large to write with {} decimals",
-                self.decimals
-            ));
+            return Err(RecordError::TooLarge {
+                what,
+                x,
+                decimals: self.decimals,
+            });
         }
         Ok(s as i64)
     }
 
-    fn point(&self, p: &P3, what: &str) -> Result<[i64; 3], String> {
+    fn point(&self, p: &P3, what: &'static str) -> Result<[i64; 3], RecordError> {
         Ok([
             self.scaled(p.x, what)?,
             self.scaled(p.y, what)?,
@@ -554,7 +597,7 @@ impl<W: Write> GcodeWriter<W> {
 
     // ---- records -------------------------------------------------------
 
-    fn write_move(&mut self, m: &Motion) -> Result<(), String> {
+    fn write_move(&mut self, m: &Motion) -> Result<(), RecordError> {
         let to = self.point(&m.to, "end point")?;
         self.abc_next = match &m.tool.abc {
             Some(abc) => Some([
@@ -576,16 +619,16 @@ impl<W: Write> GcodeWriter<W> {
             (MotionKind::Rapid, _) | (_, None) => None,
             (_, Some(f)) => {
                 if !(f.is_finite() && f > 0.0) {
-                    return Err(format!("feed must be a positive number, not {f}"));
+                    return Err(RecordError::BadFeed(f));
                 }
                 let f = self.in_unit.convert(f, self.opts.feed_unit);
                 let s = self.scaled(f, "feed")?;
                 if s == 0 {
-                    return Err(format!(
-                        "feed {f} {} rounds to zero with {} decimals",
-                        self.opts.feed_unit.name(),
-                        self.decimals
-                    ));
+                    return Err(RecordError::FeedRoundsToZero {
+                        feed: f,
+                        unit: self.opts.feed_unit.name(),
+                        decimals: self.decimals,
+                    });
                 }
                 Some(s)
             }
@@ -604,36 +647,29 @@ impl<W: Write> GcodeWriter<W> {
         Ok(())
     }
 
-    fn write_arc(&mut self, m: &Motion, a: &ArcData, to: [i64; 3], feed: Option<i64>) -> Result<(), String> {
+    fn write_arc(&mut self, m: &Motion, a: &ArcData, to: [i64; 3], feed: Option<i64>) -> Result<(), RecordError> {
         let c = self.point(&a.center, "arc centre")?;
         let (ia, ib, inorm) = a.plane.axes();
         let start = self.pos;
         let (sa, sb) = (c[ia] - start[ia], c[ib] - start[ib]);
         let (ea, eb) = (c[ia] - to[ia], c[ib] - to[ib]);
         if sa == 0 && sb == 0 {
-            return Err("arc of zero radius: its centre is on its start point at the output precision".into());
+            return Err(RecordError::ZeroRadiusAtStart);
         }
         if ea == 0 && eb == 0 {
-            return Err("arc of zero radius: its centre is on its end point at the output precision".into());
+            return Err(RecordError::ZeroRadiusAtEnd);
         }
         let r0 = (sa as f64).hypot(sb as f64) / self.scale;
         let r1 = (ea as f64).hypot(eb as f64) / self.scale;
         if (r0 - r1).abs() > self.opts.arc_tolerance + 2.0 / self.scale {
-            return Err(format!(
-                "arc end is not on its circle: radius {r0} mm at the start, {r1} mm at the end"
-            ));
+            return Err(RecordError::EndOffCircle { r0, r1 });
         }
         let pmac = self.opts.dialect == Dialect::Pmac;
         if pmac && a.extra_turns > 0 && self.abc_next.is_some() && self.abc_next != self.abc {
-            return Err(
-                "an arc of more than one turn that also turns a rotary axis cannot be written for a PMAC".into(),
-            );
+            return Err(RecordError::TurnsWithRotary);
         }
         if pmac && a.extra_turns > MAX_PMAC_TURNS {
-            return Err(format!(
-                "arc with {} extra turns: more than {MAX_PMAC_TURNS} full circles",
-                a.extra_turns
-            ));
+            return Err(RecordError::TooManyTurns(a.extra_turns));
         }
         let (wa, wb) = if self.opts.absolute_centers {
             (c[ia], c[ib])
@@ -824,9 +860,9 @@ impl<W: Write> GcodeWriter<W> {
         });
     }
 
-    fn write_dwell(&mut self, seconds: f64) -> Result<(), String> {
+    fn write_dwell(&mut self, seconds: f64) -> Result<(), RecordError> {
         if !non_negative(seconds) {
-            return Err(format!("dwell must be zero or more seconds, not {seconds}"));
+            return Err(RecordError::BadDwell(seconds));
         }
         match self.opts.dialect {
             Dialect::Iso => {
@@ -844,9 +880,9 @@ impl<W: Write> GcodeWriter<W> {
         Ok(())
     }
 
-    fn write_spindle(&mut self, rpm: f64) -> Result<(), String> {
+    fn write_spindle(&mut self, rpm: f64) -> Result<(), RecordError> {
         if !non_negative(rpm) {
-            return Err(format!("spindle speed must be zero or more rpm, not {rpm}"));
+            return Err(RecordError::BadSpindle(rpm));
         }
         let v = self.scaled(rpm, "spindle speed")?;
         match self.opts.dialect {
@@ -867,12 +903,12 @@ impl<W: Write> GcodeWriter<W> {
         Ok(())
     }
 
-    fn write_accel(&mut self, ta: Option<f64>, ts: Option<f64>) -> Result<(), String> {
+    fn write_accel(&mut self, ta: Option<f64>, ts: Option<f64>) -> Result<(), RecordError> {
         let mut vals: [Option<(&'static str, i64)>; 2] = [None, None];
         for (slot, (name, t)) in vals.iter_mut().zip([("TA", ta), ("TS", ts)]) {
             if let Some(t) = t {
                 if !non_negative(t) {
-                    return Err(format!("{name} must be zero or more milliseconds, not {t}"));
+                    return Err(RecordError::BadAccel { name, t });
                 }
                 *slot = Some((name, self.scaled(t, name)?));
             }
@@ -908,7 +944,7 @@ impl<W: Write> GcodeWriter<W> {
         Ok(())
     }
 
-    fn write_var(&mut self, name: &str, value: f64, sync: bool) -> Result<(), String> {
+    fn write_var(&mut self, name: &str, value: f64, sync: bool) -> Result<(), RecordError> {
         let v = self.scaled(value, "variable value")?;
         let plain = name.len() > 1
             && name.as_bytes()[0].is_ascii_alphabetic()
@@ -917,21 +953,17 @@ impl<W: Write> GcodeWriter<W> {
         match self.opts.dialect {
             Dialect::Pmac => {
                 if !plain {
-                    return Err(format!("'{name}' is not a PMAC variable name"));
+                    return Err(RecordError::NotPmacVariable(name.to_string()));
                 }
                 let reserved = std::iter::once(self.opts.shutter_var.as_str())
                     .chain(self.opts.line_counter.as_deref())
                     .any(|r| r.eq_ignore_ascii_case(name));
                 if reserved {
-                    return Err(format!(
-                        "variable {name} is the shutter or line counter; the writer drives it from the moves"
-                    ));
+                    return Err(RecordError::DrivenVariable(name.to_string()));
                 }
                 // Turbo PMAC has synchronous assignment for M-variables only.
                 if sync && !name.as_bytes()[0].eq_ignore_ascii_case(&b'M') {
-                    return Err(format!(
-                        "{name}==: synchronous assignment exists for M-variables only on a Turbo PMAC"
-                    ));
+                    return Err(RecordError::SyncNotM(name.to_string()));
                 }
                 self.start_block();
                 self.buf.push_str(name);
@@ -963,7 +995,7 @@ impl<W: Write> GcodeWriter<W> {
                         push_fixed(b, v, dec, pt);
                     });
                 } else {
-                    return Err(format!("'{name}' is not a variable name"));
+                    return Err(RecordError::NotVariable(name.to_string()));
                 }
             }
         }
