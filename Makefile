@@ -35,7 +35,8 @@ update-golden:
 	UPDATE_GOLDEN=1 $(CARGO) test --release --test golden
 
 # Conformance with tools nobody here wrote: LinuxCNC's rs274 interpreter
-# (installs linuxcnc-uspace when missing) and the dls-pmaclib PMAC client
+# (installs linuxcnc-uspace when missing; rs274-diff also runs Debian's dxf2gcode,
+# installed when missing, on our drawings: docs/rs274-diff.md) and the dls-pmaclib PMAC client
 # against our controller emulator (installs dls-pmaclib when missing).
 conformance: build venv
 	python3 scripts/rs274-diff --gsim $(BIN)/gsim

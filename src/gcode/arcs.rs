@@ -72,19 +72,27 @@ impl ArcTolerances {
 /// Centre of an R-form arc as LinuxCNC finds it: on the perpendicular
 /// bisector of the chord, the long way round for a negative R; a chord up
 /// to `tol` longer than the diameter puts the centre at its midpoint.
-pub(crate) fn center_from_r(start: P2, end: P2, r: f64, ccw: bool, tol: f64) -> Result<P2, String> {
+/// Why an R-form arc has no centre.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub(crate) enum RArcError {
+    #[error("radius-format arc (R) with its end point equal to its start: use I/J/K for a full circle")]
+    EndIsStart,
+    #[error("arc radius R{r} is too small to reach the end point ({chord:.6} mm away)")]
+    TooSmall { r: f64, chord: f64 },
+}
+
+pub(crate) fn center_from_r(start: P2, end: P2, r: f64, ccw: bool, tol: f64) -> Result<P2, RArcError> {
     if start == end {
-        return Err("radius-format arc (R) with its end point equal to its start: use I/J/K for a full circle".into());
+        return Err(RArcError::EndIsStart);
     }
     let rad = r.abs();
     let mid = P2::new((start.x + end.x) / 2.0, (start.y + end.y) / 2.0);
     let mut half = (mid - end).norm();
     if half - rad > tol {
-        return Err(format!(
-            "arc radius R{} is too small to reach the end point ({:.6} mm away)",
+        return Err(RArcError::TooSmall {
             r,
-            (end - start).norm()
-        ));
+            chord: (end - start).norm(),
+        });
     }
     if half / rad > 1.0 - TINY {
         half = rad;
@@ -122,6 +130,13 @@ impl IsoInterpreter {
         }
         let extra_turns = turns as u32 - 1;
         let end2 = plane.project(&to);
+        // LinuxCNC's `arc_not_allowed`: only a straight move clears it,
+        // so a G41/G42 between G40 and the arc does not.
+        if self.comp.exit {
+            return Err(err(
+                "the first move after G40 (cutter radius compensation off) cannot be an arc".into(),
+            ));
+        }
         if self.comp.active() {
             if self.feed_mode == super::FeedMode::InverseTime {
                 return Err(err(
@@ -136,11 +151,6 @@ impl IsoInterpreter {
             let turn = if ccw { turns as i32 } else { -(turns as i32) };
             let r = b.word(b'R').map(|r| r * self.unit());
             return self.comp_arc(to, turn, center, r, lineno, out);
-        }
-        if self.comp.exit {
-            return Err(err(
-                "the first move after G40 (cutter radius compensation off) cannot be an arc".into(),
-            ));
         }
         let start2 = plane.project(&self.pos);
         let center = self.arc_center(b, start2, end2, ccw, lineno)?;
@@ -182,7 +192,7 @@ impl IsoInterpreter {
             if b.word(b'I').is_some() || b.word(b'J').is_some() || b.word(b'K').is_some() {
                 return Err(err("arc has both R and I/J/K words".into()));
             }
-            center_from_r(start2, end2, r * u, ccw, tol.radius_mm).map_err(err)?
+            center_from_r(start2, end2, r * u, ccw, tol.radius_mm).map_err(|e| err(e.to_string()))?
         } else {
             if b.word(first).is_none() && b.word(second).is_none() {
                 return Err(err(format!(

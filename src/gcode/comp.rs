@@ -336,7 +336,15 @@ impl IsoInterpreter {
         let plane = self.comp.plane;
         let r = self.comp.radius;
         let side = self.comp.side.unwrap_or(Side::Left);
-        let c = plane.project(&self.pos);
+        // Just after a G40 that ended an offset path, LinuxCNC's current
+        // point is the programmed one, not where the tool is: a new entry
+        // starts there. Any straight move ends that state.
+        let c = if self.comp.first && self.comp.exit {
+            plane.project(&self.comp.programmed)
+        } else {
+            plane.project(&self.pos)
+        };
+        self.comp.exit = false;
         let pp = plane.project(&p);
         let pn = plane.normal_coord(&p);
         let u = self.unit();
@@ -749,6 +757,24 @@ mod tests {
     }
 
     #[test]
+    fn a_new_entry_just_after_g40_starts_at_the_programmed_point_as_rs274() {
+        // rs274: after G40 ends an offset path its current point is the
+        // programmed (10, 0), not the tool's (10, 1); the entry counts from it.
+        check(
+            "G0 X-5 Y-5\nG41.1 D2 G1 X0 Y0 F10\nX10\nG40\nG42.1 D2 G1 X20 Y5\nX30\nG40 G1 X40\n",
+            &[
+                T(-5.0, -5.0, 0.0),
+                F(-std::f64::consts::FRAC_1_SQRT_2, std::f64::consts::FRAC_1_SQRT_2, 0.0),
+                A(0.0, 1.0, 0.0, 0.0, false),
+                F(10.0, 1.0, 0.0),
+                F(20.2361, 4.0, 0.0),
+                F(30.0, 4.0, 0.0),
+                F(40.0, 5.0, 0.0),
+            ],
+        );
+    }
+
+    #[test]
     fn squares_inside_and_outside_as_rs274() {
         // Expected: LinuxCNC 2.9 rs274's canonical calls for the same text.
         let sq = "G0 X-5 Y-5\nG4?.1 D2 G1 X0 Y0 F10\nX10\nY10\nX0\nY0\nG40 G1 X-5 Y-5\n";
@@ -841,6 +867,12 @@ mod tests {
             ("G41.1 D2\nG1 X10 F1\nT1 M6\n", 3, "change tools"),
             ("G41.1 D2\nG1 X10 F1\nG81 X1 R1 Z-1\n", 3, "canned cycles"),
             ("G41.1 D2\nG1 X10 F1\nY5\nX9.9\nY-5\n", 5, "concave corner"),
+            // LinuxCNC: a new G41/G42 after G40 does not allow the arc.
+            (
+                "G0 X-5\nG41.1 D2\nG1 X0 F1\nX10\nG40\nG42.1 D2\nG3 X0 Y0 I-5\n",
+                7,
+                "cannot be an arc",
+            ),
         ] {
             let e = read_str(text, &opts).unwrap_err();
             assert_eq!(e.line(), line, "{text:?}: {e}");

@@ -7,9 +7,62 @@
 //! comparisons `EQ NE GT GE LT LE` and the logical `AND OR XOR` (LinuxCNC).
 
 use std::collections::HashMap;
+use thiserror::Error;
 
 /// How many numbered parameters exist (`#1` .. `#5602`, LinuxCNC's range).
 pub const NUM_PARAMS: usize = 5603;
+
+/// Why an expression, number or parameter reference could not be read
+/// (the messages are LinuxCNC's where it has one).
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum ExprError {
+    #[error("named parameter #<{0}> is used before it is set")]
+    Unset(String),
+    #[error("expected a number at '{0}'")]
+    ExpectedNumber(String),
+    #[error("bad number '{0}'")]
+    BadNumber(String),
+    #[error("number '{shown}...' ({digits} digits) is too large")]
+    TooLong { shown: String, digits: usize },
+    #[error("calculation result is not finite (overflow)")]
+    Overflow,
+    #[error("expression nested too deeply")]
+    TooDeep,
+    #[error("parameter reference nested too deeply")]
+    RefTooDeep,
+    #[error("expected '#'")]
+    ExpectedHash,
+    #[error("named parameter without closing '>'")]
+    UnclosedName,
+    #[error("empty parameter name '#<>'")]
+    EmptyName,
+    #[error("parameter number {0} out of range 1..{max}", max = NUM_PARAMS - 1)]
+    ParamOutOfRange(f64),
+    #[error("expected '['")]
+    ExpectedOpen,
+    #[error("missing ']' in expression")]
+    MissingClose,
+    #[error("unknown function or word at '{0}'")]
+    UnknownWord(String),
+    #[error("EXISTS needs [#<name>]")]
+    ExistsForm,
+    #[error("missing ']' after EXISTS")]
+    ExistsClose,
+    #[error("ATAN needs the form ATAN[y]/[x]")]
+    AtanForm,
+    #[error("LN of {0}: not positive")]
+    LnNotPositive(f64),
+    #[error("unknown function")]
+    UnknownFunction,
+    #[error("division by zero")]
+    DivisionByZero,
+    #[error("MOD by zero")]
+    ModByZero,
+    #[error("expression result is not finite")]
+    NotFinite,
+    #[error("{f} of {a}: out of its domain")]
+    Domain { f: &'static str, a: f64 },
+}
 
 /// The parameter store of an interpreter.
 ///
@@ -50,15 +103,14 @@ impl Params {
         }
     }
 
-    pub fn get(&self, r: &ParamRef) -> Result<f64, String> {
+    pub fn get(&self, r: &ParamRef) -> Result<f64, ExprError> {
         match r {
             ParamRef::Num(n) => Ok(self.numbered[*n]),
-            ParamRef::Named(name) => self.scope(name).get(name).copied().ok_or_else(|| {
-                format!(
-                    "named parameter #<{}> is used before it is set",
-                    String::from_utf8_lossy(name).to_lowercase()
-                )
-            }),
+            ParamRef::Named(name) => self
+                .scope(name)
+                .get(name)
+                .copied()
+                .ok_or_else(|| ExprError::Unset(String::from_utf8_lossy(name).to_lowercase())),
         }
     }
 
@@ -139,7 +191,7 @@ impl<'a> Cursor<'a> {
     /// correctly rounded division gives the exact nearest double. G-code
     /// numbers almost always take it; anything longer falls back to the
     /// standard library's parser.
-    pub fn number(&mut self) -> Result<f64, String> {
+    pub fn number(&mut self) -> Result<f64, ExprError> {
         const POW10: [f64; 23] = [
             1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10, 1e11, 1e12, 1e13, 1e14, 1e15, 1e16, 1e17, 1e18,
             1e19, 1e20, 1e21, 1e22,
@@ -185,7 +237,7 @@ impl<'a> Cursor<'a> {
         }
         if !any {
             self.pos = start;
-            return Err(format!("expected a number at '{}'", self.rest_for_msg(start)));
+            return Err(ExprError::ExpectedNumber(self.rest_for_msg(start)));
         }
         if digits != u32::MAX && mantissa < (1u64 << 53) && (frac_digits as usize) < POW10.len() {
             let v = mantissa as f64 / POW10[frac_digits as usize];
@@ -193,10 +245,13 @@ impl<'a> Cursor<'a> {
         }
         let text = std::str::from_utf8(&self.s[start..self.pos]).unwrap_or("");
         let t = text.strip_prefix('+').unwrap_or(text);
-        let v = t.parse::<f64>().map_err(|_| format!("bad number '{text}'"))?;
+        let v = t.parse::<f64>().map_err(|_| ExprError::BadNumber(text.to_string()))?;
         if !v.is_finite() {
             let shown: String = text.chars().take(24).collect();
-            return Err(format!("number '{shown}...' ({} digits) is too large", text.len()));
+            return Err(ExprError::TooLong {
+                shown,
+                digits: text.len(),
+            });
         }
         Ok(v)
     }
@@ -209,17 +264,17 @@ impl<'a> Cursor<'a> {
     /// A real value: number, `#` parameter, `[expr]` or unary function.
     /// Like LinuxCNC, a calculation that overflows is an error, never an
     /// infinite value carried on.
-    pub fn real_value(&mut self, p: &Params) -> Result<f64, String> {
+    pub fn real_value(&mut self, p: &Params) -> Result<f64, ExprError> {
         let v = self.real_value_depth(p, 0)?;
         if !v.is_finite() {
-            return Err("calculation result is not finite (overflow)".into());
+            return Err(ExprError::Overflow);
         }
         Ok(v)
     }
 
-    fn real_value_depth(&mut self, p: &Params, depth: u32) -> Result<f64, String> {
+    fn real_value_depth(&mut self, p: &Params, depth: u32) -> Result<f64, ExprError> {
         if depth > MAX_DEPTH {
-            return Err("expression nested too deeply".into());
+            return Err(ExprError::TooDeep);
         }
         match self.peek() {
             Some(b'[') => self.bracketed(p, depth + 1),
@@ -241,16 +296,16 @@ impl<'a> Cursor<'a> {
     }
 
     /// A parameter reference after `#`: `#12`, `#<name>`, `##3`, `#[1+2]`.
-    pub fn param_ref(&mut self, p: &Params) -> Result<ParamRef, String> {
+    pub fn param_ref(&mut self, p: &Params) -> Result<ParamRef, ExprError> {
         self.param_ref_depth(p, 0)
     }
 
-    fn param_ref_depth(&mut self, p: &Params, depth: u32) -> Result<ParamRef, String> {
+    fn param_ref_depth(&mut self, p: &Params, depth: u32) -> Result<ParamRef, ExprError> {
         if depth > MAX_DEPTH {
-            return Err("parameter reference nested too deeply".into());
+            return Err(ExprError::RefTooDeep);
         }
         if !self.eat(b'#') {
-            return Err("expected '#'".into());
+            return Err(ExprError::ExpectedHash);
         }
         if self.eat(b'<') {
             let start = self.pos;
@@ -258,51 +313,51 @@ impl<'a> Cursor<'a> {
                 self.pos += 1;
             }
             if self.at_end() {
-                return Err("named parameter without closing '>'".into());
+                return Err(ExprError::UnclosedName);
             }
             let name = self.s[start..self.pos].to_vec();
             self.pos += 1;
             if name.is_empty() {
-                return Err("empty parameter name '#<>'".into());
+                return Err(ExprError::EmptyName);
             }
             return Ok(ParamRef::Named(name));
         }
         let v = self.real_value_depth(p, depth + 1)?;
         let n = v.round();
         if (v - n).abs() > 1e-6 || n < 1.0 || n >= NUM_PARAMS as f64 {
-            return Err(format!("parameter number {v} out of range 1..{}", NUM_PARAMS - 1));
+            return Err(ExprError::ParamOutOfRange(v));
         }
         Ok(ParamRef::Num(n as usize))
     }
 
-    fn bracketed(&mut self, p: &Params, depth: u32) -> Result<f64, String> {
+    fn bracketed(&mut self, p: &Params, depth: u32) -> Result<f64, ExprError> {
         if !self.eat(b'[') {
-            return Err("expected '['".into());
+            return Err(ExprError::ExpectedOpen);
         }
         let v = self.expression(p, depth)?;
         if !self.eat(b']') {
-            return Err("missing ']' in expression".into());
+            return Err(ExprError::MissingClose);
         }
         Ok(v)
     }
 
-    fn unary(&mut self, p: &Params, depth: u32) -> Result<f64, String> {
+    fn unary(&mut self, p: &Params, depth: u32) -> Result<f64, ExprError> {
         const FUNCS: [&[u8]; 14] = [
             b"ABS", b"ACOS", b"ASIN", b"ATAN", b"COS", b"EXP", b"EXISTS", b"FIX", b"FUP", b"ROUND", b"LN", b"SIN",
             b"SQRT", b"TAN",
         ];
         let start = self.pos;
         let Some(f) = FUNCS.iter().find(|f| self.s[self.pos..].starts_with(f)) else {
-            return Err(format!("unknown function or word at '{}'", self.rest_for_msg(start)));
+            return Err(ExprError::UnknownWord(self.rest_for_msg(start)));
         };
         self.pos += f.len();
         if *f == b"EXISTS" {
             if !self.eat(b'[') {
-                return Err("EXISTS needs [#<name>]".into());
+                return Err(ExprError::ExistsForm);
             }
             let r = self.param_ref_depth(p, depth + 1)?;
             if !self.eat(b']') {
-                return Err("missing ']' after EXISTS".into());
+                return Err(ExprError::ExistsClose);
             }
             return Ok(match r {
                 ParamRef::Named(n) => p.exists(&n) as u8 as f64,
@@ -312,7 +367,7 @@ impl<'a> Cursor<'a> {
         let a = self.bracketed(p, depth + 1)?;
         if *f == b"ATAN" {
             if !self.eat(b'/') {
-                return Err("ATAN needs the form ATAN[y]/[x]".into());
+                return Err(ExprError::AtanForm);
             }
             let b = self.bracketed(p, depth + 1)?;
             return Ok(a.atan2(b).to_degrees());
@@ -328,24 +383,24 @@ impl<'a> Cursor<'a> {
             b"ROUND" => a.round(),
             b"LN" => {
                 if a <= 0.0 {
-                    return Err(format!("LN of {a}: not positive"));
+                    return Err(ExprError::LnNotPositive(a));
                 }
                 a.ln()
             }
             b"SIN" => a.to_radians().sin(),
             b"SQRT" => domain(a, 0.0, f64::INFINITY, "SQRT")?.sqrt(),
             b"TAN" => a.to_radians().tan(),
-            _ => return Err("unknown function".into()),
+            _ => return Err(ExprError::UnknownFunction),
         };
         Ok(v)
     }
 
     /// Binary expression inside brackets, with RS274 precedence.
-    fn expression(&mut self, p: &Params, depth: u32) -> Result<f64, String> {
+    fn expression(&mut self, p: &Params, depth: u32) -> Result<f64, ExprError> {
         self.logical(p, depth)
     }
 
-    fn logical(&mut self, p: &Params, depth: u32) -> Result<f64, String> {
+    fn logical(&mut self, p: &Params, depth: u32) -> Result<f64, ExprError> {
         let mut v = self.comparison(p, depth)?;
         loop {
             if self.eat_word(b"AND") {
@@ -363,7 +418,7 @@ impl<'a> Cursor<'a> {
         }
     }
 
-    fn comparison(&mut self, p: &Params, depth: u32) -> Result<f64, String> {
+    fn comparison(&mut self, p: &Params, depth: u32) -> Result<f64, ExprError> {
         let mut v = self.additive(p, depth)?;
         loop {
             let op: Option<fn(f64, f64) -> bool> = if self.eat_word(b"EQ") {
@@ -391,7 +446,7 @@ impl<'a> Cursor<'a> {
         }
     }
 
-    fn additive(&mut self, p: &Params, depth: u32) -> Result<f64, String> {
+    fn additive(&mut self, p: &Params, depth: u32) -> Result<f64, ExprError> {
         let mut v = self.multiplicative(p, depth)?;
         loop {
             if self.eat(b'+') {
@@ -404,7 +459,7 @@ impl<'a> Cursor<'a> {
         }
     }
 
-    fn multiplicative(&mut self, p: &Params, depth: u32) -> Result<f64, String> {
+    fn multiplicative(&mut self, p: &Params, depth: u32) -> Result<f64, ExprError> {
         let mut v = self.power(p, depth)?;
         loop {
             if self.s[self.pos.min(self.s.len())..].starts_with(b"**") {
@@ -414,13 +469,13 @@ impl<'a> Cursor<'a> {
             } else if self.eat(b'/') {
                 let d = self.power(p, depth)?;
                 if d == 0.0 {
-                    return Err("division by zero".into());
+                    return Err(ExprError::DivisionByZero);
                 }
                 v /= d;
             } else if self.eat_word(b"MOD") {
                 let d = self.power(p, depth)?;
                 if d == 0.0 {
-                    return Err("MOD by zero".into());
+                    return Err(ExprError::ModByZero);
                 }
                 // RS274 MOD is the non-negative remainder.
                 v = v.rem_euclid(d.abs());
@@ -430,22 +485,22 @@ impl<'a> Cursor<'a> {
         }
     }
 
-    fn power(&mut self, p: &Params, depth: u32) -> Result<f64, String> {
+    fn power(&mut self, p: &Params, depth: u32) -> Result<f64, ExprError> {
         let mut v = self.real_value_depth(p, depth + 1)?;
         while self.eat_word(b"**") {
             let e = self.real_value_depth(p, depth + 1)?;
             v = v.powf(e);
         }
         if !v.is_finite() {
-            return Err("expression result is not finite".into());
+            return Err(ExprError::NotFinite);
         }
         Ok(v)
     }
 }
 
-fn domain(a: f64, lo: f64, hi: f64, f: &str) -> Result<f64, String> {
+fn domain(a: f64, lo: f64, hi: f64, f: &'static str) -> Result<f64, ExprError> {
     if a < lo || a > hi {
-        Err(format!("{f} of {a}: out of its domain"))
+        Err(ExprError::Domain { f, a })
     } else {
         Ok(a)
     }
@@ -455,11 +510,26 @@ fn domain(a: f64, lo: f64, hi: f64, f: &str) -> Result<f64, String> {
 mod tests {
     use super::*;
 
-    fn eval(s: &str, p: &Params) -> Result<f64, String> {
+    fn eval(s: &str, p: &Params) -> Result<f64, ExprError> {
         let mut c = Cursor::new(s.as_bytes());
         let v = c.real_value(p)?;
         assert!(c.at_end(), "left over: {}", &s[c.pos..]);
         Ok(v)
+    }
+
+    #[test]
+    fn errors_are_values_with_linuxcnc_style_messages() {
+        let p = Params::default();
+        let e = |t: &str| eval(t, &p).unwrap_err();
+        assert_eq!(e("[1/0]"), ExprError::DivisionByZero);
+        assert_eq!(e("[1/0]").to_string(), "division by zero");
+        assert_eq!(e("SQRT[-1]").to_string(), "SQRT of -1: out of its domain");
+        assert_eq!(e("#6000").to_string(), "parameter number 6000 out of range 1..5602");
+        assert_eq!(
+            e("#<nope>").to_string(),
+            "named parameter #<nope> is used before it is set"
+        );
+        assert_eq!(e("LN[0]").to_string(), "LN of 0: not positive");
     }
 
     #[test]

@@ -47,13 +47,25 @@ impl Dialect {
     }
 }
 
+/// A dialect name that is neither `iso` (`rs274`, `ngc`) nor `pmac`.
+#[derive(Debug, Clone, PartialEq, Eq, Error)]
+#[error("unknown dialect '{0}' (iso or pmac)")]
+pub struct UnknownDialect(pub String);
+
+/// For callers that take a message (`cli::CliError::input`).
+impl From<UnknownDialect> for String {
+    fn from(e: UnknownDialect) -> String {
+        e.to_string()
+    }
+}
+
 impl std::str::FromStr for Dialect {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, String> {
+    type Err = UnknownDialect;
+    fn from_str(s: &str) -> Result<Self, UnknownDialect> {
         match s.to_ascii_lowercase().as_str() {
             "iso" | "rs274" | "ngc" => Ok(Dialect::Iso),
             "pmac" => Ok(Dialect::Pmac),
-            _ => Err(format!("unknown dialect '{s}' (iso or pmac)")),
+            _ => Err(UnknownDialect(s.to_string())),
         }
     }
 }
@@ -72,8 +84,12 @@ pub enum GcodeError {
 }
 
 impl GcodeError {
-    pub fn at(line: u64, msg: impl Into<String>) -> Self {
-        GcodeError::Invalid { line, msg: msg.into() }
+    /// An error at `line`: a message, or one of the module's error enums.
+    pub fn at(line: u64, msg: impl std::fmt::Display) -> Self {
+        GcodeError::Invalid {
+            line,
+            msg: msg.to_string(),
+        }
     }
 
     pub fn line(&self) -> u64 {

@@ -51,22 +51,37 @@ const KEYWORDS: [(&[u8], OKeyword); 15] = [
     (b"RETURN", OKeyword::Return),
 ];
 
+/// Why an O-word line could not be read.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum OWordError {
+    #[error("not an O-word line")]
+    NotOWord,
+    #[error("O-word name without closing '>'")]
+    UnclosedName,
+    #[error("empty O-word name 'O<>'")]
+    EmptyName,
+    #[error("O word needs a number or <name>")]
+    NoLabel,
+    #[error("unknown O-word keyword at '{0}'")]
+    UnknownKeyword(String),
+}
+
 /// Parse a normalised line that starts with `O` (after any `N` word).
-pub fn parse(s: &[u8]) -> Result<OLine, String> {
+pub fn parse(s: &[u8]) -> Result<OLine, OWordError> {
     let mut pos = 0;
     if s.first() != Some(&b'O') {
-        return Err("not an O-word line".into());
+        return Err(OWordError::NotOWord);
     }
     pos += 1;
     let label = if s.get(pos) == Some(&b'<') {
         let end = s[pos..]
             .iter()
             .position(|&c| c == b'>')
-            .ok_or("O-word name without closing '>'")?;
+            .ok_or(OWordError::UnclosedName)?;
         let name = s[pos + 1..pos + end].to_vec();
         pos += end + 1;
         if name.is_empty() {
-            return Err("empty O-word name 'O<>'".into());
+            return Err(OWordError::EmptyName);
         }
         name
     } else {
@@ -75,7 +90,7 @@ pub fn parse(s: &[u8]) -> Result<OLine, String> {
             pos += 1;
         }
         if pos == start {
-            return Err("O word needs a number or <name>".into());
+            return Err(OWordError::NoLabel);
         }
         // O0100 and O100 are the same label.
         let digits = &s[start..pos];
@@ -88,7 +103,7 @@ pub fn parse(s: &[u8]) -> Result<OLine, String> {
     let (kw, keyword) = KEYWORDS
         .iter()
         .find(|(w, _)| s[pos..].starts_with(w))
-        .ok_or_else(|| format!("unknown O-word keyword at '{}'", String::from_utf8_lossy(&s[pos..])))?;
+        .ok_or_else(|| OWordError::UnknownKeyword(String::from_utf8_lossy(&s[pos..]).into_owned()))?;
     Ok(OLine {
         label,
         keyword: *keyword,

@@ -240,6 +240,10 @@ pub struct PmacInterpreter {
     abs_extra: [bool; 6],
     /// FRAX: which of X Y Z the feed F is the vector speed of.
     frax_axes: [bool; 3],
+    /// A rotary axis A, B or C is in the FRAX list (its speed would count in F).
+    frax_rotary: bool,
+    /// A rotary axis has moved: every later move carries A, B, C.
+    abc_used: bool,
     /// TM: feed moves take this many ms each (until an F).
     move_time: Option<f64>,
     abs_center: bool,
@@ -308,6 +312,8 @@ impl PmacInterpreter {
             extra_pos: [0.0; 6],
             abs_extra: [true; 6],
             frax_axes: [true; 3],
+            frax_rotary: false,
+            abc_used: false,
             move_time: None,
             abs_center: false,
             plane: Plane::Xy,

@@ -35,6 +35,20 @@ pub(super) const MAX_INCLUDE_DEPTH: usize = 16;
 /// Deepest chain of defines used inside defines.
 pub(super) const MAX_EXPANSION_DEPTH: usize = 32;
 
+/// A malformed preprocessor directive, or a line whose `#define` names
+/// could not be substituted.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub(super) enum DefineError {
+    #[error("#include needs a file name, e.g. #include \"defs.pmc\"")]
+    IncludeNoName,
+    #[error("#{0} needs a name (letters, digits and '_', not starting with a digit)")]
+    NoName(String),
+    #[error("#define {0}: the name ends at a character that cannot be in a name")]
+    BadName(String),
+    #[error("#define {0} nests defines deeper than {MAX_EXPANSION_DEPTH} levels")]
+    TooDeep(String),
+}
+
 /// A preprocessor directive line.
 #[derive(Debug, PartialEq, Eq)]
 pub(super) enum Directive<'a> {
@@ -63,7 +77,7 @@ pub(super) fn strip_comment(text: &str) -> &str {
 }
 
 /// The directive on this line, if it is one; `Err` for a malformed one.
-pub(super) fn directive(text: &str) -> Option<Result<Directive<'_>, String>> {
+pub(super) fn directive(text: &str) -> Option<Result<Directive<'_>, DefineError>> {
     let t = text.trim_start();
     let rest = t.strip_prefix('#')?.trim_start();
     let end = rest
@@ -88,7 +102,7 @@ pub(super) fn directive(text: &str) -> Option<Result<Directive<'_>, String>> {
             .unwrap_or(arg)
             .trim();
         if name.is_empty() {
-            Err("#include needs a file name, e.g. #include \"defs.pmc\"".into())
+            Err(DefineError::IncludeNoName)
         } else {
             Ok(Directive::Include(name))
         }
@@ -96,15 +110,11 @@ pub(super) fn directive(text: &str) -> Option<Result<Directive<'_>, String>> {
         let n = arg.bytes().position(|c| !is_ident(c)).unwrap_or(arg.len());
         let name = &arg[..n];
         if name.is_empty() || name.as_bytes()[0].is_ascii_digit() {
-            Err(format!(
-                "#{word} needs a name (letters, digits and '_', not starting with a digit)"
-            ))
+            Err(DefineError::NoName(word.to_string()))
         } else if is("define") {
             let after = &arg[n..];
             if !after.is_empty() && !after.starts_with([' ', '\t']) {
-                Err(format!(
-                    "#define {arg}: the name ends at a character that cannot be in a name"
-                ))
+                Err(DefineError::BadName(arg.to_string()))
             } else {
                 Ok(Directive::Define {
                     name,
@@ -134,7 +144,7 @@ impl Defines {
 
     /// The line with every defined name substituted and any `//` comment
     /// cut (the `;` comment is kept for the reader, which skips it).
-    pub(super) fn expand<'a>(&self, text: &'a str) -> Result<Cow<'a, str>, String> {
+    pub(super) fn expand<'a>(&self, text: &'a str) -> Result<Cow<'a, str>, DefineError> {
         let has_slashes = text.contains("//");
         if self.map.is_empty() && !has_slashes {
             return Ok(Cow::Borrowed(text));
@@ -149,7 +159,7 @@ impl Defines {
         Ok(Cow::Owned(out))
     }
 
-    fn expand_into<'s>(&'s self, text: &str, active: &mut Vec<&'s str>, out: &mut String) -> Result<(), String> {
+    fn expand_into<'s>(&'s self, text: &str, active: &mut Vec<&'s str>, out: &mut String) -> Result<(), DefineError> {
         let b = text.as_bytes();
         let mut i = 0;
         let mut quoted = false;
@@ -185,9 +195,8 @@ impl Defines {
             match self.map.get_key_value(word) {
                 Some((name, value)) if !c.is_ascii_digit() && !after_dollar && !active.contains(&name.as_str()) => {
                     if active.len() >= MAX_EXPANSION_DEPTH {
-                        return Err(format!(
-                            "#define {} nests defines deeper than {MAX_EXPANSION_DEPTH} levels",
-                            active.first().copied().unwrap_or(word)
+                        return Err(DefineError::TooDeep(
+                            active.first().copied().unwrap_or(word).to_string(),
                         ));
                     }
                     active.push(name.as_str());
@@ -296,7 +305,7 @@ mod tests {
         for k in 0..40 {
             d.define(&format!("N{k}"), &format!("N{}", k + 1));
         }
-        assert!(d.expand("N0").unwrap_err().contains("deeper than"));
+        assert!(d.expand("N0").unwrap_err().to_string().contains("deeper than"));
         assert_eq!(d.expand("N20").unwrap(), "N40");
     }
 }

@@ -200,7 +200,8 @@ impl PmacInterpreter {
                 Ok(())
             }
             b'A' | b'B' | b'C' | b'U' | b'V' | b'W' => {
-                // Kept to check at the move that the axis stays where it is.
+                // A, B, C are rotary axes (degrees) carried on the move;
+                // U, V, W are checked at the move to stay where they are.
                 let k = EXTRA_AXES.iter().position(|&a| a == letter).unwrap_or(0);
                 let v = self.vars.data(cur, letter_name(letter), lineno)?;
                 if self.pending.extra[k].replace(v).is_some() {
@@ -545,7 +546,26 @@ impl PmacInterpreter {
         if !(to.x.is_finite() && to.y.is_finite() && to.z.is_finite()) {
             return Err(GcodeError::at(lineno, "move end point is not a finite number"));
         }
-        for (k, v) in pm.extra.iter().enumerate() {
+        // Rotary axes A, B, C (degrees, as the program gives them).
+        let mut abc = [self.extra_pos[0], self.extra_pos[1], self.extra_pos[2]];
+        let mut abc_given = false;
+        for (k, v) in pm.extra.iter().enumerate().take(3) {
+            let Some(v) = *v else { continue };
+            let end = if self.abs_extra[k] { v } else { abc[k] + v };
+            if !end.is_finite() {
+                return Err(GcodeError::at(lineno, "rotary axis position is not a finite number"));
+            }
+            abc[k] = end;
+            abc_given = true;
+        }
+        let rotary_deg = (0..3).map(|k| (abc[k] - self.extra_pos[k]).powi(2)).sum::<f64>().sqrt();
+        if rotary_deg > EPS_LEN && self.frax_rotary && self.move_time.is_none() && self.mode != MoveMode::Rapid {
+            return Err(GcodeError::at(
+                lineno,
+                "a rotary axis in FRAX moves: F would be the speed of X, Y, Z and the rotary axes together                  (not modelled); leave A, B, C out of FRAX",
+            ));
+        }
+        for (k, v) in pm.extra.iter().enumerate().skip(3) {
             let Some(v) = *v else { continue };
             let at = self.extra_pos[k];
             let end = if self.abs_extra[k] { v } else { at + v };
@@ -554,19 +574,22 @@ impl PmacInterpreter {
                 return Err(GcodeError::at(
                     lineno,
                     format!(
-                        "axis {letter} moves (from {at} to {end}): the toolpath has X, Y and Z only, \
-                         so axes A B C U V W are read only where they stay put{}",
-                        if letter == 'B' && self.buffer == Buffer::Bare {
-                            "; an on-line B{n} (point to a program) belongs after CLOSE"
-                        } else {
-                            ""
-                        }
+                        "axis {letter} moves (from {at} to {end}): the toolpath has X, Y, Z and the \
+                         rotary axes A, B, C, so axes U V W are read only where they stay put"
                     ),
                 ));
             }
         }
         let feed = if self.mode == MoveMode::Rapid || self.move_time.is_some() {
             None
+        } else if (to - self.pos).norm() <= EPS_LEN && rotary_deg > EPS_LEN {
+            // Only rotary axes move: none of the default feedrate axes
+            // (X, Y, Z), so the controller times the move by Isx86.
+            return Err(GcodeError::at(
+                lineno,
+                "the move turns rotary axes only: no FRAX axis moves, so a controller times it by Isx86 \
+                 (not modelled); give the move a time (TM) or move X, Y or Z with it",
+            ));
         } else {
             let f = self.feed.ok_or_else(|| {
                 GcodeError::at(
@@ -608,6 +631,9 @@ impl PmacInterpreter {
                     }
                     _ => (to - self.pos).norm(),
                 };
+                // A rotary-only move: its speed in degrees per second, as
+                // the ISO reader takes F of a rotary-only move.
+                let length = if length <= EPS_LEN { rotary_deg } else { length };
                 if length <= EPS_LEN {
                     // Nowhere to go: the move is its time in place.
                     self.push(
@@ -633,6 +659,13 @@ impl PmacInterpreter {
             }
         };
         let mut motion = Motion::from_block(kind, to, feed, self.beam, lineno);
+        if abc_given {
+            self.abc_used = true;
+        }
+        if self.abc_used {
+            motion.tool.abc = Some(abc);
+        }
+        self.extra_pos[..3].copy_from_slice(&abc);
         if self.beam != self.moved_beam {
             motion.beam_switch = Some(self.last_switch);
         }
@@ -649,6 +682,7 @@ impl PmacInterpreter {
             return Err(GcodeError::at(lineno, "FRAX needs an axis list, e.g. FRAX(X,Y,Z)"));
         }
         let mut set = [false; 3];
+        let mut rotary = false;
         loop {
             cur.skip_ws();
             let Some(c) = cur.peek() else {
@@ -659,7 +693,8 @@ impl PmacInterpreter {
                 b')' => break,
                 b',' => {}
                 c @ (b'X' | b'Y' | b'Z') => set[usize::from(c - b'X')] = true,
-                b'A' | b'B' | b'C' | b'U' | b'V' | b'W' => {}
+                b'A' | b'B' | b'C' => rotary = true,
+                b'U' | b'V' | b'W' => {}
                 _ => {
                     return Err(GcodeError::at(
                         lineno,
@@ -669,6 +704,7 @@ impl PmacInterpreter {
             }
         }
         self.frax_axes = set;
+        self.frax_rotary = rotary;
         Ok(())
     }
 

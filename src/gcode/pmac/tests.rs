@@ -486,7 +486,7 @@ fn error_cases_name_their_line() {
         ("LINEAR X1", 1, "no feed rate"),
         ("RAPID X1\nCIRCLE1 X2", 2, "no feed rate"),
         ("LINEAR F1\nX1\nFOO3", 3, "unknown word 'FOO3'"),
-        ("LINEAR F1\nX1 A2", 2, "axis A"),
+        ("LINEAR F1\nX1 U2", 2, "axis U"),
         ("F1\nCIRCLE1 X1 Y1", 2, "without a centre"),
         ("F1\nLINEAR X1 I1", 2, "CIRCLE1 or CIRCLE2"),
         ("F1\nCIRCLE1 X1 R1 I1", 2, "not both"),
@@ -879,9 +879,38 @@ fn move_time_frax_and_axes_that_stay_put() {
     assert_eq!(moves(&m)[1].feed, Some(3.0));
     assert!(read_err("FRAX(X,Y) LINEAR Z1 F1").1.contains("no FRAX axis"));
     assert_eq!(moves(&read("FRAX(A,B,C,U,V,W,X,Y,Z) LINEAR X1 F1"))[0].feed, Some(1.0));
-    // Other axes are read where they stay put, and refused where they move.
-    let (line, msg) = read_err("LINEAR F1 X1 A0\nINC A0 B0\nABS X2 B1\n");
+    // U, V, W are read where they stay put, and refused where they move.
+    let (line, msg) = read_err("LINEAR F1 X1 U0\nINC U0 V0\nABS X2 W1\n");
     assert_eq!(line, 3);
-    assert!(msg.contains("axis B moves (from 0 to 1)"), "{msg}");
+    assert!(msg.contains("axis W moves (from 0 to 1)"), "{msg}");
     assert!(read_err("INC LINEAR F1 X1 U0.5").1.contains("axis U moves"));
+}
+
+#[test]
+fn rotary_axes_a_b_c_are_carried_on_every_later_move() {
+    let recs = read("LINEAR F1 X1\nX2 A0\nABS X3 B1\nINC X1 C-5\nX1\n");
+    let m = moves(&recs);
+    assert_eq!(m.len(), 5);
+    assert_eq!(m[0].tool.abc, None, "no rotary word yet");
+    assert_eq!(m[1].tool.abc, Some([0.0, 0.0, 0.0]));
+    assert_eq!(m[2].tool.abc, Some([0.0, 1.0, 0.0]));
+    assert_eq!(m[3].tool.abc, Some([0.0, 1.0, -5.0]), "INC: C is an increment");
+    assert_eq!(m[4].tool.abc, Some([0.0, 1.0, -5.0]));
+    assert_eq!(m[4].to, p(5.0, 0.0, 0.0));
+    // F is the speed of X, Y, Z (the default FRAX): A rides along.
+    assert_eq!(m[1].feed, Some(1.0));
+    // A rotary-only move with a time: degrees per second.
+    let recs = read("LINEAR TM500 A90\n");
+    assert_eq!(moves(&recs)[0].feed, Some(180.0));
+    assert_eq!(moves(&recs)[0].tool.abc, Some([90.0, 0.0, 0.0]));
+    // What a controller times by Isx86, or with A in FRAX, is not modelled.
+    let (line, msg) = read_err("LINEAR F1 X1\nA90\n");
+    assert_eq!(line, 2);
+    assert!(msg.contains("rotary axes only"), "{msg}");
+    assert!(
+        read_err("FRAX(X,Y,Z,A) LINEAR F1 X1 A5")
+            .1
+            .contains("rotary axis in FRAX")
+    );
+    assert_eq!(moves(&read("FRAX(X,Y,Z,A) LINEAR F1 X1 A0"))[0].feed, Some(1.0));
 }
