@@ -229,11 +229,17 @@ impl Arc3 {
     }
 
     /// The same arc travelled the other way: ends swapped, sense flipped,
-    /// centre moved to the new start's normal coordinate. Reversing twice
-    /// gives back the original exactly.
+    /// a helix's centre moved to the new start's normal coordinate (a planar
+    /// arc's centre is kept as it is). Reversing twice gives back the
+    /// original exactly.
     pub fn reversed(&self) -> Arc3 {
+        let center = if self.rise() == 0.0 {
+            self.center
+        } else {
+            self.plane.lift(&self.c2(), self.plane.normal_coord(&self.end))
+        };
         Arc3 {
-            center: self.plane.lift(&self.c2(), self.plane.normal_coord(&self.end)),
+            center,
             start: self.end,
             end: self.start,
             ccw: !self.ccw,

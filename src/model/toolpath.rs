@@ -5,7 +5,7 @@
 //! serialises exactly this model, so toolpath -> G-code -> toolpath is
 //! lossless within the output precision.
 
-use crate::geometry::{P3, Plane, V3};
+use crate::geometry::{Arc3, P3, Plane, Segment, V3};
 use serde::{Deserialize, Serialize};
 
 /// How far (mm) an arc's end may be off the circle through its start, on
@@ -136,6 +136,14 @@ pub struct ArcData {
     pub extra_turns: u32,
 }
 
+impl ArcData {
+    /// The arc this data describes when travelled from `from` to `to`
+    /// ([`Arc3::new`]: `None` for a zero radius or a non-finite number).
+    pub fn arc(&self, from: P3, to: P3) -> Option<Arc3> {
+        Arc3::new(self.center, from, to, self.ccw, self.plane, self.extra_turns)
+    }
+}
+
 /// How the command that switched the shutter before a move was written on
 /// a Turbo PMAC: synchronous (`M33==1`, takes effect when that move's
 /// motion starts) or immediate (`M33=1`, takes effect when look-ahead
@@ -173,6 +181,21 @@ pub enum MotionKind {
     Line,
     /// Circular or helical feed move (G2/G3, CIRCLE1/CIRCLE2).
     Arc(ArcData),
+}
+
+impl MotionKind {
+    /// The feed motion that travels `seg`: a line, or an arc with its data.
+    pub fn of_segment(seg: &Segment) -> MotionKind {
+        match seg {
+            Segment::Line(_) => MotionKind::Line,
+            Segment::Arc(a) => MotionKind::Arc(ArcData {
+                center: a.center,
+                ccw: a.ccw,
+                plane: a.plane,
+                extra_turns: a.extra_turns,
+            }),
+        }
+    }
 }
 
 /// One motion to an absolute end point.
@@ -235,6 +258,27 @@ impl Motion {
             chain: None,
             block: Some(block),
             tool: ToolState::default(),
+        }
+    }
+}
+
+impl Motion {
+    /// The arc this move travels when it starts at `from`; `None` for a
+    /// rapid, a line, or an arc with a zero radius or a non-finite number.
+    pub fn arc(&self, from: P3) -> Option<Arc3> {
+        match &self.kind {
+            MotionKind::Arc(a) => a.arc(from, self.to),
+            _ => None,
+        }
+    }
+
+    /// The exact path of this move when it starts at `from`: its arc, or the
+    /// straight line to `to` for rapids, lines and degenerate arcs (zero
+    /// radius: readers refuse them, so only the chord is left to travel).
+    pub fn segment(&self, from: P3) -> Segment {
+        match self.arc(from) {
+            Some(a) => Segment::Arc(a),
+            None => Segment::line(from, self.to),
         }
     }
 }
@@ -347,5 +391,42 @@ impl Record {
             | Record::Accel { block, .. }
             | Record::Var { block, .. } => *block,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_move_is_its_segment() {
+        let from = P3::new(1.0, 0.0, 0.0);
+        let arc = ArcData {
+            center: P3::origin(),
+            ccw: true,
+            plane: Plane::Xy,
+            extra_turns: 0,
+        };
+        let m = Motion::from_block(MotionKind::Arc(arc), P3::new(0.0, 1.0, 0.0), Some(1.0), true, 3);
+        let s = m.segment(from);
+        assert!((s.length() - std::f64::consts::FRAC_PI_2).abs() < 1e-15);
+        assert_eq!(MotionKind::of_segment(&s), m.kind);
+        assert_eq!(m.arc(from).map(Segment::Arc), Some(s));
+        // A zero-radius arc travels its chord; a line is a line.
+        let degenerate = Motion {
+            to: P3::new(2.0, 0.0, 0.0),
+            ..m.clone()
+        };
+        assert_eq!(
+            degenerate.segment(P3::origin()),
+            Segment::line(P3::origin(), degenerate.to)
+        );
+        let line = Motion {
+            kind: MotionKind::Line,
+            ..m
+        };
+        assert_eq!(line.segment(from), Segment::line(from, line.to));
+        assert_eq!(MotionKind::of_segment(&line.segment(from)), MotionKind::Line);
+        assert!(line.arc(from).is_none());
     }
 }
