@@ -15,6 +15,7 @@ use super::arc::Arc3;
 use super::bbox::BBox3;
 use super::line::Line3;
 use super::{P2, P3, Plane, V3};
+use std::f64::consts::TAU;
 
 /// A line or an arc, in travel order.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -57,6 +58,32 @@ impl ArcXy {
             self.center.x + self.radius * a.cos(),
             self.center.y + self.radius * a.sin(),
         )
+    }
+
+    /// How far (radians, in the direction of travel, in `[0, 2π)`) the
+    /// direction `a` lies from the start: `a` is on the arc when this is at
+    /// most `|sweep|`, and at parameter `offset / |sweep|`.
+    ///
+    /// ```
+    /// use microcam::geometry::segment::Segment;
+    /// use microcam::geometry::P3;
+    /// // Clockwise from +x: -y is a quarter turn on, +y three quarters.
+    /// let s = Segment::arc_xy(P3::new(1.0, 0.0, 0.0), P3::new(0.0, -1.0, 0.0), P3::origin(), false);
+    /// let a = s.to_arc_xy().unwrap();
+    /// assert!((a.angle_offset(-std::f64::consts::FRAC_PI_2) - std::f64::consts::FRAC_PI_2).abs() < 1e-15);
+    /// assert!(a.angle_offset(std::f64::consts::FRAC_PI_2) > a.sweep.abs());
+    /// ```
+    pub fn angle_offset(&self, a: f64) -> f64 {
+        if self.sweep >= 0.0 {
+            (a - self.start_angle).rem_euclid(TAU)
+        } else {
+            (self.start_angle - a).rem_euclid(TAU)
+        }
+    }
+
+    /// True when the direction `a` lies on the arc (ends included).
+    pub fn contains_angle(&self, a: f64) -> bool {
+        self.angle_offset(a) <= self.sweep.abs()
     }
 }
 
@@ -441,6 +468,32 @@ fn planar_tangent(a: &Arc3, p: &P3) -> Option<V3> {
     t[i] = ti;
     t[j] = tj;
     Some(t)
+}
+
+/// Exact signed area (mm²) enclosed by a closed run of segments in XY,
+/// positive counter-clockwise: the shoelace sum over the chords plus each
+/// arc's circular segment `r²(θ - sin θ)/2` with its signed sweep θ.
+///
+/// ```
+/// use microcam::geometry::segment::{Segment, signed_area};
+/// use microcam::geometry::P3;
+/// let p = P3::new(2.0, 0.0, 0.0);
+/// let circle = Segment::arc_xy(p, p, P3::origin(), true);
+/// assert!((signed_area(&[circle]) - 4.0 * std::f64::consts::PI).abs() < 1e-12);
+/// assert!((signed_area(&[circle.reversed()]) + 4.0 * std::f64::consts::PI).abs() < 1e-12);
+/// ```
+pub fn signed_area(segments: &[Segment]) -> f64 {
+    let mut a = 0.0;
+    for s in segments {
+        let (p, q) = (s.start(), s.end());
+        a += 0.5 * (p.x * q.y - q.x * p.y);
+        if let Some(arc) = s.arc() {
+            let r2 = (arc.start - arc.center).xy().norm_squared();
+            let sw = arc.sweep();
+            a += 0.5 * r2 * (sw - sw.sin());
+        }
+    }
+    a
 }
 
 /// Total length (mm) of a run of segments.
