@@ -16,6 +16,8 @@
 //! - [`segment`]: [`Segment`], a line or an arc: the one type chains,
 //!   planned paths and toolpath moves carry.
 
+#![warn(missing_docs)]
+
 pub mod arc;
 pub mod bbox;
 pub mod bulge;

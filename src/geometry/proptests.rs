@@ -493,3 +493,17 @@ proptest! {
         prop_assert_eq!(s.checked(), Some(s));
     }
 }
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(128))]
+
+    #[test]
+    fn segment_intersect_dispatches_by_kind(l in xy_line(), m in xy_line(), a in xy_arc(), b in xy_arc()) {
+        use super::intersect::{arc_line, intersect};
+        let tol = 1e-9;
+        prop_assert_eq!(intersect(&Segment::Line(l), &Segment::Line(m), tol), line_line(&l, &m, tol));
+        prop_assert_eq!(intersect(&Segment::Line(l), &Segment::Arc(a), tol), line_arc(&l, &a, tol));
+        prop_assert_eq!(intersect(&Segment::Arc(a), &Segment::Line(l), tol), arc_line(&a, &l, tol));
+        prop_assert_eq!(intersect(&Segment::Arc(a), &Segment::Arc(b), tol), arc_arc(&a, &b, tol));
+    }
+}

@@ -12,7 +12,6 @@
 use super::setup::LaserSetup;
 use crate::geometry::P3;
 use crate::geometry::Segment;
-use crate::geometry::arc::Arc3;
 use crate::machine::Controller;
 use crate::model::toolpath::{Motion, MotionKind, Record, Role};
 use std::collections::BTreeMap;
@@ -161,11 +160,7 @@ impl PmacTa {
 pub fn feed_elem(pos: P3, mv: &Motion) -> Option<Segment> {
     match mv.kind {
         MotionKind::Rapid => None,
-        MotionKind::Line => Some(Segment::line(pos, mv.to)),
-        MotionKind::Arc(d) => Some(match Arc3::new(d.center, pos, mv.to, d.ccw, d.plane, d.extra_turns) {
-            Some(arc) => Segment::Arc(arc),
-            None => Segment::line(pos, mv.to),
-        }),
+        _ => Some(mv.segment(pos)),
     }
 }
 

@@ -35,16 +35,24 @@ pub const MAX_COORD_MM: f64 = 1e9;
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Role {
+    /// Cutting along the drawing (beam on, tool in the material).
     Cut,
+    /// Approach onto the contour before the cut.
     LeadIn,
+    /// Departure from the contour after the cut.
     LeadOut,
+    /// A corner loop that keeps the speed up through a sharp corner.
     Loop,
+    /// Travel between cuts.
     Link,
+    /// Feeding down into the material.
     Plunge,
+    /// Leaving the material upwards.
     Retract,
 }
 
 impl Role {
+    /// Every role, in the order reports list them.
     pub const ALL: [Role; 7] = [
         Role::Cut,
         Role::LeadIn,
@@ -55,6 +63,7 @@ impl Role {
         Role::Retract,
     ];
 
+    /// The name used in the pipe formats ("cut", "lead_in", ...).
     pub fn name(self) -> &'static str {
         match self {
             Role::Cut => "cut",
@@ -67,6 +76,7 @@ impl Role {
         }
     }
 
+    /// The role a pipe-format name stands for.
     pub fn from_name(s: &str) -> Option<Role> {
         Role::ALL.into_iter().find(|r| r.name() == s)
     }
@@ -83,6 +93,7 @@ pub enum FeedUnit {
 }
 
 impl FeedUnit {
+    /// The name used in the toolpath header ("mm/s" or "mm/min").
     pub fn name(self) -> &'static str {
         match self {
             FeedUnit::MmPerS => "mm/s",
@@ -90,6 +101,7 @@ impl FeedUnit {
         }
     }
 
+    /// The unit a header name stands for.
     pub fn from_name(s: &str) -> Option<FeedUnit> {
         match s {
             "mm/s" => Some(FeedUnit::MmPerS),
@@ -119,6 +131,7 @@ impl FeedUnit {
 /// The header record of a toolpath stream.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct Header {
+    /// The unit of every feed in the stream.
     pub feed_unit: FeedUnit,
     /// Where the toolpath came from (a file name), if known.
     pub source: Option<String>,
@@ -128,9 +141,11 @@ pub struct Header {
 /// extra turns. The centre lies in the plane of the arc's start point.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ArcData {
+    /// The arc centre (absolute), at the start's normal coordinate.
     pub center: P3,
     /// Counter-clockwise about the plane normal (see [`Plane`]).
     pub ccw: bool,
+    /// The plane the arc turns in (G17/G18/G19).
     pub plane: Plane,
     /// Whole turns added to the sweep (RS274 `P2` = 1 extra turn).
     pub extra_turns: u32,
@@ -151,11 +166,14 @@ impl ArcData {
 /// by it; writers reproduce it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum ShutterSwitch {
+    /// `M33==1`: switches when the move's motion starts.
     Sync,
+    /// `M33=1`: switches when look-ahead calculates the line.
     Immediate,
 }
 
 impl ShutterSwitch {
+    /// The name used in the pipe formats ("sync" or "immediate").
     pub fn name(self) -> &'static str {
         match self {
             ShutterSwitch::Sync => "sync",
@@ -163,6 +181,7 @@ impl ShutterSwitch {
         }
     }
 
+    /// The switch a pipe-format name stands for.
     pub fn from_name(s: &str) -> Option<ShutterSwitch> {
         match s {
             "sync" => Some(ShutterSwitch::Sync),
@@ -201,7 +220,9 @@ impl MotionKind {
 /// One motion to an absolute end point.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Motion {
+    /// Rapid, line or arc (with its data).
     pub kind: MotionKind,
+    /// The absolute end point (mm).
     pub to: P3,
     /// Commanded feed in the header's unit; `None` for rapids.
     pub feed: Option<f64>,
@@ -210,6 +231,7 @@ pub struct Motion {
     /// When `beam` differs from the previous move's: how that switch was
     /// commanded, if the source says (PMAC `==` or `=`); `None` otherwise.
     pub beam_switch: Option<ShutterSwitch>,
+    /// Why the move is there, when generated.
     pub role: Option<Role>,
     /// Source chain id, when generated from chains.
     pub chain: Option<u64>,
@@ -286,36 +308,48 @@ impl Motion {
 /// One toolpath record after the header.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Record {
+    /// A move.
     Move(Motion),
     /// Wait in place (G4, DWELL). Stops PMAC look-ahead.
     Dwell {
+        /// How long (s).
         seconds: f64,
+        /// Source line number, if read from G-code.
         block: Option<u64>,
     },
     /// Spindle speed change (S word), revolutions per minute.
     Spindle {
+        /// The new speed (rev/min).
         rpm: f64,
+        /// Source line number, if read from G-code.
         block: Option<u64>,
     },
     /// Acceleration and S-curve times (PMAC TA, TS), milliseconds.
     Accel {
+        /// Acceleration time TA (ms), when set.
         ta_ms: Option<f64>,
+        /// S-curve time TS (ms), when set.
         ts_ms: Option<f64>,
+        /// Source line number, if read from G-code.
         block: Option<u64>,
     },
     /// A controller variable assignment that is not the shutter or the line
     /// counter (those are modelled by `beam` and by block order).
     /// `sync` is PMAC's `==`: executed with the next move, not ahead of it.
     Var {
+        /// The variable's name as written (e.g. `P100`).
         name: String,
+        /// The value assigned.
         value: f64,
+        /// Written with `==` (executed with the next move).
         sync: bool,
+        /// Source line number, if read from G-code.
         block: Option<u64>,
     },
 }
 
 impl Record {
-    /// The end point of a motion record.
+    /// The motion, if this record is a move.
     pub fn motion(&self) -> Option<&Motion> {
         match self {
             Record::Move(m) => Some(m),
