@@ -346,6 +346,16 @@ fn finish(mut out: Vec<Intersection>) -> Vec<Intersection> {
 /// within `tol` of the other's line) that share more than `tol` of length
 /// give one `Overlap`; if they only touch, a `Point`. `None` when a
 /// coordinate is not finite or `tol` is negative or NaN.
+///
+/// ```
+/// use microcam::geometry::intersect::{Intersection, line_line};
+/// use microcam::geometry::{Line3, P3};
+/// let a = Line3::new(P3::new(0.0, 0.0, 0.0), P3::new(2.0, 2.0, 0.0));
+/// let b = Line3::new(P3::new(0.0, 2.0, 0.0), P3::new(2.0, 0.0, 0.0));
+/// let hits = line_line(&a, &b, 1e-9).unwrap();
+/// let Intersection::Point { hit, .. } = hits[0] else { panic!() };
+/// assert!((hit.t1 - 0.5).abs() < 1e-15 && (hit.point.x - 1.0).abs() < 1e-15);
+/// ```
 pub fn line_line(a: &Line3, b: &Line3, tol: f64) -> Option<Vec<Intersection>> {
     seg_seg(Seg::new(a)?, Seg::new(b)?, tol)
 }
