@@ -14,35 +14,23 @@
 //! Points: one `x y` or `x,y` per line, `#` comments (as `pathgen arcfit`).
 
 use microcam::formats::chains::ChainsReader;
-use microcam::geometry::{Arc3, P2, Plane};
+use microcam::geometry::P2;
 use microcam::laser::arcfit;
 use microcam::laser::arcfit::{Grid, elem_box};
 use microcam::laser::arcfit_seed::{SeedParams, fit_curvature_matching_with};
-use microcam::laser::elem::Elem;
 use microcam::model::chain::Segment;
 use serde_json::{Value, json};
 use std::io::Read;
 use std::time::Instant;
 
 /// The pieces of every chain in a microcam.chains/1 file.
-fn read_fit(path: &str) -> Result<Vec<Elem>, String> {
+fn read_fit(path: &str) -> Result<Vec<Segment>, String> {
     let f = std::fs::File::open(path).map_err(|e| format!("{path}: {e}"))?;
     let r = ChainsReader::new(std::io::BufReader::new(f)).map_err(|e| format!("{path}: {e}"))?;
     let mut out = Vec::new();
     for c in r {
         for s in c.map_err(|e| format!("{path}: {e}"))?.segments {
-            out.push(match s {
-                Segment::Line { start, end } => Elem::line(start, end),
-                Segment::Arc {
-                    start,
-                    end,
-                    center,
-                    ccw,
-                } => Elem::Arc(
-                    Arc3::new(center, start, end, ccw, Plane::Xy, 0)
-                        .ok_or_else(|| format!("{path}: degenerate arc"))?,
-                ),
-            });
+            out.push(s.checked().ok_or_else(|| format!("{path}: degenerate arc"))?);
         }
     }
     Ok(out)
@@ -66,7 +54,7 @@ struct Measure {
     max_turn_deg: f64,
 }
 
-fn measure(fit: &[Elem], pts: &[P2], polyline: bool) -> Measure {
+fn measure(fit: &[Segment], pts: &[P2], polyline: bool) -> Measure {
     // Points to the fit.
     let fg = Grid::new(&fit.iter().map(elem_box).collect::<Vec<_>>());
     let point_dev = pts
@@ -97,7 +85,7 @@ fn measure(fit: &[Elem], pts: &[P2], polyline: bool) -> Measure {
     let mut breaks = 0;
     let mut max_turn: f64 = 0.0;
     for w in fit.windows(2) {
-        let c = w[0].dir_end().dot(&w[1].dir_start()).clamp(-1.0, 1.0);
+        let c = w[0].end_tangent().dot(&w[1].start_tangent()).clamp(-1.0, 1.0);
         let deg = c.acos().to_degrees();
         max_turn = max_turn.max(deg);
         if deg > 0.5 {
@@ -112,12 +100,12 @@ fn measure(fit: &[Elem], pts: &[P2], polyline: bool) -> Measure {
     }
 }
 
-fn elements(fit: &[Elem]) -> Value {
+fn elements(fit: &[Segment]) -> Value {
     Value::Array(
         fit.iter()
             .map(|e| match e {
-                Elem::Line(l) => json!([l.start.x, l.start.y, l.end.x, l.end.y]),
-                Elem::Arc(a) => json!([
+                Segment::Line(l) => json!([l.start.x, l.start.y, l.end.x, l.end.y]),
+                Segment::Arc(a) => json!([
                     a.start.x,
                     a.start.y,
                     a.end.x,
@@ -131,9 +119,9 @@ fn elements(fit: &[Elem]) -> Value {
     )
 }
 
-fn summary(fit: &[Elem], pts: &[P2], polyline: bool, secs: f64) -> serde_json::Map<String, Value> {
+fn summary(fit: &[Segment], pts: &[P2], polyline: bool, secs: f64) -> serde_json::Map<String, Value> {
     let m = measure(fit, pts, polyline);
-    let arcs = fit.iter().filter(|e| matches!(e, Elem::Arc(_))).count();
+    let arcs = fit.iter().filter(|e| matches!(e, Segment::Arc(_))).count();
     let mut o = serde_json::Map::new();
     o.insert("blocks".into(), json!(fit.len()));
     o.insert("arcs".into(), json!(arcs));

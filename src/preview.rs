@@ -7,7 +7,7 @@
 //! is what a top view shows of them up to their bulge.
 
 use crate::formats::push_num;
-use crate::geometry::{Arc3, P3, Plane};
+use crate::geometry::{P3, Plane};
 use crate::model::toolpath::{MotionKind, Record, Role};
 
 /// Streaming SVG builder: add records one by one, then [`Preview::finish`].
@@ -55,9 +55,7 @@ impl Preview {
         // XY arcs are drawn exactly from one Arc3 (sweep and extents); a
         // degenerate arc, and arcs in other planes, as their chord.
         let arc = match m.kind {
-            MotionKind::Arc(a) if a.plane == Plane::Xy => {
-                Arc3::new(a.center, self.pos, m.to, a.ccw, a.plane, a.extra_turns)
-            }
+            MotionKind::Arc(a) if a.plane == Plane::Xy => a.arc(self.pos, m.to),
             _ => None,
         };
         match arc {

@@ -70,10 +70,7 @@ fn run(name: &str) -> Run {
 }
 
 fn radius(s: &Segment) -> Option<f64> {
-    match s {
-        Segment::Arc { start, center, .. } => Some((start - center).xy().norm()),
-        _ => None,
-    }
+    s.radius()
 }
 
 /// One file through the library: converts cleanly (chains read back,
@@ -160,7 +157,7 @@ fn stir_mirrored_arcs_land_where_autocad_draws_them() {
         .iter()
         .find(|c| c.segments.len() == 1 && radius(&c.segments[0]).is_some_and(|x| (x - 26.8).abs() < 1e-6))
         .expect("the central circle");
-    let Segment::Arc { center, .. } = hole.segments[0] else {
+    let Some(center) = hole.segments[0].arc().map(|a| a.center) else {
         unreachable!()
     };
     assert!(
@@ -340,7 +337,7 @@ fn own_samples_have_their_features() {
         .chains
         .iter()
         .find_map(|c| match c.segments.as_slice() {
-            [Segment::Arc { center, .. }] => Some(*center),
+            [Segment::Arc(a)] => Some(a.center),
             _ => None,
         })
         .unwrap();

@@ -132,7 +132,7 @@ pub fn chain_passes(chains: &[Chain], step: f64) -> Result<Vec<Vec<P2>>, DropErr
     for c in chains {
         let mut pass: Vec<P2> = Vec::new();
         for s in &c.segments {
-            let pts: Vec<P2> = match s.arc_xy() {
+            let pts: Vec<P2> = match s.to_arc_xy() {
                 None => sample_line(s.start().xy(), s.end().xy(), step),
                 Some(arc) => {
                     let n = ((arc.radius * arc.sweep.abs()) / step).ceil().max(1.0) as usize;
@@ -210,16 +210,13 @@ mod tests {
             id: 1,
             closed: false,
             segments: vec![
-                Segment::Line {
-                    start: P3::new(0.0, 0.0, 0.0),
-                    end: P3::new(1.0, 0.0, 0.0),
-                },
-                Segment::Arc {
-                    start: P3::new(1.0, 0.0, 0.0),
-                    end: P3::new(1.0, 1.0, 0.0),
-                    center: P3::new(1.0, 0.5, 0.0),
-                    ccw: true,
-                },
+                Segment::line(P3::new(0.0, 0.0, 0.0), P3::new(1.0, 0.0, 0.0)),
+                Segment::arc_xy(
+                    P3::new(1.0, 0.0, 0.0),
+                    P3::new(1.0, 1.0, 0.0),
+                    P3::new(1.0, 0.5, 0.0),
+                    true,
+                ),
             ],
             ..Default::default()
         };

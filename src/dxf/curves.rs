@@ -244,7 +244,7 @@ fn fit_interval(
     let p1 = xy(curve.point(t1), z);
     if *steps == 0 {
         if p0 != p1 {
-            out.push(Segment::Line { start: p0, end: p1 });
+            out.push(Segment::line(p0, p1));
         }
         return;
     }
@@ -265,7 +265,7 @@ fn fit_interval(
     }
     if depth >= MAX_DEPTH || (p1 - p0).norm() <= tol * 1e-3 {
         if p0 != p1 {
-            out.push(Segment::Line { start: p0, end: p1 });
+            out.push(Segment::line(p0, p1));
         }
         return;
     }
@@ -281,10 +281,7 @@ fn count_chords(curve: &dyn Curve, t0: f64, t1: f64, tol: f64, depth: u32, steps
     *steps -= 1;
     let a = curve.point(t0);
     let b = curve.point(t1);
-    let line = Segment::Line {
-        start: xy(a, 0.0),
-        end: xy(b, 0.0),
-    };
+    let line = Segment::line(xy(a, 0.0), xy(b, 0.0));
     let err = (1..SAMPLES)
         .map(|k| distance(&line, &xy(curve.point(t0 + (t1 - t0) * k as f64 / SAMPLES as f64), 0.0)))
         .fold(0.0, f64::max);
@@ -303,15 +300,10 @@ fn arc_from_tangent(a: P3, t: V3, b: P3) -> Segment {
     let den = 2.0 * n.dot(&c);
     let cc = c.norm_squared();
     if den.abs() <= 1e-12 * cc.sqrt() || cc / den.abs() > 1e7 * cc.sqrt() {
-        return Segment::Line { start: a, end: b };
+        return Segment::line(a, b);
     }
     let r = cc / den;
-    Segment::Arc {
-        start: a,
-        end: b,
-        center: a + n * r,
-        ccw: r > 0.0,
-    }
+    Segment::arc_xy(a, b, a + n * r, r > 0.0)
 }
 
 /// Two tangent-continuous arcs from `p0` (tangent `t0`) to `p1` (tangent
@@ -344,48 +336,7 @@ pub fn biarc(p0: P3, t0: V3, p1: P3, t1: V3) -> Option<[Segment; 2]> {
 
 /// Distance in XY from `q` to a segment.
 pub fn distance(s: &Segment, q: &P3) -> f64 {
-    match *s {
-        Segment::Line { start, end } => {
-            let d = V3::new(end.x - start.x, end.y - start.y, 0.0);
-            let w = V3::new(q.x - start.x, q.y - start.y, 0.0);
-            let l2 = d.norm_squared();
-            let t = if l2 > 0.0 {
-                (w.dot(&d) / l2).clamp(0.0, 1.0)
-            } else {
-                0.0
-            };
-            (w - d * t).norm()
-        }
-        Segment::Arc {
-            start,
-            end,
-            center,
-            ccw,
-        } => {
-            let ang = |p: &P3| (p.y - center.y).atan2(p.x - center.x);
-            let r = ((start.x - center.x).powi(2) + (start.y - center.y).powi(2)).sqrt();
-            let (a0, a1, aq) = (ang(&start), ang(&end), ang(q));
-            let tau = std::f64::consts::TAU;
-            let sweep = if ccw {
-                (a1 - a0).rem_euclid(tau)
-            } else {
-                (a0 - a1).rem_euclid(tau)
-            };
-            let sweep = if sweep == 0.0 { tau } else { sweep };
-            let off = if ccw {
-                (aq - a0).rem_euclid(tau)
-            } else {
-                (a0 - aq).rem_euclid(tau)
-            };
-            if off <= sweep {
-                (((q.x - center.x).powi(2) + (q.y - center.y).powi(2)).sqrt() - r).abs()
-            } else {
-                let d0 = ((q.x - start.x).powi(2) + (q.y - start.y).powi(2)).sqrt();
-                let d1 = ((q.x - end.x).powi(2) + (q.y - end.y).powi(2)).sqrt();
-                d0.min(d1)
-            }
-        }
-    }
+    s.distance(&P3::new(q.x, q.y, s.start().z)).unwrap_or(f64::INFINITY)
 }
 
 #[cfg(test)]
@@ -403,22 +354,7 @@ mod tests {
     }
 
     fn tangent_continuous(segs: &[Segment]) -> bool {
-        let dir = |s: &Segment, at_end: bool| -> V3 {
-            match *s {
-                Segment::Line { start, end } => (end - start).normalize(),
-                Segment::Arc {
-                    start,
-                    end,
-                    center,
-                    ccw,
-                } => {
-                    let p = if at_end { end } else { start };
-                    let r = p - center;
-                    let t = V3::new(-r.y, r.x, 0.0).normalize();
-                    if ccw { t } else { -t }
-                }
-            }
-        };
+        let dir = |s: &Segment, at_end: bool| -> V3 { if at_end { s.end_tangent() } else { s.start_tangent() } };
         segs.windows(2)
             .all(|w| (dir(&w[0], true) - dir(&w[1], false)).norm() < 1e-3)
     }

@@ -135,15 +135,10 @@ impl Sink {
 /// coordinate of the output is out of range. Others are left for the range
 /// check to refuse.
 fn flatten_far_arc(s: &mut Segment, tol: f64) {
-    let Segment::Arc {
-        start,
-        end,
-        center,
-        ccw,
-    } = *s
-    else {
+    let Segment::Arc(arc) = *s else {
         return;
     };
+    let (start, end, center, ccw) = (arc.start, arc.end, arc.center, arc.ccw);
     if in_range(&center) || !in_range(&start) || !in_range(&end) {
         return;
     }
@@ -153,19 +148,19 @@ fn flatten_far_arc(s: &mut Segment, tol: f64) {
         // A full circle or a major arc: as far out as its centre.
         return;
     }
-    let r = a.xy().norm();
+    let r = arc.radius();
     let half = 0.5 * (end - start).xy().norm();
     let sagitta = half * half / (r + (r * r - half * half).max(0.0).sqrt());
     if sagitta <= tol {
-        *s = Segment::Line { start, end };
+        *s = Segment::line(start, end);
     }
 }
 
 /// The first out-of-range point of a segment, if any.
 fn first_out_of_range(s: &Segment) -> Option<P3> {
     match s {
-        Segment::Line { start, end } => [start, end].into_iter().find(|p| !in_range(p)).copied(),
-        Segment::Arc { start, end, center, .. } => [start, end, center].into_iter().find(|p| !in_range(p)).copied(),
+        Segment::Line(l) => [l.start, l.end].into_iter().find(|p| !in_range(p)),
+        Segment::Arc(a) => [a.start, a.end, a.center].into_iter().find(|p| !in_range(p)),
     }
 }
 
@@ -196,13 +191,7 @@ impl Expander<'_> {
         let before = sink.segments.len();
         let name = match &e.shape {
             EntityShape::Line { a, b } => {
-                sink.segments.push((
-                    Segment::Line {
-                        start: t.apply(a),
-                        end: t.apply(b),
-                    },
-                    lid,
-                ));
+                sink.segments.push((Segment::line(t.apply(a), t.apply(b)), lid));
                 "LINE"
             }
             EntityShape::Arc { c, r, a0, a1, ext } => {
@@ -235,13 +224,8 @@ impl Expander<'_> {
                 let n = verts.len();
                 let pairs = if *closed && n > 2 { n } else { n.saturating_sub(1) };
                 for i in 0..pairs {
-                    sink.segments.push((
-                        Segment::Line {
-                            start: t.apply(&verts[i]),
-                            end: t.apply(&verts[(i + 1) % n]),
-                        },
-                        lid,
-                    ));
+                    sink.segments
+                        .push((Segment::line(t.apply(&verts[i]), t.apply(&verts[(i + 1) % n])), lid));
                 }
                 "POLYLINE"
             }
@@ -405,7 +389,7 @@ impl Expander<'_> {
         if !(r.is_finite() && r > 0.0) {
             // A point-sized circle or arc: let chaining count it as dropped.
             let p = t.apply(c);
-            sink.segments.push((Segment::Line { start: p, end: p }, lid));
+            sink.segments.push((Segment::line(p, p), lid));
             return;
         }
         let conic = Conic {
@@ -439,12 +423,12 @@ impl Expander<'_> {
             let full = k.sweep >= TAU - 1e-12;
             let end = if full { start } else { at(k.t0 + k.sweep) };
             sink.segments.push((
-                Segment::Arc {
+                Segment::arc_xy(
                     start,
                     end,
-                    center: P3::new(k.c.x, k.c.y, k.c.z),
-                    ccw: (k.sweep > 0.0) == (cross > 0.0),
-                },
+                    P3::new(k.c.x, k.c.y, k.c.z),
+                    (k.sweep > 0.0) == (cross > 0.0),
+                ),
                 lid,
             ));
             return;
@@ -454,13 +438,13 @@ impl Expander<'_> {
             sink.warn("arc or ellipse seen edge-on (extrusion in the XY plane) drawn as its chord".into());
             let a = k.point(0.0);
             let b = k.point(1.0);
-            sink.segments.push((Segment::Line { start: a, end: b }, lid));
+            sink.segments.push((Segment::line(a, b), lid));
             return;
         }
         if let Some(p) = conic_out_of_range(&k) {
             // Reported by the caller, which knows the entity's position
             // (from this line's far end); never fit a curve this large.
-            sink.segments.push((Segment::Line { start: k.c, end: p }, lid));
+            sink.segments.push((Segment::line(k.c, p), lid));
             return;
         }
         self.fit(&k, lid, sink);
@@ -491,13 +475,7 @@ impl Expander<'_> {
             let p0 = P3::new(x0, y0, z);
             let p1 = P3::new(x1, y1, z);
             if b == 0.0 || p0 == p1 {
-                sink.segments.push((
-                    Segment::Line {
-                        start: t.apply(&p0),
-                        end: t.apply(&p1),
-                    },
-                    lid,
-                ));
+                sink.segments.push((Segment::line(t.apply(&p0), t.apply(&p1)), lid));
                 continue;
             }
             // Bulge = tan(sweep / 4), positive counter-clockwise.
@@ -514,10 +492,10 @@ impl Expander<'_> {
             let before = sink.segments.len();
             self.conic(t, &c, r, (a0, sweep), lid, sink);
             if sink.segments.len() == before + 1
-                && let Some((Segment::Arc { start, end, .. }, _)) = sink.segments.get_mut(before)
+                && let Some((s @ Segment::Arc(_), _)) = sink.segments.get_mut(before)
             {
-                *start = t.apply(&p0);
-                *end = t.apply(&p1);
+                s.set_start(t.apply(&p0));
+                s.set_end(t.apply(&p1));
             }
         }
     }
@@ -565,18 +543,8 @@ mod tests {
             ext: V3::new(0.0, 0.0, -1.0),
         });
         let s = expand(&e, &HashMap::new());
-        let (
-            Segment::Arc {
-                start,
-                end,
-                center,
-                ccw,
-            },
-            _,
-        ) = s.segments[0]
-        else {
-            panic!()
-        };
+        let (Segment::Arc(a), _) = s.segments[0] else { panic!() };
+        let (start, end, center, ccw) = (a.start, a.end, a.center, a.ccw);
         assert_eq!(center, P3::new(-10.0, 0.0, 0.0));
         assert!((start - P3::new(-11.0, 0.0, 0.0)).norm() < 1e-12);
         assert!((end - P3::new(-10.0, 1.0, 0.0)).norm() < 1e-12);
@@ -593,9 +561,8 @@ mod tests {
             lw: true,
         });
         let s = expand(&e, &HashMap::new());
-        let (Segment::Arc { center, ccw, .. }, _) = s.segments[0] else {
-            panic!()
-        };
+        let (Segment::Arc(a), _) = s.segments[0] else { panic!() };
+        let (center, ccw) = (a.center, a.ccw);
         assert!((center - P3::new(1.0, 0.0, 0.0)).norm() < 1e-12);
         assert!(ccw);
     }
@@ -627,13 +594,13 @@ mod tests {
         let s = expand(&ins, &blocks);
         assert_eq!(s.segments.len(), 2);
         // Base (1,0) -> origin; (2,0) -> (1,0) -> scaled (-2,0) -> rotated (0,-2) -> (10,-2).
-        let (Segment::Line { start, end }, _) = s.segments[0] else {
+        let (Segment::Line(crate::geometry::Line3 { start, end }), _) = s.segments[0] else {
             panic!()
         };
         assert!((start - P3::new(10.0, 0.0, 0.0)).norm() < 1e-12);
         assert!((end - P3::new(10.0, -2.0, 0.0)).norm() < 1e-12);
         // Second column 5 along the rotated X axis: +5 in Y.
-        let (Segment::Line { start, .. }, _) = s.segments[1] else {
+        let (Segment::Line(crate::geometry::Line3 { start, .. }), _) = s.segments[1] else {
             panic!()
         };
         assert!((start - P3::new(10.0, 5.0, 0.0)).norm() < 1e-12);

@@ -2,7 +2,6 @@
 //! each chain's start and an arrow on its first segment showing the
 //! direction of travel. Plain text, deterministic, viewable in any browser.
 
-use super::chain::arc_sweep;
 use crate::geometry::{P3, V3};
 use crate::model::chain::{Chain, Segment};
 use std::fmt::Write;
@@ -18,13 +17,9 @@ fn n(x: f64) -> String {
 }
 
 fn tangent_at_start(s: &Segment) -> V3 {
-    match *s {
-        Segment::Line { start, end } => (end - start).xy().push(0.0),
-        Segment::Arc { start, center, ccw, .. } => {
-            let r = start - center;
-            let t = V3::new(-r.y, r.x, 0.0);
-            if ccw { t } else { -t }
-        }
+    match s {
+        Segment::Line(l) => l.delta().xy().push(0.0),
+        Segment::Arc(_) => s.start_tangent(),
     }
 }
 
@@ -40,8 +35,8 @@ pub fn render(chains: impl Iterator<Item = Chain> + Clone) -> String {
         for s in &c.segments {
             grow(&s.start(), 0.0);
             grow(&s.end(), 0.0);
-            if let Segment::Arc { start, center, .. } = s {
-                grow(center, (start - center).xy().norm());
+            if let Some(arc) = s.arc() {
+                grow(&arc.center, arc.radius());
             }
         }
         for p in &c.points {
@@ -84,18 +79,13 @@ pub fn render(chains: impl Iterator<Item = Chain> + Clone) -> String {
         if let Some(first) = c.segments.first() {
             let mut d = format!("M{} {}", n(first.start().x), n(first.start().y));
             for s in &c.segments {
-                match *s {
-                    Segment::Line { end, .. } => {
-                        let _ = write!(d, " L{} {}", n(end.x), n(end.y));
+                match s {
+                    Segment::Line(l) => {
+                        let _ = write!(d, " L{} {}", n(l.end.x), n(l.end.y));
                     }
-                    Segment::Arc {
-                        start,
-                        end,
-                        center,
-                        ccw,
-                    } => {
-                        let r = (start - center).xy().norm();
-                        let sw = arc_sweep(&start, &end, &center, ccw);
+                    Segment::Arc(a) => {
+                        let (start, end, center, ccw) = (a.start, a.end, a.center, a.ccw);
+                        let (r, sw) = (a.radius(), a.sweep());
                         let flag = if ccw { 1 } else { 0 };
                         if start == end {
                             // SVG cannot draw a full circle as one arc: two halves.
@@ -160,12 +150,12 @@ mod tests {
         let c = Chain {
             id: 1,
             closed: true,
-            segments: vec![Segment::Arc {
-                start: P3::new(1.0, 0.0, 0.0),
-                end: P3::new(1.0, 0.0, 0.0),
-                center: P3::origin(),
-                ccw: true,
-            }],
+            segments: vec![Segment::arc_xy(
+                P3::new(1.0, 0.0, 0.0),
+                P3::new(1.0, 0.0, 0.0),
+                P3::origin(),
+                true,
+            )],
             ..Default::default()
         };
         let s = render([c].into_iter());

@@ -27,7 +27,7 @@ pub mod text;
 
 use crate::cutter::Cutter;
 use crate::gcode::{Dialect, GcodeError, ReadOptions, detect_dialect, read_str};
-use crate::geometry::{Arc3, P3};
+use crate::geometry::P3;
 use crate::machine::{Controller, Machine};
 use crate::model::toolpath::{Header, MotionKind, Record};
 use crate::sim::beam::CommandTiming;
@@ -244,9 +244,7 @@ pub fn optimise(input: &str, o: &Options) -> Result<Outcome, FeedoptError> {
             if let Record::Move(m) = r {
                 length += match m.kind {
                     MotionKind::Rapid => 0.0,
-                    MotionKind::Arc(a) => Arc3::new(a.center, at, m.to, a.ccw, a.plane, a.extra_turns)
-                        .map_or((m.to - at).norm(), |arc| arc.length()),
-                    _ => (m.to - at).norm(),
+                    _ => m.segment(at).length(),
                 };
                 at = m.to;
             }
@@ -270,7 +268,7 @@ pub fn optimise(input: &str, o: &Options) -> Result<Outcome, FeedoptError> {
                 let from = pos;
                 pos = m.to;
                 let arc = match m.kind {
-                    MotionKind::Arc(a) => Arc3::new(a.center, from, m.to, a.ccw, a.plane, a.extra_turns),
+                    MotionKind::Arc(a) => a.arc(from, m.to),
                     _ => None,
                 };
                 let length_mm = arc.map_or((m.to - from).norm(), |a| a.length());

@@ -122,7 +122,7 @@ fn decode_chain(w: WireChain, line: u64) -> Result<Chain, FormatError> {
             &what("end"),
         )?;
         let seg = match kind.as_str() {
-            "line" => Segment::Line { start, end },
+            "line" => Segment::line(start, end),
             "arc" => {
                 let center = point_from(
                     &s.center
@@ -141,12 +141,7 @@ fn decode_chain(w: WireChain, line: u64) -> Result<Chain, FormatError> {
                         format!("arc segment {n}: radius at start {r0} differs from radius at end {r1}"),
                     ));
                 }
-                Segment::Arc {
-                    start,
-                    end,
-                    center,
-                    ccw,
-                }
+                Segment::arc_xy(start, end, center, ccw)
             }
             other => {
                 return Err(FormatError::invalid(
@@ -269,29 +264,24 @@ pub fn format_chain(b: &mut String, c: &Chain) {
             b.push(',');
         }
         match s {
-            Segment::Line { start, end } => {
+            Segment::Line(l) => {
                 b.push_str("{\"type\":\"line\",\"start\":");
-                push_start(b, start, prev);
+                push_start(b, &l.start, prev);
                 b.push_str(",\"end\":");
                 let at = b.len();
-                push_point_2or3(b, end);
-                prev = Some((*end, at, b.len()));
+                push_point_2or3(b, &l.end);
+                prev = Some((l.end, at, b.len()));
             }
-            Segment::Arc {
-                start,
-                end,
-                center,
-                ccw,
-            } => {
+            Segment::Arc(a) => {
                 b.push_str("{\"type\":\"arc\",\"start\":");
-                push_start(b, start, prev);
+                push_start(b, &a.start, prev);
                 b.push_str(",\"end\":");
                 let at = b.len();
-                push_point_2or3(b, end);
-                prev = Some((*end, at, b.len()));
+                push_point_2or3(b, &a.end);
+                prev = Some((a.end, at, b.len()));
                 b.push_str(",\"center\":");
-                push_point_2or3(b, center);
-                b.push_str(if *ccw { ",\"ccw\":true" } else { ",\"ccw\":false" });
+                push_point_2or3(b, &a.center);
+                b.push_str(if a.ccw { ",\"ccw\":true" } else { ",\"ccw\":false" });
             }
         }
         b.push('}');

@@ -110,6 +110,16 @@ impl Arc3 {
     /// Signed swept angle in radians, positive counter-clockwise. Start equal
     /// to end in the plane (within `EPS_LEN`) is a full turn; each extra turn
     /// adds `2π` in the direction of travel.
+    ///
+    /// ```
+    /// use microcam::geometry::{Arc3, P3, Plane};
+    /// use std::f64::consts::{FRAC_PI_2, PI};
+    /// let ccw = Arc3::new(P3::origin(), P3::new(2.0, 0.0, 0.0), P3::new(0.0, 2.0, 0.0), true, Plane::Xy, 0).unwrap();
+    /// assert!((ccw.sweep() - FRAC_PI_2).abs() < 1e-15);
+    /// assert!((ccw.length() - PI).abs() < 1e-14);
+    /// let cw = Arc3 { ccw: false, ..ccw };
+    /// assert!((cw.sweep() + 3.0 * FRAC_PI_2).abs() < 1e-14);
+    /// ```
     pub fn sweep(&self) -> f64 {
         sweep_angle(&self.c2(), &self.s2(), &self.e2(), self.ccw, self.extra_turns, EPS_LEN)
     }
@@ -229,11 +239,17 @@ impl Arc3 {
     }
 
     /// The same arc travelled the other way: ends swapped, sense flipped,
-    /// centre moved to the new start's normal coordinate. Reversing twice
-    /// gives back the original exactly.
+    /// a helix's centre moved to the new start's normal coordinate (a planar
+    /// arc's centre is kept as it is). Reversing twice gives back the
+    /// original exactly.
     pub fn reversed(&self) -> Arc3 {
+        let center = if self.rise() == 0.0 {
+            self.center
+        } else {
+            self.plane.lift(&self.c2(), self.plane.normal_coord(&self.end))
+        };
         Arc3 {
-            center: self.plane.lift(&self.c2(), self.plane.normal_coord(&self.end)),
+            center,
             start: self.end,
             end: self.start,
             ccw: !self.ccw,
@@ -248,6 +264,13 @@ impl Arc3 {
     /// helix; `b`'s normal coordinate is not used. `None` when the three
     /// projected points are collinear (sine of the angle at `a` below 1e-12)
     /// or two coincide, or any coordinate is not finite.
+    ///
+    /// ```
+    /// use microcam::geometry::{Arc3, P3, Plane};
+    /// let a = Arc3::from_three_points(&P3::new(1.0, 0.0, 0.0), &P3::new(0.0, 1.0, 0.0), &P3::new(-1.0, 0.0, 0.0), Plane::Xy).unwrap();
+    /// assert!(a.ccw && (a.center - P3::origin()).norm() < 1e-15);
+    /// assert!(Arc3::from_three_points(&P3::origin(), &P3::new(1.0, 1.0, 0.0), &P3::new(2.0, 2.0, 0.0), Plane::Xy).is_none());
+    /// ```
     pub fn from_three_points(a: &P3, b: &P3, c: &P3, plane: Plane) -> Option<Arc3> {
         if ![a, b, c].into_iter().all(finite_p3) {
             return None;

@@ -40,6 +40,13 @@ impl BBox3 {
     }
 
     /// The smallest box covering all finite points of an iterator.
+    ///
+    /// ```
+    /// use microcam::geometry::{BBox3, P3};
+    /// let b = BBox3::from_points(&[P3::new(1.0, -2.0, 0.0), P3::new(-1.0, 3.0, 0.5), P3::new(f64::NAN, 0.0, 0.0)]);
+    /// assert_eq!((b.min, b.max), (P3::new(-1.0, -2.0, 0.0), P3::new(1.0, 3.0, 0.5)));
+    /// assert!(BBox3::empty().is_empty());
+    /// ```
     pub fn from_points<'a>(points: impl IntoIterator<Item = &'a P3>) -> Self {
         let mut b = Self::empty();
         for p in points {

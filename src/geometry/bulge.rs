@@ -14,6 +14,16 @@ use super::{EPS_LEN, P2, P3, Plane, V2};
 /// bulge (the segment is a line), a non-finite bulge or point, or a chord
 /// shorter than `EPS_LEN` (no arc fits). The centre is at the start's Z; an
 /// end at another Z makes the arc a helix, as a sloped polyline would be.
+///
+/// ```
+/// use microcam::geometry::P3;
+/// use microcam::geometry::bulge::{arc_from_bulge, bulge_of};
+/// // Bulge 1 is a half circle, counter-clockwise.
+/// let a = arc_from_bulge(&P3::origin(), &P3::new(2.0, 0.0, 0.0), 1.0).unwrap();
+/// assert!(a.ccw && (a.center - P3::new(1.0, 0.0, 0.0)).norm() < 1e-15);
+/// assert!((bulge_of(&a).unwrap() - 1.0).abs() < 1e-15);
+/// assert!(arc_from_bulge(&P3::origin(), &P3::new(2.0, 0.0, 0.0), 0.0).is_none());
+/// ```
 pub fn arc_from_bulge(start: &P3, end: &P3, bulge: f64) -> Option<Arc3> {
     if bulge == 0.0 || !bulge.is_finite() || !finite_p3(start) || !finite_p3(end) {
         return None;

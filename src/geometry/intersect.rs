@@ -21,6 +21,7 @@
 
 use super::arc::Arc3;
 use super::line::Line3;
+use super::segment::Segment;
 use super::tol::{finite_p3, normalize_angle, valid_tol};
 use super::{P2, Plane, V2};
 use std::f64::consts::TAU;
@@ -251,6 +252,15 @@ enum Shape {
 }
 
 impl Shape {
+    /// A segment's XY shadow; `None` for non-finite coordinates or an arc
+    /// outside the XY plane.
+    fn new(s: &Segment) -> Option<Shape> {
+        match s {
+            Segment::Line(l) => Seg::new(l).map(Shape::Seg),
+            Segment::Arc(a) => Circ::new(a).map(Shape::Circ),
+        }
+    }
+
     fn closest(&self, x: &P2) -> (P2, f64) {
         match self {
             Shape::Seg(s) => s.closest(x),
@@ -336,8 +346,45 @@ fn finish(mut out: Vec<Intersection>) -> Vec<Intersection> {
 /// within `tol` of the other's line) that share more than `tol` of length
 /// give one `Overlap`; if they only touch, a `Point`. `None` when a
 /// coordinate is not finite or `tol` is negative or NaN.
+///
+/// ```
+/// use microcam::geometry::intersect::{Intersection, line_line};
+/// use microcam::geometry::{Line3, P3};
+/// let a = Line3::new(P3::new(0.0, 0.0, 0.0), P3::new(2.0, 2.0, 0.0));
+/// let b = Line3::new(P3::new(0.0, 2.0, 0.0), P3::new(2.0, 0.0, 0.0));
+/// let hits = line_line(&a, &b, 1e-9).unwrap();
+/// let Intersection::Point { hit, .. } = hits[0] else { panic!() };
+/// assert!((hit.t1 - 0.5).abs() < 1e-15 && (hit.point.x - 1.0).abs() < 1e-15);
+/// ```
 pub fn line_line(a: &Line3, b: &Line3, tol: f64) -> Option<Vec<Intersection>> {
-    let (sa, sb) = (Seg::new(a)?, Seg::new(b)?);
+    seg_seg(Seg::new(a)?, Seg::new(b)?, tol)
+}
+
+/// Intersections of two segments of any kind in XY, sorted along the first:
+/// [`line_line`], [`line_arc`], [`arc_line`] or [`arc_arc`] as their kinds
+/// say. `None` when an arc is not in the XY plane, a coordinate is not
+/// finite, or `tol` is invalid.
+///
+/// ```
+/// use microcam::geometry::intersect::{Intersection, intersect};
+/// use microcam::geometry::{P3, Segment};
+/// let line = Segment::line(P3::new(-2.0, 0.5, 0.0), P3::new(2.0, 0.5, 0.0));
+/// let circle = Segment::arc_xy(P3::new(1.0, 0.0, 0.0), P3::new(1.0, 0.0, 0.0), P3::origin(), true);
+/// let hits = intersect(&line, &circle, 1e-9).unwrap();
+/// assert_eq!(hits.len(), 2);
+/// let Intersection::Point { hit, .. } = hits[0] else { panic!() };
+/// assert!((hit.point.x + 0.75f64.sqrt()).abs() < 1e-12);
+/// ```
+pub fn intersect(a: &Segment, b: &Segment, tol: f64) -> Option<Vec<Intersection>> {
+    match (Shape::new(a)?, Shape::new(b)?) {
+        (Shape::Seg(x), Shape::Seg(y)) => seg_seg(x, y, tol),
+        (Shape::Seg(x), Shape::Circ(y)) => seg_circ(x, y, tol),
+        (Shape::Circ(x), Shape::Seg(y)) => seg_circ(y, x, tol).map(swap_sorted),
+        (Shape::Circ(x), Shape::Circ(y)) => circ_circ(x, y, tol),
+    }
+}
+
+fn seg_seg(sa: Seg, sb: Seg, tol: f64) -> Option<Vec<Intersection>> {
     if !valid_tol(tol) {
         return None;
     }
@@ -395,7 +442,10 @@ fn collinear_overlap(sa: &Seg, sb: &Seg, tol: f64, out: &mut Vec<Intersection>) 
 /// `tol` of tangent gives one `Point` marked tangent. `None` when the arc is
 /// not in the XY plane, a coordinate is not finite, or `tol` is invalid.
 pub fn line_arc(a: &Line3, b: &Arc3, tol: f64) -> Option<Vec<Intersection>> {
-    let (sa, cb) = (Seg::new(a)?, Circ::new(b)?);
+    seg_circ(Seg::new(a)?, Circ::new(b)?, tol)
+}
+
+fn seg_circ(sa: Seg, cb: Circ, tol: f64) -> Option<Vec<Intersection>> {
     if !valid_tol(tol) {
         return None;
     }
@@ -432,15 +482,20 @@ pub fn line_arc(a: &Line3, b: &Arc3, tol: f64) -> Option<Vec<Intersection>> {
 /// Intersections of an XY arc (first) and a segment (second): `line_arc`
 /// with the parameters swapped and the result sorted along the arc.
 pub fn arc_line(a: &Arc3, b: &Line3, tol: f64) -> Option<Vec<Intersection>> {
-    let hits = line_arc(b, a, tol)?;
-    Some(finish(
+    line_arc(b, a, tol).map(swap_sorted)
+}
+
+/// Hits of (line, arc) seen from the arc: parameters swapped, overlaps
+/// turned to the arc's direction, sorted along the arc.
+fn swap_sorted(hits: Vec<Intersection>) -> Vec<Intersection> {
+    finish(
         hits.iter()
             .map(|i| match i.swapped() {
                 Intersection::Overlap { start, end } => Intersection::Overlap { start: end, end: start },
                 p => p,
             })
             .collect(),
-    ))
+    )
 }
 
 /// Intersections of two XY arcs. Arcs on the same circle (centres and radii
@@ -449,7 +504,10 @@ pub fn arc_line(a: &Arc3, b: &Line3, tol: f64) -> Option<Vec<Intersection>> {
 /// within `tol` give one tangent `Point`. `None` when an arc is not in the XY
 /// plane, a coordinate is not finite, or `tol` is invalid.
 pub fn arc_arc(a: &Arc3, b: &Arc3, tol: f64) -> Option<Vec<Intersection>> {
-    let (ca, cb) = (Circ::new(a)?, Circ::new(b)?);
+    circ_circ(Circ::new(a)?, Circ::new(b)?, tol)
+}
+
+fn circ_circ(ca: Circ, cb: Circ, tol: f64) -> Option<Vec<Intersection>> {
     if !valid_tol(tol) {
         return None;
     }

@@ -55,6 +55,14 @@ impl Line3 {
 
     /// The point `s` mm along the segment from `start`. `None` for a
     /// zero-length segment (no direction to walk).
+    ///
+    /// ```
+    /// use microcam::geometry::{Line3, P3};
+    /// let s = Line3::new(P3::origin(), P3::new(3.0, 4.0, 0.0));
+    /// assert_eq!(s.length(), 5.0);
+    /// assert_eq!(s.point_at_length(2.5), Some(P3::new(1.5, 2.0, 0.0)));
+    /// assert_eq!(Line3::new(P3::origin(), P3::origin()).point_at_length(1.0), None);
+    /// ```
     pub fn point_at_length(&self, s: f64) -> Option<P3> {
         let len = self.length();
         if positive_finite(len) {
@@ -81,6 +89,13 @@ impl Line3 {
 
     /// The point of the segment nearest `p` and its parameter in [0, 1].
     /// A zero-length segment answers its start with t = 0.
+    ///
+    /// ```
+    /// use microcam::geometry::{Line3, P3};
+    /// let s = Line3::new(P3::origin(), P3::new(10.0, 0.0, 0.0));
+    /// assert_eq!(s.closest_point(&P3::new(4.0, 3.0, 0.0)), (P3::new(4.0, 0.0, 0.0), 0.4));
+    /// assert_eq!(s.distance(&P3::new(13.0, 4.0, 0.0)), 5.0);
+    /// ```
     pub fn closest_point(&self, p: &P3) -> (P3, f64) {
         let d = self.delta();
         let l2 = d.norm_squared();

@@ -13,6 +13,10 @@
 //! - [`intersect`]: where lines and arcs meet in XY, at a tolerance.
 //! - [`tol`]: tolerant comparisons and angle normalisation.
 //! - [`planar`]: sweep and radius-form centre helpers for the G-code readers.
+//! - [`segment`]: [`Segment`], a line or an arc: the one type chains,
+//!   planned paths and toolpath moves carry.
+
+#![warn(missing_docs)]
 
 pub mod arc;
 pub mod bbox;
@@ -22,11 +26,13 @@ pub mod line;
 pub mod planar;
 #[cfg(test)]
 mod proptests;
+pub mod segment;
 pub mod tol;
 
 pub use arc::Arc3;
 pub use bbox::BBox3;
 pub use line::Line3;
+pub use segment::Segment;
 
 use serde::{Deserialize, Serialize};
 

@@ -7,6 +7,14 @@ use std::f64::consts::TAU;
 /// `end`, positive for counter-clockwise. A start equal to the end (within
 /// `tol` of the radius) is a full turn. `extra_turns` adds whole turns
 /// (RS274 `P` words: P2 is one extra turn).
+///
+/// ```
+/// use microcam::geometry::P2;
+/// use microcam::geometry::planar::sweep_angle;
+/// let (c, s, e) = (P2::origin(), P2::new(1.0, 0.0), P2::new(0.0, 1.0));
+/// assert!((sweep_angle(&c, &s, &e, true, 0, 1e-9) - std::f64::consts::FRAC_PI_2).abs() < 1e-15);
+/// assert!((sweep_angle(&c, &s, &s, false, 0, 1e-9) + std::f64::consts::TAU).abs() < 1e-15);
+/// ```
 pub fn sweep_angle(center: &P2, start: &P2, end: &P2, ccw: bool, extra_turns: u32, tol: f64) -> f64 {
     let a0 = (start - center).y.atan2((start - center).x);
     let a1 = (end - center).y.atan2((end - center).x);
@@ -40,6 +48,15 @@ pub fn sweep_angle(center: &P2, start: &P2, end: &P2, ccw: bool, extra_turns: u3
 /// (more than half a turn), as in RS274 and PMAC `R` words. `None` when the
 /// chord is longer than the diameter (beyond a relative slack of 1e-9 for
 /// rounding, in which case the centre is the chord midpoint) or zero.
+///
+/// ```
+/// use microcam::geometry::P2;
+/// use microcam::geometry::planar::center_from_radius;
+/// let (s, e) = (P2::new(1.0, 0.0), P2::new(0.0, 1.0));
+/// assert!((center_from_radius(&s, &e, 1.0, true).unwrap() - P2::origin()).norm() < 1e-12);
+/// assert!((center_from_radius(&s, &e, -1.0, true).unwrap() - P2::new(1.0, 1.0)).norm() < 1e-12);
+/// assert!(center_from_radius(&s, &e, 0.5, true).is_none());
+/// ```
 pub fn center_from_radius(start: &P2, end: &P2, r: f64, ccw: bool) -> Option<P2> {
     let chord = end - start;
     let c = chord.norm();

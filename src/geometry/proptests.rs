@@ -7,6 +7,7 @@ use super::arc::Arc3;
 use super::bulge::{arc_from_bulge, bulge_of};
 use super::intersect::{Intersection, arc_arc, line_arc, line_line};
 use super::line::Line3;
+use super::segment::Segment;
 use super::{P2, P3, Plane, V2};
 use proptest::prelude::*;
 use std::f64::consts::{PI, TAU};
@@ -391,5 +392,118 @@ proptest! {
         if let Some(a) = Arc3::new(c, s, e, ccw, Plane::Xy, 0) {
             let _ = (arc_arc(&a, &a, tol.abs()), line_arc(&other, &a, tol.abs()));
         }
+    }
+}
+
+fn any_point() -> impl Strategy<Value = P3> {
+    (-100.0..100.0f64, -100.0..100.0f64, -100.0..100.0f64).prop_map(|(x, y, z)| P3::new(x, y, z))
+}
+
+/// Any segment: a line in space or an arc of any plane, helix and turns.
+fn any_segment() -> impl Strategy<Value = Segment> {
+    prop_oneof![
+        (any_point(), any_point()).prop_map(|(a, b)| Segment::line(a, b)),
+        any_arc().prop_map(Segment::Arc),
+    ]
+}
+
+/// Distance from `p` to the segment, by dense sampling (works for helices).
+fn sampled_distance(s: &Segment, p: &P3) -> f64 {
+    (0..=2000)
+        .map(|i| (s.point_at(i as f64 / 2000.0) - p).norm())
+        .fold(f64::INFINITY, f64::min)
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(256))]
+
+    #[test]
+    fn segment_reversed_twice_is_identity(s in any_segment()) {
+        prop_assert_eq!(s.reversed().reversed(), s);
+        let r = s.reversed();
+        prop_assert_eq!(r.start(), s.end());
+        prop_assert_eq!(r.end(), s.start());
+        prop_assert!((r.length() - s.length()).abs() <= 1e-9 * s.length().max(1.0));
+        prop_assert!(close3(&r.midpoint(), &s.midpoint(), 1e-9 * s.length().max(1.0)));
+    }
+
+    #[test]
+    fn segment_split_lengths_add_up(s in any_segment(), t in 0.02..0.98f64) {
+        let len = s.length();
+        let (a, b) = s.split_at(t).unwrap();
+        prop_assert!((a.length() + b.length() - len).abs() <= 1e-9 * len.max(1.0),
+            "{} + {} != {}", a.length(), b.length(), len);
+        prop_assert!((a.length() - t * len).abs() <= 1e-9 * len.max(1.0));
+        prop_assert_eq!(a.start(), s.start());
+        prop_assert_eq!(b.end(), s.end());
+        prop_assert_eq!(a.end(), b.start());
+        let by_length = s.split_at_length(t * len, 1e-7).unwrap();
+        prop_assert!(close3(&by_length.0.end(), &a.end(), 1e-9 * len.max(1.0)));
+    }
+
+    #[test]
+    fn segment_point_at_length_ends_and_midpoint(s in any_segment()) {
+        let len = s.length();
+        prop_assert_eq!(s.point_at_length(0.0), s.start());
+        prop_assert_eq!(s.point_at_length(len), s.end());
+        let m = s.midpoint();
+        prop_assert!(close3(&s.point_at_length(0.5 * len), &m, 1e-9 * len.max(1.0)));
+        // The midpoint lies on the segment, halfway along it.
+        prop_assert!(sampled_distance(&s, &m) <= 1e-9 * len.max(1.0));
+        if let Some(d) = s.distance(&m) {
+            prop_assert!(d <= 1e-9 * len.max(1.0), "midpoint {} off", d);
+        }
+        let b = s.bbox();
+        let slack = 1e-9 * len.max(1.0);
+        for q in [s.start(), m, s.end()] {
+            prop_assert!((0..3).all(|k| q[k] >= b.min[k] - slack && q[k] <= b.max[k] + slack));
+        }
+    }
+
+    #[test]
+    fn segment_closest_point_beats_samples(s in any_segment(), p in any_point()) {
+        if let Some((q, t)) = s.closest_point(&p) {
+            prop_assert!((0.0..=1.0).contains(&t));
+            prop_assert!(close3(&s.point_at(t), &q, 1e-9 * s.length().max(1.0)));
+            prop_assert!((q - p).norm() <= sampled_distance(&s, &p) + 1e-9);
+        } else {
+            prop_assert!(s.arc().is_some_and(|a| a.is_helical(crate::geometry::EPS_LEN)));
+        }
+    }
+
+    #[test]
+    fn segment_tangents_are_unit_and_match_the_general_formula(s in any_segment()) {
+        for (fast, t) in [(s.start_tangent(), 0.0), (s.end_tangent(), 1.0)] {
+            if let Some(general) = s.tangent_at(t) {
+                prop_assert!((fast.norm() - 1.0).abs() < 1e-9);
+                prop_assert!((fast - general).norm() < 1e-6, "{:?} vs {:?}", fast, general);
+            }
+        }
+    }
+
+    #[test]
+    fn chain_arcs_sweep_like_arc3(a in xy_arc()) {
+        // A chain's unchecked XY arc is the same arc as the checked one.
+        let s = Segment::arc_xy(a.start, a.end, a.center, a.ccw);
+        let x = s.to_arc_xy().unwrap();
+        prop_assert_eq!(x.sweep, a.sweep());
+        prop_assert_eq!(x.radius, a.radius());
+        let end = x.point_at_angle(x.start_angle + x.sweep);
+        prop_assert!((end - xy(&a.end)).norm() < 1e-9);
+        prop_assert_eq!(s.checked(), Some(s));
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(128))]
+
+    #[test]
+    fn segment_intersect_dispatches_by_kind(l in xy_line(), m in xy_line(), a in xy_arc(), b in xy_arc()) {
+        use super::intersect::{arc_line, intersect};
+        let tol = 1e-9;
+        prop_assert_eq!(intersect(&Segment::Line(l), &Segment::Line(m), tol), line_line(&l, &m, tol));
+        prop_assert_eq!(intersect(&Segment::Line(l), &Segment::Arc(a), tol), line_arc(&l, &a, tol));
+        prop_assert_eq!(intersect(&Segment::Arc(a), &Segment::Line(l), tol), arc_line(&a, &l, tol));
+        prop_assert_eq!(intersect(&Segment::Arc(a), &Segment::Arc(b), tol), arc_arc(&a, &b, tol));
     }
 }

@@ -10,6 +10,12 @@ use super::{P2, P3};
 use std::f64::consts::{PI, TAU};
 
 /// True when `|a - b| <= tol`. NaN in any argument gives `false`.
+///
+/// ```
+/// use microcam::geometry::tol::approx_eq;
+/// assert!(approx_eq(1.0, 1.0 + 1e-10, 1e-9));
+/// assert!(!approx_eq(f64::NAN, f64::NAN, 1.0));
+/// ```
 pub fn approx_eq(a: f64, b: f64, tol: f64) -> bool {
     (a - b).abs() <= tol
 }
@@ -27,6 +33,14 @@ pub fn approx_eq_p3(a: &P3, b: &P3, tol: f64) -> bool {
 /// An angle brought into `[0, 2π)`. Needed because `atan2` answers in
 /// `(-π, π]` while sweeps are measured from a start angle. Non-finite input
 /// comes back as NaN.
+///
+/// ```
+/// use microcam::geometry::tol::{angles_approx_eq, normalize_angle};
+/// use std::f64::consts::PI;
+/// assert!((normalize_angle(-PI / 2.0) - 1.5 * PI).abs() < 1e-15);
+/// assert_eq!(normalize_angle(-1e-300), 0.0);
+/// assert!(angles_approx_eq(-PI, PI, 1e-12));
+/// ```
 pub fn normalize_angle(a: f64) -> f64 {
     if !a.is_finite() {
         return f64::NAN;

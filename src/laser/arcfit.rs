@@ -6,7 +6,7 @@
 //! in the input are kept as corners. docs/arcfit.md compares it with the
 //! seed's curvature matching ([`super::arcfit_seed`]).
 
-use super::elem::Elem;
+use crate::geometry::Segment;
 use crate::geometry::arc::Arc3;
 use crate::geometry::{P2, P3, Plane, V2};
 use std::f64::consts::TAU;
@@ -20,19 +20,19 @@ fn perp(v: &V2) -> V2 {
 }
 
 /// The arc (or line) leaving `p` along unit tangent `t` and ending at `q`.
-pub(crate) fn arc_from_tangent(p: P2, t: V2, q: P2, z: f64) -> Elem {
+pub(crate) fn arc_from_tangent(p: P2, t: V2, q: P2, z: f64) -> Segment {
     let d = q - p;
     let n = perp(&t);
     let dn = d.dot(&n);
     // Nearly straight: a line is exact within 1e-12 of a radius-1e9 arc.
     if dn.abs() <= 1e-12 * d.norm_squared().max(1e-300).sqrt() || d.norm_squared() / (2.0 * dn.abs()) > 1e9 {
-        return Elem::line(lift(&p, z), lift(&q, z));
+        return Segment::line(lift(&p, z), lift(&q, z));
     }
     let rho = d.norm_squared() / (2.0 * dn);
     let c = p + n * rho;
     match Arc3::new(lift(&c, z), lift(&p, z), lift(&q, z), rho > 0.0, Plane::Xy, 0) {
-        Some(a) => Elem::Arc(a),
-        None => Elem::line(lift(&p, z), lift(&q, z)),
+        Some(a) => Segment::Arc(a),
+        None => Segment::line(lift(&p, z), lift(&q, z)),
     }
 }
 
@@ -66,7 +66,7 @@ pub fn parse_points(text: &str) -> Result<Vec<P2>, (usize, &'static str)> {
 
 /// Two arcs from `p0` (unit tangent `t0`) to `p1` (unit tangent `t1`),
 /// tangent to each other at their joint (the equal-parameter biarc).
-pub fn biarc(p0: P2, t0: V2, p1: P2, t1: V2, z: f64) -> Vec<Elem> {
+pub fn biarc(p0: P2, t0: V2, p1: P2, t1: V2, z: f64) -> Vec<Segment> {
     let v = p1 - p0;
     if v.norm() < 1e-12 {
         return Vec::new();
@@ -78,7 +78,7 @@ pub fn biarc(p0: P2, t0: V2, p1: P2, t1: V2, z: f64) -> Vec<Elem> {
         let vt1 = v.dot(&t1);
         if vt1.abs() < 1e-12 {
             // Tangents parallel and across the chord: no finite biarc.
-            return vec![Elem::line(lift(&p0, z), lift(&p1, z))];
+            return vec![Segment::line(lift(&p0, z), lift(&p1, z))];
         }
         v.norm_squared() / (4.0 * vt1)
     } else {
@@ -87,7 +87,7 @@ pub fn biarc(p0: P2, t0: V2, p1: P2, t1: V2, z: f64) -> Vec<Elem> {
     let j = P2::from((p0.coords + p1.coords + (t0 - t1) * d) * 0.5);
     let a = arc_from_tangent(p0, t0, j, z);
     // The joint's tangent is the first arc's end tangent.
-    let tj = a.dir_end().xy();
+    let tj = a.end_tangent().xy();
     let tj = if tj.norm() > 0.0 { tj.normalize() } else { v.normalize() };
     let b = arc_from_tangent(j, tj, p1, z);
     let mut out = Vec::with_capacity(2);
@@ -100,11 +100,11 @@ pub fn biarc(p0: P2, t0: V2, p1: P2, t1: V2, z: f64) -> Vec<Elem> {
 }
 
 /// Distance from `p` to a piece (XY).
-pub fn dist_to_elem(p: &P2, e: &Elem) -> f64 {
+pub fn dist_to_elem(p: &P2, e: &Segment) -> f64 {
     let q = P3::new(p.x, p.y, e.start().z);
     match e {
-        Elem::Line(l) => l.distance(&q),
-        Elem::Arc(a) => a.distance(&q).unwrap_or(f64::INFINITY),
+        Segment::Line(l) => l.distance(&q),
+        Segment::Arc(a) => a.distance(&q).unwrap_or(f64::INFINITY),
     }
 }
 
@@ -479,10 +479,10 @@ fn scramble_step(n: usize) -> usize {
 }
 
 /// A piece's XY bounding box, for [`Grid`].
-pub fn elem_box(e: &Elem) -> (P2, P2) {
+pub fn elem_box(e: &Segment) -> (P2, P2) {
     let b = match e {
-        Elem::Line(l) => l.bbox(),
-        Elem::Arc(a) => a.bbox(),
+        Segment::Line(l) => l.bbox(),
+        Segment::Arc(a) => a.bbox(),
     };
     (b.min.xy(), b.max.xy())
 }
@@ -512,13 +512,13 @@ enum Probe {
         full: bool,
         sweep: f64,
     },
-    Exact(Elem),
+    Exact(Segment),
 }
 
 impl Probe {
-    fn new(e: &Elem) -> Probe {
+    fn new(e: &Segment) -> Probe {
         match e {
-            Elem::Line(l) => {
+            Segment::Line(l) => {
                 let (a, b) = (l.start.xy(), l.end.xy());
                 Probe::Line {
                     a,
@@ -526,7 +526,7 @@ impl Probe {
                     l2: (b - a).norm_squared(),
                 }
             }
-            Elem::Arc(x) if x.plane == Plane::Xy && x.rise() == 0.0 && x.extra_turns == 0 => {
+            Segment::Arc(x) if x.plane == Plane::Xy && x.rise() == 0.0 && x.extra_turns == 0 => {
                 let (c, s, e) = (x.center.xy(), x.start.xy(), x.end.xy());
                 let sweep = x.sweep();
                 Probe::Arc {
@@ -608,7 +608,7 @@ fn all_within(probes: &[Probe], pts: &[P2], limit: f64) -> bool {
 
 /// Points along a piece, ends included, at most `spacing` apart (for
 /// [`Grid::traced`]).
-pub fn trace_elem(e: &Elem, spacing: f64) -> Vec<P2> {
+pub fn trace_elem(e: &Segment, spacing: f64) -> Vec<P2> {
     let len = e.length();
     let n = (len / spacing).ceil().clamp(1.0, f64::from(1u32 << 20)) as usize;
     (0..=n)
@@ -634,7 +634,7 @@ fn segment_dist(p: &P2, a: P2, b: P2) -> f64 {
 
 /// Largest distance from the points to the fit (points are the truth; the
 /// curve between them is unknown).
-pub fn point_deviation(fit: &[Elem], pts: &[P2]) -> f64 {
+pub fn point_deviation(fit: &[Segment], pts: &[P2]) -> f64 {
     let probes: Vec<Probe> = fit.iter().map(Probe::new).collect();
     let brute = |p: &P2| probes.iter().map(|q| q.dist(p)).fold(f64::INFINITY, f64::min);
     if fit.len() <= 16 || fit.len() * pts.len() <= BRUTE {
@@ -658,9 +658,9 @@ pub fn point_deviation(fit: &[Elem], pts: &[P2]) -> f64 {
 /// (`samples_per_piece` + 1 points a piece) against the polyline, and the
 /// polyline's vertices against the fit. Exact for those samples; the work
 /// is about one distance per sample on any input (see [`Grid::max_nearest`]).
-pub fn max_deviation(fit: &[Elem], pts: &[P2], samples_per_piece: usize) -> f64 {
+pub fn max_deviation(fit: &[Segment], pts: &[P2], samples_per_piece: usize) -> f64 {
     let n = samples_per_piece.max(1);
-    let lens: Vec<f64> = fit.iter().map(Elem::length).collect();
+    let lens: Vec<f64> = fit.iter().map(Segment::length).collect();
     let sample = |q: usize| {
         let (k, i) = (q / (n + 1), q % (n + 1));
         fit[k].point_at_length(lens[k] * i as f64 / n as f64).xy()
@@ -697,11 +697,11 @@ pub fn max_deviation(fit: &[Elem], pts: &[P2], samples_per_piece: usize) -> f64 
 /// sense, less than a turn together) or one line become one piece: a biarc
 /// between two points of a circle with the circle's tangents is two arcs of
 /// that circle.
-fn merge_pieces(pieces: Vec<Elem>, eps: f64) -> Vec<Elem> {
-    let mut out: Vec<Elem> = Vec::with_capacity(pieces.len());
+fn merge_pieces(pieces: Vec<Segment>, eps: f64) -> Vec<Segment> {
+    let mut out: Vec<Segment> = Vec::with_capacity(pieces.len());
     for e in pieces {
         let merged = match (out.last(), &e) {
-            (Some(Elem::Arc(a)), Elem::Arc(b))
+            (Some(Segment::Arc(a)), Segment::Arc(b))
                 if a.ccw == b.ccw
                     && a.plane == b.plane
                     && a.rise() == 0.0
@@ -713,12 +713,12 @@ fn merge_pieces(pieces: Vec<Elem>, eps: f64) -> Vec<Elem> {
                 let sweep = a.sweep().abs() + b.sweep().abs();
                 Arc3::new(a.center, a.start, b.end, a.ccw, a.plane, 0)
                     .filter(|m| sweep < TAU - 1e-6 && (m.sweep().abs() - sweep).abs() <= 1e-9)
-                    .map(Elem::Arc)
+                    .map(Segment::Arc)
             }
-            (Some(Elem::Line(a)), Elem::Line(b)) => {
+            (Some(Segment::Line(a)), Segment::Line(b)) => {
                 let (d, j) = (b.end - a.start, a.end - a.start);
                 let off = d.cross(&j).norm() / d.norm().max(1e-300);
-                (off <= eps && d.dot(&j) > 0.0 && (b.end - a.end).dot(&j) > 0.0).then(|| Elem::line(a.start, b.end))
+                (off <= eps && d.dot(&j) > 0.0 && (b.end - a.end).dot(&j) > 0.0).then(|| Segment::line(a.start, b.end))
             }
             _ => None,
         };
@@ -759,7 +759,7 @@ fn corners(pts: &[P2]) -> Vec<usize> {
 const SINGLE_ARC_CAPS: [f64; 4] = [0.0, 4.0, 8.0, 16.0];
 
 /// One tangent-continuous chain through `pts` (no corners inside).
-fn fit_chain(pts: &[P2], tol: f64, z: f64, polyline: bool, cap: f64, eps: f64) -> Vec<Elem> {
+fn fit_chain(pts: &[P2], tol: f64, z: f64, polyline: bool, cap: f64, eps: f64) -> Vec<Segment> {
     let tan = tangents(pts);
     // Quarter points of each interval on the cubic Hermite curve through
     // the points with their tangent estimates: where the smooth curve the
@@ -791,7 +791,7 @@ fn fit_chain(pts: &[P2], tol: f64, z: f64, polyline: bool, cap: f64, eps: f64) -
             Some(*acc)
         }))
         .collect();
-    let within = |f: &[Elem], i: usize, j: usize| {
+    let within = |f: &[Segment], i: usize, j: usize| {
         if polyline {
             return max_deviation(f, &pts[i..=j], 32) <= limit;
         }
@@ -799,7 +799,7 @@ fn fit_chain(pts: &[P2], tol: f64, z: f64, polyline: bool, cap: f64, eps: f64) -
         // points passes them. A fit of a curve the points sample is no
         // longer than their polyline, bar the sagitta terms: refuse one
         // that is longer by a tenth.
-        if f.iter().map(Elem::length).sum::<f64>() > 1.1 * (cum[j] - cum[i]) + 2.0 * tol {
+        if f.iter().map(Segment::length).sum::<f64>() > 1.1 * (cum[j] - cum[i]) + 2.0 * tol {
             return false;
         }
         let probes: Vec<Probe> = f.iter().map(Probe::new).collect();
@@ -807,7 +807,7 @@ fn fit_chain(pts: &[P2], tol: f64, z: f64, polyline: bool, cap: f64, eps: f64) -
     };
     // The longest span from i that `try_fit` accepts (i + 1 is always
     // taken, with `fallback` when nothing fits).
-    let longest = |i: usize, try_fit: &dyn Fn(usize) -> Option<Vec<Elem>>, fallback: Vec<Elem>| {
+    let longest = |i: usize, try_fit: &dyn Fn(usize) -> Option<Vec<Segment>>, fallback: Vec<Segment>| {
         let mut good = i + 1;
         let mut best = try_fit(good).unwrap_or(fallback);
         let mut step = 1;
@@ -854,7 +854,7 @@ fn fit_chain(pts: &[P2], tol: f64, z: f64, polyline: bool, cap: f64, eps: f64) -
         // on stays bounded).
         let one = |j: usize| {
             let e = arc_from_tangent(pts[i], t_in, pts[j], z);
-            let te = e.dir_end().xy();
+            let te = e.end_tangent().xy();
             let err = te.perp(&tan[j]).atan2(te.dot(&tan[j])).abs();
             let f = vec![e];
             (err <= cap * tol / (pts[j] - pts[i]).norm() && within(&f, i, j)).then_some(f)
@@ -867,11 +867,11 @@ fn fit_chain(pts: &[P2], tol: f64, z: f64, polyline: bool, cap: f64, eps: f64) -
         // metres; then the biarc that arrives along the chord (it turns
         // once, within about the chord) is taken when it is shorter.
         let next = if polyline {
-            vec![Elem::line(lift(&pts[i], z), lift(&pts[i + 1], z))]
+            vec![Segment::line(lift(&pts[i], z), lift(&pts[i + 1], z))]
         } else {
             let b = merge_pieces(biarc(pts[i], t_in, pts[i + 1], tan[i + 1], z), eps);
             let chord = (pts[i + 1] - pts[i]).norm();
-            let len = |f: &[Elem]| f.iter().map(Elem::length).sum::<f64>();
+            let len = |f: &[Segment]| f.iter().map(Segment::length).sum::<f64>();
             if len(&b) > 1.1 * chord + 2.0 * tol {
                 let c = merge_pieces(biarc(pts[i], t_in, pts[i + 1], (pts[i + 1] - pts[i]) / chord, z), eps);
                 if len(&c) < len(&b) { c } else { b }
@@ -893,7 +893,7 @@ fn fit_chain(pts: &[P2], tol: f64, z: f64, polyline: bool, cap: f64, eps: f64) -
             (jb, fb)
         };
         if let Some(e) = f.last() {
-            let d = e.dir_end().xy();
+            let d = e.end_tangent().xy();
             t_in = if d.norm() > 0.0 { d.normalize() } else { tan[j] };
         }
         out.extend(f);
@@ -915,7 +915,7 @@ fn fit_chain(pts: &[P2], tol: f64, z: f64, polyline: bool, cap: f64, eps: f64) -
 /// Several caps are tried (0: biarcs only) and the fit with the fewest
 /// blocks kept. Pieces on one circle are merged. Sharp corners in the points
 /// (see [`corners`]) are kept: the fit is tangent-continuous between them.
-pub fn fit_points(pts: &[P2], tol: f64, z: f64, polyline: bool) -> Vec<Elem> {
+pub fn fit_points(pts: &[P2], tol: f64, z: f64, polyline: bool) -> Vec<Segment> {
     let mut clean: Vec<P2> = Vec::with_capacity(pts.len());
     for p in pts {
         if clean.last().is_none_or(|q: &P2| (p - q).norm() > 1e-12) {
@@ -993,7 +993,7 @@ mod tests {
         }));
         let f = fit_points(&pts, 1e-4, 0.0, false);
         assert_eq!(f.len(), 2, "{f:?}");
-        assert!(matches!(f[0], Elem::Line(_)) && matches!(f[1], Elem::Arc(_)));
+        assert!(matches!(f[0], Segment::Line(_)) && matches!(f[1], Segment::Arc(_)));
         assert!((f[0].end().xy() - P2::origin()).norm() < 1e-12);
         // A coarse polygon of a circle turns evenly: no corners.
         assert!(corners(&circle_pts(1.0, 12, 1.0)).is_empty());
@@ -1011,8 +1011,8 @@ mod tests {
             let at = |a: f64| P3::new(c.x + r * a.cos(), c.y + r * a.sin(), 0.0);
             let ccw = k % 2 == 0;
             let end = if ccw { a0 + sweep } else { a0 - sweep };
-            fit.push(Elem::Arc(Arc3::new(c, at(a0), at(end), ccw, Plane::Xy, 0).unwrap()));
-            fit.push(Elem::line(at(end), P3::new(c.x - 1.0, c.y + 0.5, 0.0)));
+            fit.push(Segment::Arc(Arc3::new(c, at(a0), at(end), ccw, Plane::Xy, 0).unwrap()));
+            fit.push(Segment::line(at(end), P3::new(c.x - 1.0, c.y + 0.5, 0.0)));
         }
         let pts: Vec<P2> = (0..500)
             .map(|i| {
@@ -1065,10 +1065,10 @@ mod tests {
             let f = biarc(p0, u0, p1, u1, 0.0);
             assert!((f[0].start().xy() - p0).norm() < 1e-12);
             assert!((f.last().unwrap().end().xy() - p1).norm() < 1e-9);
-            assert!((f[0].dir_start().xy() - u0).norm() < 1e-9);
-            assert!((f.last().unwrap().dir_end().xy() - u1).norm() < 1e-6, "{t0} {t1}");
+            assert!((f[0].start_tangent().xy() - u0).norm() < 1e-9);
+            assert!((f.last().unwrap().end_tangent().xy() - u1).norm() < 1e-6, "{t0} {t1}");
             for w in f.windows(2) {
-                assert!(w[0].dir_end().dot(&w[1].dir_start()) > 1.0 - 1e-9);
+                assert!(w[0].end_tangent().dot(&w[1].start_tangent()) > 1.0 - 1e-9);
             }
         }
     }
@@ -1100,7 +1100,7 @@ mod tests {
             assert!(f.len() * 4 < pts.len(), "{} pieces for {} points", f.len(), pts.len());
             for w in f.windows(2) {
                 assert!((w[0].end() - w[1].start()).norm() < 1e-9);
-                assert!(w[0].dir_end().dot(&w[1].dir_start()) > (0.5f64).to_radians().cos());
+                assert!(w[0].end_tangent().dot(&w[1].start_tangent()) > (0.5f64).to_radians().cos());
             }
         }
     }

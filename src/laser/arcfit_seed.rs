@@ -21,7 +21,7 @@
 //! from curvature runs and how many from those splits.
 
 use super::arcfit::dist_to_elem;
-use super::elem::Elem;
+use crate::geometry::Segment;
 use crate::geometry::arc::Arc3;
 use crate::geometry::{P2, P3, Plane, V2};
 
@@ -205,10 +205,10 @@ fn lift(p: &P2, z: f64) -> P3 {
 
 /// The arc from `a` through `m` to `b`, or the line `a`–`b` when the three
 /// are collinear (radius beyond 1e9 mm).
-fn three_point_piece(a: P2, m: P2, b: P2, z: f64) -> Elem {
+fn three_point_piece(a: P2, m: P2, b: P2, z: f64) -> Segment {
     match Arc3::from_three_points(&lift(&a, z), &lift(&m, z), &lift(&b, z), Plane::Xy) {
-        Some(arc) if arc.radius() <= 1e9 => Elem::Arc(arc),
-        _ => Elem::line(lift(&a, z), lift(&b, z)),
+        Some(arc) if arc.radius() <= 1e9 => Segment::Arc(arc),
+        _ => Segment::line(lift(&a, z), lift(&b, z)),
     }
 }
 
@@ -220,7 +220,7 @@ struct Fitter<'a> {
     steps: usize,
     params: SeedParams,
     stats: SeedStats,
-    out: Vec<Elem>,
+    out: Vec<Segment>,
 }
 
 impl Fitter<'_> {
@@ -234,7 +234,7 @@ impl Fitter<'_> {
 
     /// Largest distance from the piece to the spline over `(ua, ub)`: every
     /// knot inside, up to 1024 of the walk's steps, and 16 even samples.
-    fn deviation(&self, e: &Elem, ua: f64, ub: f64) -> f64 {
+    fn deviation(&self, e: &Segment, ua: f64, ub: f64) -> f64 {
         let sp = self.sp;
         let mut worst: f64 = 0.0;
         let k0 = sp.s.partition_point(|&k| k <= ua);
@@ -285,12 +285,12 @@ impl Fitter<'_> {
 /// [`SeedParams`]: lines and arcs through the points, each within `tol`
 /// (mm) of the interpolating spline and of every input point, end points
 /// exact, consecutive pieces sharing end points.
-pub fn fit_curvature_matching(points: &[P2], tol: f64, z: f64) -> Vec<Elem> {
+pub fn fit_curvature_matching(points: &[P2], tol: f64, z: f64) -> Vec<Segment> {
     fit_curvature_matching_with(points, tol, z, &SeedParams::default()).0
 }
 
 /// [`fit_curvature_matching`] with explicit knobs and statistics.
-pub fn fit_curvature_matching_with(points: &[P2], tol: f64, z: f64, params: &SeedParams) -> (Vec<Elem>, SeedStats) {
+pub fn fit_curvature_matching_with(points: &[P2], tol: f64, z: f64, params: &SeedParams) -> (Vec<Segment>, SeedStats) {
     let mut pts: Vec<P2> = Vec::with_capacity(points.len());
     for p in points.iter().filter(|p| p.x.is_finite() && p.y.is_finite()) {
         if pts.last().is_none_or(|q: &P2| (p - q).norm() > 1e-12) {
@@ -305,7 +305,7 @@ pub fn fit_curvature_matching_with(points: &[P2], tol: f64, z: f64, params: &See
         // No usable tolerance: the polyline is the only exact answer.
         let lines = pts
             .windows(2)
-            .map(|w| Elem::line(lift(&w[0], z), lift(&w[1], z)))
+            .map(|w| Segment::line(lift(&w[0], z), lift(&w[1], z)))
             .collect();
         return (lines, stats);
     }
@@ -368,14 +368,14 @@ mod tests {
 
     /// Largest distance from `n` samples per piece to the true curve, given
     /// as a distance function.
-    fn dense_dev(fit: &[Elem], n: usize, dist: impl Fn(P2) -> f64) -> f64 {
+    fn dense_dev(fit: &[Segment], n: usize, dist: impl Fn(P2) -> f64) -> f64 {
         fit.iter()
             .flat_map(|e| (0..=n).map(move |k| e.point_at_length(e.length() * k as f64 / n as f64).xy()))
             .map(dist)
             .fold(0.0, f64::max)
     }
 
-    fn check_path(fit: &[Elem], pts: &[P2]) {
+    fn check_path(fit: &[Segment], pts: &[P2]) {
         assert!(!fit.is_empty());
         assert!((fit[0].start().xy() - pts[0]).norm() == 0.0, "start not exact");
         assert!(
@@ -486,10 +486,10 @@ mod tests {
         };
         let (f, st) = fit_curvature_matching_with(&pts, 1e-2, 0.0, &raw);
         assert_eq!(st.runs, 1);
-        assert!(f.len() <= 2 && f.iter().all(|e| matches!(e, Elem::Arc(_))));
+        assert!(f.len() <= 2 && f.iter().all(|e| matches!(e, Segment::Arc(_))));
         let sweep: f64 = f
             .iter()
-            .map(|e| if let Elem::Arc(a) = e { a.sweep().abs() } else { 0.0 })
+            .map(|e| if let Segment::Arc(a) = e { a.sweep().abs() } else { 0.0 })
             .sum();
         assert!((sweep - TAU).abs() < 1e-6, "{sweep}");
     }
@@ -514,7 +514,7 @@ mod tests {
         ];
         let f = fit_curvature_matching(&col, 1e-4, 0.0);
         check_path(&f, &col);
-        assert!(f.iter().all(|e| matches!(e, Elem::Line(_))), "{f:?}");
+        assert!(f.iter().all(|e| matches!(e, Segment::Line(_))), "{f:?}");
         assert!(point_deviation(&f, &col) <= 1e-4);
         // Three points, a hairpin, NaNs and a useless tolerance.
         let three = [p(0.0, 0.0), p(1.0, 1.0), p(2.0, 0.0)];

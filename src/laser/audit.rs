@@ -9,10 +9,9 @@
 //! (`M33==`) on a block acts where that blend starts; a look-ahead
 //! controller acts at the boundary.
 
-use super::elem::Elem;
 use super::setup::LaserSetup;
 use crate::geometry::P3;
-use crate::geometry::arc::Arc3;
+use crate::geometry::Segment;
 use crate::machine::Controller;
 use crate::model::toolpath::{Motion, MotionKind, Record, Role};
 use std::collections::BTreeMap;
@@ -158,14 +157,10 @@ impl PmacTa {
 
 /// The path a feed move draws from `pos` (a degenerate arc as its chord);
 /// `None` for a rapid.
-pub fn feed_elem(pos: P3, mv: &Motion) -> Option<Elem> {
+pub fn feed_elem(pos: P3, mv: &Motion) -> Option<Segment> {
     match mv.kind {
         MotionKind::Rapid => None,
-        MotionKind::Line => Some(Elem::line(pos, mv.to)),
-        MotionKind::Arc(d) => Some(match Arc3::new(d.center, pos, mv.to, d.ccw, d.plane, d.extra_turns) {
-            Some(arc) => Elem::Arc(arc),
-            None => Elem::line(pos, mv.to),
-        }),
+        _ => Some(mv.segment(pos)),
     }
 }
 
@@ -234,7 +229,7 @@ pub fn audit(records: &[Record], m: &LaserSetup, start: P3) -> Audit {
             a.off_feed_moves += 1;
         }
         if let Some(pd) = prev_dir
-            && pd.dot(&elem.dir_start()) < cos_tol
+            && pd.dot(&elem.start_tangent()) < cos_tol
         {
             a.corners_at_speed += 1;
         }
@@ -278,7 +273,7 @@ pub fn audit(records: &[Record], m: &LaserSetup, start: P3) -> Audit {
         s += len;
         g += len;
         pos = mv.to;
-        prev_dir = Some(elem.dir_end());
+        prev_dir = Some(elem.end_tangent());
         blended = true;
         acc_last = acc;
     }

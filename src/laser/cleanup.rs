@@ -31,7 +31,7 @@
 //! no candidate removes within the tolerance are left and counted.
 
 use super::arcfit::{arc_from_tangent, biarc, dist_to_elem};
-use super::elem::Elem;
+use crate::geometry::Segment;
 use crate::geometry::{P2, P3, Plane};
 
 /// What the cleanup does: pieces shorter than `min_len` (mm) are removed
@@ -73,35 +73,35 @@ const SAMPLES: usize = 16;
 /// A piece and the deviation it already carries from the path as given.
 #[derive(Debug, Clone, Copy)]
 struct Item {
-    e: Elem,
+    e: Segment,
     err: f64,
 }
 
 /// Whether the piece lies in one XY plane at height `z` (cleanup works in
 /// XY; anything else is left as it is).
-fn flat(e: &Elem, z: f64) -> bool {
+fn flat(e: &Segment, z: f64) -> bool {
     let level = e.start().z == z && e.end().z == z;
     match e {
-        Elem::Line(_) => level,
-        Elem::Arc(a) => level && a.plane == Plane::Xy && a.extra_turns == 0 && a.rise() == 0.0,
+        Segment::Line(_) => level,
+        Segment::Arc(a) => level && a.plane == Plane::Xy && a.extra_turns == 0 && a.rise() == 0.0,
     }
 }
 
 /// `e` with its end moved to `p`: a line, or an arc leaving along `e`'s
 /// start tangent (so a tangent joint before it stays tangent).
-fn retarget_end(e: &Elem, p: P3) -> Elem {
+fn retarget_end(e: &Segment, p: P3) -> Segment {
     match e {
-        Elem::Line(l) => Elem::line(l.start, p),
-        Elem::Arc(a) => arc_from_tangent(a.start.xy(), e.dir_start().xy(), p.xy(), a.start.z),
+        Segment::Line(l) => Segment::line(l.start, p),
+        Segment::Arc(a) => arc_from_tangent(a.start.xy(), e.start_tangent().xy(), p.xy(), a.start.z),
     }
 }
 
 /// `e` with its start moved to `p` (the mirror of [`retarget_end`]).
-fn retarget_start(e: &Elem, p: P3) -> Elem {
+fn retarget_start(e: &Segment, p: P3) -> Segment {
     retarget_end(&e.reversed(), p).reversed()
 }
 
-fn samples(es: &[Elem]) -> impl Iterator<Item = P2> + '_ {
+fn samples(es: &[Segment]) -> impl Iterator<Item = P2> + '_ {
     es.iter().flat_map(|e| {
         let len = e.length();
         (0..=SAMPLES).map(move |k| e.point_at_length(len * k as f64 / SAMPLES as f64).xy())
@@ -110,8 +110,8 @@ fn samples(es: &[Elem]) -> impl Iterator<Item = P2> + '_ {
 
 /// Hausdorff distance (sampled) between two runs of pieces with the same
 /// ends.
-fn deviation(old: &[Elem], new: &[Elem]) -> f64 {
-    let near = |p: P2, to: &[Elem]| to.iter().map(|e| dist_to_elem(&p, e)).fold(f64::INFINITY, f64::min);
+fn deviation(old: &[Segment], new: &[Segment]) -> f64 {
+    let near = |p: P2, to: &[Segment]| to.iter().map(|e| dist_to_elem(&p, e)).fold(f64::INFINITY, f64::min);
     let a = samples(old).map(|p| near(p, new)).fold(0.0, f64::max);
     let b = samples(new).map(|p| near(p, old)).fold(0.0, f64::max);
     a.max(b)
@@ -119,9 +119,9 @@ fn deviation(old: &[Elem], new: &[Elem]) -> f64 {
 
 /// Where the lines through `a` (its end tangent) and `b` (its start
 /// tangent) meet, if they do.
-fn meet(a: &Elem, b: &Elem) -> Option<P3> {
-    let (p, u) = (a.end().xy(), a.dir_end().xy());
-    let (q, v) = (b.start().xy(), b.dir_start().xy());
+fn meet(a: &Segment, b: &Segment) -> Option<P3> {
+    let (p, u) = (a.end().xy(), a.end_tangent().xy());
+    let (q, v) = (b.start().xy(), b.start_tangent().xy());
     let den = u.perp(&v);
     if den.abs() < 1e-9 {
         return None;
@@ -133,7 +133,7 @@ fn meet(a: &Elem, b: &Elem) -> Option<P3> {
 
 /// The replacements for `old` (2 or 3 pieces, the short one at `s`), best
 /// first is chosen by the caller.
-fn candidates(old: &[Elem], s: usize) -> Vec<(usize, usize, Vec<Elem>)> {
+fn candidates(old: &[Segment], s: usize) -> Vec<(usize, usize, Vec<Segment>)> {
     // (first old index replaced, count replaced, new pieces)
     let mut out = Vec::new();
     let sh = old[s];
@@ -150,15 +150,15 @@ fn candidates(old: &[Elem], s: usize) -> Vec<(usize, usize, Vec<Elem>)> {
         let z = a.start().z;
         let p0 = a.start().xy();
         let p1 = b.end().xy();
-        let (t0, t1) = (a.dir_start().xy(), b.dir_end().xy());
+        let (t0, t1) = (a.start_tangent().xy(), b.end_tangent().xy());
         if t0.norm() > 0.0 && t1.norm() > 0.0 {
             let f = biarc(p0, t0.normalize(), p1, t1.normalize(), z);
             if !f.is_empty() {
                 out.push((s - 1, 3, f));
             }
         }
-        if let (Elem::Line(_), Elem::Line(_)) = (a, b) {
-            out.push((s - 1, 3, vec![Elem::line(a.start(), b.end())]));
+        if let (Segment::Line(_), Segment::Line(_)) = (a, b) {
+            out.push((s - 1, 3, vec![Segment::line(a.start(), b.end())]));
         }
         let mid = sh.point_at_length(0.5 * sh.length());
         for m in [Some(mid), meet(&a, &b)].into_iter().flatten() {
@@ -177,9 +177,9 @@ fn fix(items: &mut Vec<Item>, s: usize, o: &CleanOptions) -> bool {
     if !items[lo..hi].iter().all(|it| flat(&it.e, z)) {
         return false;
     }
-    let old: Vec<Elem> = items[lo..hi].iter().map(|it| it.e).collect();
+    let old: Vec<Segment> = items[lo..hi].iter().map(|it| it.e).collect();
     let short_len = items[s].e.length();
-    let mut best: Option<(f64, usize, usize, Vec<Elem>)> = None;
+    let mut best: Option<(f64, usize, usize, Vec<Segment>)> = None;
     for (first, count, new) in candidates(&old, s - lo) {
         // Joined ends stay where they were.
         let (Some(n0), Some(n1)) = (new.first(), new.last()) else {
@@ -216,8 +216,8 @@ fn fix(items: &mut Vec<Item>, s: usize, o: &CleanOptions) -> bool {
 }
 
 /// Clean one path (continuous; `closed` when it ends where it starts).
-pub fn clean_path(path: Vec<Elem>, closed: bool, o: &CleanOptions) -> (Vec<Elem>, CleanStats) {
-    let short = |e: &Elem| e.length() < o.min_len;
+pub fn clean_path(path: Vec<Segment>, closed: bool, o: &CleanOptions) -> (Vec<Segment>, CleanStats) {
+    let short = |e: &Segment| e.length() < o.min_len;
     let mut st = CleanStats {
         short: path.iter().filter(|e| short(e)).count(),
         pieces_in: path.len(),
@@ -272,13 +272,13 @@ mod tests {
     use super::*;
     use crate::geometry::V3;
 
-    fn poly(pts: &[(f64, f64)]) -> Vec<Elem> {
+    fn poly(pts: &[(f64, f64)]) -> Vec<Segment> {
         pts.windows(2)
-            .map(|w| Elem::line(P3::new(w[0].0, w[0].1, 0.0), P3::new(w[1].0, w[1].1, 0.0)))
+            .map(|w| Segment::line(P3::new(w[0].0, w[0].1, 0.0), P3::new(w[1].0, w[1].1, 0.0)))
             .collect()
     }
 
-    fn continuous(p: &[Elem]) {
+    fn continuous(p: &[Segment]) {
         for w in p.windows(2) {
             assert_eq!(w[0].end(), w[1].start());
         }
@@ -299,10 +299,10 @@ mod tests {
         let l2 = l1 + V3::new(d.cos(), d.sin(), 0.0) * 8e-6;
         let e = l2 + V3::new(d.cos(), d.sin(), 0.0) * 0.1;
         let path = vec![
-            Elem::line(a, m),
-            Elem::line(m, l1),
-            Elem::line(l1, l2),
-            Elem::line(l2, e),
+            Segment::line(a, m),
+            Segment::line(m, l1),
+            Segment::line(l1, l2),
+            Segment::line(l2, e),
         ];
         let (out, st) = clean_path(path, false, &O);
         continuous(&out);
@@ -341,13 +341,13 @@ mod tests {
         let r = 1.0;
         let n = 50;
         let at = |a: f64| P3::new(r * a.cos(), r * a.sin(), 0.0);
-        let mut path = vec![Elem::line(P3::new(1.0, -0.5, 0.0), at(0.0))];
+        let mut path = vec![Segment::line(P3::new(1.0, -0.5, 0.0), at(0.0))];
         for k in 0..n {
-            path.push(Elem::line(at(k as f64 * 1e-3), at((k + 1) as f64 * 1e-3)));
+            path.push(Segment::line(at(k as f64 * 1e-3), at((k + 1) as f64 * 1e-3)));
         }
         let end = at(n as f64 * 1e-3);
         let t = V3::new(-end.y, end.x, 0.0);
-        path.push(Elem::line(end, end + t * 0.5));
+        path.push(Segment::line(end, end + t * 0.5));
         let (out, st) = clean_path(path, false, &O);
         continuous(&out);
         assert_eq!(st.short, n);

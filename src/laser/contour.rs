@@ -1,11 +1,11 @@
 //! `pathgen contour`: chains -> offset paths -> ordered, planned moves.
 
 use super::cleanup::{CleanOptions, CleanStats, clean_path};
-use super::elem::Elem;
 use super::offset::{Side, offset_chain, to_polyline};
 use super::order;
 use super::plan::{Note, plan_path, to_records};
 use super::setup::LaserSetup;
+use crate::geometry::Segment;
 use crate::geometry::{P2, P3, V3};
 use crate::model::chain::Chain;
 use crate::model::toolpath::Record;
@@ -91,24 +91,9 @@ pub struct Job {
     pub cleanup: CleanStats,
 }
 
-/// Signed area enclosed by a closed path (positive counter-clockwise):
-/// shoelace over the chords plus each arc's circular segment.
-pub fn signed_area(path: &[Elem]) -> f64 {
-    let mut a = 0.0;
-    for e in path {
-        let (p, q) = (e.start(), e.end());
-        a += 0.5 * (p.x * q.y - q.x * p.y);
-        if let Elem::Arc(arc) = e {
-            let th = arc.sweep().abs();
-            let r = arc.radius();
-            let seg = 0.5 * r * r * (th - th.sin());
-            a += if arc.ccw { seg } else { -seg };
-        }
-    }
-    a
-}
+pub use crate::geometry::segment::signed_area;
 
-fn reverse_path(path: &mut [Elem]) {
+fn reverse_path(path: &mut [Segment]) {
     path.reverse();
     for e in path.iter_mut() {
         *e = e.reversed();
@@ -116,7 +101,7 @@ fn reverse_path(path: &mut [Elem]) {
 }
 
 /// Rotate a closed path to start at its vertex nearest `q`.
-fn start_near(path: &mut [Elem], q: &P2) {
+fn start_near(path: &mut [Segment], q: &P2) {
     let best = (0..path.len()).min_by(|&a, &b| {
         let da = (path[a].start().xy() - q).norm();
         let db = (path[b].start().xy() - q).norm();
@@ -130,9 +115,9 @@ fn start_near(path: &mut [Elem], q: &P2) {
 /// Rotate a closed path to start at its first non-tangent joint, so the
 /// seam (lead-out then lead-in) falls on a corner: that saves a loop there
 /// and never leaves a stub shorter than the minimum exposure before it.
-fn start_at_corner(path: &mut [Elem], cos_tol: f64) {
+fn start_at_corner(path: &mut [Segment], cos_tol: f64) {
     let n = path.len();
-    let k = (0..n).find(|&i| path[(i + n - 1) % n].dir_end().dot(&path[i].dir_start()) < cos_tol);
+    let k = (0..n).find(|&i| path[(i + n - 1) % n].end_tangent().dot(&path[i].start_tangent()) < cos_tol);
     if let Some(k) = k {
         path.rotate_left(k);
     }
@@ -140,7 +125,7 @@ fn start_at_corner(path: &mut [Elem], cos_tol: f64) {
 
 struct Item {
     chain: u64,
-    path: Vec<Elem>,
+    path: Vec<Segment>,
     /// Index of the outermost closed chain containing this one (itself if none).
     root: usize,
     /// How many closed chains contain this one.
@@ -250,7 +235,7 @@ pub fn contour(chains: &[Chain], m: &LaserSetup, o: &ContourOptions) -> Job {
 /// the other side), cleaned of pieces shorter than the machine's least
 /// block, in the travel sense asked for. Tests and reports use this to
 /// know what must be cut.
-pub fn cut_paths(chains: &[Chain], m: &LaserSetup, o: &ContourOptions) -> Vec<(Vec<Vec<Elem>>, CleanStats)> {
+pub fn cut_paths(chains: &[Chain], m: &LaserSetup, o: &ContourOptions) -> Vec<(Vec<Vec<Segment>>, CleanStats)> {
     let nest = nesting(chains);
     chains
         .par_iter()
@@ -268,7 +253,7 @@ fn chain_paths(
     depth: usize,
     m: &LaserSetup,
     o: &ContourOptions,
-) -> (Vec<Vec<Elem>>, CleanStats, Option<Warning>) {
+) -> (Vec<Vec<Segment>>, CleanStats, Option<Warning>) {
     // Inside/outside are relative to the part: a hole (a chain inside
     // an odd number of others) is material's outside, so swap.
     let side = match (o.side, depth % 2 == 1) {
@@ -321,7 +306,7 @@ fn prepare(
     o: &ContourOptions,
 ) -> (Vec<Item>, Vec<(usize, V3)>, Vec<Warning>, CleanStats) {
     let nest = nesting(chains);
-    let per_chain: Vec<(Vec<Vec<Elem>>, CleanStats, Option<Warning>)> = chains
+    let per_chain: Vec<(Vec<Vec<Segment>>, CleanStats, Option<Warning>)> = chains
         .par_iter()
         .zip(&nest)
         .map(|(c, &(_, depth))| chain_paths(c, depth, m, o))
@@ -373,7 +358,7 @@ fn plan_in_chunks(
         let planned: Vec<(Vec<Record>, Vec<Note>)> = part
             .par_iter()
             .map(|&(it, d)| {
-                let path: Vec<Elem> = items[it].path.iter().map(|e| e.translated(d)).collect();
+                let path: Vec<Segment> = items[it].path.iter().map(|e| e.translated(d)).collect();
                 let mut notes = Vec::new();
                 let pieces = plan_path(&path, m, &mut notes);
                 let mut recs = Vec::with_capacity(pieces.len() + 1);

@@ -5,7 +5,8 @@
 //! V²/a, from the corner with the incoming heading back to the corner with
 //! the outgoing heading.
 
-use super::elem::{Elem, MIN_PIECE};
+use super::elem::MIN_PIECE;
+use crate::geometry::Segment;
 use crate::geometry::arc::Arc3;
 use crate::geometry::{P2, P3, Plane, V2};
 use std::f64::consts::TAU;
@@ -153,7 +154,7 @@ pub fn shortest_where(p0: P2, h0: f64, p1: P2, h1: f64, r: f64, accept: impl Fn(
 /// Walk a Dubins path from `p0`/`h0` and return its pieces in `plane` at the
 /// normal coordinate `nz`. The last point is snapped to `goal`, so chained
 /// pieces meet exactly.
-pub fn to_elems(dp: &Dubins, p0: P2, h0: f64, goal: P2, plane: Plane, nz: f64) -> Vec<Elem> {
+pub fn to_elems(dp: &Dubins, p0: P2, h0: f64, goal: P2, plane: Plane, nz: f64) -> Vec<Segment> {
     let r = dp.radius;
     let mut pos = p0;
     let mut h = h0;
@@ -179,7 +180,7 @@ pub fn to_elems(dp: &Dubins, p0: P2, h0: f64, goal: P2, plane: Plane, nz: f64) -
         if len > MIN_PIECE {
             let (a, b) = (lift(&pos), lift(&next));
             match c {
-                b'S' => out.push(Elem::line(a, b)),
+                b'S' => out.push(Segment::line(a, b)),
                 b'L' | b'R' => {
                     let left = c == b'L';
                     let ctr = if left {
@@ -190,7 +191,7 @@ pub fn to_elems(dp: &Dubins, p0: P2, h0: f64, goal: P2, plane: Plane, nz: f64) -
                     // A turn of (nearly) a full circle has start == end; Arc3
                     // reads that as the full turn, which is what it is.
                     if let Some(arc) = Arc3::new(lift(&ctr), a, b, left, plane, 0) {
-                        out.push(Elem::Arc(arc));
+                        out.push(Segment::Arc(arc));
                     }
                 }
                 _ => unreachable!("Dubins words hold only L, S and R"),
@@ -207,7 +208,7 @@ pub fn to_elems(dp: &Dubins, p0: P2, h0: f64, goal: P2, plane: Plane, nz: f64) -
 /// at least `min_len` long (so the shutter has time to close and reopen),
 /// with no piece shorter than `min_piece` and a last piece of at least
 /// `tail` (see [`connect`]).
-pub fn corner_loop(corner: P3, din: V2, dout: V2, r: f64, shape: Shape, plane: Plane) -> Option<Vec<Elem>> {
+pub fn corner_loop(corner: P3, din: V2, dout: V2, r: f64, shape: Shape, plane: Plane) -> Option<Vec<Segment>> {
     connect(corner, din, corner, dout, r, shape, plane)
 }
 
@@ -239,7 +240,7 @@ const SLIVER_TRIES: usize = 64;
 /// `min_piece` until one does. The last piece is at least `shape.tail`
 /// long (room for the shutter's open command): the path's own last turn
 /// when it is long enough, else an end straight of that length.
-pub fn connect(from: P3, din: V2, to: P3, dout: V2, r: f64, shape: Shape, plane: Plane) -> Option<Vec<Elem>> {
+pub fn connect(from: P3, din: V2, to: P3, dout: V2, r: f64, shape: Shape, plane: Plane) -> Option<Vec<Segment>> {
     let Shape {
         min_len,
         min_piece,
@@ -359,7 +360,7 @@ pub fn connect(from: P3, din: V2, to: P3, dout: V2, r: f64, shape: Shape, plane:
     let g2 = if ext1 { b2 - u1 * end_ext(e) } else { b2 };
     let mut out = Vec::with_capacity(5);
     if ext0 {
-        out.push(Elem::line(from, plane.lift(&s2, nz)));
+        out.push(Segment::line(from, plane.lift(&s2, nz)));
     }
     let mut mid = to_elems(&dp, s2, h0, g2, plane, nz);
     // Snap unextended ends exactly onto the given points.
@@ -371,7 +372,7 @@ pub fn connect(from: P3, din: V2, to: P3, dout: V2, r: f64, shape: Shape, plane:
     }
     out.append(&mut mid);
     if ext1 {
-        out.push(Elem::line(plane.lift(&g2, nz), to));
+        out.push(Segment::line(plane.lift(&g2, nz), to));
     }
     Some(out)
 }
@@ -428,18 +429,18 @@ mod tests {
             let els = corner_loop(corner, V2::new(hin.cos(), hin.sin()), V2::new(hout.cos(), hout.sin()), r, shape, Plane::Xy).unwrap();
             prop_assert_eq!(els.first().unwrap().start(), corner);
             prop_assert!((els.last().unwrap().end() - corner).norm() < 1e-9);
-            let d0 = els[0].dir_start();
+            let d0 = els[0].start_tangent();
             prop_assert!((d0.x - hin.cos()).abs() < 1e-9 && (d0.y - hin.sin()).abs() < 1e-9);
-            let d1 = els.last().unwrap().dir_end();
+            let d1 = els.last().unwrap().end_tangent();
             prop_assert!((d1.x - hout.cos()).abs() < 1e-6 && (d1.y - hout.sin()).abs() < 1e-6, "{d1:?} vs {hout}");
             for w in els.windows(2) {
                 prop_assert!((w[0].end() - w[1].start()).norm() < 1e-9);
-                prop_assert!(w[0].dir_end().dot(&w[1].dir_start()) > 1.0 - 1e-9, "loop not tangent-continuous");
+                prop_assert!(w[0].end_tangent().dot(&w[1].start_tangent()) > 1.0 - 1e-9, "loop not tangent-continuous");
             }
             for e in &els {
                 prop_assert!(e.curvature_radius() >= r - 1e-9);
             }
-            let len: f64 = els.iter().map(Elem::length).sum();
+            let len: f64 = els.iter().map(Segment::length).sum();
             prop_assert!(len >= min_len - 1e-9);
             for e in &els {
                 prop_assert!(e.length() >= 0.002 - 1e-9, "a sliver of {} mm", e.length());

@@ -33,7 +33,6 @@
 
 use super::contour::{Job, Warning};
 use super::dubins::connect;
-use super::elem::Elem;
 use super::offset::{continue_line, from_polyline, join_closed_ends, to_polyline};
 use super::order;
 use super::plan::{Note, Tagged, plan_tagged, ramps_record, to_records};
@@ -156,14 +155,7 @@ fn offset_options() -> ShapeOffsetOptions<f64> {
 }
 
 fn finite_chain(c: &Chain) -> bool {
-    c.segments.iter().all(|s| match s {
-        Segment::Line { start, end } => start.iter().chain(end.iter()).all(|v| v.is_finite()),
-        Segment::Arc { start, end, center, .. } => start
-            .iter()
-            .chain(end.iter())
-            .chain(center.iter())
-            .all(|v| v.is_finite()),
-    })
+    c.segments.iter().all(Segment::is_finite)
 }
 
 /// Check the options, nest the chains into regions, order them and
@@ -402,21 +394,21 @@ fn boundary_distance(r: &Region, p: P2, reach: f64) -> f64 {
 /// stay at least `d` from the boundary; any other tight arc becomes chords
 /// within `sag` of it (on its concave side). The corners so made are looped
 /// with the beam off by the planner.
-fn fix_tight_arcs(path: Vec<Elem>, r: &Region, d: f64, rmin: f64, sag: f64) -> Vec<Elem> {
+fn fix_tight_arcs(path: Vec<Segment>, r: &Region, d: f64, rmin: f64, sag: f64) -> Vec<Segment> {
     const MAX_MITER_SWEEP: f64 = 150.0 * std::f64::consts::PI / 180.0;
     let tol = 1e-9 * (1.0 + d);
-    let mut out: Vec<Elem> = Vec::with_capacity(path.len() + 4);
-    let push = |out: &mut Vec<Elem>, e: Elem| match out.last().and_then(|prev| continue_line(prev, &e)) {
+    let mut out: Vec<Segment> = Vec::with_capacity(path.len() + 4);
+    let push = |out: &mut Vec<Segment>, e: Segment| match out.last().and_then(|prev| continue_line(prev, &e)) {
         Some(joined) => *out.last_mut().expect("checked above") = joined,
         None => out.push(e),
     };
-    let polyline = |out: &mut Vec<Elem>, pts: Vec<P3>| {
+    let polyline = |out: &mut Vec<Segment>, pts: Vec<P3>| {
         for w in pts.windows(2) {
-            push(out, Elem::line(w[0], w[1]));
+            push(out, Segment::line(w[0], w[1]));
         }
     };
     for e in path {
-        let Elem::Arc(arc) = e else {
+        let Segment::Arc(arc) = e else {
             push(&mut out, e);
             continue;
         };
@@ -429,7 +421,7 @@ fn fix_tight_arcs(path: Vec<Elem>, r: &Region, d: f64, rmin: f64, sag: f64) -> V
         let sweep = arc.sweep().abs();
         let join = (rad - d).abs() <= tol && boundary_distance(r, arc.center.xy(), 1e-6 + tol) <= tol;
         if join {
-            let (ta, tb) = (e.dir_start(), e.dir_end());
+            let (ta, tb) = (e.start_tangent(), e.end_tangent());
             let pts: Vec<P3> = if sweep <= MAX_MITER_SWEEP {
                 vec![a + ta * (d * (0.5 * sweep).tan())]
             } else {
@@ -459,7 +451,7 @@ fn fix_tight_arcs(path: Vec<Elem>, r: &Region, d: f64, rmin: f64, sag: f64) -> V
 
 /// The closed rings of the region's offset at `d` (outer rings first),
 /// as path pieces at the region's Z, tight arcs made followable.
-fn rings_at(r: &Region, d: f64, f: &Fix) -> Vec<Vec<Elem>> {
+fn rings_at(r: &Region, d: f64, f: &Fix) -> Vec<Vec<Segment>> {
     let sh = r.shape.parallel_offset(d, &offset_options());
     if sh.ccw_plines.is_empty() {
         return Vec::new();
@@ -469,7 +461,7 @@ fn rings_at(r: &Region, d: f64, f: &Fix) -> Vec<Vec<Elem>> {
         .chain(&sh.cw_plines)
         .map(|ip| {
             let mut p = fix_tight_arcs(from_polyline(&ip.polyline, r.z), r, d, f.rmin, f.sag);
-            if let (Some(s), Some(last)) = (p.first().map(Elem::start), p.last_mut()) {
+            if let (Some(s), Some(last)) = (p.first().map(Segment::start), p.last_mut()) {
                 last.set_end(s);
             }
             p
@@ -479,7 +471,7 @@ fn rings_at(r: &Region, d: f64, f: &Fix) -> Vec<Vec<Elem>> {
 }
 
 /// Rotate a closed ring to start at its vertex nearest `q`.
-fn start_near(path: &mut [Elem], q: P2) {
+fn start_near(path: &mut [Segment], q: P2) {
     let best = (0..path.len()).min_by(|&a, &b| {
         let da = (path[a].start().xy() - q).norm();
         let db = (path[b].start().xy() - q).norm();
@@ -493,7 +485,7 @@ fn start_near(path: &mut [Elem], q: P2) {
 /// Offset passes: rings at the beam radius, then one stepover further in
 /// each pass until the region is used up; within a pass the ring nearest
 /// to where the last one ended comes next.
-fn offset_runs(r: &Region, o: &FillOptions, f: &Fix) -> Vec<Vec<Elem>> {
+fn offset_runs(r: &Region, o: &FillOptions, f: &Fix) -> Vec<Vec<Segment>> {
     let mut runs = Vec::new();
     let mut here = first_vertex(r).unwrap_or(r.lo);
     for k in 0u64.. {
@@ -503,7 +495,7 @@ fn offset_runs(r: &Region, o: &FillOptions, f: &Fix) -> Vec<Vec<Elem>> {
             break;
         }
         while !rings.is_empty() {
-            let dist = |p: &Vec<Elem>| {
+            let dist = |p: &Vec<Segment>| {
                 p.iter()
                     .map(|e| (e.start().xy() - here).norm())
                     .fold(f64::INFINITY, f64::min)
@@ -523,38 +515,31 @@ fn offset_runs(r: &Region, o: &FillOptions, f: &Fix) -> Vec<Vec<Elem>> {
 /// A piece of the shrunk boundary that is monotone across the hatch lines:
 /// its value of n·p at both ends and how to find a crossing inside.
 struct Mono {
-    elem: Elem,
+    elem: Segment,
     t0: f64,
     t1: f64,
     v0: f64,
     v1: f64,
 }
 
-fn point_at(e: &Elem, t: f64) -> P2 {
+fn point_at(e: &Segment, t: f64) -> P2 {
     match e {
-        Elem::Line(l) => (l.start + (l.end - l.start) * t).xy(),
-        Elem::Arc(a) => a.point_at(t).xy(),
+        Segment::Line(l) => (l.start + (l.end - l.start) * t).xy(),
+        Segment::Arc(a) => a.point_at(t).xy(),
     }
 }
 
 /// Split the boundary pieces where n·p turns (arcs at their extreme
 /// points across the lines).
-fn monotone_pieces(elems: &[Elem], n: V2) -> Vec<Mono> {
+fn monotone_pieces(elems: &[Segment], n: V2) -> Vec<Mono> {
     let val = |p: P2| n.x * p.x + n.y * p.y;
     let mut out = Vec::new();
     for e in elems {
         let mut ts = vec![0.0, 1.0];
-        if let Elem::Arc(a) = e {
-            let (a0, sw) = (a.start_angle(), a.sweep());
+        if let Some(arc) = e.to_arc_xy() {
             let phi = n.y.atan2(n.x);
             for th in [phi, phi + std::f64::consts::PI] {
-                let tau = std::f64::consts::TAU;
-                let delta = if sw > 0.0 {
-                    (th - a0).rem_euclid(tau)
-                } else {
-                    (a0 - th).rem_euclid(tau)
-                };
-                let t = delta / sw.abs();
+                let t = arc.angle_offset(th) / arc.sweep.abs();
                 if t > 1e-12 && t < 1.0 - 1e-12 {
                     ts.push(t);
                 }
@@ -577,12 +562,12 @@ fn monotone_pieces(elems: &[Elem], n: V2) -> Vec<Mono> {
 
 /// Hatch lines clipped to the region shrunk by the beam radius, zigzag,
 /// then (with `outline`) the shrunk boundary itself.
-fn hatch_runs(r: &Region, o: &FillOptions, f: &Fix) -> Vec<Vec<Elem>> {
+fn hatch_runs(r: &Region, o: &FillOptions, f: &Fix) -> Vec<Vec<Segment>> {
     let sh = r.shape.parallel_offset(o.beam_radius, &offset_options());
     if sh.ccw_plines.is_empty() {
         return Vec::new();
     }
-    let boundary: Vec<Elem> = sh
+    let boundary: Vec<Segment> = sh
         .ccw_plines
         .iter()
         .chain(&sh.cw_plines)
@@ -615,11 +600,11 @@ fn hatch_runs(r: &Region, o: &FillOptions, f: &Fix) -> Vec<Vec<Elem>> {
                 continue;
             }
             let p = match m.elem {
-                Elem::Line(_) => {
+                Segment::Line(_) => {
                     let t = m.t0 + (m.t1 - m.t0) * (cj - m.v0) / (m.v1 - m.v0);
                     point_at(&m.elem, t)
                 }
-                Elem::Arc(_) => {
+                Segment::Arc(_) => {
                     // n·p is monotone on [t0, t1]: bisect.
                     let (mut x, mut y) = (m.t0, m.t1);
                     let up = m.v1 > m.v0;
@@ -646,10 +631,10 @@ fn hatch_runs(r: &Region, o: &FillOptions, f: &Fix) -> Vec<Vec<Elem>> {
             // A line grazing a vertex numerically: no reliable inside.
             continue;
         }
-        let mut lines: Vec<Elem> = xs
+        let mut lines: Vec<Segment> = xs
             .chunks(2)
             .filter(|w| w[1] - w[0] > 1e-9)
-            .map(|w| Elem::line(at(w[0], c(j)), at(w[1], c(j))))
+            .map(|w| Segment::line(at(w[0], c(j)), at(w[1], c(j))))
             .collect();
         if lines.is_empty() {
             continue;
@@ -666,7 +651,7 @@ fn hatch_runs(r: &Region, o: &FillOptions, f: &Fix) -> Vec<Vec<Elem>> {
     if o.outline {
         let mut here = runs
             .last()
-            .and_then(|r: &Vec<Elem>| r.last())
+            .and_then(|r: &Vec<Segment>| r.last())
             .map_or(r.lo, |e| e.end().xy());
         for mut ring in rings_at(r, o.beam_radius, f) {
             start_near(&mut ring, here);
@@ -680,14 +665,14 @@ fn hatch_runs(r: &Region, o: &FillOptions, f: &Fix) -> Vec<Vec<Elem>> {
 /// Split a run at its corners (joints the planner loops) and drop the
 /// stretches shorter than the shutter's minimum exposure: it cannot expose
 /// them reliably. Counts what was dropped in `dropped` (stretches, mm).
-fn drop_short(run: Vec<Elem>, m: &LaserSetup, dropped: &mut (usize, f64)) -> Vec<Vec<Elem>> {
+fn drop_short(run: Vec<Segment>, m: &LaserSetup, dropped: &mut (usize, f64)) -> Vec<Vec<Segment>> {
     let n = run.len();
     if n == 0 {
         return Vec::new();
     }
     let min = m.min_cut();
     let cos = m.tangent_cos();
-    let corner = |a: &Elem, b: &Elem| a.dir_end().dot(&b.dir_start()) < cos;
+    let corner = |a: &Segment, b: &Segment| a.end_tangent().dot(&b.start_tangent()) < cos;
     let mut starts = vec![0];
     starts.extend((1..n).filter(|&i| corner(&run[i - 1], &run[i])));
     let mut stretches: Vec<Vec<(usize, usize)>> = starts
@@ -703,7 +688,7 @@ fn drop_short(run: Vec<Elem>, m: &LaserSetup, dropped: &mut (usize, f64)) -> Vec
     }
     let lens: Vec<f64> = stretches
         .iter()
-        .map(|v| v.iter().flat_map(|&(a, b)| &run[a..b]).map(Elem::length).sum())
+        .map(|v| v.iter().flat_map(|&(a, b)| &run[a..b]).map(Segment::length).sum())
         .collect();
     let Some(j) = lens.iter().position(|&l| l < min) else {
         return vec![run];
@@ -717,7 +702,7 @@ fn drop_short(run: Vec<Elem>, m: &LaserSetup, dropped: &mut (usize, f64)) -> Vec
         (0..k).collect()
     };
     let mut out = Vec::new();
-    let mut cur: Vec<Elem> = Vec::new();
+    let mut cur: Vec<Segment> = Vec::new();
     for i in order {
         if lens[i] < min {
             dropped.0 += 1;
@@ -741,14 +726,14 @@ fn drop_short(run: Vec<Elem>, m: &LaserSetup, dropped: &mut (usize, f64)) -> Vec
 /// a neighbouring line: a Turbo PMAC would stretch such a block and slow
 /// down there. Pieces inside a stretch meet tangentially (within the
 /// tangency tolerance), so the line barely turns.
-fn merge_tiny(run: Vec<Elem>, min_block: f64, rmin: f64) -> Vec<Elem> {
-    let mut out: Vec<Elem> = Vec::with_capacity(run.len());
-    let mut pending: Option<Elem> = None;
+fn merge_tiny(run: Vec<Segment>, min_block: f64, rmin: f64) -> Vec<Segment> {
+    let mut out: Vec<Segment> = Vec::with_capacity(run.len());
+    let mut pending: Option<Segment> = None;
     for e in run {
         let e = match pending.take() {
             // A tiny piece before this line: the line starts earlier.
             Some(t) => match e {
-                Elem::Line(_) => Elem::line(t.start(), e.end()),
+                Segment::Line(_) => Segment::line(t.start(), e.end()),
                 _ => match extend_arc(&e.reversed(), t.start(), rmin) {
                     Some(a) => a.reversed(),
                     None => {
@@ -764,7 +749,7 @@ fn merge_tiny(run: Vec<Elem>, min_block: f64, rmin: f64) -> Vec<Elem> {
             continue;
         }
         match out.last_mut() {
-            Some(prev @ Elem::Line(_)) => *prev = Elem::line(prev.start(), e.end()),
+            Some(prev @ Segment::Line(_)) => *prev = Segment::line(prev.start(), e.end()),
             Some(prev) => match extend_arc(prev, e.end(), rmin) {
                 Some(a) => *prev = a,
                 None => out.push(e),
@@ -781,10 +766,10 @@ fn merge_tiny(run: Vec<Elem>, min_block: f64, rmin: f64) -> Vec<Elem> {
 /// The arc leaving where `e` (an arc) starts, along its start direction,
 /// and ending at `to`: `e` extended over a tiny piece that follows it.
 /// None when that arc would be tighter than `rmin` or is degenerate.
-fn extend_arc(e: &Elem, to: P3, rmin: f64) -> Option<Elem> {
-    let Elem::Arc(_) = e else { return None };
+fn extend_arc(e: &Segment, to: P3, rmin: f64) -> Option<Segment> {
+    let Segment::Arc(_) = e else { return None };
     let a = e.start();
-    let t = e.dir_start();
+    let t = e.start_tangent();
     let n = crate::geometry::V3::new(-t.y, t.x, 0.0);
     let d = to - a;
     let den = 2.0 * n.dot(&d);
@@ -793,20 +778,20 @@ fn extend_arc(e: &Elem, to: P3, rmin: f64) -> Option<Elem> {
     }
     let rho = d.norm_squared() / den;
     let arc = crate::geometry::arc::Arc3::new(a + n * rho, a, to, rho > 0.0, Plane::Xy, 0)?;
-    (arc.radius() >= rmin * (1.0 - 1e-9)).then_some(Elem::Arc(arc))
+    (arc.radius() >= rmin * (1.0 - 1e-9)).then_some(Segment::Arc(arc))
 }
 
 /// Join runs of cut pieces into beam-off-linked paths: a Dubins link at
 /// V from the end of one run to the start of the next, in the stage's
 /// least radius and long enough for the shutter. Where no link exists the
 /// path ends and the next starts (a rapid between).
-fn join_runs(runs: Vec<Vec<Elem>>, m: &LaserSetup, dropped: &mut (usize, f64)) -> Vec<Tagged> {
+fn join_runs(runs: Vec<Vec<Segment>>, m: &LaserSetup, dropped: &mut (usize, f64)) -> Vec<Tagged> {
     let r = m.min_radius();
     let shape = m.connection_shape();
     let xy = |v: crate::geometry::V3| V2::new(v.x, v.y);
     let mut paths = Vec::new();
     let mut cur: Tagged = Vec::new();
-    let runs: Vec<Vec<Elem>> = runs
+    let runs: Vec<Vec<Segment>> = runs
         .into_iter()
         .flat_map(|r| drop_short(r, m, dropped))
         .map(|r| merge_tiny(r, m.min_block(), m.min_radius()))
@@ -814,7 +799,7 @@ fn join_runs(runs: Vec<Vec<Elem>>, m: &LaserSetup, dropped: &mut (usize, f64)) -
     for run in runs {
         let Some(first) = run.first() else { continue };
         if let Some((last, _)) = cur.last() {
-            let (din, dout) = (xy(last.dir_end()), xy(first.dir_start()));
+            let (din, dout) = (xy(last.end_tangent()), xy(first.start_tangent()));
             let link = (din.norm() > 1e-12 && dout.norm() > 1e-12)
                 .then(|| {
                     connect(
@@ -836,8 +821,8 @@ fn join_runs(runs: Vec<Vec<Elem>>, m: &LaserSetup, dropped: &mut (usize, f64)) -
                     let mut at = last.end();
                     for e in link {
                         let pieces = match e {
-                            Elem::Arc(_) if (e.end() - e.start()).norm() < 1e-6 => {
-                                match e.split_at_length(0.5 * e.length()) {
+                            Segment::Arc(_) if (e.end() - e.start()).norm() < 1e-6 => {
+                                match e.split_at_length(0.5 * e.length(), super::elem::MIN_PIECE) {
                                     Some((a, b)) if e.length() > 1e-6 => vec![a, b],
                                     _ => Vec::new(),
                                 }
@@ -872,7 +857,7 @@ struct Fix {
 
 /// The cut runs of one region (offset rings or hatch lines), unjoined, for
 /// a stage whose least radius at V is `rmin`.
-pub fn region_runs(r: &Region, o: &FillOptions, rmin: f64) -> Vec<Vec<Elem>> {
+pub fn region_runs(r: &Region, o: &FillOptions, rmin: f64) -> Vec<Vec<Segment>> {
     let f = Fix {
         rmin,
         sag: 0.25 * o.stepover.min(o.beam_radius),
@@ -1029,10 +1014,7 @@ mod tests {
             id,
             closed: true,
             segments: (0..p.len())
-                .map(|i| Segment::Line {
-                    start: p[i],
-                    end: p[(i + 1) % p.len()],
-                })
+                .map(|i| Segment::line(p[i], p[(i + 1) % p.len()]))
                 .collect(),
             ..Default::default()
         }
@@ -1043,12 +1025,7 @@ mod tests {
         Chain {
             id,
             closed: true,
-            segments: vec![Segment::Arc {
-                start: s,
-                end: s,
-                center: P3::new(c.0, c.1, z),
-                ccw,
-            }],
+            segments: vec![Segment::arc_xy(s, s, P3::new(c.0, c.1, z), ccw)],
             ..Default::default()
         }
     }
@@ -1081,7 +1058,7 @@ mod tests {
     }
 
     /// Cut moves as exact pieces.
-    fn cuts(recs: &[Record]) -> Vec<Elem> {
+    fn cuts(recs: &[Record]) -> Vec<Segment> {
         let mut pos = P3::origin();
         let mut out = Vec::new();
         for mv in recs.iter().filter_map(Record::motion) {
@@ -1095,10 +1072,10 @@ mod tests {
         out
     }
 
-    fn dist(e: &Elem, p: &P3) -> f64 {
+    fn dist(e: &Segment, p: &P3) -> f64 {
         match e {
-            Elem::Line(l) => l.distance(p),
-            Elem::Arc(a) => a.distance(p).unwrap_or(f64::INFINITY),
+            Segment::Line(l) => l.distance(p),
+            Segment::Arc(a) => a.distance(p).unwrap_or(f64::INFINITY),
         }
     }
 
@@ -1118,13 +1095,13 @@ mod tests {
 
     /// Largest distance from a grid point of the region to the nearest cut
     /// (cuts bucketed on a grid of `cell`).
-    fn coverage(chains: &[Chain], cut: &[Elem], step: f64) -> f64 {
+    fn coverage(chains: &[Chain], cut: &[Segment], step: f64) -> f64 {
         let cell = 0.05;
         let key = |x: f64, y: f64| ((x / cell).floor() as i64, (y / cell).floor() as i64);
         let mut grid: std::collections::HashMap<(i64, i64), Vec<usize>> = Default::default();
         for (i, e) in cut.iter().enumerate() {
             let (a, b) = (e.start(), e.end());
-            let r = if let Elem::Arc(x) = e { x.radius() } else { 0.0 };
+            let r = if let Segment::Arc(x) = e { x.radius() } else { 0.0 };
             let (lo, hi) = (
                 key(a.x.min(b.x) - r, a.y.min(b.y) - r),
                 key(a.x.max(b.x) + r, a.y.max(b.y) + r),
@@ -1203,7 +1180,7 @@ mod tests {
         let cut = cuts(&job.records);
         // Lines only: parallel, stepover apart, each in one piece.
         for e in &cut {
-            let d = e.dir_start();
+            let d = e.start_tangent();
             assert!((d.y.atan2(d.x).to_degrees().rem_euclid(180.0) - 30.0).abs() < 1e-6);
         }
         assert!(coverage(&chains, &cut, 0.01) < 0.1);
@@ -1292,10 +1269,7 @@ mod tests {
         let flat = poly(2, &[(0.0, 0.0), (1.0, 0.0), (2.0, 0.0)], 0.0);
         assert_eq!(prepare(&[flat], &o).unwrap_err(), FillError::Empty);
         let mut nan = poly(3, &[(0.0, 0.0), (1.0, 0.0), (1.0, 1.0)], 0.0);
-        nan.segments[1] = Segment::Line {
-            start: P3::new(1.0, 0.0, 0.0),
-            end: P3::new(f64::NAN, 1.0, 0.0),
-        };
+        nan.segments[1] = Segment::line(P3::new(1.0, 0.0, 0.0), P3::new(f64::NAN, 1.0, 0.0));
         assert_eq!(prepare(&[nan], &o).unwrap_err(), FillError::NotFinite(3));
         let sq = poly(4, &[(0.0, 0.0), (10.0, 0.0), (10.0, 10.0), (0.0, 10.0)], 0.0);
         let tiny = FillOptions {

@@ -2,9 +2,7 @@
 //! offsets arc polylines exactly and trims self-intersections and loops that
 //! collapse.
 
-use super::elem::Elem;
 use crate::geometry::P3;
-use crate::geometry::arc::Arc3;
 use crate::geometry::bulge::arc_from_bulge;
 use crate::model::chain::{Chain, Segment};
 use cavalier_contours::polyline::{PlineSource, PlineSourceMut, Polyline};
@@ -25,17 +23,12 @@ pub enum Side {
 }
 
 /// The chain's segments as path pieces.
-pub fn chain_elems(c: &Chain) -> Vec<Elem> {
+pub fn chain_elems(c: &Chain) -> Vec<Segment> {
     c.segments
         .iter()
-        .filter_map(|s| match *s {
-            Segment::Line { start, end } => ((end - start).norm() > 0.0).then(|| Elem::line(start, end)),
-            Segment::Arc {
-                start,
-                end,
-                center,
-                ccw,
-            } => Arc3::new(center, start, end, ccw, crate::geometry::Plane::Xy, 0).map(Elem::Arc),
+        .filter_map(|s| match s {
+            Segment::Line(l) => (l.length() > 0.0).then_some(*s),
+            Segment::Arc(_) => s.checked(),
         })
         .collect()
 }
@@ -45,17 +38,11 @@ pub fn chain_elems(c: &Chain) -> Vec<Elem> {
 pub fn to_polyline(c: &Chain) -> Polyline<f64> {
     let mut pl = Polyline::new();
     for s in &c.segments {
-        match *s {
-            Segment::Line { start, .. } => pl.add(start.x, start.y, 0.0),
-            Segment::Arc {
-                start,
-                end,
-                center,
-                ccw,
-            } => {
-                let Some(arc) = Arc3::new(center, start, end, ccw, crate::geometry::Plane::Xy, 0) else {
-                    continue;
-                };
+        let start = s.start();
+        match s.checked() {
+            Some(Segment::Line(_)) => pl.add(start.x, start.y, 0.0),
+            None => continue,
+            Some(Segment::Arc(arc)) => {
                 let sweep = arc.sweep();
                 if sweep.abs() > std::f64::consts::PI {
                     // More than a half turn: two halves, so no bulge exceeds 1
@@ -80,7 +67,7 @@ pub fn to_polyline(c: &Chain) -> Polyline<f64> {
 }
 
 /// Polyline back to path pieces at height `z`.
-pub fn from_polyline(pl: &Polyline<f64>, z: f64) -> Vec<Elem> {
+pub fn from_polyline(pl: &Polyline<f64>, z: f64) -> Vec<Segment> {
     let n = pl.vertex_count();
     let segs = if pl.is_closed() { n } else { n.saturating_sub(1) };
     let mut out = Vec::with_capacity(segs);
@@ -93,11 +80,11 @@ pub fn from_polyline(pl: &Polyline<f64>, z: f64) -> Vec<Elem> {
             continue;
         }
         if v.bulge.abs() < 1e-12 {
-            out.push(Elem::line(a, b));
+            out.push(Segment::line(a, b));
         } else if let Some(arc) = arc_from_bulge(&a, &b, v.bulge) {
-            out.push(Elem::Arc(arc));
+            out.push(Segment::Arc(arc));
         } else {
-            out.push(Elem::line(a, b));
+            out.push(Segment::line(a, b));
         }
     }
     // Snap joints exactly: each piece starts where the previous ended.
@@ -115,7 +102,7 @@ pub fn signed_area(pl: &Polyline<f64>) -> f64 {
 
 /// The offset paths of a chain at `dist` on `side`. Several paths when the
 /// offset splits a shape; none when it vanishes (the caller warns).
-pub fn offset_chain(c: &Chain, side: Side, dist: f64) -> Vec<Vec<Elem>> {
+pub fn offset_chain(c: &Chain, side: Side, dist: f64) -> Vec<Vec<Segment>> {
     let z = c.segments.first().map(|s| s.start().z).unwrap_or(0.0);
     let pl = to_polyline(c);
     let area = signed_area(&pl);
@@ -150,26 +137,26 @@ const MAX_MITER_SWEEP: f64 = 150.0 * std::f64::consts::PI / 180.0;
 /// neighbours meeting at a miter point (a bevel for very sharp corners):
 /// the corner then becomes a real corner, and planning loops it with the
 /// beam off at constant speed.
-fn miter_joins(path: Vec<Elem>, vertices: &[P3], dist: f64) -> Vec<Elem> {
-    let is_join = |e: &Elem| match e {
-        Elem::Arc(a) => {
+fn miter_joins(path: Vec<Segment>, vertices: &[P3], dist: f64) -> Vec<Segment> {
+    let is_join = |e: &Segment| match e {
+        Segment::Arc(a) => {
             (a.radius() - dist).abs() <= 1e-9 * (1.0 + dist)
                 && vertices
                     .iter()
                     .any(|v| (v.xy() - a.center.xy()).norm() <= 1e-9 * (1.0 + dist))
         }
-        Elem::Line(_) => false,
+        Segment::Line(_) => false,
     };
-    let mut out: Vec<Elem> = Vec::with_capacity(path.len() + 4);
+    let mut out: Vec<Segment> = Vec::with_capacity(path.len() + 4);
     // A miter's legs extend the lines beside the corner: one block each,
     // not a line and a short collinear stub (a stub shorter than the
     // controller's least acceleration time would be run slower than V).
-    let push = |out: &mut Vec<Elem>, e: Elem| match out.last().and_then(|prev| continue_line(prev, &e)) {
+    let push = |out: &mut Vec<Segment>, e: Segment| match out.last().and_then(|prev| continue_line(prev, &e)) {
         Some(joined) => *out.last_mut().expect("checked above") = joined,
         None => out.push(e),
     };
     for e in &path {
-        let Elem::Arc(arc) = e else {
+        let Segment::Arc(arc) = e else {
             push(&mut out, *e);
             continue;
         };
@@ -178,19 +165,19 @@ fn miter_joins(path: Vec<Elem>, vertices: &[P3], dist: f64) -> Vec<Elem> {
             continue;
         }
         let (a, b) = (arc.start, arc.end);
-        let (ta, tb) = (e.dir_start(), e.dir_end());
+        let (ta, tb) = (e.start_tangent(), e.end_tangent());
         let sweep = arc.sweep().abs();
         if sweep <= MAX_MITER_SWEEP {
             // Lines a + s·ta and b - u·tb meet at s = u = dist·tan(sweep/2).
             let s = dist * (0.5 * sweep).tan();
             let m = a + ta * s;
-            push(&mut out, Elem::line(a, m));
-            push(&mut out, Elem::line(m, b));
+            push(&mut out, Segment::line(a, m));
+            push(&mut out, Segment::line(m, b));
         } else {
             let (p, q) = (a + ta * dist, b - tb * dist);
-            push(&mut out, Elem::line(a, p));
-            push(&mut out, Elem::line(p, q));
-            push(&mut out, Elem::line(q, b));
+            push(&mut out, Segment::line(a, p));
+            push(&mut out, Segment::line(p, q));
+            push(&mut out, Segment::line(q, b));
         }
     }
     // The path's first piece may continue its last (a closed offset).
@@ -200,7 +187,7 @@ fn miter_joins(path: Vec<Elem>, vertices: &[P3], dist: f64) -> Vec<Elem> {
 
 /// Join a closed path's last piece into its first when the first goes
 /// straight on from it, so the seam is not a block boundary.
-pub(super) fn join_closed_ends(out: &mut Vec<Elem>) {
+pub(super) fn join_closed_ends(out: &mut Vec<Segment>) {
     if out.len() > 2
         && let (Some(last), Some(first)) = (out.last(), out.first())
         && let Some(joined) = continue_line(last, first)
@@ -212,14 +199,14 @@ pub(super) fn join_closed_ends(out: &mut Vec<Elem>) {
 
 /// `a` then `b` as one line, when both are lines and `b` goes straight on
 /// from where `a` ends.
-pub(super) fn continue_line(a: &Elem, b: &Elem) -> Option<Elem> {
-    let (Elem::Line(a), Elem::Line(b)) = (a, b) else {
+pub(super) fn continue_line(a: &Segment, b: &Segment) -> Option<Segment> {
+    let (Segment::Line(a), Segment::Line(b)) = (a, b) else {
         return None;
     };
     let (d0, d1) = (a.end - a.start, b.end - b.start);
     let (n0, n1) = (d0.norm(), d1.norm());
     (a.end == b.start && n0 > 0.0 && n1 > 0.0 && d0.cross(&d1).norm() <= 1e-12 * n0 * n1 && d0.dot(&d1) > 0.0)
-        .then(|| Elem::line(a.start, b.end))
+        .then(|| Segment::line(a.start, b.end))
 }
 
 #[cfg(test)]
@@ -232,12 +219,7 @@ mod tests {
         if cw {
             pts.reverse();
         }
-        let segments = (0..4)
-            .map(|i| Segment::Line {
-                start: pts[i],
-                end: pts[(i + 1) % 4],
-            })
-            .collect();
+        let segments = (0..4).map(|i| Segment::line(pts[i], pts[(i + 1) % 4])).collect();
         Chain {
             id: 1,
             closed: true,
@@ -297,17 +279,17 @@ mod tests {
         let c = Chain {
             id: 2,
             closed: true,
-            segments: vec![Segment::Arc {
-                start: P3::new(1.0, 0.0, 0.5),
-                end: P3::new(1.0, 0.0, 0.5),
-                center: P3::origin(),
-                ccw: false,
-            }],
+            segments: vec![Segment::arc_xy(
+                P3::new(1.0, 0.0, 0.5),
+                P3::new(1.0, 0.0, 0.5),
+                P3::origin(),
+                false,
+            )],
             ..Default::default()
         };
         let paths = offset_chain(&c, Side::Outside, 0.25);
         assert_eq!(paths.len(), 1);
-        let len: f64 = paths[0].iter().map(Elem::length).sum();
+        let len: f64 = paths[0].iter().map(Segment::length).sum();
         assert!((len - std::f64::consts::TAU * 1.25).abs() < 1e-9);
         for e in &paths[0] {
             let p = e.point_at_length(0.3 * e.length());

@@ -5,9 +5,9 @@
 
 use super::arcfit::biarc;
 use super::dubins::connect;
-use super::elem::Elem;
 use super::plan::Tagged;
 use super::setup::LaserSetup;
+use crate::geometry::Segment;
 use crate::geometry::arc::Arc3;
 use crate::geometry::{P2, P3, Plane, V2, V3};
 use crate::model::toolpath::Role;
@@ -15,14 +15,14 @@ use std::f64::consts::TAU;
 
 /// A helix of `turns` whole turns about `center` (at the start height),
 /// radius `r`, rising `pitch` per turn (negative descends), starting on +X.
-pub fn helix(center: P3, r: f64, pitch: f64, turns: u32, ccw: bool) -> Vec<Elem> {
+pub fn helix(center: P3, r: f64, pitch: f64, turns: u32, ccw: bool) -> Vec<Segment> {
     let mut out = Vec::with_capacity(turns as usize);
     let mut p = center + V3::new(r, 0.0, 0.0);
     for _ in 0..turns {
         let q = p + V3::new(0.0, 0.0, pitch);
         let c = P3::new(center.x, center.y, p.z);
         if let Some(a) = Arc3::new(c, p, q, ccw, Plane::Xy, 0) {
-            out.push(Elem::Arc(a));
+            out.push(Segment::Arc(a));
         }
         p = q;
     }
@@ -32,7 +32,7 @@ pub fn helix(center: P3, r: f64, pitch: f64, turns: u32, ccw: bool) -> Vec<Elem>
 /// A square spiral about `center` with legs growing by `step` every half
 /// turn, out to a square of side `size`. Outward starts at the centre;
 /// inward is the same path reversed. Its corners get loops when planned.
-pub fn square_spiral(center: P3, step: f64, size: f64, inward: bool) -> Vec<Elem> {
+pub fn square_spiral(center: P3, step: f64, size: f64, inward: bool) -> Vec<Segment> {
     let mut pts = vec![center];
     let mut p = center;
     let dirs = [V3::x(), V3::y(), -V3::x(), -V3::y()];
@@ -51,7 +51,7 @@ pub fn square_spiral(center: P3, step: f64, size: f64, inward: bool) -> Vec<Elem
         }
         k += 1;
     }
-    let mut out: Vec<Elem> = pts.windows(2).map(|w| Elem::line(w[0], w[1])).collect();
+    let mut out: Vec<Segment> = pts.windows(2).map(|w| Segment::line(w[0], w[1])).collect();
     if inward {
         out.reverse();
         for e in &mut out {
@@ -65,7 +65,7 @@ pub fn square_spiral(center: P3, step: f64, size: f64, inward: bool) -> Vec<Elem
 /// (b = `step` / 2π, so passes are `step` apart), closed by a full circle
 /// at `r_max`; inward runs the circle first and the spiral in. The spiral
 /// is exact to within `tol` as biarcs, tangent-continuous throughout.
-pub fn archimedean(center: P3, a: f64, step: f64, r_max: f64, inward: bool, tol: f64) -> Vec<Elem> {
+pub fn archimedean(center: P3, a: f64, step: f64, r_max: f64, inward: bool, tol: f64) -> Vec<Segment> {
     archimedean_limited(center, a, step, r_max, inward, tol, usize::MAX).unwrap_or_default()
 }
 
@@ -81,7 +81,7 @@ pub fn archimedean_limited(
     inward: bool,
     tol: f64,
     max: usize,
-) -> Result<Vec<Elem>, f64> {
+) -> Result<Vec<Segment>, f64> {
     let b = step / TAU;
     let z = center.z;
     let pt = |th: f64| {
@@ -99,7 +99,7 @@ pub fn archimedean_limited(
     let mut spans = 0usize;
     // Adaptive spans: grow while the biarc stays within tol of the true
     // spiral at interior samples, halve when it does not.
-    let fits = |t0: f64, t1: f64| -> Option<Vec<Elem>> {
+    let fits = |t0: f64, t1: f64| -> Option<Vec<Segment>> {
         let f = biarc(pt(t0), tan(t0), pt(t1), tan(t1), z);
         let ok = (1..8).all(|k| {
             let p = pt(t0 + (t1 - t0) * k as f64 / 8.0);
@@ -132,7 +132,7 @@ pub fn archimedean_limited(
     // The closing circle at r_max, starting where the spiral ends.
     let end = out.last().map_or(P3::new(center.x + r_max, center.y, z), |e| e.end());
     if let Some(c) = Arc3::new(P3::new(center.x, center.y, z), end, end, true, Plane::Xy, 0) {
-        out.push(Elem::Arc(c));
+        out.push(Segment::Arc(c));
     }
     if inward {
         out.reverse();
@@ -188,7 +188,7 @@ pub fn zigzag(z: &Zigzag, m: &LaserSetup) -> Tagged {
         };
         if let Some((last, _)) = out.last() {
             let from = last.end();
-            let din = last.dir_end();
+            let din = last.end_tangent();
             let dout = (b - a).normalize();
             let p2 = |v: V3| {
                 let (pi, pj, _) = plane.axes();
@@ -198,7 +198,7 @@ pub fn zigzag(z: &Zigzag, m: &LaserSetup) -> Tagged {
                 out.extend(turn.into_iter().map(|e| (e, Role::Loop)));
             }
         }
-        out.push((Elem::line(a, b), Role::Cut));
+        out.push((Segment::line(a, b), Role::Cut));
     }
     out
 }
@@ -258,7 +258,7 @@ mod tests {
         }
         let spiral = &path[..path.len() - 1];
         for w in spiral.windows(2) {
-            assert!(w[0].dir_end().dot(&w[1].dir_start()) > 1.0 - 1e-9);
+            assert!(w[0].end_tangent().dot(&w[1].start_tangent()) > 1.0 - 1e-9);
         }
         // Sample: r - a - bθ ≈ 0 modulo a turn.
         let b = step / TAU;

@@ -5,7 +5,6 @@
 
 use super::audit::{Audit, audit};
 use super::contour::{ContourOptions, contour, cut_paths};
-use super::elem::Elem;
 use super::offset::{Side, chain_elems};
 use super::setup::LaserSetup;
 use crate::formats::chains::ChainsReader;
@@ -53,14 +52,9 @@ pub(crate) fn random_drawing(n: usize, seed: u64) -> Vec<Chain> {
                     // chord (the polygon runs counter-clockwise).
                     let d = b - a;
                     let ctr = nalgebra::center(&a, &b) + V3::new(-d.y, d.x, 0.0) * 0.4;
-                    Segment::Arc {
-                        start: a,
-                        end: b,
-                        center: ctr,
-                        ccw: true,
-                    }
+                    Segment::arc_xy(a, b, ctr, true)
                 } else {
-                    Segment::Line { start: a, end: b }
+                    Segment::line(a, b)
                 }
             })
             .collect();
@@ -107,10 +101,10 @@ fn check_physics(a: &Audit, m: &LaserSetup, exposure_tol: f64) {
 /// Moves a Turbo PMAC would stretch: each must be a cut piece of the
 /// drawing itself shorter than 1 ms at V (never a lead, a loop or a piece
 /// pathgen split).
-fn only_short_drawing_pieces_stretched(recs: &[Record], m: &LaserSetup, drawing: &[Elem]) {
+fn only_short_drawing_pieces_stretched(recs: &[Record], m: &LaserSetup, drawing: &[Segment]) {
     let short: Vec<f64> = drawing
         .iter()
-        .map(Elem::length)
+        .map(Segment::length)
         .filter(|&l| l < m.min_block())
         .collect();
     let mut ta = super::audit::PmacTa::new(m);
@@ -141,7 +135,7 @@ fn only_short_drawing_pieces_stretched(recs: &[Record], m: &LaserSetup, drawing:
 fn offset_length(c: &Chain, side: Side, d: f64) -> f64 {
     super::offset::offset_chain(c, side, d)
         .iter()
-        .map(|p| p.iter().map(Elem::length).sum::<f64>())
+        .map(|p| p.iter().map(Segment::length).sum::<f64>())
         .sum()
 }
 
@@ -211,8 +205,8 @@ fn dist_to_chain(p: &P3, c: &Chain) -> f64 {
     chain_elems(c)
         .iter()
         .map(|e| match e {
-            Elem::Line(l) => l.distance(p),
-            Elem::Arc(a) => a.distance(p).unwrap_or(f64::INFINITY),
+            Segment::Line(l) => l.distance(p),
+            Segment::Arc(a) => a.distance(p).unwrap_or(f64::INFINITY),
         })
         .fold(f64::INFINITY, f64::min)
 }
@@ -237,10 +231,10 @@ fn cuts_run_at_the_offset_distance() {
             if mv.role == Some(Role::Cut) {
                 let c = chains.iter().find(|c| Some(c.id) == mv.chain).unwrap();
                 let e = match mv.kind {
-                    MotionKind::Arc(ad) => {
-                        Elem::Arc(crate::geometry::arc::Arc3::new(ad.center, pos, mv.to, ad.ccw, ad.plane, 0).unwrap())
-                    }
-                    _ => Elem::line(pos, mv.to),
+                    MotionKind::Arc(ad) => Segment::Arc(
+                        crate::geometry::arc::Arc3::new(ad.center, pos, mv.to, ad.ccw, ad.plane, 0).unwrap(),
+                    ),
+                    _ => Segment::line(pos, mv.to),
                 };
                 // Weighted by length: miter pieces are short.
                 for k in 0..=10 {
@@ -311,7 +305,7 @@ fn random_drawings_obey_the_machine() {
                 ..Default::default()
             };
             let paths = cut_paths(&chains, &m, &o);
-            let drawing: Vec<Elem> = paths.iter().flat_map(|(p, _)| p.iter().flatten().copied()).collect();
+            let drawing: Vec<Segment> = paths.iter().flat_map(|(p, _)| p.iter().flatten().copied()).collect();
             only_short_drawing_pieces_stretched(&job.records, &m, &drawing);
             // Whatever the cleanup could not remove is all that is stretched.
             let left: usize = paths.iter().map(|(_, st)| st.left).sum();
@@ -325,7 +319,7 @@ fn random_drawings_obey_the_machine() {
             let off = job.warnings.iter().any(|w| w.message.contains("shutter switch"));
             check_physics(&a, &m, if off { m.feed / 1000.0 + 1e-6 } else { 1e-6 });
             for (c, (p, _)) in chains.iter().zip(&paths) {
-                let want: f64 = p.iter().flatten().map(Elem::length).sum();
+                let want: f64 = p.iter().flatten().map(Segment::length).sum();
                 let got = a.cut_length.get(&c.id).copied().unwrap_or(0.0);
                 assert!(
                     (got - want).abs() < 1e-9,
@@ -427,15 +421,12 @@ fn degenerate_chains_are_dropped_not_panicked_on() {
         Chain {
             id: 2,
             closed: true,
-            segments: vec![Segment::Line { start: z, end: z }],
+            segments: vec![Segment::line(z, z)],
             ..Default::default()
         },
         Chain {
             id: 3,
-            segments: vec![Segment::Line {
-                start: z,
-                end: P3::new(1.0, 0.0, 0.0),
-            }],
+            segments: vec![Segment::line(z, P3::new(1.0, 0.0, 0.0))],
             ..Default::default()
         },
     ];
@@ -562,7 +553,7 @@ fn corpus_drawings_obey_the_machine_on_every_side() {
             }
             let paths = cut_paths(&chains, &m, &o);
             for (i, (c, (p, _))) in chains.iter().zip(&paths).enumerate() {
-                let want: f64 = p.iter().flatten().map(Elem::length).sum();
+                let want: f64 = p.iter().flatten().map(Segment::length).sum();
                 let got = a.cut_length.get(&c.id).copied().unwrap_or(0.0);
                 if (got - want).abs() > 1e-6 {
                     failures.push(format!("{name} {side:?} chain {}: cut {got} mm, want {want}", c.id));

@@ -15,20 +15,21 @@
 //! carries it, chosen so that no block is stretched.
 
 use super::dubins::corner_loop;
-use super::elem::{Elem, MIN_PIECE};
+use super::elem::MIN_PIECE;
 use super::setup::LaserSetup;
+use crate::geometry::Segment;
 use crate::geometry::{P3, Plane, V2};
 use crate::machine::Controller;
 use crate::model::toolpath::{Motion, MotionKind, Record, Role};
 
 /// A path whose pieces carry their role (cut, or a beam-off connection).
-pub type Tagged = Vec<(Elem, Role)>;
+pub type Tagged = Vec<(Segment, Role)>;
 
 /// One planned piece: geometry, why it is there, the commanded beam and,
 /// for a PMAC, its pace.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Piece {
-    pub elem: Elem,
+    pub elem: Segment,
     pub role: Role,
     pub beam: bool,
     /// `None` for look-ahead controllers, which pace themselves.
@@ -88,16 +89,16 @@ impl std::fmt::Display for Note {
 
 /// Plan one cut path. `path` is continuous; `closed` paths end where they
 /// start (the seam gets a lead-out and the next pass its own lead-in).
-pub fn plan_path(path: &[Elem], m: &LaserSetup, notes: &mut Vec<Note>) -> Vec<Piece> {
-    let tagged: Vec<(Elem, Role)> = path.iter().map(|e| (*e, Role::Cut)).collect();
+pub fn plan_path(path: &[Segment], m: &LaserSetup, notes: &mut Vec<Note>) -> Vec<Piece> {
+    let tagged: Vec<(Segment, Role)> = path.iter().map(|e| (*e, Role::Cut)).collect();
     plan_tagged(&tagged, m, notes)
 }
 
 /// Plan a path whose pieces are cuts or beam-off connections the caller
 /// already shaped (zigzag turnarounds: role `Loop` or `Link`, tangent to
 /// their neighbours). Loops are added only between two cut pieces.
-pub fn plan_tagged(path: &[(Elem, Role)], m: &LaserSetup, notes: &mut Vec<Note>) -> Vec<Piece> {
-    let path: Vec<(Elem, Role)> = path.iter().copied().filter(|e| e.0.length() > MIN_PIECE).collect();
+pub fn plan_tagged(path: &[(Segment, Role)], m: &LaserSetup, notes: &mut Vec<Note>) -> Vec<Piece> {
+    let path: Vec<(Segment, Role)> = path.iter().copied().filter(|e| e.0.length() > MIN_PIECE).collect();
     let (Some((first, _)), Some((last, _))) = (path.first(), path.last()) else {
         return Vec::new();
     };
@@ -111,7 +112,7 @@ pub fn plan_tagged(path: &[(Elem, Role)], m: &LaserSetup, notes: &mut Vec<Note>)
     let ramp = pmac.then_some(Pace::Ramp);
     let s0 = first.start();
     out.push(Piece {
-        elem: Elem::line(s0 - first.dir_start() * m.lead_in(), s0),
+        elem: Segment::line(s0 - first.start_tangent() * m.lead_in(), s0),
         role: Role::LeadIn,
         beam: false,
         pace: ramp,
@@ -139,7 +140,7 @@ pub fn plan_tagged(path: &[(Elem, Role)], m: &LaserSetup, notes: &mut Vec<Note>)
         let Some((next, Role::Cut)) = path.get(i + 1) else {
             continue;
         };
-        let (din, dout) = (e.dir_end(), next.dir_start());
+        let (din, dout) = (e.end_tangent(), next.start_tangent());
         if din.dot(&dout) >= cos_tol {
             continue;
         }
@@ -177,9 +178,9 @@ pub fn plan_tagged(path: &[(Elem, Role)], m: &LaserSetup, notes: &mut Vec<Note>)
         });
     }
     let e = last.end();
-    let dir = last.dir_end();
+    let dir = last.end_tangent();
     let lead_out = |a: P3, b: P3, pace: Option<Pace>| Piece {
-        elem: Elem::line(a, b),
+        elem: Segment::line(a, b),
         role: Role::LeadOut,
         beam: false,
         pace,
@@ -199,10 +200,10 @@ pub fn plan_tagged(path: &[(Elem, Role)], m: &LaserSetup, notes: &mut Vec<Note>)
 }
 
 /// Loops turn in the plane of the arcs around them, else XY.
-fn loop_plane(a: &Elem, b: &Elem) -> Plane {
+fn loop_plane(a: &Segment, b: &Segment) -> Plane {
     match (a, b) {
-        (Elem::Arc(x), _) => x.plane,
-        (_, Elem::Arc(y)) => y.plane,
+        (Segment::Arc(x), _) => x.plane,
+        (_, Segment::Arc(y)) => y.plane,
         _ => Plane::Xy,
     }
 }
@@ -275,7 +276,7 @@ fn time_shutter(pieces: Vec<Piece>, m: &LaserSetup, notes: &mut Vec<Note>) -> Ve
             continue;
         }
         while k < cuts.len() && cuts[k] < end - MIN_PIECE {
-            if let Some((a, b)) = rest.split_at_length(cuts[k] - rest_s) {
+            if let Some((a, b)) = rest.split_at_length(cuts[k] - rest_s, MIN_PIECE) {
                 let mid = rest_s + 0.5 * a.length();
                 out.push(Piece {
                     elem: a,
@@ -375,7 +376,7 @@ fn time_shutter_pmac(pieces: Vec<Piece>, m: &LaserSetup, notes: &mut Vec<Note>) 
         }
         let at = if p.inside {
             let s = &slots[p.at];
-            match s.piece.elem.split_at_length(p.b - s.start) {
+            match s.piece.elem.split_at_length(p.b - s.start, MIN_PIECE) {
                 Some((a, rest)) => {
                     let start = s.start;
                     let (la, lr) = (a.length(), rest.length());
@@ -586,7 +587,7 @@ pub fn to_records(pieces: &[Piece], m: &LaserSetup, chain: Option<u64>, out: &mu
             pace = next;
         }
         out.push(Record::Move(Motion {
-            kind: p.elem.motion_kind(),
+            kind: MotionKind::of_segment(&p.elem),
             to: p.elem.end(),
             feed: Some(m.feed),
             beam: p.beam,
@@ -612,7 +613,7 @@ pub fn ramps_record(m: &LaserSetup) -> Record {
 
 /// Plan several tagged paths in order, each with its own leads and shutter
 /// timing, joined by rapids. Pattern generators use this.
-pub fn plan_paths(paths: &[Vec<(Elem, Role)>], m: &LaserSetup, chain: Option<u64>) -> (Vec<Record>, Vec<Note>) {
+pub fn plan_paths(paths: &[Vec<(Segment, Role)>], m: &LaserSetup, chain: Option<u64>) -> (Vec<Record>, Vec<Note>) {
     let mut notes = Vec::new();
     let mut recs = vec![ramps_record(m)];
     for p in paths {
@@ -623,6 +624,6 @@ pub fn plan_paths(paths: &[Vec<(Elem, Role)>], m: &LaserSetup, chain: Option<u64
 }
 
 /// Tag every piece of a path as a cut.
-pub fn all_cut(path: Vec<Elem>) -> Vec<(Elem, Role)> {
+pub fn all_cut(path: Vec<Segment>) -> Vec<(Segment, Role)> {
     path.into_iter().map(|e| (e, Role::Cut)).collect()
 }

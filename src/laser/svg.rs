@@ -69,7 +69,7 @@ pub fn write_svg(out: &mut impl Write, records: &[Record], _m: &LaserSetup) -> s
         match m.kind {
             MotionKind::Arc(a) if a.plane == crate::geometry::Plane::Xy => {
                 let r = (pos.xy() - a.center.xy()).norm();
-                let arc = crate::geometry::arc::Arc3::new(a.center, pos, m.to, a.ccw, a.plane, a.extra_turns);
+                let arc = a.arc(pos, m.to);
                 let sweep = arc.map_or(0.0, |x| x.sweep());
                 // SVG cannot draw a full turn in one arc: go via the midpoint.
                 let mid = arc.map_or(m.to, |x| x.point_at(0.5));

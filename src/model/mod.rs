@@ -3,5 +3,7 @@
 //! Lines forms live in [`crate::formats`]; G-code is read into and written
 //! from [`toolpath::Record`] by [`crate::gcode`].
 
+#![warn(missing_docs)]
+
 pub mod chain;
 pub mod toolpath;

@@ -5,7 +5,7 @@
 //! serialises exactly this model, so toolpath -> G-code -> toolpath is
 //! lossless within the output precision.
 
-use crate::geometry::{P3, Plane, V3};
+use crate::geometry::{Arc3, P3, Plane, Segment, V3};
 use serde::{Deserialize, Serialize};
 
 /// How far (mm) an arc's end may be off the circle through its start, on
@@ -35,16 +35,24 @@ pub const MAX_COORD_MM: f64 = 1e9;
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Role {
+    /// Cutting along the drawing (beam on, tool in the material).
     Cut,
+    /// Approach onto the contour before the cut.
     LeadIn,
+    /// Departure from the contour after the cut.
     LeadOut,
+    /// A corner loop that keeps the speed up through a sharp corner.
     Loop,
+    /// Travel between cuts.
     Link,
+    /// Feeding down into the material.
     Plunge,
+    /// Leaving the material upwards.
     Retract,
 }
 
 impl Role {
+    /// Every role, in the order reports list them.
     pub const ALL: [Role; 7] = [
         Role::Cut,
         Role::LeadIn,
@@ -55,6 +63,7 @@ impl Role {
         Role::Retract,
     ];
 
+    /// The name used in the pipe formats ("cut", "lead_in", ...).
     pub fn name(self) -> &'static str {
         match self {
             Role::Cut => "cut",
@@ -67,6 +76,7 @@ impl Role {
         }
     }
 
+    /// The role a pipe-format name stands for.
     pub fn from_name(s: &str) -> Option<Role> {
         Role::ALL.into_iter().find(|r| r.name() == s)
     }
@@ -83,6 +93,7 @@ pub enum FeedUnit {
 }
 
 impl FeedUnit {
+    /// The name used in the toolpath header ("mm/s" or "mm/min").
     pub fn name(self) -> &'static str {
         match self {
             FeedUnit::MmPerS => "mm/s",
@@ -90,6 +101,7 @@ impl FeedUnit {
         }
     }
 
+    /// The unit a header name stands for.
     pub fn from_name(s: &str) -> Option<FeedUnit> {
         match s {
             "mm/s" => Some(FeedUnit::MmPerS),
@@ -119,6 +131,7 @@ impl FeedUnit {
 /// The header record of a toolpath stream.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct Header {
+    /// The unit of every feed in the stream.
     pub feed_unit: FeedUnit,
     /// Where the toolpath came from (a file name), if known.
     pub source: Option<String>,
@@ -128,12 +141,22 @@ pub struct Header {
 /// extra turns. The centre lies in the plane of the arc's start point.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ArcData {
+    /// The arc centre (absolute), at the start's normal coordinate.
     pub center: P3,
     /// Counter-clockwise about the plane normal (see [`Plane`]).
     pub ccw: bool,
+    /// The plane the arc turns in (G17/G18/G19).
     pub plane: Plane,
     /// Whole turns added to the sweep (RS274 `P2` = 1 extra turn).
     pub extra_turns: u32,
+}
+
+impl ArcData {
+    /// The arc this data describes when travelled from `from` to `to`
+    /// ([`Arc3::new`]: `None` for a zero radius or a non-finite number).
+    pub fn arc(&self, from: P3, to: P3) -> Option<Arc3> {
+        Arc3::new(self.center, from, to, self.ccw, self.plane, self.extra_turns)
+    }
 }
 
 /// How the command that switched the shutter before a move was written on
@@ -143,11 +166,14 @@ pub struct ArcData {
 /// by it; writers reproduce it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum ShutterSwitch {
+    /// `M33==1`: switches when the move's motion starts.
     Sync,
+    /// `M33=1`: switches when look-ahead calculates the line.
     Immediate,
 }
 
 impl ShutterSwitch {
+    /// The name used in the pipe formats ("sync" or "immediate").
     pub fn name(self) -> &'static str {
         match self {
             ShutterSwitch::Sync => "sync",
@@ -155,6 +181,7 @@ impl ShutterSwitch {
         }
     }
 
+    /// The switch a pipe-format name stands for.
     pub fn from_name(s: &str) -> Option<ShutterSwitch> {
         match s {
             "sync" => Some(ShutterSwitch::Sync),
@@ -175,10 +202,27 @@ pub enum MotionKind {
     Arc(ArcData),
 }
 
+impl MotionKind {
+    /// The feed motion that travels `seg`: a line, or an arc with its data.
+    pub fn of_segment(seg: &Segment) -> MotionKind {
+        match seg {
+            Segment::Line(_) => MotionKind::Line,
+            Segment::Arc(a) => MotionKind::Arc(ArcData {
+                center: a.center,
+                ccw: a.ccw,
+                plane: a.plane,
+                extra_turns: a.extra_turns,
+            }),
+        }
+    }
+}
+
 /// One motion to an absolute end point.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Motion {
+    /// Rapid, line or arc (with its data).
     pub kind: MotionKind,
+    /// The absolute end point (mm).
     pub to: P3,
     /// Commanded feed in the header's unit; `None` for rapids.
     pub feed: Option<f64>,
@@ -187,6 +231,7 @@ pub struct Motion {
     /// When `beam` differs from the previous move's: how that switch was
     /// commanded, if the source says (PMAC `==` or `=`); `None` otherwise.
     pub beam_switch: Option<ShutterSwitch>,
+    /// Why the move is there, when generated.
     pub role: Option<Role>,
     /// Source chain id, when generated from chains.
     pub chain: Option<u64>,
@@ -239,39 +284,72 @@ impl Motion {
     }
 }
 
+impl Motion {
+    /// The arc this move travels when it starts at `from`; `None` for a
+    /// rapid, a line, or an arc with a zero radius or a non-finite number.
+    pub fn arc(&self, from: P3) -> Option<Arc3> {
+        match &self.kind {
+            MotionKind::Arc(a) => a.arc(from, self.to),
+            _ => None,
+        }
+    }
+
+    /// The exact path of this move when it starts at `from`: its arc, or the
+    /// straight line to `to` for rapids, lines and degenerate arcs (zero
+    /// radius: readers refuse them, so only the chord is left to travel).
+    pub fn segment(&self, from: P3) -> Segment {
+        match self.arc(from) {
+            Some(a) => Segment::Arc(a),
+            None => Segment::line(from, self.to),
+        }
+    }
+}
+
 /// One toolpath record after the header.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Record {
+    /// A move.
     Move(Motion),
     /// Wait in place (G4, DWELL). Stops PMAC look-ahead.
     Dwell {
+        /// How long (s).
         seconds: f64,
+        /// Source line number, if read from G-code.
         block: Option<u64>,
     },
     /// Spindle speed change (S word), revolutions per minute.
     Spindle {
+        /// The new speed (rev/min).
         rpm: f64,
+        /// Source line number, if read from G-code.
         block: Option<u64>,
     },
     /// Acceleration and S-curve times (PMAC TA, TS), milliseconds.
     Accel {
+        /// Acceleration time TA (ms), when set.
         ta_ms: Option<f64>,
+        /// S-curve time TS (ms), when set.
         ts_ms: Option<f64>,
+        /// Source line number, if read from G-code.
         block: Option<u64>,
     },
     /// A controller variable assignment that is not the shutter or the line
     /// counter (those are modelled by `beam` and by block order).
     /// `sync` is PMAC's `==`: executed with the next move, not ahead of it.
     Var {
+        /// The variable's name as written (e.g. `P100`).
         name: String,
+        /// The value assigned.
         value: f64,
+        /// Written with `==` (executed with the next move).
         sync: bool,
+        /// Source line number, if read from G-code.
         block: Option<u64>,
     },
 }
 
 impl Record {
-    /// The end point of a motion record.
+    /// The motion, if this record is a move.
     pub fn motion(&self) -> Option<&Motion> {
         match self {
             Record::Move(m) => Some(m),
@@ -347,5 +425,42 @@ impl Record {
             | Record::Accel { block, .. }
             | Record::Var { block, .. } => *block,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_move_is_its_segment() {
+        let from = P3::new(1.0, 0.0, 0.0);
+        let arc = ArcData {
+            center: P3::origin(),
+            ccw: true,
+            plane: Plane::Xy,
+            extra_turns: 0,
+        };
+        let m = Motion::from_block(MotionKind::Arc(arc), P3::new(0.0, 1.0, 0.0), Some(1.0), true, 3);
+        let s = m.segment(from);
+        assert!((s.length() - std::f64::consts::FRAC_PI_2).abs() < 1e-15);
+        assert_eq!(MotionKind::of_segment(&s), m.kind);
+        assert_eq!(m.arc(from).map(Segment::Arc), Some(s));
+        // A zero-radius arc travels its chord; a line is a line.
+        let degenerate = Motion {
+            to: P3::new(2.0, 0.0, 0.0),
+            ..m.clone()
+        };
+        assert_eq!(
+            degenerate.segment(P3::origin()),
+            Segment::line(P3::origin(), degenerate.to)
+        );
+        let line = Motion {
+            kind: MotionKind::Line,
+            ..m
+        };
+        assert_eq!(line.segment(from), Segment::line(from, line.to));
+        assert_eq!(MotionKind::of_segment(&line.segment(from)), MotionKind::Line);
+        assert!(line.arc(from).is_none());
     }
 }

@@ -25,7 +25,7 @@ pub mod polar;
 #[cfg(test)]
 mod checks;
 
-use crate::geometry::{P3, Plane, arc::Arc3};
+use crate::geometry::{P3, Plane};
 use crate::model::toolpath::{FeedUnit, MotionKind, Record};
 use dexel::{DualDexel, Removed};
 use exact::{Curve, Swept};
@@ -303,7 +303,8 @@ impl Plough {
                 if d.plane != Plane::Xy {
                     return Err(self.err(m.block, "arcs outside the XY plane (G18/G19) are not supported".into()));
                 }
-                let arc = Arc3::new(d.center, from, m.to, d.ccw, d.plane, d.extra_turns)
+                let arc = d
+                    .arc(from, m.to)
                     .ok_or_else(|| self.err(m.block, "degenerate arc".into()))?;
                 Some(arc)
             }

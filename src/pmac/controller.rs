@@ -16,7 +16,6 @@
 use crate::gcode::pmac::PmacInterpreter;
 use crate::gcode::{LineInterpreter, ReadOptions};
 use crate::geometry::P3;
-use crate::geometry::arc::Arc3;
 use crate::model::toolpath::{MotionKind, Record};
 use crate::pmac::protocol::line_words;
 use std::collections::{BTreeMap, VecDeque};
@@ -581,10 +580,7 @@ impl Controller {
                     let (len, kind) = match m.kind {
                         MotionKind::Rapid => ((m.to - from).norm(), "rapid"),
                         MotionKind::Line => ((m.to - from).norm(), "line"),
-                        MotionKind::Arc(a) => (
-                            Arc3::new(a.center, from, m.to, a.ccw, a.plane, a.extra_turns).map_or(0.0, |a| a.length()),
-                            "arc",
-                        ),
+                        MotionKind::Arc(a) => (a.arc(from, m.to).map_or(0.0, |a| a.length()), "arc"),
                     };
                     let speed = match m.kind {
                         MotionKind::Rapid => RAPID_MM_S,
@@ -750,7 +746,7 @@ impl Controller {
             1.0
         };
         match kind {
-            MotionKind::Arc(a) => match Arc3::new(a.center, *from, *to, a.ccw, a.plane, a.extra_turns) {
+            MotionKind::Arc(a) => match a.arc(*from, *to) {
                 Some(arc) => arc.point_at(f),
                 None => *to,
             },

@@ -523,9 +523,7 @@ fn trapezoid_estimate(records: &[Record], start: P3, unit: FeedUnit) -> f64 {
         match r {
             Record::Move(m) => {
                 let len = match m.kind {
-                    MotionKind::Arc(a) => {
-                        Arc3::new(a.center, pos, m.to, a.ccw, a.plane, a.extra_turns).map_or(0.0, |a| a.length())
-                    }
+                    MotionKind::Arc(a) => a.arc(pos, m.to).map_or(0.0, |a| a.length()),
                     _ => (m.to - pos).norm(),
                 };
                 let v = match m.kind {

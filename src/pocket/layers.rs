@@ -20,8 +20,8 @@ use super::contact::Contact;
 use super::grid::Region;
 use super::motion::{FitOptions, MotionMode, fit_run};
 use super::passes::{Pass, PassKind, lift};
+use crate::geometry::Segment;
 use crate::geometry::{Line3, P2, P3};
-use crate::laser::elem::Elem;
 use crate::model::toolpath::{ArcData, Motion, MotionKind, Record, Role};
 
 /// Feeds (mm/s) and heights (mm) of the job.
@@ -87,11 +87,11 @@ impl Program {
         self.push(MotionKind::Line, to, Some(f.plunge), Role::Plunge, None);
     }
 
-    fn feed_elems(&mut self, elems: &[Elem], feed: f64, pk: PassKind) {
+    fn feed_elems(&mut self, elems: &[Segment], feed: f64, pk: PassKind) {
         for e in elems {
             match e {
-                Elem::Line(l) => self.push(MotionKind::Line, l.end, Some(feed), Role::Cut, Some(pk)),
-                Elem::Arc(a) => self.push(
+                Segment::Line(l) => self.push(MotionKind::Line, l.end, Some(feed), Role::Cut, Some(pk)),
+                Segment::Arc(a) => self.push(
                     MotionKind::Arc(ArcData {
                         center: a.center,
                         ccw: a.ccw,
@@ -144,10 +144,10 @@ pub fn clamp(pts: &[P3], floor: f64) -> Vec<P3> {
     out
 }
 
-fn polyline_elems(pts: &[P3]) -> Vec<Elem> {
+fn polyline_elems(pts: &[P3]) -> Vec<Segment> {
     pts.windows(2)
         .filter(|w| (w[1] - w[0]).norm() > 1e-12)
-        .map(|w| Elem::Line(Line3::new(w[0], w[1])))
+        .map(|w| Segment::Line(Line3::new(w[0], w[1])))
         .collect()
 }
 
@@ -187,7 +187,7 @@ pub fn build(plan: &LayerPlan) -> Program {
             let pts = clamp(&pass.pts, floor);
             let Some(&start) = pts.first() else { continue };
             let elems = if last && pass.kind == PassKind::Main && plan.motion != MotionMode::Lines {
-                let e: Vec<Elem> = pass
+                let e: Vec<Segment> = pass
                     .runs
                     .iter()
                     .flat_map(|r| fit_run(plan.contact, r, plan.motion, &plan.fit, plan.step))
@@ -223,10 +223,10 @@ fn link_to(prog: &mut Program, plan: &LayerPlan, start: P3, floor: f64, feed: f6
         // The lifted link starts at the surface; the tool may sit higher
         // (clamped), so go from where it is.
         let mut e = polyline_elems(&pts);
-        if let Some(Elem::Line(l)) = e.first_mut() {
+        if let Some(Segment::Line(l)) = e.first_mut() {
             l.start = p;
         }
-        if let Some(Elem::Line(l)) = e.last_mut() {
+        if let Some(Segment::Line(l)) = e.last_mut() {
             l.end = start;
         }
         if (pts[0] - p).norm() <= 1e-9 {

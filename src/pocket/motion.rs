@@ -25,9 +25,9 @@
 //! tolerance; lines are split until they comply ([`Contact::safe_line`]).
 
 use super::contact::Contact;
+use crate::geometry::Segment;
 use crate::geometry::{Arc3, Line3, P2, P3, Plane};
 use crate::laser::arcfit;
-use crate::laser::elem::Elem;
 
 /// How the final layer's main path moves.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -70,15 +70,15 @@ fn run_plane(a: &P3, b: &P3) -> (Plane, f64) {
 }
 
 /// Distance of `p` from an element.
-pub fn elem_distance(e: &Elem, p: &P3) -> f64 {
+pub fn elem_distance(e: &Segment, p: &P3) -> f64 {
     match e {
-        Elem::Line(l) => l.distance(p),
-        Elem::Arc(a) => a.distance(p).unwrap_or_else(|| (a.start - p).norm()),
+        Segment::Line(l) => l.distance(p),
+        Segment::Arc(a) => a.distance(p).unwrap_or_else(|| (a.start - p).norm()),
     }
 }
 
 /// True when the cutter along `e` stays within the gouge tolerance.
-fn no_gouge(c: &Contact, e: &Elem, step: f64) -> bool {
+fn no_gouge(c: &Contact, e: &Segment, step: f64) -> bool {
     let len = e.length();
     let n = ((len / step).ceil() as usize).clamp(4, 4096);
     (1..n).all(|k| {
@@ -87,20 +87,20 @@ fn no_gouge(c: &Contact, e: &Elem, step: f64) -> bool {
     })
 }
 
-fn lines_between(c: &Contact, pts: &[P3], out: &mut Vec<Elem>) {
+fn lines_between(c: &Contact, pts: &[P3], out: &mut Vec<Segment>) {
     for w in pts.windows(2) {
         let mut v = Vec::new();
         c.safe_line(w[0], w[1], &mut v);
         let mut a = w[0];
         for b in v {
-            out.push(Elem::line(a, b));
+            out.push(Segment::line(a, b));
             a = b;
         }
     }
 }
 
 /// Fit one straight run of touching points with `mode`.
-pub fn fit_run(c: &Contact, pts: &[P3], mode: MotionMode, o: &FitOptions, step: f64) -> Vec<Elem> {
+pub fn fit_run(c: &Contact, pts: &[P3], mode: MotionMode, o: &FitOptions, step: f64) -> Vec<Segment> {
     let mut out = Vec::new();
     if mode == MotionMode::Lines || pts.len() < 3 {
         lines_between(c, pts, &mut out);
@@ -140,12 +140,14 @@ pub fn fit_run(c: &Contact, pts: &[P3], mode: MotionMode, o: &FitOptions, step: 
 
 /// Thesis §4.2 on one span: an arc through first, middle and last point,
 /// or a line when the radius is beyond the limit.
-fn arc_span(span: &[P3], plane: Plane, o: &FitOptions) -> Option<Vec<Elem>> {
+fn arc_span(span: &[P3], plane: Plane, o: &FitOptions) -> Option<Vec<Segment>> {
     let (a, b) = (span[0], span[span.len() - 1]);
     let m = span[span.len() / 2];
     let line = || {
         let l = Line3::new(a, b);
-        span.iter().all(|p| l.distance(p) <= o.tol).then(|| vec![Elem::Line(l)])
+        span.iter()
+            .all(|p| l.distance(p) <= o.tol)
+            .then(|| vec![Segment::Line(l)])
     };
     let Some(arc) = Arc3::from_three_points(&a, &m, &b, plane) else {
         return line();
@@ -159,7 +161,7 @@ fn arc_span(span: &[P3], plane: Plane, o: &FitOptions) -> Option<Vec<Elem>> {
     }
     let c2 = plane.project(&arc.center);
     let ok = span.iter().all(|p| ((plane.project(p) - c2).norm() - r).abs() <= o.tol);
-    ok.then(|| vec![Elem::Arc(arc)])
+    ok.then(|| vec![Segment::Arc(arc)])
 }
 
 fn bez(p: &[P2; 4], u: f64) -> P2 {
@@ -171,7 +173,7 @@ fn bez(p: &[P2; 4], u: f64) -> P2 {
 /// Thesis §4.3 on one span: the cubic through the span's ends whose
 /// inner control points put P(u1) and P(u2) on the second and the
 /// next-to-last points, u1 = 1/(n-1), u2 = 1 - u1; then tangent arcs.
-fn bezier_span(span: &[P3], plane: Plane, o: &FitOptions) -> Option<Vec<Elem>> {
+fn bezier_span(span: &[P3], plane: Plane, o: &FitOptions) -> Option<Vec<Segment>> {
     let (cubic, fixed) = bezier_controls(span, plane)?;
     let n = span.len();
     // Points within tol/2 of the curve, and the curve monotone along the run.
@@ -198,8 +200,8 @@ fn bezier_span(span: &[P3], plane: Plane, o: &FitOptions) -> Option<Vec<Elem>> {
     let mut out = Vec::with_capacity(fit.len());
     for e in &fit {
         match e {
-            Elem::Line(l) => out.push(Elem::line(lift(&l.start), lift(&l.end))),
-            Elem::Arc(a) => out.push(Elem::Arc(Arc3::new(
+            Segment::Line(l) => out.push(Segment::line(lift(&l.start), lift(&l.end))),
+            Segment::Arc(a) => out.push(Segment::Arc(Arc3::new(
                 lift(&a.center),
                 lift(&a.start),
                 lift(&a.end),
@@ -259,7 +261,7 @@ fn seg_dist(p: &P2, a: &P2, b: &P2) -> f64 {
 }
 
 /// Largest distance of the run's points from the fitted elements.
-pub fn point_deviation(elems: &[Elem], pts: &[P3]) -> f64 {
+pub fn point_deviation(elems: &[Segment], pts: &[P3]) -> f64 {
     pts.iter()
         .map(|p| elems.iter().map(|e| elem_distance(e, p)).fold(f64::INFINITY, f64::min))
         .fold(0.0, f64::max)

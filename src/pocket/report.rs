@@ -56,12 +56,7 @@ pub fn lengths(records: &[Record]) -> (f64, f64) {
     for r in records {
         let Some(m) = r.motion() else { continue };
         if let Some(p) = pos {
-            let l = match m.kind {
-                MotionKind::Arc(a) => crate::geometry::Arc3::new(a.center, p, m.to, a.ccw, a.plane, a.extra_turns)
-                    .map(|x| x.length())
-                    .unwrap_or((m.to - p).norm()),
-                _ => (m.to - p).norm(),
-            };
+            let l = m.segment(p).length();
             if m.kind == MotionKind::Rapid {
                 rapid += l;
             } else {

@@ -10,7 +10,8 @@
 
 use super::ProbeError;
 use crate::geometry::P2;
-use crate::model::chain::{Chain, Segment};
+use crate::geometry::segment::ArcXy;
+use crate::model::chain::Chain;
 use std::f64::consts::TAU;
 
 /// One boundary piece of a part.
@@ -165,13 +166,14 @@ pub fn in_sweep(a: f64, a0: f64, sweep: f64) -> bool {
         return true;
     }
     let tol = 1e-12;
-    if sweep >= 0.0 {
-        let d = (a - a0).rem_euclid(TAU);
-        d <= sweep + tol || d >= TAU - tol
-    } else {
-        let d = (a0 - a).rem_euclid(TAU);
-        d <= -sweep + tol || d >= TAU - tol
-    }
+    let arc = ArcXy {
+        center: P2::origin(),
+        radius: 0.0,
+        start_angle: a0,
+        sweep,
+    };
+    let d = arc.angle_offset(a);
+    d <= sweep.abs() + tol || d >= TAU - tol
 }
 
 /// Both roots of |o + t d - c| = rho (d unit), smaller first.
@@ -228,15 +230,14 @@ impl Part {
             }
             let first = prims.len();
             for s in &ch.segments {
-                match *s {
-                    Segment::Line { start, end } => {
-                        let (a, b) = (P2::new(start.x, start.y), P2::new(end.x, end.y));
+                match s.to_arc_xy() {
+                    None => {
+                        let (a, b) = (s.start().xy(), s.end().xy());
                         if (b - a).norm() > 0.0 {
                             prims.push(Prim::Line { a, b });
                         }
                     }
-                    Segment::Arc { .. } => {
-                        let Some(arc) = s.arc_xy() else { continue };
+                    Some(arc) => {
                         prims.push(Prim::Arc {
                             c: arc.center,
                             r: arc.radius,

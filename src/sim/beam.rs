@@ -31,7 +31,7 @@
 //! are settled and dropped; memory holds a few moves and one record per cut.
 
 use super::time::{MAX_PIECES, Piece, TimedBlock};
-use crate::geometry::{Arc3, Line3, P3, Plane};
+use crate::geometry::P3;
 use crate::machine::Shutter;
 use crate::model::chain::{Chain, Segment};
 use crate::model::toolpath::ShutterSwitch;
@@ -406,31 +406,15 @@ impl ChainExposure {
 }
 
 fn segment_length(s: &Segment) -> f64 {
-    match *s {
-        Segment::Line { start, end } => Line3::new(start, end).length(),
-        Segment::Arc {
-            start,
-            end,
-            center,
-            ccw,
-        } => Arc3::new(center, start, end, ccw, Plane::Xy, 0).map_or(0.0, |a| a.length()),
-    }
+    s.checked().map_or(0.0, |s| s.length())
 }
 
 /// Distance in XY from `p` to a segment (chains are planar drawings; the
 /// path may run at any depth below them).
 fn segment_distance(s: &Segment, p: &P3) -> f64 {
-    match *s {
-        Segment::Line { start, end } => Line3::new(start, end).distance(&P3::new(p.x, p.y, start.z)),
-        Segment::Arc {
-            start,
-            end,
-            center,
-            ccw,
-        } => Arc3::new(center, start, end, ccw, Plane::Xy, 0)
-            .and_then(|a| a.distance(&P3::new(p.x, p.y, start.z)))
-            .unwrap_or(f64::INFINITY),
-    }
+    s.checked()
+        .and_then(|s| s.distance(&P3::new(p.x, p.y, s.start().z)))
+        .unwrap_or(f64::INFINITY)
 }
 
 /// Match each cut to the drawing chain most of its probe points lie on
@@ -617,10 +601,7 @@ mod tests {
         );
         let line = |id, x0: f64, x1: f64| Chain {
             id,
-            segments: vec![Segment::Line {
-                start: P3::new(x0, 0.0, 0.0),
-                end: P3::new(x1, 0.0, 0.0),
-            }],
+            segments: vec![Segment::line(P3::new(x0, 0.0, 0.0), P3::new(x1, 0.0, 0.0))],
             ..Default::default()
         };
         let chains = [line(7, 0.0, 2.0), line(8, 2.95, 3.2), line(9, 10.0, 11.0)];

@@ -12,7 +12,7 @@ use super::summary::Summary;
 use super::time::{Block, Event, Limit, MoveClass, TimeModel, TimedBlock};
 use crate::cutter::Cutter;
 use crate::formats::{push_num, push_uint};
-use crate::geometry::{Arc3, BBox3, P3, V3};
+use crate::geometry::{BBox3, P3, V3};
 use crate::machine::{Controller, Machine};
 use crate::model::toolpath::{Header, MotionKind, Record};
 use std::io::Write;
@@ -275,7 +275,8 @@ impl<W: Write> Simulator<W> {
                 };
                 let mut block = match m.kind {
                     MotionKind::Arc(a) => {
-                        let arc = Arc3::new(a.center, from, m.to, a.ccw, a.plane, a.extra_turns)
+                        let arc = a
+                            .arc(from, m.to)
                             .ok_or_else(|| self.err(m.block, "arc of zero radius".into()))?;
                         self.check_limits(&arc.bbox(), m.block)?;
                         let len = arc.length();
@@ -495,7 +496,7 @@ impl<W: Write> Removal<W> {
 
     fn cut(&mut self, block: &Block, from: &P3, to: &P3, kind: &MotionKind) -> Result<(), SimError> {
         let arc = match kind {
-            MotionKind::Arc(a) => Arc3::new(a.center, *from, *to, a.ccw, a.plane, a.extra_turns),
+            MotionKind::Arc(a) => a.arc(*from, *to),
             _ => None,
         };
         if let Some(o) = self.overlay.as_mut() {

@@ -1,7 +1,7 @@
 //! Path summary: lengths by kind, beam-on length, extents, counts.
 //! One pass over the records, constant memory.
 
-use crate::geometry::{Arc3, P3};
+use crate::geometry::P3;
 use crate::model::toolpath::{FeedUnit, MotionKind, Record};
 
 /// Running totals over a toolpath.
@@ -74,7 +74,7 @@ impl Summary {
                         self.arcs += 1;
                         // The geometry kernel's arc: exact length (helical
                         // rise included) and exact extents.
-                        match Arc3::new(a.center, self.pos, m.to, a.ccw, a.plane, a.extra_turns) {
+                        match a.arc(self.pos, m.to) {
                             Some(arc) => {
                                 let bb = arc.bbox();
                                 if !bb.is_empty() {

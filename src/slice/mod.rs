@@ -22,7 +22,6 @@ use std::collections::HashMap;
 
 use crate::geometry::{P2, P3};
 use crate::laser::arcfit;
-use crate::laser::elem::Elem;
 use crate::mesh::Mesh;
 use crate::model::chain::{Chain, Segment};
 
@@ -487,37 +486,19 @@ fn loop_segments(l: &Loop, z: f64, arc_tol: Option<f64>) -> Vec<Segment> {
             // the chords between them do not; arcs through the points are
             // closer to the model than the polygon is.
             let fit = arcfit::fit_points(&pts, tol, z, false);
-            let mut segs: Vec<Segment> = fit
-                .iter()
-                .map(|e| match e {
-                    Elem::Line(li) => Segment::Line {
-                        start: li.start,
-                        end: li.end,
-                    },
-                    Elem::Arc(a) => Segment::Arc {
-                        start: a.start,
-                        end: a.end,
-                        center: a.center,
-                        ccw: a.ccw,
-                    },
-                })
-                .collect();
+            // Fitted arcs are XY arcs of less than a turn: chain segments as they are.
+            let mut segs: Vec<Segment> = fit;
             // Snap the seam exactly.
             if l.closed
                 && let (Some(f), Some(last)) = (segs.first().map(|s| s.start()), segs.last_mut())
             {
-                match last {
-                    Segment::Line { end, .. } | Segment::Arc { end, .. } => *end = f,
-                }
+                last.set_end(f);
             }
             segs
         }
         _ => pts
             .windows(2)
-            .map(|w| Segment::Line {
-                start: lift(&w[0]),
-                end: lift(&w[1]),
-            })
+            .map(|w| Segment::line(lift(&w[0]), lift(&w[1])))
             .collect(),
     }
 }

@@ -11,7 +11,7 @@
 
 use crate::dexel::tool::Location;
 use crate::gcode::ReadOptions;
-use crate::geometry::{Arc3, P3, V3};
+use crate::geometry::{P3, V3};
 use crate::model::toolpath::{MotionKind, Record};
 use crate::source::ToolpathSource;
 use std::io::BufRead;
@@ -109,7 +109,8 @@ pub fn program_locations(src: ToolpathSource, sag: f64) -> Result<Vec<Location>,
         let from = out.last().map(|l| l.tip);
         match (m.kind, from) {
             (MotionKind::Arc(a), Some(from)) => {
-                let arc = Arc3::new(a.center, from, m.to, a.ccw, a.plane, a.extra_turns)
+                let arc = a
+                    .arc(from, m.to)
                     .ok_or_else(|| ClError::Program(format!("line {}: degenerate arc", m.block.unwrap_or(0))))?;
                 let r = arc.radius().max(1e-12);
                 let dphi = if sag >= r {

@@ -5,7 +5,6 @@ use clap::Args as ClapArgs;
 use microcam::cli::{self, CliError, Output};
 use microcam::formats::chains::ChainsWriter;
 use microcam::laser::arcfit;
-use microcam::laser::elem::Elem;
 use microcam::model::chain::{Chain, ChainsHeader, Segment};
 use std::path::PathBuf;
 
@@ -49,7 +48,7 @@ pub(crate) fn arcfit_cmd(a: ArcfitArgs) -> Result<(), CliError> {
     let mut out = Output::new(a.output.as_deref());
     use std::io::Write;
     if a.report {
-        let arcs = fit.iter().filter(|e| matches!(e, Elem::Arc(_))).count();
+        let arcs = fit.iter().filter(|e| matches!(e, Segment::Arc(_))).count();
         writeln!(
             out,
             "{{\"schema\":\"microcam.arcfit-report/1\",\"points\":{},\"polyline_blocks\":{},\"biarc_blocks\":{},\"arcs\":{},\"lines\":{},\"tolerance_mm\":{},\"max_point_deviation_mm\":{:.9},\"max_polyline_deviation_mm\":{:.9}}}",
@@ -63,21 +62,8 @@ pub(crate) fn arcfit_cmd(a: ArcfitArgs) -> Result<(), CliError> {
             dev_poly
         )?;
     } else {
-        let segments = fit
-            .iter()
-            .map(|e| match e {
-                Elem::Line(l) => Segment::Line {
-                    start: l.start,
-                    end: l.end,
-                },
-                Elem::Arc(x) => Segment::Arc {
-                    start: x.start,
-                    end: x.end,
-                    center: x.center,
-                    ccw: x.ccw,
-                },
-            })
-            .collect();
+        // Fitted arcs are XY arcs of less than a turn: chain segments as they are.
+        let segments = fit;
         let mut w = ChainsWriter::new(&mut out);
         w.header(&ChainsHeader { source: Some(name) })?;
         w.chain(&Chain {

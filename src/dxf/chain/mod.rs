@@ -77,29 +77,11 @@ impl Hasher for Fx {
 pub(super) type FxMap<K, V> = HashMap<K, V, BuildHasherDefault<Fx>>;
 
 fn finite(s: &Segment) -> bool {
-    let ok = |p: &P3| p.iter().all(|x| x.is_finite());
-    match s {
-        Segment::Line { start, end } => ok(start) && ok(end),
-        Segment::Arc { start, end, center, .. } => ok(start) && ok(end) && ok(center),
-    }
+    s.is_finite()
 }
 
-pub use crate::model::chain::arc_sweep;
-
 pub(super) fn midpoint(s: &Segment) -> P3 {
-    match *s {
-        Segment::Line { start, end } => P3::from((start.coords + end.coords) * 0.5),
-        Segment::Arc {
-            start,
-            end,
-            center,
-            ccw,
-        } => {
-            let r = (start - center).xy().norm();
-            let a = (start.y - center.y).atan2(start.x - center.x) + 0.5 * arc_sweep(&start, &end, &center, ccw);
-            P3::new(center.x + r * a.cos(), center.y + r * a.sin(), start.z)
-        }
-    }
+    s.midpoint()
 }
 
 /// One piece being chained: the same size as the `(Segment, u32)` it is
@@ -364,13 +346,7 @@ mod tests {
     use super::*;
 
     fn line(x0: f64, y0: f64, x1: f64, y1: f64) -> (Segment, u32) {
-        (
-            Segment::Line {
-                start: P3::new(x0, y0, 0.0),
-                end: P3::new(x1, y1, 0.0),
-            },
-            0,
-        )
+        (Segment::line(P3::new(x0, y0, 0.0), P3::new(x1, y1, 0.0)), 0)
     }
 
     fn square(x: f64, y: f64, s: f64, cw: bool) -> Vec<(Segment, u32)> {
@@ -473,27 +449,16 @@ mod tests {
 
     #[test]
     fn snapped_arc_keeps_equal_radii() {
-        let arc = Segment::Arc {
-            start: P3::new(1.0, 0.0, 0.0),
-            end: P3::new(0.0, 1.0, 0.0),
-            center: P3::origin(),
-            ccw: true,
-        };
+        let arc = Segment::arc_xy(P3::new(1.0, 0.0, 0.0), P3::new(0.0, 1.0, 0.0), P3::origin(), true);
         let s = snap(&arc, P3::new(1.0004, 0.0, 0.0), P3::new(0.0, 0.9997, 0.0));
-        let Segment::Arc { start, end, center, .. } = s else {
-            panic!()
-        };
+        let Segment::Arc(a) = s else { panic!() };
+        let (start, end, center) = (a.start, a.end, a.center);
         assert!(((start - center).norm() - (end - center).norm()).abs() < 1e-12);
     }
 
     #[test]
     fn full_circle_area() {
-        let c = Segment::Arc {
-            start: P3::new(2.0, 0.0, 0.0),
-            end: P3::new(2.0, 0.0, 0.0),
-            center: P3::origin(),
-            ccw: false,
-        };
+        let c = Segment::arc_xy(P3::new(2.0, 0.0, 0.0), P3::new(2.0, 0.0, 0.0), P3::origin(), false);
         assert!((signed_area(&[c]) + 4.0 * std::f64::consts::PI).abs() < 1e-12);
         let (ch, _) = build_vec(vec![(c, 0)], &[], &layers(), 0.001);
         assert!(ch[0].closed);

@@ -4,19 +4,7 @@
 
 use super::{ChainReport, Chains, midpoint};
 use crate::geometry::P3;
-use crate::model::chain::{Segment, arc_sweep};
-
-/// Whether angle `t` lies on the arc from `start` (inclusive) sweeping
-/// `sweep` radians (signed).
-fn on_sweep(a0: f64, sweep: f64, t: f64) -> bool {
-    let tau = std::f64::consts::TAU;
-    let off = if sweep >= 0.0 {
-        (t - a0).rem_euclid(tau)
-    } else {
-        (a0 - t).rem_euclid(tau)
-    };
-    off <= sweep.abs()
-}
+use crate::model::chain::Segment;
 
 /// Point in a closed chain: the parity of crossings of the ray from `p`
 /// towards +X, with lines and arcs exactly (no tessellation, so memory
@@ -24,8 +12,9 @@ fn on_sweep(a0: f64, sweep: f64, t: f64) -> bool {
 fn inside(segs: &[Segment], p: &P3) -> bool {
     let mut c = false;
     for s in segs {
-        match *s {
-            Segment::Line { start: a, end: b } => {
+        match s.to_arc_xy() {
+            None => {
+                let (a, b) = (s.start(), s.end());
                 if (a.y > p.y) != (b.y > p.y) {
                     let x = a.x + (p.y - a.y) / (b.y - a.y) * (b.x - a.x);
                     if x > p.x {
@@ -33,22 +22,15 @@ fn inside(segs: &[Segment], p: &P3) -> bool {
                     }
                 }
             }
-            Segment::Arc {
-                start,
-                end,
-                center,
-                ccw,
-            } => {
-                let r = (start - center).xy().norm();
+            Some(arc) => {
+                let (center, r, end) = (arc.center, arc.radius, s.end());
                 let dy = p.y - center.y;
                 if dy.abs() >= r {
                     continue;
                 }
                 let dx = (r * r - dy * dy).sqrt();
-                let a0 = (start.y - center.y).atan2(start.x - center.x);
-                let sw = arc_sweep(&start, &end, &center, ccw);
                 for x in [center.x - dx, center.x + dx] {
-                    if x > p.x && on_sweep(a0, sw, dy.atan2(x - center.x)) {
+                    if x > p.x && arc.contains_angle(dy.atan2(x - center.x)) {
                         // Half-open at the arc's end, so a crossing exactly
                         // at a shared vertex counts once.
                         let at_end = (P3::new(x, p.y, end.z) - end).xy().norm() <= 1e-12 * r.max(1.0);
@@ -63,26 +45,7 @@ fn inside(segs: &[Segment], p: &P3) -> bool {
     c
 }
 
-/// Exact signed area enclosed by a closed chain (positive = counter-clockwise).
-pub fn signed_area(segs: &[Segment]) -> f64 {
-    let mut a = 0.0;
-    for s in segs {
-        let (p, q) = (s.start(), s.end());
-        a += 0.5 * (p.x * q.y - q.x * p.y);
-        if let Segment::Arc {
-            start,
-            end,
-            center,
-            ccw,
-        } = s
-        {
-            let r2 = (start - center).xy().norm_squared();
-            let sw = arc_sweep(start, end, center, *ccw);
-            a += 0.5 * r2 * (sw - sw.sin());
-        }
-    }
-    a
-}
+pub use crate::geometry::segment::signed_area;
 
 /// The XY box of a closed chain (arcs included exactly: their ends and the
 /// axis extremes they pass) and its signed area, the same arithmetic as
@@ -99,10 +62,10 @@ fn box_and_area(segs: &[Segment], quarter: &[(f64, f64); 4]) -> ((f64, f64), (f6
         lo = (lo.0.min(q.x), lo.1.min(q.y));
         hi = (hi.0.max(q.x), hi.1.max(q.y));
         area += 0.5 * (p.x * q.y - q.x * p.y);
-        if let Some(a) = s.arc_xy() {
+        if let Some(a) = s.to_arc_xy() {
             for (k, &(c, sn)) in quarter.iter().enumerate() {
                 let t = k as f64 * std::f64::consts::FRAC_PI_2;
-                if on_sweep(a.start_angle, a.sweep, t) {
+                if a.contains_angle(t) {
                     let (x, y) = (a.center.x + a.radius * c, a.center.y + a.radius * sn);
                     lo = (lo.0.min(x), lo.1.min(y));
                     hi = (hi.0.max(x), hi.1.max(y));

@@ -4,7 +4,7 @@
 
 use super::nodes::NONE;
 use super::{ChainReport, Notes, Work, fmt_num, midpoint};
-use crate::geometry::{P3, V3};
+use crate::geometry::{Line3, P3, V3};
 use crate::model::chain::Segment;
 
 /// Merge lines lying on one another: exact and near duplicates and partial
@@ -23,7 +23,7 @@ pub(super) fn merge_collinear(w: &mut [Work], notes: &mut Notes, tol: f64, repor
     // binary search; no table of vectors.
     let mut keyed: Vec<Keyed> = Vec::new();
     for (i, x) in w.iter().enumerate() {
-        let Segment::Line { start: a, end: b } = x.seg else {
+        let Segment::Line(Line3 { start: a, end: b }) = x.seg else {
             continue;
         };
         let len = (b - a).xy().norm();
@@ -102,7 +102,7 @@ pub(super) fn merge_collinear(w: &mut [Work], notes: &mut Notes, tol: f64, repor
         if cand.len() < 2 {
             continue;
         }
-        let Segment::Line { start: p, end: q } = w[first].seg else {
+        let Segment::Line(Line3 { start: p, end: q }) = w[first].seg else {
             continue;
         };
         let d = (q - p).xy().normalize();
@@ -120,13 +120,13 @@ pub(super) fn merge_collinear(w: &mut [Work], notes: &mut Notes, tol: f64, repor
             }
             let (lo, _) = span(&w[i].seg);
             active.retain(|&k| w[k].alive && span(&w[k].seg).1 >= lo - tol);
-            let Segment::Line { start: a, end: b } = w[i].seg else {
+            let Segment::Line(Line3 { start: a, end: b }) = w[i].seg else {
                 continue;
             };
             let mut merged = false;
             for &k in active.iter() {
                 if let Some((start, end, dup)) = overlap(&w[k].seg, a, b, tol) {
-                    w[k].seg = Segment::Line { start, end };
+                    w[k].seg = Segment::line(start, end);
                     w[k].order = w[k].order.min(w[i].order);
                     w[i].alive = false;
                     let note = if dup {
@@ -180,7 +180,7 @@ impl Keyed {
 /// by more than `tol`, the union's ends (in `kept`'s direction) and whether
 /// `a`-`b` was a duplicate (same ends within `tol`).
 fn overlap(kept: &Segment, a: P3, b: P3, tol: f64) -> Option<(P3, P3, bool)> {
-    let Segment::Line { start: p, end: q } = *kept else {
+    let Segment::Line(Line3 { start: p, end: q }) = *kept else {
         return None;
     };
     if (p.z - a.z).abs() > tol || (q.z - p.z).abs() > tol || (b.z - a.z).abs() > tol {
@@ -208,8 +208,9 @@ fn overlap(kept: &Segment, a: P3, b: P3, tol: f64) -> Option<(P3, P3, bool)> {
 /// new ends' bisector so that both ends stay on one circle.
 pub(super) fn snap(s: &Segment, a: P3, b: P3) -> Segment {
     match *s {
-        Segment::Line { .. } => Segment::Line { start: a, end: b },
-        Segment::Arc { start, center, ccw, .. } => {
+        Segment::Line(_) => Segment::line(a, b),
+        Segment::Arc(arc) => {
+            let (start, center) = (arc.start, arc.center);
             let center = if a == b {
                 center + (a - start)
             } else {
@@ -220,12 +221,7 @@ pub(super) fn snap(s: &Segment, a: P3, b: P3) -> Segment {
                 c.z = a.z;
                 c
             };
-            Segment::Arc {
-                start: a,
-                end: b,
-                center,
-                ccw,
-            }
+            Segment::arc_xy(a, b, center, arc.ccw)
         }
     }
 }
@@ -245,13 +241,12 @@ pub(super) fn zero_length(w: &mut [Work], tol: f64, report: &mut ChainReport) {
         if !x.alive {
             continue;
         }
-        let short = match x.seg {
-            Segment::Arc { start, end, center, .. } => {
-                let r = (start - center).xy().norm();
-                r <= tol
-                    || (!(tol >= CHORD_SHORTCUT_TOL && (end - start).xy().norm() > 2.0 * tol) && x.seg.length() <= tol)
+        let short = match x.seg.radius() {
+            Some(r) => {
+                let chord = (x.seg.end() - x.seg.start()).xy().norm();
+                r <= tol || (!(tol >= CHORD_SHORTCUT_TOL && chord > 2.0 * tol) && x.seg.length() <= tol)
             }
-            Segment::Line { .. } => x.seg.length() <= tol,
+            None => x.seg.length() <= tol,
         };
         if short {
             x.alive = false;
@@ -301,7 +296,7 @@ pub(super) fn remove_duplicates(
     report: &mut ChainReport,
 ) {
     for (i, x) in w.iter_mut().enumerate() {
-        if x.alive && ends[i].0 == ends[i].1 && matches!(x.seg, Segment::Line { .. }) {
+        if x.alive && ends[i].0 == ends[i].1 && matches!(x.seg, Segment::Line(_)) {
             x.alive = false;
             report.zero_length += 1;
         }
@@ -330,9 +325,9 @@ pub(super) fn remove_duplicates(
                 continue;
             }
             let same = match (&w[i].seg, &w[j_].seg) {
-                (Segment::Line { .. }, Segment::Line { .. }) => true,
-                (Segment::Arc { center: c1, .. }, Segment::Arc { center: c2, .. }) => {
-                    (c1 - c2).norm() <= tol && (midpoint(&w[i].seg) - midpoint(&w[j_].seg)).norm() <= tol
+                (Segment::Line(_), Segment::Line(_)) => true,
+                (Segment::Arc(a1), Segment::Arc(a2)) => {
+                    (a1.center - a2.center).norm() <= tol && (midpoint(&w[i].seg) - midpoint(&w[j_].seg)).norm() <= tol
                 }
                 _ => false,
             };
