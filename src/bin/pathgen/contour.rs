@@ -6,12 +6,12 @@ use super::common::{
 };
 use clap::Args as ClapArgs;
 use microcam::cli::{self, CliError};
+use microcam::formats::read_chains;
 use microcam::geometry::P2;
 use microcam::geometry::P3;
 use microcam::laser::contour::{
     ContourOptions, DEFAULT_CLEANUP_TOL, Direction, OrderMode, contour, contour_streamed, estimated_moves,
 };
-use microcam::laser::input::read_chains;
 use microcam::laser::offset::Side;
 use microcam::laser::setup::LaserSetup;
 use microcam::machine::Machine;

@@ -11,10 +11,10 @@ use microcam::dropcutter::output::{Feeds, toolpath_records, write_cldata, write_
 use microcam::dropcutter::raster::{Direction, Pattern, Raster, chain_passes};
 use microcam::dropcutter::{DropCutter, DropError};
 use microcam::formats::cldata::ClWriter;
+use microcam::formats::read_chains;
 use microcam::formats::toolpath::ToolpathWriter;
 use microcam::gcode::Dialect;
 use microcam::geometry::{P2, P3};
-use microcam::laser::input::read_chains;
 use microcam::mesh::{ReadOptions, Units};
 use microcam::model::toolpath::{FeedUnit, Header};
 use microcam::progress::{Meter, Show};

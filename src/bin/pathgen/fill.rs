@@ -4,9 +4,9 @@
 use super::common::{GenOutput, MachineArgs, short_note, warn_all, write_generated, write_streamed};
 use clap::Args as ClapArgs;
 use microcam::cli::{self, CliError};
+use microcam::formats::read_chains;
 use microcam::geometry::P3;
 use microcam::laser::fill::{FillOptions, Pattern, plan_prepared, prepare};
-use microcam::laser::input::read_chains;
 use std::path::PathBuf;
 
 pub const EXAMPLES: &str = "\
