@@ -119,7 +119,7 @@ const CASES: &[Case] = &[
         tool: "pathgen",
         args: &[
             "dropcutter",
-            "--cutter",
+            "--tool",
             "ball:2",
             "--step-over",
             "2",
@@ -130,7 +130,7 @@ const CASES: &[Case] = &[
     },
     Case {
         tool: "pathgen",
-        args: &["fill", "--beam-diameter", "0.2", "--stepover", "0.3"],
+        args: &["fill", "--beam-diameter", "0.2", "--step-over", "0.3"],
         input: Some("testdata/chains/plate.chains"),
     },
     Case {

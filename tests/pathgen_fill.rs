@@ -102,7 +102,7 @@ fn a_sliced_torus_is_filled_level_by_level_around_its_hole() {
                 pattern,
                 "--beam-diameter",
                 "0.02",
-                "--stepover",
+                "--step-over",
                 "0.02",
                 "--outline",
             ],
@@ -217,7 +217,7 @@ fn corpus_stl_slices_and_dxf_regions_fill() {
                 "--outline",
                 "--beam-diameter",
                 "0.1",
-                "--stepover",
+                "--step-over",
                 "0.2",
             ],
             ok(&chains),
@@ -251,8 +251,8 @@ fn bad_input_exits_2_and_writes_nothing() {
         (header.to_string(), vec![], "no closed chains"),
         (flat, vec![], "no area"),
         (nan, vec![], ""),
-        (square.clone(), vec!["--stepover", "1e-9"], "moves"),
-        (square.clone(), vec!["--stepover", "-1"], "positive"),
+        (square.clone(), vec!["--step-over", "1e-9"], "moves"),
+        (square.clone(), vec!["--step-over", "-1"], "positive"),
         (square, vec!["--beam-diameter", "nan"], "not a number"),
     ];
     for (input, extra, msg) in cases {
@@ -267,7 +267,7 @@ fn bad_input_exits_2_and_writes_nothing() {
     // The refusal says how big the job would have been.
     let o = run(
         PATHGEN,
-        &["fill", "--stepover", "1e-9"],
+        &["fill", "--step-over", "1e-9"],
         b"{\"schema\":\"microcam.chains/1\"}\n{\"id\":1,\"closed\":true,\"segments\":[{\"type\":\"arc\",\"start\":[5,0],\"end\":[5,0],\"center\":[0,0],\"ccw\":true}]}\n",
     );
     assert_eq!(o.status.code(), Some(2));

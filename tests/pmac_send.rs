@@ -668,7 +668,7 @@ fn bad_flags_and_hosts_are_usage_errors() {
         &["--stall-s", "-1"],
         &["--stop-deadline-s", "1e308"],
         &["--timeout-ms", "0"],
-        &["--line-counter", "X5"],
+        &["--line-counter-var", "X5"],
     ] {
         let out = Command::new(env!("CARGO_BIN_EXE_pmac-send"))
             .arg("job.pmac")

@@ -120,7 +120,12 @@ struct Args {
     chains: Option<PathBuf>,
     /// How far (mm, in XY) a cut's moves may lie from a drawing chain and
     /// still count as cutting it.
-    #[arg(long, default_value_t = 0.1)]
+    #[arg(
+        long = "chain-tol",
+        alias = "chain-tol-mm",
+        value_name = "CHAIN_TOL",
+        default_value_t = 0.1
+    )]
     chain_tol_mm: f64,
     /// Stock box for material removal, mm: XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX.
     /// Without --tool each tool cuts with its own cutter, from the tool

@@ -74,7 +74,7 @@ struct Args {
     #[arg(long, value_enum, default_value = "ethernet")]
     transport: TransportArg,
     /// Program buffer number (program and split modes).
-    #[arg(long, default_value_t = 1)]
+    #[arg(long = "program", alias = "prog", value_name = "PROGRAM", default_value_t = 1)]
     prog: u32,
     /// Most words a chunk may take (default: 90% of SIZE after clearing).
     #[arg(long)]
@@ -112,7 +112,12 @@ struct Args {
     upload_only: bool,
     #[arg(long, default_value = "M33")]
     shutter_var: String,
-    #[arg(long, default_value = "P400")]
+    #[arg(
+        long = "line-counter-var",
+        alias = "line-counter",
+        value_name = "LINE_COUNTER_VAR",
+        default_value = "P400"
+    )]
     line_counter: String,
     /// Variable set to the chunk number after a chunk's last motion
     /// (behind DWELL0); confirms chunks even across an abort.
@@ -150,7 +155,7 @@ fn check_args(args: &Args) -> Result<String, CliError> {
     }
     for (flag, v, letter) in [
         ("--shutter-var", &args.shutter_var, None),
-        ("--line-counter", &args.line_counter, Some('P')),
+        ("--line-counter-var", &args.line_counter, Some('P')),
         ("--done-var", &args.done_var, None),
         ("--counter-mvar", &args.counter_mvar, Some('M')),
         ("--session-var", &args.session_var, None),

@@ -169,7 +169,7 @@ fn finite_chain(c: &Chain) -> bool {
 /// Check the options, nest the chains into regions, order them and
 /// estimate the work; refuse a job larger than `o.max_moves`.
 pub fn prepare(chains: &[Chain], o: &FillOptions) -> Result<Prepared, FillError> {
-    for (name, v) in [("--stepover", o.stepover), ("the beam radius", o.beam_radius)] {
+    for (name, v) in [("--step-over", o.stepover), ("the beam radius", o.beam_radius)] {
         if !(v.is_finite() && v > 0.0) {
             return Err(FillError::NotPositive(name, v));
         }
