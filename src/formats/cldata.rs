@@ -11,6 +11,7 @@
 //! lines (any line before the first location whose first word is not a
 //! number: `S.No. X Y Z`) are skipped. Every row of a file has the same
 //! layout. See docs/formats.md.
+#![warn(missing_docs)]
 
 use super::{FormatError, LineSource, push_num};
 use crate::geometry::P3;
@@ -87,7 +88,7 @@ pub fn read_cldata(input: impl BufRead) -> Result<ClData, FormatError> {
             n => {
                 return Err(FormatError::invalid(
                     line,
-                    format!("a row has 3 numbers (x y z) or 6 (x y z x1 y1 z1), got {n}"),
+                    format!("{n} numbers; expected x y z or x y z x1 y1 z1"),
                 ));
             }
         };
@@ -118,6 +119,7 @@ pub struct ClWriter<W: Write> {
 }
 
 impl<W: Write> ClWriter<W> {
+    /// A writer to `out`.
     pub fn new(out: W) -> Self {
         ClWriter {
             out,
@@ -155,6 +157,7 @@ impl<W: Write> ClWriter<W> {
         self.out.write_all(self.buf.as_bytes())
     }
 
+    /// Flush and hand back the sink.
     pub fn finish(mut self) -> std::io::Result<W> {
         self.out.flush()?;
         Ok(self.out)
@@ -189,10 +192,7 @@ mod tests {
     #[test]
     fn errors_name_the_line() {
         let e = read_cldata("1 2 3\n\n1 2\n".as_bytes()).unwrap_err();
-        assert_eq!(
-            e.to_string(),
-            "line 3: a row has 3 numbers (x y z) or 6 (x y z x1 y1 z1), got 2"
-        );
+        assert_eq!(e.to_string(), "line 3: 2 numbers; expected x y z or x y z x1 y1 z1");
         let e = read_cldata("1 2 3\n1 2 3 4 5 6\n".as_bytes()).unwrap_err();
         assert_eq!(e.to_string(), "line 2: 6 numbers, but the rows before have 3");
         let e = read_cldata("1 2 3\nx y z\n".as_bytes()).unwrap_err();
@@ -200,7 +200,7 @@ mod tests {
         assert!(read_cldata("1 2 nan\n".as_bytes()).is_err());
         assert_eq!(
             read_cldata("1 2 3\n1 2 3 4 5\n".as_bytes()).unwrap_err().to_string(),
-            "line 2: a row has 3 numbers (x y z) or 6 (x y z x1 y1 z1), got 5"
+            "line 2: 5 numbers; expected x y z or x y z x1 y1 z1"
         );
         assert!(read_cldata("1 2 3\n1.5 2 3 4\n".as_bytes()).is_err());
     }
