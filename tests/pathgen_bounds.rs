@@ -5,29 +5,14 @@
 //! mean nothing. Also the laser flow's block margin with `--decimals 3` and
 //! the warning for a drawing larger than the machine.
 
-use std::process::{Command, Output, Stdio};
 use std::time::{Duration, Instant};
 
 const PATHGEN: &str = env!("CARGO_BIN_EXE_pathgen");
 const GSIM: &str = env!("CARGO_BIN_EXE_gsim");
 
-fn run(bin: &str, args: &[&str], stdin: Option<&str>) -> Output {
-    use std::io::Write;
-    let mut child = Command::new(bin)
-        .args(args)
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .stdin(Stdio::piped())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("spawn");
-    if let Some(text) = stdin {
-        // The child may refuse before reading all of it.
-        let _ = child.stdin.take().unwrap().write_all(text.as_bytes());
-    }
-    drop(child.stdin.take());
-    child.wait_with_output().expect("wait")
-}
+mod common;
+
+use common::run;
 
 const PLATE: &str = "testdata/chains/plate.chains";
 

@@ -7,28 +7,15 @@ use microcam::geometry::P3;
 use microcam::mesh::read_stl::write_binary;
 use microcam::mesh::solids;
 use microcam::model::toolpath::{Record, Role};
-use std::io::Write;
-use std::process::{Command, Output, Stdio};
+use std::process::Output;
 
 const PATHGEN: &str = env!("CARGO_BIN_EXE_pathgen");
 const DXF2CHAINS: &str = env!("CARGO_BIN_EXE_dxf2chains");
 
+mod common;
+
 fn run(bin: &str, args: &[&str], stdin: &[u8]) -> Output {
-    let mut c = Command::new(bin)
-        .args(args)
-        .stdin(Stdio::piped())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("spawn");
-    let mut i = c.stdin.take().unwrap();
-    let data = stdin.to_vec();
-    let feeder = std::thread::spawn(move || {
-        let _ = i.write_all(&data);
-    });
-    let o = c.wait_with_output().expect("wait");
-    feeder.join().unwrap();
-    o
+    common::run_bytes(bin, args, Some(stdin))
 }
 
 fn ok(o: &Output) -> &[u8] {

@@ -4,10 +4,10 @@
 use clap::{Parser, ValueEnum};
 use microcam::cli::{self, CliError};
 use microcam::pmac::client::{Client, Transport};
-use microcam::pmac::plan::{Job, Names};
+use microcam::pmac::plan::{Names, UploadPlan};
 use microcam::pmac::send::{
-    BUFFER_FILL, Mode, SendError, SendOptions, Sender, State, Summary, dry_run_budget, input_hash, is_stale_plan_file,
-    split_budget,
+    BUFFER_FILL, Mode, SendError, SendOptions, SendSummary, Sender, State, dry_run_budget, input_hash,
+    is_stale_plan_file, split_budget,
 };
 use std::io::Write;
 use std::net::ToSocketAddrs;
@@ -206,7 +206,7 @@ fn run(args: Args) -> Result<(), CliError> {
         counter_m: args.counter_mvar.to_ascii_uppercase(),
         session: args.session_var.to_ascii_uppercase(),
     };
-    let job = Job::read(&text, &names).map_err(|e| CliError::in_file(&input.name, e))?;
+    let job = UploadPlan::read(&text, &names).map_err(|e| CliError::in_file(&input.name, e))?;
     let mode = match args.mode {
         ModeArg::Program => Mode::Program,
         ModeArg::Split => Mode::Split,
@@ -290,7 +290,7 @@ fn run(args: Args) -> Result<(), CliError> {
     state.budget = budget;
     if state.next_move > state.moves {
         eprintln!("pmac-send: nothing to resume: all {} moves have executed", state.moves);
-        println!("{}", Summary::finished(&state).to_json(true));
+        println!("{}", SendSummary::finished(&state).to_json(true));
         return Ok(());
     }
     let rest = job.rest(state.next_move, state.resume_point()).ok_or_else(|| {
@@ -376,7 +376,7 @@ fn stopped(sender: &mut Sender, e: SendError, args: &Args) -> CliError {
 }
 
 fn dry_run(
-    job: &Job,
+    job: &UploadPlan,
     input: &str,
     mode: Mode,
     budget: Option<usize>,

@@ -5,7 +5,7 @@ use clap::{Parser, ValueEnum};
 use microcam::cli::{self, CliError, Output};
 use microcam::formats::read_chains;
 use microcam::geometry::{P2, V2};
-use microcam::probe::job::{self, Job, Measure};
+use microcam::probe::job::{self, Measure, ProbeJob};
 use microcam::probe::noise::NoiseModel;
 use microcam::probe::part::Part;
 use microcam::probe::program::{self, Dialect, Machine};
@@ -263,7 +263,7 @@ fn run(a: Args) -> Result<(), CliError> {
         Some(p) => read_part(Some(p))?,
         None => part.clone(),
     };
-    let job = Job {
+    let job = ProbeJob {
         part,
         design,
         probe,

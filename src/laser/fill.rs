@@ -31,7 +31,7 @@
 //! unless the mitre point would come closer to the region's boundary than
 //! the offset itself; then the arc stays and the planner reports it.
 
-use super::contour::{Job, Warning};
+use super::contour::{ContourJob, Warning};
 use super::dubins::connect;
 use super::elem::Elem;
 use super::offset::{continue_line, from_polyline, join_closed_ends, to_polyline};
@@ -1003,14 +1003,14 @@ struct Tally {
 }
 
 /// Plan a whole fill job.
-pub fn fill(chains: &[Chain], m: &LaserSetup, o: &FillOptions) -> Result<Job, FillError> {
+pub fn fill(chains: &[Chain], m: &LaserSetup, o: &FillOptions) -> Result<ContourJob, FillError> {
     let p = prepare(chains, o)?;
     let mut records = Vec::new();
     let warnings = plan_prepared(&p, m, o, |r| {
         records.extend(r);
         true
     });
-    Ok(Job {
+    Ok(ContourJob {
         records,
         warnings,
         cleanup: Default::default(),

@@ -7,6 +7,7 @@
 //! resume state is written naming the chunks confirmed complete. A chunk is
 //! confirmed only by what the controller reports (the line counter read
 //! back, and not running), never by what was sent.
+#![warn(missing_docs)]
 
 use crate::geometry::P3;
 use crate::pmac::client::{Client, ClientError, DownloadError};
@@ -33,6 +34,7 @@ pub enum Mode {
 }
 
 impl Mode {
+    /// The name `--mode` and the state file use.
     pub fn name(self) -> &'static str {
         match self {
             Mode::Program => "program",
@@ -99,7 +101,7 @@ pub struct PlanFile {
 /// A dry run: the chunks a job would be sent in, as download files, and the
 /// `microcam.pmac-plan/1` description of them (`plan.json`).
 pub fn dry_run(
-    job: &crate::pmac::plan::Job,
+    job: &crate::pmac::plan::UploadPlan,
     mode: Mode,
     budget: Option<usize>,
     prog: u32,
@@ -162,6 +164,7 @@ pub fn is_stale_plan_file(name: &str, chunks: usize) -> bool {
 /// What [`Sender`] needs besides the link and the chunks.
 #[derive(Debug, Clone)]
 pub struct SendOptions {
+    /// How the job reaches the controller.
     pub mode: Mode,
     /// Program buffer number for program and split modes.
     pub prog: u32,
@@ -179,6 +182,7 @@ pub struct SendOptions {
     pub stop_deadline: Duration,
     /// Reply timeout during a safety stop (longer than the normal one).
     pub stop_timeout: Duration,
+    /// The controller variables the job uses (shutter, counters, session).
     pub names: Names,
     /// Where the resume state goes.
     pub state_path: PathBuf,
@@ -195,9 +199,11 @@ pub struct SendOptions {
 /// `resume_at` (when set) has.
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 pub struct State {
+    /// Layout version of the state file (2).
     pub version: u32,
     /// FNV-1a of the input text: resume refuses another program.
     pub input_hash: String,
+    /// The mode the job was started in (resume keeps it).
     pub mode: Mode,
     /// Word budget the chunks were cut with (so resume cuts the same).
     pub budget: Option<usize>,
@@ -254,11 +260,14 @@ impl State {
         Ok(())
     }
 
+    /// Read a state file.
     pub fn load(path: &Path) -> Result<State, SendError> {
         let text = std::fs::read_to_string(path).map_err(|e| SendError::State(format!("{}: {e}", path.display())))?;
         serde_json::from_str(&text).map_err(|e| SendError::State(format!("{}: {e}", path.display())))
     }
 
+    /// Write the state file whole (a temporary file renamed over it), so a
+    /// kill mid-write leaves the previous state.
     pub fn save(&self, path: &Path) -> Result<(), SendError> {
         let dir = path
             .parent()
@@ -272,6 +281,7 @@ impl State {
         Ok(())
     }
 
+    /// Where along `next_move` to resume (`resume_at` as a point).
     pub fn resume_point(&self) -> Option<P3> {
         self.resume_at.map(|a| P3::new(a[0], a[1], a[2]))
     }
@@ -333,22 +343,41 @@ pub fn input_hash(text: &str) -> String {
     format!("{h:016x}")
 }
 
+/// Why a session stopped.
 #[derive(Debug, Error)]
 pub enum SendError {
+    /// The link or the controller's reply (ERR, timeout, lost connection).
     #[error("{0}")]
     Client(#[from] ClientError),
+    /// A download failed part way (names the line).
     #[error("{0}")]
     Download(#[from] DownloadError),
+    /// Ctrl-C or SIGTERM.
     #[error("interrupted")]
     Interrupted,
+    /// Nothing changed on the controller for this long (at this counter).
     #[error("no progress on the controller for {0:?} (line counter {1})")]
     Stalled(Duration, u64),
+    /// The program stopped before its last line.
     #[error("program ended at line counter {got}, expected {want} (controller reset or program error)")]
-    Incomplete { got: u64, want: u64 },
+    Incomplete {
+        /// The counter the controller reported.
+        got: u64,
+        /// The counter of the chunk's last move.
+        want: u64,
+    },
+    /// The job or a chunk does not fit the controller's memory.
     #[error("the job needs {need} words, the controller has {free} free: use --mode split or rotary")]
-    TooBig { need: usize, free: i64 },
+    TooBig {
+        /// Words needed.
+        need: usize,
+        /// Words free (or allowed).
+        free: i64,
+    },
+    /// A reply that cannot be trusted (not a number, impossible counter).
     #[error("bad reply '{0}'")]
     BadReply(String),
+    /// The state file could not be read or written.
     #[error("resume state {0}")]
     State(String),
 }
@@ -395,28 +424,38 @@ fn count(s: &str) -> Result<u64, SendError> {
 
 /// What a session did, printed as JSON at the end.
 #[derive(Debug, Clone, Serialize, Default)]
-pub struct Summary {
+pub struct SendSummary {
+    /// [`Mode::name`].
     pub mode: String,
+    /// Chunks the job was cut into (from the resume point).
     pub chunks: usize,
+    /// Chunks run to completion.
     pub chunks_run: usize,
+    /// Moves in the job.
     pub moves: u64,
     /// First move this session ran (above 1 after --resume).
     pub first_move: u64,
+    /// Program lines downloaded.
     pub lines_sent: u64,
+    /// Requests sent to the controller.
     pub requests: u64,
+    /// The last line counter the controller confirmed.
     pub final_counter: u64,
     /// A beam-off rapid to the resume point was added.
     pub repositioned: bool,
+    /// Time spent downloading, s.
     pub upload_seconds: f64,
+    /// Wall time of the session, s.
     pub seconds: f64,
+    /// The chunks' estimated run time, s.
     pub estimated_run_seconds: f64,
 }
 
-impl Summary {
+impl SendSummary {
     /// The summary of a session that had nothing to run: every move of the
     /// state had executed.
-    pub fn finished(state: &State) -> Summary {
-        Summary {
+    pub fn finished(state: &State) -> SendSummary {
+        SendSummary {
             mode: state.mode.name().into(),
             moves: state.moves,
             first_move: state.next_move,
@@ -436,10 +475,15 @@ impl Summary {
 /// A failed session: the error, what the safety stop did, and the state.
 #[derive(Debug)]
 pub struct Failure {
+    /// What stopped the session.
     pub error: SendError,
+    /// Whether the safety stop confirmed the shutter closed and the
+    /// program aborted (the error says why not).
     pub safe_stop: Result<(), String>,
+    /// The state as saved after the stop.
     pub state: State,
-    pub summary: Summary,
+    /// What the session did before it stopped.
+    pub summary: SendSummary,
 }
 
 impl Failure {
@@ -457,11 +501,16 @@ impl Failure {
 /// position (mm).
 #[derive(Debug, Clone, Copy)]
 pub struct Reading {
+    /// The line counter (x.5: a beam-off reposition before move x + 1).
     pub counter: f64,
+    /// The session variable.
     pub session: f64,
+    /// The motor positions, mm.
     pub pos: P3,
 }
 
+/// One session on one controller: runs chunks, watches progress, stops
+/// safely.
 pub struct Sender<'a> {
     client: Option<Client>,
     host: String,
@@ -469,12 +518,15 @@ pub struct Sender<'a> {
     opts: SendOptions,
     stop: Arc<AtomicBool>,
     progress: &'a mut dyn Write,
-    summary: Summary,
+    summary: SendSummary,
     last_note: Instant,
     moves: Vec<MoveGeom>,
 }
 
 impl<'a> Sender<'a> {
+    /// A session on `client` (connected to `host`); progress lines go to
+    /// `progress`, `stop` is set by the signal handler, `moves` are the
+    /// job's moves (to locate a stop).
     pub fn new(
         client: Client,
         host: &str,
@@ -490,7 +542,7 @@ impl<'a> Sender<'a> {
             opts,
             stop,
             progress,
-            summary: Summary::default(),
+            summary: SendSummary::default(),
             last_note: Instant::now() - Duration::from_secs(10),
             moves,
         }
@@ -547,7 +599,7 @@ impl<'a> Sender<'a> {
     }
 
     /// Run the chunks (cut from the state's resume point).
-    pub fn run(mut self, chunks: &[Chunk], state: &mut State) -> Result<Summary, Box<Failure>> {
+    pub fn run(mut self, chunks: &[Chunk], state: &mut State) -> Result<SendSummary, Box<Failure>> {
         let t0 = Instant::now();
         self.summary.mode = self.opts.mode.name().into();
         self.summary.chunks = chunks.len();
@@ -966,7 +1018,7 @@ fn parse_check(v: &[String]) -> Option<(bool, f64, Reading)> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::pmac::plan::Job;
+    use crate::pmac::plan::UploadPlan;
 
     #[test]
     fn split_budget_fills_ninety_percent_at_most_the_limit_less_the_marker() {
@@ -983,7 +1035,7 @@ mod tests {
         for i in 1..=40 {
             text.push_str(&format!("G1 X{i} F10\n"));
         }
-        let job = Job::read(&text, &Names::default()).unwrap();
+        let job = UploadPlan::read(&text, &Names::default()).unwrap();
         let budget = dry_run_budget(Mode::Split, Some(60), 16).unwrap();
         assert_eq!(budget, Some(60 - MARKER_WORDS));
         let (files, plan) = dry_run(&job, Mode::Split, budget, 3, "P401").unwrap();
@@ -1035,7 +1087,7 @@ mod tests {
         );
         let mut done = s.clone();
         done.next_move = 6;
-        let v = Summary::finished(&done).to_json(true);
+        let v = SendSummary::finished(&done).to_json(true);
         assert_eq!(v["ok"], true);
         assert_eq!(v["final_counter"], 5);
         assert_eq!(v["mode"], "split");

@@ -412,6 +412,27 @@ pub(crate) fn write_records(
     }
 }
 
+/// [`write_streamed`], counting as the chunks pass the feed moves a Turbo
+/// PMAC would stretch (`laser::audit::stretched_blocks`): (stretched, all)
+/// for [`short_note`], which the caller prints after its other notes.
+pub(crate) fn write_streamed_counting_short(
+    o: &GenOutput,
+    source: Option<String>,
+    m: &LaserSetup,
+    produce: impl FnOnce(&mut dyn FnMut(Vec<Record>) -> bool),
+) -> Result<(usize, usize), CliError> {
+    let (mut short, mut total) = (0, 0);
+    write_streamed(o, source, |sink| {
+        produce(&mut |chunk| {
+            let (s, t) = microcam::laser::audit::stretched_blocks(&chunk, m, P3::origin());
+            short += s;
+            total += t;
+            sink(chunk)
+        })
+    })?;
+    Ok((short, total))
+}
+
 /// Write records handed over in chunks by `produce` on a second thread, so
 /// formatting overlaps planning. Output is byte-identical to
 /// [`write_generated`] (same writer, same records, same order).

@@ -1,11 +1,10 @@
 //! `pathgen fill`: area fill of closed chains (offset passes or hatch),
 //! planned by the laser machinery. Included from pathgen.rs.
 
-use super::common::{GenOutput, MachineArgs, short_note, warn_all, write_generated, write_streamed};
+use super::common::{GenOutput, MachineArgs, short_note, warn_all, write_generated, write_streamed_counting_short};
 use clap::Args as ClapArgs;
 use microcam::cli::{self, CliError};
 use microcam::formats::read_chains;
-use microcam::geometry::P3;
 use microcam::laser::fill::{FillOptions, Pattern, plan_prepared, prepare};
 use std::path::PathBuf;
 
@@ -90,15 +89,9 @@ pub fn run(a: FillArgs) -> Result<(), CliError> {
         warn_all(&warnings);
         return write_generated(&records, &a.out, source, &m);
     }
-    let (mut short, mut total) = (0, 0);
     let mut warnings = Vec::new();
-    write_streamed(&a.out, source, |sink| {
-        warnings = plan_prepared(&prepared, &m, &o, |chunk| {
-            let (s, t) = microcam::laser::audit::stretched_blocks(&chunk, &m, P3::origin());
-            short += s;
-            total += t;
-            sink(chunk)
-        });
+    let (short, total) = write_streamed_counting_short(&a.out, source, &m, |sink| {
+        warnings = plan_prepared(&prepared, &m, &o, sink);
     })?;
     warn_all(&warnings);
     short_note(short, total, &m);
