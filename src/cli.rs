@@ -11,6 +11,7 @@
 //! temporary files are removed, also on SIGINT, SIGTERM and SIGHUP
 //! ([`cleanup`]). Man pages and completions come from each tool's clap
 //! definition ([`generate`]).
+#![warn(missing_docs)]
 
 pub mod cleanup;
 pub mod generate;
@@ -26,6 +27,7 @@ use std::process::ExitCode;
 pub struct CliError {
     /// 1 = the job failed (I/O, a fault), 2 = bad usage or bad input.
     pub status: u8,
+    /// What to print after `tool: ` (may be empty: nothing is printed).
     pub message: String,
     /// The reader of our stdout went away (`| head`): the job ends with
     /// status 1 but without a message, as Unix filters do.
@@ -177,6 +179,7 @@ pub fn check_numeric_arguments(args: &[String]) -> Result<(), CliError> {
 pub struct Input {
     /// How to name it in messages.
     pub name: String,
+    /// The bytes, buffered.
     pub reader: Box<dyn BufRead>,
 }
 

@@ -7,6 +7,7 @@
 //! distance ρ from the axis, sits `profile(ρ)` above the tool tip. The
 //! algorithms that use it (drop-cutter, removal) ask only for that profile
 //! and the radii, so a new shape needs a variant here and nothing else.
+#![warn(missing_docs)]
 
 use std::fmt;
 use thiserror::Error;
@@ -14,8 +15,10 @@ use thiserror::Error;
 /// A cutter description that does not make a tool.
 #[derive(Debug, Error, Clone, PartialEq)]
 pub enum CutterError {
+    /// Not `flat:D`, `ball:D` or `torus:D:RC` with positive numbers.
     #[error("cutter '{0}': expected flat:D, ball:D or torus:D:RC in mm")]
     Syntax(String),
+    /// A torus whose corner radius exceeds the tool radius.
     #[error("cutter '{0}': the corner radius is above the tool radius")]
     CornerTooLarge(String),
 }
@@ -24,12 +27,23 @@ pub enum CutterError {
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Cutter {
     /// Flat end mill (cylinder) of radius `radius`.
-    Flat { radius: f64 },
+    Flat {
+        /// Tool radius, mm.
+        radius: f64,
+    },
     /// Ball-nose end mill: a hemisphere of radius `radius`.
-    Ball { radius: f64 },
+    Ball {
+        /// Tool (and ball) radius, mm.
+        radius: f64,
+    },
     /// Bull nose (torus): flat bottom out to `radius - corner`, then a
     /// quarter circle of radius `corner` (0 < corner <= radius).
-    Torus { radius: f64, corner: f64 },
+    Torus {
+        /// Tool radius, mm.
+        radius: f64,
+        /// Corner radius, mm.
+        corner: f64,
+    },
 }
 
 impl Cutter {
@@ -159,6 +173,7 @@ impl fmt::Display for Cutter {
 /// its shape.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Tool {
+    /// The shape.
     pub cutter: Cutter,
     /// Cutting edges; feed per tooth = feed / (rpm/60 · flutes).
     pub flutes: u32,

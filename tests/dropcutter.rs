@@ -54,7 +54,7 @@ fn ball_on_a_sphere_gives_the_offset_sphere() {
         .args([
             "dropcutter",
             stl.to_str().unwrap(),
-            "--cutter",
+            "--tool",
             "ball:1",
             "--step-over",
             "0.5",
@@ -74,7 +74,7 @@ fn ball_on_a_sphere_gives_the_offset_sphere() {
         .args([
             "dropcutter",
             stl.to_str().unwrap(),
-            "--cutter",
+            "--tool",
             "ball:1",
             "--step-over",
             "0.5",
@@ -93,7 +93,7 @@ fn toolpath_gcode_adaptive_and_five_axis_outputs() {
     let s = stl.to_str().unwrap();
     let run = |args: &[&str]| pathgen().arg("dropcutter").arg(s).args(args).output().unwrap();
     let tp = run(&[
-        "--cutter",
+        "--tool",
         "flat:1",
         "--step-over",
         "1",
@@ -106,13 +106,13 @@ fn toolpath_gcode_adaptive_and_five_axis_outputs() {
     let text = String::from_utf8(tp.stdout).unwrap();
     assert!(text.starts_with("{\"schema\":\"microcam.toolpath/1\""));
     assert!(text.contains("\"type\":\"rapid\"") && text.contains("\"role\":\"plunge\""));
-    let g = run(&["--cutter", "torus:1:0.2", "--step-over", "1", "--gcode", "iso"]);
+    let g = run(&["--tool", "torus:1:0.2", "--step-over", "1", "--gcode", "iso"]);
     assert!(g.status.success());
     let g = String::from_utf8(g.stdout).unwrap();
     assert!(g.contains("G1") && g.contains("G0"));
     // Adaptive sampling adds points to a coarse raster.
-    let coarse = run(&["--cutter", "ball:1", "--step-over", "2"]);
-    let fine = run(&["--cutter", "ball:1", "--step-over", "2", "--chord-tol", "0.001"]);
+    let coarse = run(&["--tool", "ball:1", "--step-over", "2"]);
+    let fine = run(&["--tool", "ball:1", "--step-over", "2", "--chord-tol", "0.001"]);
     let (c, f) = (
         read_cldata(&coarse.stdout[..]).unwrap(),
         read_cldata(&fine.stdout[..]).unwrap(),
@@ -125,7 +125,7 @@ fn toolpath_gcode_adaptive_and_five_axis_outputs() {
     );
     // 5-axis: six numbers a row, axis points `--axis-length` from the tip.
     let five = run(&[
-        "--cutter",
+        "--tool",
         "flat:1",
         "--step-over",
         "1",
@@ -141,7 +141,7 @@ fn toolpath_gcode_adaptive_and_five_axis_outputs() {
     for (p, q) in d.points.iter().zip(&d.axis) {
         assert!(((q - p).norm() - 50.0).abs() < 1e-6);
     }
-    let ball5 = run(&["--cutter", "ball:1", "--step-over", "1", "--five-axis"]);
+    let ball5 = run(&["--tool", "ball:1", "--step-over", "1", "--five-axis"]);
     assert_eq!(ball5.status.code(), Some(2));
 }
 
@@ -155,7 +155,7 @@ fn bad_input_exits_2_and_writes_nothing() {
         .args([
             "dropcutter",
             bad.to_str().unwrap(),
-            "--cutter",
+            "--tool",
             "ball:1",
             "--step-over",
             "1",
@@ -170,11 +170,11 @@ fn bad_input_exits_2_and_writes_nothing() {
     let stl = dir.path().join("s.stl");
     write_stl(&stl, &hemisphere(1.0, 8, 4));
     for args in [
-        vec!["--cutter", "drill:1", "--step-over", "1"],
-        vec!["--cutter", "ball:1"],
-        vec!["--cutter", "ball:1", "--step-over", "0"],
-        vec!["--cutter", "ball:1", "--step-over", "1", "--region", "1,1,0,0"],
-        vec!["--cutter", "ball:1", "--step-over", "1e-9"],
+        vec!["--tool", "drill:1", "--step-over", "1"],
+        vec!["--tool", "ball:1"],
+        vec!["--tool", "ball:1", "--step-over", "0"],
+        vec!["--tool", "ball:1", "--step-over", "1", "--region", "1,1,0,0"],
+        vec!["--tool", "ball:1", "--step-over", "1e-9"],
     ] {
         let o = pathgen().arg("dropcutter").arg(&stl).args(&args).output().unwrap();
         assert_eq!(o.status.code(), Some(2), "{args:?}");
@@ -193,7 +193,7 @@ fn every_corpus_stl_drops_or_is_refused() {
         let o = pathgen()
             .arg("dropcutter")
             .arg(f)
-            .args(["--cutter", "torus:1:0.2", "--step-over", "0.5"])
+            .args(["--tool", "torus:1:0.2", "--step-over", "0.5"])
             .output()
             .unwrap();
         match o.status.code() {

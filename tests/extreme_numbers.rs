@@ -21,15 +21,9 @@ const EXTREMES: &[&str] = &["1e-12", "1e308", "-1e308", "-1", "0", "nan", "inf",
 const RUN_LIMIT: Duration = Duration::from_secs(20);
 const MEMORY_LIMIT_BYTES: u64 = 1 << 30;
 
-fn bin(name: &str) -> PathBuf {
-    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("target/release").join(name);
-    if p.exists() {
-        return p;
-    }
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("target/debug")
-        .join(name)
-}
+mod common;
+
+use common::bin;
 
 fn root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
@@ -119,7 +113,7 @@ const CASES: &[Case] = &[
         tool: "pathgen",
         args: &[
             "dropcutter",
-            "--cutter",
+            "--tool",
             "ball:2",
             "--step-over",
             "2",
@@ -130,7 +124,7 @@ const CASES: &[Case] = &[
     },
     Case {
         tool: "pathgen",
-        args: &["fill", "--beam-diameter", "0.2", "--stepover", "0.3"],
+        args: &["fill", "--beam-diameter", "0.2", "--step-over", "0.3"],
         input: Some("testdata/chains/plate.chains"),
     },
     Case {

@@ -5,29 +5,14 @@
 //! mean nothing. Also the laser flow's block margin with `--decimals 3` and
 //! the warning for a drawing larger than the machine.
 
-use std::process::{Command, Output, Stdio};
 use std::time::{Duration, Instant};
 
 const PATHGEN: &str = env!("CARGO_BIN_EXE_pathgen");
 const GSIM: &str = env!("CARGO_BIN_EXE_gsim");
 
-fn run(bin: &str, args: &[&str], stdin: Option<&str>) -> Output {
-    use std::io::Write;
-    let mut child = Command::new(bin)
-        .args(args)
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .stdin(Stdio::piped())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("spawn");
-    if let Some(text) = stdin {
-        // The child may refuse before reading all of it.
-        let _ = child.stdin.take().unwrap().write_all(text.as_bytes());
-    }
-    drop(child.stdin.take());
-    child.wait_with_output().expect("wait")
-}
+mod common;
+
+use common::run;
 
 const PLATE: &str = "testdata/chains/plate.chains";
 
@@ -116,7 +101,7 @@ fn the_limit_is_where_the_estimate_says() {
             "0.01",
             "--radius",
             "2",
-            "--tolerance",
+            "--arc-tol",
             "1e-12",
             "--max-moves",
             "3000",
@@ -169,7 +154,7 @@ fn non_finite_negative_and_zero_parameters_are_refused() {
         (spiral, "--step", bad_positive),
         (spiral, "--radius", bad_positive),
         (spiral, "--inner", bad_nonneg),
-        (spiral, "--tolerance", bad_positive),
+        (spiral, "--arc-tol", bad_positive),
         (spiral, "--z", nonfinite),
         (square, "--size", bad_positive),
         (zigzag, "--length", bad_positive),
@@ -183,7 +168,7 @@ fn non_finite_negative_and_zero_parameters_are_refused() {
         (cone, "--levels", &["0", "-3"]),
         (cone, "--step", bad_positive),
         (cone, "--beam-diameter", bad_nonneg),
-        (cone, "--tolerance", bad_positive),
+        (cone, "--arc-tol", bad_positive),
         (cone, "--z", nonfinite),
         (cone, "--center", &["nan,0", "0,-inf"]),
         (contour, "--beam-diameter", bad_nonneg),

@@ -7,28 +7,15 @@ use microcam::geometry::P3;
 use microcam::mesh::read_stl::write_binary;
 use microcam::mesh::solids;
 use microcam::model::toolpath::{Record, Role};
-use std::io::Write;
-use std::process::{Command, Output, Stdio};
+use std::process::Output;
 
 const PATHGEN: &str = env!("CARGO_BIN_EXE_pathgen");
 const DXF2CHAINS: &str = env!("CARGO_BIN_EXE_dxf2chains");
 
+mod common;
+
 fn run(bin: &str, args: &[&str], stdin: &[u8]) -> Output {
-    let mut c = Command::new(bin)
-        .args(args)
-        .stdin(Stdio::piped())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("spawn");
-    let mut i = c.stdin.take().unwrap();
-    let data = stdin.to_vec();
-    let feeder = std::thread::spawn(move || {
-        let _ = i.write_all(&data);
-    });
-    let o = c.wait_with_output().expect("wait");
-    feeder.join().unwrap();
-    o
+    common::run_bytes(bin, args, Some(stdin))
 }
 
 fn ok(o: &Output) -> &[u8] {
@@ -102,7 +89,7 @@ fn a_sliced_torus_is_filled_level_by_level_around_its_hole() {
                 pattern,
                 "--beam-diameter",
                 "0.02",
-                "--stepover",
+                "--step-over",
                 "0.02",
                 "--outline",
             ],
@@ -217,7 +204,7 @@ fn corpus_stl_slices_and_dxf_regions_fill() {
                 "--outline",
                 "--beam-diameter",
                 "0.1",
-                "--stepover",
+                "--step-over",
                 "0.2",
             ],
             ok(&chains),
@@ -251,8 +238,8 @@ fn bad_input_exits_2_and_writes_nothing() {
         (header.to_string(), vec![], "no closed chains"),
         (flat, vec![], "no area"),
         (nan, vec![], ""),
-        (square.clone(), vec!["--stepover", "1e-9"], "moves"),
-        (square.clone(), vec!["--stepover", "-1"], "positive"),
+        (square.clone(), vec!["--step-over", "1e-9"], "moves"),
+        (square.clone(), vec!["--step-over", "-1"], "positive"),
         (square, vec!["--beam-diameter", "nan"], "not a number"),
     ];
     for (input, extra, msg) in cases {
@@ -267,7 +254,7 @@ fn bad_input_exits_2_and_writes_nothing() {
     // The refusal says how big the job would have been.
     let o = run(
         PATHGEN,
-        &["fill", "--stepover", "1e-9"],
+        &["fill", "--step-over", "1e-9"],
         b"{\"schema\":\"microcam.chains/1\"}\n{\"id\":1,\"closed\":true,\"segments\":[{\"type\":\"arc\",\"start\":[5,0],\"end\":[5,0],\"center\":[0,0],\"ccw\":true}]}\n",
     );
     assert_eq!(o.status.code(), Some(2));

@@ -10,8 +10,10 @@ use std::process::{Command, Output};
 
 const PATHGEN: &str = env!("CARGO_BIN_EXE_pathgen");
 
+mod common;
+
 fn run(args: &[&str]) -> Output {
-    Command::new(PATHGEN).args(args).output().expect("run pathgen")
+    common::run(PATHGEN, args, None)
 }
 
 fn chains(out: &[u8]) -> Vec<microcam::model::chain::Chain> {

@@ -1,7 +1,7 @@
 //! The emulator's Ethernet protocol byte for byte, over TCP on 127.0.0.1,
 //! as a client that is not ours would see it. Every read has a timeout.
 
-use microcam::pmac::controller::{Clock, Config, Controller};
+use microcam::pmac::controller::{Clock, Config, Emulator};
 use microcam::pmac::protocol::{self as p, Header};
 use microcam::pmac::server::{Faults, Server};
 use std::io::{Read, Write};
@@ -9,7 +9,7 @@ use std::net::TcpStream;
 use std::time::Duration;
 
 fn server() -> Server {
-    let ctl = Controller::new(Config::default(), Clock::scaled(1000.0), None);
+    let ctl = Emulator::new(Config::default(), Clock::scaled(1000.0), None);
     Server::start("127.0.0.1:0".parse().unwrap(), ctl, Faults::default()).unwrap()
 }
 

@@ -7,8 +7,8 @@
 use microcam::gcode::{ReadOptions, read_str};
 use microcam::geometry::P3;
 use microcam::model::toolpath::Record;
-use microcam::pmac::controller::{Clock, Config, Controller};
-use microcam::pmac::plan::{Job, Names};
+use microcam::pmac::controller::{Clock, Config, Emulator};
+use microcam::pmac::plan::{Names, UploadPlan};
 use microcam::pmac::server::{Faults, Server};
 use serde_json::Value;
 use std::net::SocketAddr;
@@ -58,7 +58,7 @@ fn emu(cfg: Config, faults: Faults, scale: f64) -> Emu {
     let dir = tempfile::tempdir().unwrap();
     let log = dir.path().join("events.jsonl");
     let f = std::fs::File::create(&log).unwrap();
-    let ctl = Controller::new(cfg, Clock::scaled(scale), Some(Box::new(f)));
+    let ctl = Emulator::new(cfg, Clock::scaled(scale), Some(Box::new(f)));
     let server = Server::start("127.0.0.1:0".parse::<SocketAddr>().unwrap(), ctl, faults).unwrap();
     let e = Emu { server, log, dir };
     std::fs::write(e.dir.path().join("job.pmac"), program(30)).unwrap();
@@ -71,21 +71,26 @@ struct Outcome {
     stderr: String,
 }
 
-fn send(e: &Emu, extra: &[&str]) -> Outcome {
-    let port = e.server.addr().port().to_string();
+/// pmac-send on `job.pmac` in `dir` against the controller at `port`,
+/// polling fast, with `extra` flags (a `--timeout-ms` there wins).
+fn spawn_send(dir: &Path, port: u16, extra: &[&str], stdout: Stdio) -> std::process::Child {
     let host = format!("127.0.0.1:{port}");
     let mut args = vec!["job.pmac", "--host", &host, "--poll-ms", "5", "--stall-s", "10"];
     if !extra.contains(&"--timeout-ms") {
         args.extend_from_slice(&["--timeout-ms", "2000"]);
     }
     args.extend_from_slice(extra);
-    let mut child = Command::new(env!("CARGO_BIN_EXE_pmac-send"))
+    Command::new(env!("CARGO_BIN_EXE_pmac-send"))
         .args(&args)
-        .current_dir(e.dir.path())
-        .stdout(Stdio::piped())
+        .current_dir(dir)
+        .stdout(stdout)
         .stderr(Stdio::piped())
         .spawn()
-        .unwrap();
+        .unwrap()
+}
+
+fn send(e: &Emu, extra: &[&str]) -> Outcome {
+    let mut child = spawn_send(e.dir.path(), e.server.addr().port(), extra, Stdio::piped());
     // Bounded: no test run may hang.
     let deadline = Instant::now() + Duration::from_secs(60);
     while child.try_wait().unwrap().is_none() {
@@ -145,7 +150,7 @@ fn p3(v: &Value) -> P3 {
 /// its counters: what ran after the last confirmed counter is cut again).
 fn coverage(logs: &[Vec<Value>], text: &str, allow_twice_mm: f64) -> Result<(), String> {
     let mut twice = 0.0;
-    let job = Job::read(text, &Names::default()).unwrap();
+    let job = UploadPlan::read(text, &Names::default()).unwrap();
     let moves = job.moves();
     let mut cover: Vec<Vec<(f64, f64)>> = vec![Vec::new(); moves.len()];
     for ev in logs {
@@ -360,27 +365,7 @@ fn send_hit(e: &Emu, extra: &[&str], hit: Hit) -> Outcome {
     let Hit::Signal(sig, after) = hit else {
         return send(e, extra);
     };
-    let port = e.server.addr().port().to_string();
-    let host = format!("127.0.0.1:{port}");
-    let mut args = vec![
-        "job.pmac",
-        "--host",
-        &host,
-        "--poll-ms",
-        "5",
-        "--stall-s",
-        "10",
-        "--timeout-ms",
-        "2000",
-    ];
-    args.extend_from_slice(extra);
-    let mut child = Command::new(env!("CARGO_BIN_EXE_pmac-send"))
-        .args(&args)
-        .current_dir(e.dir.path())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
+    let mut child = spawn_send(e.dir.path(), e.server.addr().port(), extra, Stdio::piped());
     let deadline = Instant::now() + Duration::from_secs(30);
     loop {
         let moved = events(&e.log).iter().filter(|v| v["ev"] == "move").count();
@@ -668,7 +653,7 @@ fn bad_flags_and_hosts_are_usage_errors() {
         &["--stall-s", "-1"],
         &["--stop-deadline-s", "1e308"],
         &["--timeout-ms", "0"],
-        &["--line-counter", "X5"],
+        &["--line-counter-var", "X5"],
     ] {
         let out = Command::new(env!("CARGO_BIN_EXE_pmac-send"))
             .arg("job.pmac")
@@ -763,25 +748,7 @@ fn emu_proc(dir: &Path, log: &str, port: u16, memory_words: i64) -> EmuProc {
 }
 
 fn send_to(dir: &Path, port: u16, extra: &[&str]) -> std::process::Child {
-    let host = format!("127.0.0.1:{port}");
-    Command::new(env!("CARGO_BIN_EXE_pmac-send"))
-        .args([
-            "job.pmac",
-            "--host",
-            &host,
-            "--poll-ms",
-            "5",
-            "--stall-s",
-            "10",
-            "--timeout-ms",
-            "2000",
-        ])
-        .args(extra)
-        .current_dir(dir)
-        .stdout(Stdio::null())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap()
+    spawn_send(dir, port, extra, Stdio::null())
 }
 
 fn finish(child: std::process::Child) -> (i32, String) {

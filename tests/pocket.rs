@@ -14,7 +14,7 @@ use microcam::model::toolpath::{MotionKind, Record};
 use microcam::pocket::layers::Feeds;
 use microcam::pocket::motion::{FitOptions, MotionMode};
 use microcam::pocket::surface::{BezierPatch, Surface};
-use microcam::pocket::{Job, Layers, PocketSpec, Strategy, plan};
+use microcam::pocket::{Layers, PocketJob, PocketSpec, Strategy, plan};
 use std::process::Command;
 
 const UM: f64 = 1e-3;
@@ -114,7 +114,7 @@ fn inside_distance(poly: &[P2], p: P2) -> f64 {
 }
 
 /// Points along every feed move, `step` mm apart, with the move's index.
-fn feed_samples(job: &Job, step: f64) -> Vec<(usize, P3)> {
+fn feed_samples(job: &PocketJob, step: f64) -> Vec<(usize, P3)> {
     let mut out = Vec::new();
     let mut pos: Option<P3> = None;
     for (k, r) in job.program.records.iter().enumerate() {
@@ -156,7 +156,7 @@ fn gouge_at(surface: &Surface, c: &Cutter, p: &P3) -> f64 {
     worst
 }
 
-fn check_proofs(job: &Job, s: &PocketSpec, poly: &[P2], what: &str) {
+fn check_proofs(job: &PocketJob, s: &PocketSpec, poly: &[P2], what: &str) {
     let r = s.cutter.radius();
     // 1. Every position below the clearance keeps the cutter inside the
     //    boundary: at least R from it (1 um).
@@ -358,11 +358,10 @@ fn thesis_case_study_six_layers_with_every_pass_kind() {
     }
 }
 
+mod common;
+
 fn bin(name: &str) -> Command {
-    Command::new(match name {
-        "pathgen" => env!("CARGO_BIN_EXE_pathgen"),
-        _ => env!("CARGO_BIN_EXE_gsim"),
-    })
+    Command::new(common::bin(name))
 }
 
 const POLY: &str = "0,0;12,0;12,5;7,5;7,10;0,10";

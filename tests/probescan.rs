@@ -6,7 +6,7 @@
 
 use microcam::geometry::{P2, V2};
 use microcam::probe::fit;
-use microcam::probe::job::{self, Job, Measure};
+use microcam::probe::job::{self, Measure, ProbeJob};
 use microcam::probe::noise::{NoiseModel, Rng};
 use microcam::probe::part::{Part, Prim};
 use microcam::probe::scan::{ScanParams, Stop};
@@ -15,21 +15,10 @@ use std::process::{Command, Output, Stdio};
 
 const BIN: &str = env!("CARGO_BIN_EXE_probescan");
 
+mod common;
+
 fn run(args: &[&str], stdin: Option<&str>) -> Output {
-    use std::io::Write;
-    let mut child = Command::new(BIN)
-        .args(args)
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .stdin(Stdio::piped())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("spawn");
-    if let Some(t) = stdin {
-        child.stdin.take().unwrap().write_all(t.as_bytes()).unwrap();
-    }
-    drop(child.stdin.take());
-    child.wait_with_output().expect("wait")
+    common::run(BIN, args, stdin)
 }
 
 fn json(o: &Output) -> serde_json::Value {
@@ -68,7 +57,7 @@ fn gauge_blocks_without_noise_measure_their_widths() {
     }
 }
 
-fn noisy_job(measure: Measure, seed: u64) -> Job {
+fn noisy_job(measure: Measure, seed: u64) -> ProbeJob {
     let probe = Probe::new(0.1, 30_000.0, 0.05).unwrap();
     let noise = NoiseModel {
         sigma_mm: 0.0008,
@@ -92,7 +81,7 @@ fn noisy_job(measure: Measure, seed: u64) -> Job {
             },
         ),
     };
-    Job {
+    ProbeJob {
         design: part.clone(),
         part,
         probe,
@@ -173,7 +162,7 @@ fn check_closes(part: &Part, start: P2, dir: V2, de: f64, rs: f64, what: &str) {
         max_points: 20_000,
         max_approach_mm: 2.0 * (hi - lo).norm() + 1.0,
     };
-    let j = Job {
+    let j = ProbeJob {
         part: part.clone(),
         design: part.clone(),
         probe,

@@ -3,14 +3,10 @@
 
 use std::process::Command;
 
+mod common;
+
 fn tool(name: &str) -> Command {
-    Command::new(match name {
-        "gsim" => env!("CARGO_BIN_EXE_gsim"),
-        "plough2d" => env!("CARGO_BIN_EXE_plough2d"),
-        "pathgen" => env!("CARGO_BIN_EXE_pathgen"),
-        "stlverify" => env!("CARGO_BIN_EXE_stlverify"),
-        other => panic!("no binary {other}"),
-    })
+    Command::new(common::bin(name))
 }
 
 #[test]

@@ -346,7 +346,7 @@ fn drop_cutter_data_of_a_part_verify_without_gouges_and_with_analytic_scallops()
         let out = Command::new(&pathgen)
             .args([
                 "dropcutter",
-                "--cutter",
+                "--tool",
                 "ball:2",
                 "--step-over",
                 "0.5",

@@ -6,19 +6,19 @@
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
-use microcam::pmac::controller::{Clock, Config, Controller, Session};
-use microcam::pmac::plan::{Job, Names};
+use microcam::pmac::controller::{Clock, Config, Emulator, Session};
+use microcam::pmac::plan::{UploadPlan, Names};
 
 fuzz_target!(|data: &[u8]| {
     let text = String::from_utf8_lossy(data);
-    if let Ok(job) = Job::read(&text, &Names::default()) {
+    if let Ok(job) = UploadPlan::read(&text, &Names::default()) {
         let _ = job.chunks(Some(2_000));
         let _ = job.stream_chunks(500);
         for m in job.moves().iter().take(1_000) {
             let _ = m.length();
         }
     }
-    let mut c = Controller::new(Config::default(), Clock::Manual(0.0), None);
+    let mut c = Emulator::new(Config::default(), Clock::Manual(0.0), None);
     let mut s = Session::default();
     let _ = c.command_line(&mut s, "OPEN PROG 1 CLEAR");
     let lines: Vec<&str> = text.split(['\n', '\r']).take(2_000).collect();

@@ -22,7 +22,7 @@ Examples:
   dxf2chains part.dxf | pathgen contour --outside 0.005 ...
 
 Splines and ellipses become tangent-continuous arcs within --arc-tol. Ends
-within --tol are joined; closed outer contours run counter-clockwise, holes
+within --join-tol are joined; closed outer contours run counter-clockwise, holes
 clockwise (by nesting depth). Duplicates, collinear overlaps, zero-length
 pieces and gaps are repaired and every repair is listed on the chain
 ('repairs') and summed up on stderr, with what was skipped (TEXT, HATCH...).
@@ -38,7 +38,7 @@ struct Args {
     /// DXF file to read ('-' for stdin).
     file: Option<PathBuf>,
     /// Join tolerance, mm: ends closer than this are one point.
-    #[arg(long, default_value_t = 0.001)]
+    #[arg(long = "join-tol", alias = "tol", value_name = "JOIN_TOL", default_value_t = 0.001)]
     tol: f64,
     /// Fitting tolerance for splines and ellipses, mm.
     #[arg(long, default_value_t = 0.001)]
@@ -164,7 +164,7 @@ fn write_chains<W: Write>(chains: &chain::Chains, w: &mut ChainsWriter<W>) -> st
 }
 
 fn run(args: Args) -> Result<(), CliError> {
-    for (name, v) in [("--tol", args.tol), ("--arc-tol", args.arc_tol)] {
+    for (name, v) in [("--join-tol", args.tol), ("--arc-tol", args.arc_tol)] {
         if !(v.is_finite() && v >= 0.0) {
             return Err(CliError::input(format!(
                 "{name}: must be a non-negative number, got {v}"

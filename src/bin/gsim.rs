@@ -4,7 +4,7 @@
 use clap::Parser;
 use microcam::cli::{self, CliError, Output};
 use microcam::cutter::Cutter;
-use microcam::formats::chains::ChainsReader;
+use microcam::formats::read_chains;
 use microcam::formats::toolpath::{StreamError, write_stream};
 use microcam::gcode::{Dialect, ReadOptions};
 use microcam::geometry::P3;
@@ -120,7 +120,12 @@ struct Args {
     chains: Option<PathBuf>,
     /// How far (mm, in XY) a cut's moves may lie from a drawing chain and
     /// still count as cutting it.
-    #[arg(long, default_value_t = 0.1)]
+    #[arg(
+        long = "chain-tol",
+        alias = "chain-tol-mm",
+        value_name = "CHAIN_TOL",
+        default_value_t = 0.1
+    )]
     chain_tol_mm: f64,
     /// Stock box for material removal, mm: XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX.
     /// Without --tool each tool cuts with its own cutter, from the tool
@@ -199,12 +204,10 @@ fn parse_limits(s: &str) -> Result<[f64; 6], CliError> {
 }
 
 /// All chains of a drawing.
-fn read_chains(path: &std::path::Path) -> Result<Vec<Chain>, CliError> {
+fn read_drawing(path: &std::path::Path) -> Result<Vec<Chain>, CliError> {
     let input = cli::open_input(Some(path))?;
-    let name = input.name.clone();
-    let r = ChainsReader::new(input.reader).map_err(|e| CliError::in_file(&name, e))?;
-    r.collect::<Result<Vec<_>, _>>()
-        .map_err(|e| CliError::in_file(&name, e))
+    let (_, chains) = read_chains(input.reader).map_err(|e| CliError::in_file(&input.name, e))?;
+    Ok(chains)
 }
 
 /// A bad program is bad input (exit 2); a failed series write is a failure.
@@ -417,7 +420,7 @@ fn simulate(
         meter.finish();
         let (mut report, series) = sim.finish().map_err(|e| sim_error(&src_name, e))?;
         if let Some(p) = args.chains.as_deref() {
-            report = report.with_drawing(&read_chains(p)?, args.chain_tol_mm);
+            report = report.with_drawing(&read_drawing(p)?, args.chain_tol_mm);
         }
         writeln!(out, "{}", report.to_json(name.as_deref()))?;
         for w in series.into_iter().flatten() {

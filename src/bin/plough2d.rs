@@ -63,7 +63,7 @@ struct Args {
     #[arg(long, default_value_t = 0.794)]
     diameter_mm: f64,
     /// Teeth (flutes) N.
-    #[arg(long, default_value_t = 2)]
+    #[arg(long = "flutes", alias = "teeth", value_name = "FLUTES", default_value_t = 2)]
     teeth: u32,
     /// Minimum chip thickness in the scaled model, um.
     #[arg(long, default_value_t = 2.4)]
@@ -72,7 +72,12 @@ struct Args {
     #[arg(long, default_value_t = 1.0)]
     accuracy_um: f64,
     /// Scale factor on the feed per tooth.
-    #[arg(long, default_value_t = 10.0)]
+    #[arg(
+        long = "step-scale",
+        alias = "scale",
+        value_name = "STEP_SCALE",
+        default_value_t = 10.0
+    )]
     scale: f64,
     /// Spindle speed, rpm (overrides the program's S words).
     #[arg(long)]

@@ -3,7 +3,7 @@
 
 use clap::Parser;
 use microcam::cli::{self, CliError};
-use microcam::pmac::controller::{Clock, Config, Controller};
+use microcam::pmac::controller::{Clock, Config, Emulator};
 use microcam::pmac::server::{Faults, Server};
 use std::io::Write;
 use std::net::{IpAddr, SocketAddr};
@@ -136,7 +136,7 @@ fn run(args: Args) -> Result<(), CliError> {
         delay_count: args.delay_count,
         lie_at: args.lie_at,
     };
-    let ctl = Controller::new(cfg, Clock::scaled(args.time_scale), log);
+    let ctl = Emulator::new(cfg, Clock::scaled(args.time_scale), log);
     let server = Server::start(SocketAddr::new(args.bind, args.port), ctl, faults)
         .map_err(|e| CliError::failure(format!("cannot listen on {}:{}: {e}", args.bind, args.port)))?;
     let addr = server.addr();

@@ -4,8 +4,11 @@
 use clap::{Parser, ValueEnum};
 use microcam::cli::{self, CliError};
 use microcam::pmac::client::{Client, Transport};
-use microcam::pmac::plan::{Job, MARKER_WORDS, Names, marker_lines};
-use microcam::pmac::send::{Mode, SendError, SendOptions, Sender, State, input_hash};
+use microcam::pmac::plan::{Names, UploadPlan};
+use microcam::pmac::send::{
+    BUFFER_FILL, Mode, SendError, SendOptions, SendSummary, Sender, State, dry_run_budget, input_hash,
+    is_stale_plan_file, split_budget,
+};
 use std::io::Write;
 use std::net::ToSocketAddrs;
 use std::path::{Path, PathBuf};
@@ -71,7 +74,7 @@ struct Args {
     #[arg(long, value_enum, default_value = "ethernet")]
     transport: TransportArg,
     /// Program buffer number (program and split modes).
-    #[arg(long, default_value_t = 1)]
+    #[arg(long = "program", alias = "prog", value_name = "PROGRAM", default_value_t = 1)]
     prog: u32,
     /// Most words a chunk may take (default: 90% of SIZE after clearing).
     #[arg(long)]
@@ -109,7 +112,12 @@ struct Args {
     upload_only: bool,
     #[arg(long, default_value = "M33")]
     shutter_var: String,
-    #[arg(long, default_value = "P400")]
+    #[arg(
+        long = "line-counter-var",
+        alias = "line-counter",
+        value_name = "LINE_COUNTER_VAR",
+        default_value = "P400"
+    )]
     line_counter: String,
     /// Variable set to the chunk number after a chunk's last motion
     /// (behind DWELL0); confirms chunks even across an abort.
@@ -147,7 +155,7 @@ fn check_args(args: &Args) -> Result<String, CliError> {
     }
     for (flag, v, letter) in [
         ("--shutter-var", &args.shutter_var, None),
-        ("--line-counter", &args.line_counter, Some('P')),
+        ("--line-counter-var", &args.line_counter, Some('P')),
         ("--done-var", &args.done_var, None),
         ("--counter-mvar", &args.counter_mvar, Some('M')),
         ("--session-var", &args.session_var, None),
@@ -198,7 +206,7 @@ fn run(args: Args) -> Result<(), CliError> {
         counter_m: args.counter_mvar.to_ascii_uppercase(),
         session: args.session_var.to_ascii_uppercase(),
     };
-    let job = Job::read(&text, &names).map_err(|e| CliError::in_file(&input.name, e))?;
+    let job = UploadPlan::read(&text, &names).map_err(|e| CliError::in_file(&input.name, e))?;
     let mode = match args.mode {
         ModeArg::Program => Mode::Program,
         ModeArg::Split => Mode::Split,
@@ -209,15 +217,7 @@ fn run(args: Args) -> Result<(), CliError> {
     }
     let chunk_words = args.chunk_words.unwrap_or(args.rotary_words / 4).max(16);
     if let Some(dir) = &args.dry_run {
-        let budget = match mode {
-            Mode::Program => None,
-            Mode::Split => Some(
-                args.buffer_words
-                    .ok_or_else(|| CliError::input("--dry-run in split mode needs --buffer-words"))?
-                    .saturating_sub(MARKER_WORDS),
-            ),
-            Mode::Rotary => Some(chunk_words),
-        };
+        let budget = dry_run_budget(mode, args.buffer_words, chunk_words).map_err(CliError::input)?;
         return dry_run(
             &job,
             &input.name,
@@ -238,39 +238,10 @@ fn run(args: Args) -> Result<(), CliError> {
     let moves = job.moves();
     let mut state = if args.resume {
         let s = State::load(&args.state).map_err(|e| CliError::input(e.to_string()))?;
-        if s.input_hash != hash {
-            return Err(CliError::input(format!(
-                "{} belongs to another program (input changed): refusing to resume",
-                args.state.display()
-            )));
-        }
-        if s.mode != mode {
-            return Err(CliError::input(format!(
-                "{} was written in {} mode",
-                args.state.display(),
-                s.mode.name()
-            )));
-        }
+        s.check_resume(&hash, mode, &args.state).map_err(CliError::input)?;
         s
     } else {
-        // A session number the controller's counters are matched with.
-        let session = (std::time::SystemTime::now()
-            .duration_since(std::time::UNIX_EPOCH)
-            .map_or(0, |d| d.as_nanos() as u64)
-            ^ u64::from(std::process::id()))
-            % 1_000_000_000
-            + 1;
-        State {
-            version: 2,
-            input_hash: hash,
-            mode,
-            budget: None,
-            moves: moves.len() as u64,
-            next_move: 1,
-            resume_at: None,
-            session,
-            stopped: None,
-        }
+        State::new(hash, mode, moves.len() as u64)
     };
     let stop = Arc::new(AtomicBool::new(false));
     {
@@ -288,7 +259,7 @@ fn run(args: Args) -> Result<(), CliError> {
         mode,
         prog: args.prog,
         rotary_words: args.rotary_words,
-        rotary_fill: 0.9,
+        rotary_fill: BUFFER_FILL,
         poll: Duration::from_millis(args.poll_ms),
         stall: Duration::from_secs_f64(args.stall_s.max(0.1)),
         stop_deadline: Duration::from_secs_f64(args.stop_deadline_s),
@@ -312,25 +283,14 @@ fn run(args: Args) -> Result<(), CliError> {
         (_, Some(b)) => Some(b),
         (Mode::Split, None) => {
             let free = sender.free_words().map_err(|e| stopped(&mut sender, e, &args))?;
-            let from_size = (free.max(0) as f64 * 0.9) as usize;
-            let b = args.buffer_words.map_or(from_size, |b| b.min(from_size));
-            Some(b.saturating_sub(MARKER_WORDS))
+            Some(split_budget(free, args.buffer_words))
         }
         (Mode::Rotary, None) => Some(chunk_words),
     };
     state.budget = budget;
     if state.next_move > state.moves {
         eprintln!("pmac-send: nothing to resume: all {} moves have executed", state.moves);
-        let summary = microcam::pmac::send::Summary {
-            mode: mode.name().into(),
-            moves: state.moves,
-            first_move: state.next_move,
-            final_counter: state.moves,
-            ..Default::default()
-        };
-        let mut v = serde_json::to_value(&summary).map_err(|e| CliError::failure(e.to_string()))?;
-        v["ok"] = serde_json::json!(true);
-        println!("{v}");
+        println!("{}", SendSummary::finished(&state).to_json(true));
         return Ok(());
     }
     let rest = job.rest(state.next_move, state.resume_point()).ok_or_else(|| {
@@ -368,17 +328,11 @@ fn run(args: Args) -> Result<(), CliError> {
     );
     match sender.run(&chunks, &mut state) {
         Ok(summary) => {
-            let mut v = serde_json::to_value(&summary).map_err(|e| CliError::failure(e.to_string()))?;
-            v["ok"] = serde_json::json!(true);
-            println!("{v}");
+            println!("{}", summary.to_json(true));
             Ok(())
         }
         Err(f) => {
-            let mut v = serde_json::to_value(&f.summary).map_err(|e| CliError::failure(e.to_string()))?;
-            v["ok"] = serde_json::json!(false);
-            v["next_move"] = serde_json::json!(f.state.next_move);
-            v["error"] = serde_json::json!(f.error.to_string());
-            println!("{v}");
+            println!("{}", f.to_json());
             let safety = match &f.safe_stop {
                 Ok(()) => format!(
                     "shutter closed ({}=0) and &1 aborted",
@@ -422,7 +376,7 @@ fn stopped(sender: &mut Sender, e: SendError, args: &Args) -> CliError {
 }
 
 fn dry_run(
-    job: &Job,
+    job: &UploadPlan,
     input: &str,
     mode: Mode,
     budget: Option<usize>,
@@ -430,51 +384,16 @@ fn dry_run(
     done: &str,
     dir: &Path,
 ) -> Result<(), CliError> {
-    let chunks = match (mode, budget) {
-        (Mode::Rotary, Some(b)) => job.stream_chunks(b),
-        _ => job.chunks(budget),
-    }
-    .map_err(|e| CliError::in_file(input, e))?;
+    let (files, plan) =
+        microcam::pmac::send::dry_run(job, mode, budget, prog, done).map_err(|e| CliError::in_file(input, e))?;
     std::fs::create_dir_all(dir).map_err(|e| CliError::failure(format!("{}: {e}", dir.display())))?;
-    let mut plan = Vec::new();
-    for (i, c) in chunks.iter().enumerate() {
-        let name = format!("chunk-{:03}.pmac", i + 1);
-        let mut text = String::new();
-        if mode != Mode::Rotary {
-            text.push_str(&format!("CLOSE\nDELETE GATHER\nOPEN PROG {prog} CLEAR\n"));
-        }
-        for l in &c.lines {
-            text.push_str(l);
-            text.push('\n');
-        }
-        if mode != Mode::Rotary {
-            for l in marker_lines(done, i + 1) {
-                text.push_str(&l);
-                text.push('\n');
-            }
-            text.push_str("CLOSE\n");
-        }
-        let path = dir.join(&name);
-        let mut out = cli::Output::new(Some(&path));
-        out.write_all(text.as_bytes())?;
+    for f in &files {
+        let mut out = cli::Output::new(Some(&dir.join(&f.name)));
+        out.write_all(f.text.as_bytes())?;
         out.commit()?;
-        plan.push(serde_json::json!({
-            "file": name, "lines": c.lines.len(), "words": c.words,
-            "first_counter": c.first_counter, "last_counter": c.last_counter,
-            "start": c.start, "end": c.end, "seconds": c.seconds,
-        }));
     }
-    let summary = serde_json::json!({
-        "schema": "microcam.pmac-plan/1",
-        "mode": mode.name(),
-        "prog": prog,
-        "budget_words": budget,
-        "chunks": plan,
-        "lines": chunks.iter().map(|c| c.lines.len()).sum::<usize>(),
-        "estimated_seconds": chunks.iter().map(|c| c.seconds).sum::<f64>(),
-    });
     let mut out = cli::Output::new(Some(&dir.join("plan.json")));
-    writeln!(out, "{}", serde_json::to_string_pretty(&summary).unwrap_or_default())?;
+    writeln!(out, "{}", serde_json::to_string_pretty(&plan).unwrap_or_default())?;
     out.commit()?;
     // Chunk files of an earlier, longer plan are not part of this one.
     let stale: Vec<PathBuf> = std::fs::read_dir(dir)
@@ -482,12 +401,9 @@ fn dry_run(
         .filter_map(|e| e.ok())
         .map(|e| e.path())
         .filter(|p| {
-            p.file_name().and_then(|n| n.to_str()).is_some_and(|n| {
-                n.strip_prefix("chunk-")
-                    .and_then(|r| r.strip_suffix(".pmac"))
-                    .and_then(|d| d.parse::<usize>().ok())
-                    .is_some_and(|k| k == 0 || k > chunks.len() || n != format!("chunk-{k:03}.pmac"))
-            })
+            p.file_name()
+                .and_then(|n| n.to_str())
+                .is_some_and(|n| is_stale_plan_file(n, files.len()))
         })
         .collect();
     for p in stale {
@@ -495,7 +411,7 @@ fn dry_run(
     }
     println!(
         "{}",
-        serde_json::json!({"dry_run": dir.display().to_string(), "chunks": chunks.len()})
+        serde_json::json!({"dry_run": dir.display().to_string(), "chunks": files.len()})
     );
     Ok(())
 }

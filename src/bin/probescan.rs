@@ -3,9 +3,9 @@
 
 use clap::{Parser, ValueEnum};
 use microcam::cli::{self, CliError, Output};
-use microcam::formats::chains::ChainsReader;
+use microcam::formats::read_chains;
 use microcam::geometry::{P2, V2};
-use microcam::probe::job::{self, Job, Measure};
+use microcam::probe::job::{self, Measure, ProbeJob};
 use microcam::probe::noise::NoiseModel;
 use microcam::probe::part::Part;
 use microcam::probe::program::{self, Dialect, Machine};
@@ -178,10 +178,7 @@ fn pair(s: &str, name: &str) -> Result<(f64, f64), CliError> {
 fn read_part(path: Option<&Path>) -> Result<Part, CliError> {
     let input = cli::open_input(path)?;
     let name = input.name.clone();
-    let reader = ChainsReader::new(input.reader).map_err(|e| CliError::in_file(&name, e))?;
-    let chains = reader
-        .collect::<Result<Vec<_>, _>>()
-        .map_err(|e| CliError::in_file(&name, e))?;
+    let (_, chains) = read_chains(input.reader).map_err(|e| CliError::in_file(&name, e))?;
     Part::from_chains(&chains).map_err(|e| CliError::input(format!("{name}: {e}")))
 }
 
@@ -266,7 +263,7 @@ fn run(a: Args) -> Result<(), CliError> {
         Some(p) => read_part(Some(p))?,
         None => part.clone(),
     };
-    let job = Job {
+    let job = ProbeJob {
         part,
         design,
         probe,

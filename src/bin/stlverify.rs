@@ -12,7 +12,7 @@ use microcam::sim::picture::write_png;
 use microcam::sim::stl::{Heights, write_heights_stl};
 use microcam::source::ToolpathSource;
 use microcam::verify::compare::{Design, Sample, Stats, points_csv, profiles_csv, sample, steps};
-use microcam::verify::{Job, cl, plot, simulate};
+use microcam::verify::{VerifyJob, cl, plot, simulate};
 use serde_json::json;
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -192,7 +192,7 @@ fn run(args: Args) -> Result<(), CliError> {
         }
     };
     let tool = ToolShape { cutter, length };
-    let job = Job {
+    let job = VerifyJob {
         stock_min: smin,
         stock_max: smax,
         tool,

@@ -92,7 +92,7 @@ impl Tri {
 
 /// The cutter in the form the contact formulas want.
 #[derive(Debug, Clone, Copy)]
-pub struct Shape {
+pub struct ContactCutter {
     pub cutter: Cutter,
     /// Tool radius R.
     pub r: f64,
@@ -102,11 +102,11 @@ pub struct Shape {
     pub a: f64,
 }
 
-impl Shape {
-    pub fn new(cutter: Cutter) -> Shape {
+impl ContactCutter {
+    pub fn new(cutter: Cutter) -> ContactCutter {
         let r = cutter.radius();
         let rc = cutter.corner_radius();
-        Shape {
+        ContactCutter {
             cutter,
             r,
             rc,
@@ -130,7 +130,7 @@ impl Shape {
 /// through (x, y) touches `t`. Leaves it unchanged when the cutter does
 /// not reach the triangle or meets it lower.
 #[inline]
-pub fn drop_on(s: &Shape, x: f64, y: f64, t: &Tri, best: &mut f64) {
+pub fn drop_on(s: &ContactCutter, x: f64, y: f64, t: &Tri, best: &mut f64) {
     let r2 = s.r * s.r;
     for p in &t.v {
         let (dx, dy) = (p[0] - x, p[1] - y);
@@ -150,7 +150,7 @@ pub fn drop_on(s: &Shape, x: f64, y: f64, t: &Tri, best: &mut f64) {
 
 /// The facet contact: the point of the cutter whose normal is the facet's.
 #[inline]
-fn facet(s: &Shape, x: f64, y: f64, t: &Tri, best: &mut f64) {
+fn facet(s: &ContactCutter, x: f64, y: f64, t: &Tri, best: &mut f64) {
     let [nx, ny, nz] = t.n;
     if nz < VERTICAL_NZ {
         return;
@@ -177,7 +177,7 @@ fn facet(s: &Shape, x: f64, y: f64, t: &Tri, best: &mut f64) {
 
 /// The edge contact on segment p→q (vertices are tested separately).
 #[inline]
-fn edge(s: &Shape, x: f64, y: f64, p: [f64; 3], q: [f64; 3], best: &mut f64) {
+fn edge(s: &ContactCutter, x: f64, y: f64, p: [f64; 3], q: [f64; 3], best: &mut f64) {
     let (ex, ey) = (q[0] - p[0], q[1] - p[1]);
     let len2 = ex * ex + ey * ey;
     if len2 <= 0.0 {
@@ -242,7 +242,7 @@ fn edge(s: &Shape, x: f64, y: f64, p: [f64; 3], q: [f64; 3], best: &mut f64) {
 /// equals m. That slope rises monotonically from 0 (flat bottom) to +∞
 /// (the rim), so the root is unique; Newton's method kept inside a
 /// shrinking bracket (bisection when a step leaves it) converges to it.
-fn torus_edge_contact(s: &Shape, d: f64, m: f64, w: f64) -> f64 {
+fn torus_edge_contact(s: &ContactCutter, d: f64, m: f64, w: f64) -> f64 {
     if m == 0.0 || w == 0.0 {
         return 0.0;
     }
@@ -310,14 +310,14 @@ mod tests {
 
     fn drop1(c: Cutter, x: f64, y: f64, t: &Tri) -> f64 {
         let mut best = f64::NEG_INFINITY;
-        drop_on(&Shape::new(c), x, y, t, &mut best);
+        drop_on(&ContactCutter::new(c), x, y, t, &mut best);
         best
     }
 
     /// Brute force: the highest tip over a fine sampling of the triangle
     /// (a lower bound that converges to the exact answer).
     fn brute(c: Cutter, x: f64, y: f64, t: &Tri, n: usize) -> f64 {
-        let s = Shape::new(c);
+        let s = ContactCutter::new(c);
         let mut best = f64::NEG_INFINITY;
         for i in 0..=n {
             for j in 0..=(n - i) {

@@ -23,7 +23,7 @@ pub mod raster;
 use crate::cutter::Cutter;
 use crate::geometry::{BBox3, P2, P3};
 use crate::mesh::Mesh;
-use cutter_vs_triangle::{Shape, Tri, drop_on};
+use cutter_vs_triangle::{ContactCutter, Tri, drop_on};
 use index::Grid;
 use rayon::prelude::*;
 use thiserror::Error;
@@ -42,7 +42,7 @@ pub enum DropError {
 /// A mesh prepared for dropping one cutter on it.
 #[derive(Debug, Clone)]
 pub struct DropCutter {
-    shape: Shape,
+    shape: ContactCutter,
     tris: Vec<Tri>,
     grid: Grid,
     bbox: BBox3,
@@ -67,7 +67,7 @@ impl DropCutter {
         }
         let grid = Grid::build(&tris, cell_size(&tris, cutter.radius()));
         Ok(DropCutter {
-            shape: Shape::new(cutter),
+            shape: ContactCutter::new(cutter),
             tris,
             grid,
             bbox: mesh.bbox(),

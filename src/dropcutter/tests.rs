@@ -116,7 +116,7 @@ fn the_grid_gives_what_every_triangle_gives() {
         },
     ] {
         let dc = DropCutter::new(&m, c).unwrap();
-        let s = Shape::new(c);
+        let s = ContactCutter::new(c);
         let tris: Vec<Tri> = m.iter_triangles().map(|t| Tri::new(&t)).collect();
         for i in 0..30 {
             for j in 0..30 {

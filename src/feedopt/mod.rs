@@ -158,7 +158,7 @@ pub struct SeriesRow {
 #[derive(Debug, Clone)]
 pub struct Outcome {
     pub program: String,
-    pub report: report::Report,
+    pub report: report::FeedoptReport,
     pub series: Vec<SeriesRow>,
 }
 
@@ -546,7 +546,7 @@ pub fn optimise(input: &str, o: &Options) -> Result<Outcome, FeedoptError> {
                 .fold(0.0, f64::max),
         )
     };
-    let rep = report::Report {
+    let rep = report::FeedoptReport {
         mode: o.mode,
         mode_used,
         target: o.target,

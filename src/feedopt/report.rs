@@ -59,7 +59,7 @@ pub struct ForceFigures {
 
 /// Everything feedopt reports.
 #[derive(Debug, Clone)]
-pub struct Report {
+pub struct FeedoptReport {
     pub mode: Mode,
     /// The mode whose program was written (split falls back to per-block
     /// when it cannot win).
@@ -111,7 +111,7 @@ fn stats(b: &mut String, k: &str, s: &Stats) {
     b.push('}');
 }
 
-impl Report {
+impl FeedoptReport {
     /// Relative change of the predicted cycle time, % (negative = shorter).
     pub fn cycle_time_change_pct(&self) -> f64 {
         if self.cycle_time_before_s > 0.0 {

@@ -1,14 +1,17 @@
-//! CL data (cutter locations): reader and writer.
+//! CL data (cutter locations): the one reader (pathgen's output, stlverify's
+//! input) and the writer.
 //!
 //! Plain text, one location per line, numbers separated by commas, tabs or
 //! spaces. 3-axis rows are `x y z` (the tool tip on the axis); 5-axis rows
 //! are `x y z x1 y1 z1`, the second point lying on the tool axis towards
 //! the holder. These are the layouts of the 3- and 5-axis tool paths in
 //! Singh 2014 (Annexures 1 and 2), whose tables also lead each row with a
-//! serial number: a row of 4 or 7 numbers whose first is its 1-based row
-//! number is read that way. `#` starts a comment; one header line of words
-//! (`X Y Z`) before the first row is skipped. Every row of a file has the
-//! same layout. See docs/formats.md.
+//! serial number: a row of 4 or 7 numbers whose first is a whole number is
+//! read as numbered and the number dropped. `#` starts a comment; header
+//! lines (any line before the first location whose first word is not a
+//! number: `S.No. X Y Z`) are skipped. Every row of a file has the same
+//! layout. See docs/formats.md.
+#![warn(missing_docs)]
 
 use super::{FormatError, LineSource, push_num};
 use crate::geometry::P3;
@@ -22,6 +25,9 @@ pub struct ClData {
     /// 5-axis: a point on the tool axis per location (same length as
     /// `points`); empty for 3-axis data.
     pub axis: Vec<P3>,
+    /// The 1-based line each location was read from (same length as
+    /// `points` when read; may be empty for data built in memory).
+    pub lines: Vec<u64>,
 }
 
 impl ClData {
@@ -29,9 +35,15 @@ impl ClData {
     pub fn is_five_axis(&self) -> bool {
         !self.axis.is_empty()
     }
+
+    /// The line location `i` was read from (0 when not known).
+    pub fn line_of(&self, i: usize) -> u64 {
+        self.lines.get(i).copied().unwrap_or(0)
+    }
 }
 
-/// Read CL data; errors name the line.
+/// Read CL data; errors name the line. Empty data (no rows) is not an
+/// error here: a reader that needs locations says so.
 pub fn read_cldata(input: impl BufRead) -> Result<ClData, FormatError> {
     let mut lines = LineSource::new(input);
     let mut data = ClData::default();
@@ -43,44 +55,49 @@ pub fn read_cldata(input: impl BufRead) -> Result<ClData, FormatError> {
             continue;
         }
         nums.clear();
+        let mut first_is_word = false;
         let mut words = 0;
         for tok in text
             .split(|c: char| c == ',' || c.is_whitespace())
             .filter(|t| !t.is_empty())
         {
             match tok.parse::<f64>() {
-                Ok(v) if v.is_finite() => nums.push(v),
-                Ok(_) => return Err(FormatError::invalid(line, format!("'{tok}' is not a finite number"))),
-                Err(_) => words += 1,
+                Ok(v) => nums.push(v),
+                Err(_) => {
+                    first_is_word |= nums.is_empty() && words == 0;
+                    words += 1;
+                }
             }
         }
         if words > 0 {
-            if width.is_none() && nums.is_empty() && data.points.is_empty() {
-                continue; // the header line
+            if first_is_word && data.points.is_empty() {
+                continue; // a header line
             }
             return Err(FormatError::invalid(
                 line,
                 format!("expected numbers (x y z or x y z x1 y1 z1), got '{text}'"),
             ));
         }
-        let row = data.points.len() as f64 + 1.0;
-        // A leading serial number is recognised by its value on every row.
+        if let Some(v) = nums.iter().find(|v| !v.is_finite()) {
+            return Err(FormatError::invalid(line, format!("'{v}' is not a finite number")));
+        }
+        // A leading serial number: a whole number before 3 or 6 values.
         let vals: &[f64] = match nums.len() {
-            4 | 7 if nums[0] == row && width.is_none_or(|w| w == nums.len()) => &nums[1..],
+            4 | 7 if nums[0].fract() == 0.0 => &nums[1..],
             3 | 6 => &nums[..],
             n => {
                 return Err(FormatError::invalid(
                     line,
-                    format!("a row has 3 numbers (x y z) or 6 (x y z x1 y1 z1), got {n}"),
+                    format!("{n} numbers; expected x y z or x y z x1 y1 z1"),
                 ));
             }
         };
         match width {
-            None => width = Some(nums.len()),
-            Some(w) if w != nums.len() => {
+            None => width = Some(vals.len()),
+            Some(w) if w != vals.len() => {
                 return Err(FormatError::invalid(
                     line,
-                    format!("{} numbers, but the rows before have {w}", nums.len()),
+                    format!("{} numbers, but the rows before have {w}", vals.len()),
                 ));
             }
             Some(_) => {}
@@ -89,6 +106,7 @@ pub fn read_cldata(input: impl BufRead) -> Result<ClData, FormatError> {
         if vals.len() == 6 {
             data.axis.push(P3::new(vals[3], vals[4], vals[5]));
         }
+        data.lines.push(line);
     }
     Ok(data)
 }
@@ -101,6 +119,7 @@ pub struct ClWriter<W: Write> {
 }
 
 impl<W: Write> ClWriter<W> {
+    /// A writer to `out`.
     pub fn new(out: W) -> Self {
         ClWriter {
             out,
@@ -138,6 +157,7 @@ impl<W: Write> ClWriter<W> {
         self.out.write_all(self.buf.as_bytes())
     }
 
+    /// Flush and hand back the sink.
     pub fn finish(mut self) -> std::io::Result<W> {
         self.out.flush()?;
         Ok(self.out)
@@ -172,14 +192,38 @@ mod tests {
     #[test]
     fn errors_name_the_line() {
         let e = read_cldata("1 2 3\n\n1 2\n".as_bytes()).unwrap_err();
-        assert_eq!(
-            e.to_string(),
-            "line 3: a row has 3 numbers (x y z) or 6 (x y z x1 y1 z1), got 2"
-        );
+        assert_eq!(e.to_string(), "line 3: 2 numbers; expected x y z or x y z x1 y1 z1");
         let e = read_cldata("1 2 3\n1 2 3 4 5 6\n".as_bytes()).unwrap_err();
         assert_eq!(e.to_string(), "line 2: 6 numbers, but the rows before have 3");
         let e = read_cldata("1 2 3\nx y z\n".as_bytes()).unwrap_err();
         assert!(e.to_string().starts_with("line 2: expected numbers"));
         assert!(read_cldata("1 2 nan\n".as_bytes()).is_err());
+        assert_eq!(
+            read_cldata("1 2 3\n1 2 3 4 5\n".as_bytes()).unwrap_err().to_string(),
+            "line 2: 5 numbers; expected x y z or x y z x1 y1 z1"
+        );
+        assert!(read_cldata("1 2 3\n1.5 2 3 4\n".as_bytes()).is_err());
+    }
+
+    /// What either of the two former readers accepted, this one does: any
+    /// whole leading number (not only the row's), the width counted
+    /// without it, header lines with numbers after a leading word, no rows
+    /// at all, and an axis point on the tip (the caller judges that).
+    #[test]
+    fn accepts_what_both_former_readers_accepted() {
+        let d = read_cldata("5 1 2 3\n9 4 5 6\n7 8 9\n".as_bytes()).unwrap();
+        assert_eq!(
+            d.points,
+            vec![P3::new(1.0, 2.0, 3.0), P3::new(4.0, 5.0, 6.0), P3::new(7.0, 8.0, 9.0)]
+        );
+        assert_eq!(d.lines, vec![1, 2, 3]);
+        let d = read_cldata("Tool path 2 of 3\nS.No X Y Z\n\n1 0 0 0 # tip\n".as_bytes()).unwrap();
+        assert_eq!(d.points, vec![P3::origin()]);
+        assert_eq!(d.line_of(0), 4);
+        assert_eq!(read_cldata("# none\n\n".as_bytes()).unwrap(), ClData::default());
+        let d = read_cldata("1 2 3 1 2 3\n".as_bytes()).unwrap();
+        assert_eq!(d.axis, vec![P3::new(1.0, 2.0, 3.0)]);
+        // A header after the first row is an error.
+        assert!(read_cldata("1 2 3\nX Y Z\n".as_bytes()).is_err());
     }
 }

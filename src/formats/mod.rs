@@ -8,8 +8,11 @@
 //! rounding to 1e-9 mm) so output is byte-identical for identical input.
 
 pub mod chains;
+mod chains_whole;
 pub mod cldata;
 pub mod toolpath;
+
+pub use chains_whole::read_chains;
 
 use crate::geometry::P3;
 use std::io::BufRead;

@@ -84,7 +84,7 @@ pub struct Warning {
 
 /// A planned job: moves and what the user should know.
 #[derive(Debug, Default)]
-pub struct Job {
+pub struct ContourJob {
     pub records: Vec<Record>,
     pub warnings: Vec<Warning>,
     /// What the cleanup of short pieces did (once per path, not per copy).
@@ -215,9 +215,9 @@ pub fn estimated_moves(chains: &[Chain], o: &ContourOptions) -> f64 {
 }
 
 /// Plan a whole contour job.
-pub fn contour(chains: &[Chain], m: &LaserSetup, o: &ContourOptions) -> Job {
+pub fn contour(chains: &[Chain], m: &LaserSetup, o: &ContourOptions) -> ContourJob {
     let (items, plan, warnings, cleanup) = prepare(chains, m, o);
-    let mut job = Job {
+    let mut job = ContourJob {
         records: vec![super::plan::ramps_record(m)],
         warnings,
         cleanup,

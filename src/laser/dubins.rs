@@ -208,13 +208,13 @@ pub fn to_elems(dp: &Dubins, p0: P2, h0: f64, goal: P2, plane: Plane, nz: f64) -
 /// at least `min_len` long (so the shutter has time to close and reopen),
 /// with no piece shorter than `min_piece` and a last piece of at least
 /// `tail` (see [`connect`]).
-pub fn corner_loop(corner: P3, din: V2, dout: V2, r: f64, shape: Shape, plane: Plane) -> Option<Vec<Segment>> {
+pub fn corner_loop(corner: P3, din: V2, dout: V2, r: f64, shape: ConnectionLimits, plane: Plane) -> Option<Vec<Segment>> {
     connect(corner, din, corner, dout, r, shape, plane)
 }
 
 /// What a connection must be besides shortest.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Shape {
+pub struct ConnectionLimits {
     /// Least total length.
     pub min_len: f64,
     /// Least length of any piece.
@@ -240,8 +240,16 @@ const SLIVER_TRIES: usize = 64;
 /// `min_piece` until one does. The last piece is at least `shape.tail`
 /// long (room for the shutter's open command): the path's own last turn
 /// when it is long enough, else an end straight of that length.
-pub fn connect(from: P3, din: V2, to: P3, dout: V2, r: f64, shape: Shape, plane: Plane) -> Option<Vec<Segment>> {
-    let Shape {
+pub fn connect(
+    from: P3,
+    din: V2,
+    to: P3,
+    dout: V2,
+    r: f64,
+    shape: ConnectionLimits,
+    plane: Plane,
+) -> Option<Vec<Segment>> {
+    let ConnectionLimits {
         min_len,
         min_piece,
         tail,
@@ -425,7 +433,7 @@ mod tests {
             let hin = 0.3f64;
             let hout = if left { hin + turn } else { hin - turn };
             let r = 0.2;
-            let shape = Shape { min_len, min_piece: 0.002, tail: if left { 0.03 } else { 0.0 } };
+            let shape = ConnectionLimits { min_len, min_piece: 0.002, tail: if left { 0.03 } else { 0.0 } };
             let els = corner_loop(corner, V2::new(hin.cos(), hin.sin()), V2::new(hout.cos(), hout.sin()), r, shape, Plane::Xy).unwrap();
             prop_assert_eq!(els.first().unwrap().start(), corner);
             prop_assert!((els.last().unwrap().end() - corner).norm() < 1e-9);

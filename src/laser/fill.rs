@@ -31,7 +31,7 @@
 //! unless the mitre point would come closer to the region's boundary than
 //! the offset itself; then the arc stays and the planner reports it.
 
-use super::contour::{Job, Warning};
+use super::contour::{ContourJob, Warning};
 use super::dubins::connect;
 use super::offset::{continue_line, from_polyline, join_closed_ends, to_polyline};
 use super::order;
@@ -161,7 +161,7 @@ fn finite_chain(c: &Chain) -> bool {
 /// Check the options, nest the chains into regions, order them and
 /// estimate the work; refuse a job larger than `o.max_moves`.
 pub fn prepare(chains: &[Chain], o: &FillOptions) -> Result<Prepared, FillError> {
-    for (name, v) in [("--stepover", o.stepover), ("the beam radius", o.beam_radius)] {
+    for (name, v) in [("--step-over", o.stepover), ("the beam radius", o.beam_radius)] {
         if !(v.is_finite() && v > 0.0) {
             return Err(FillError::NotPositive(name, v));
         }
@@ -988,14 +988,14 @@ struct Tally {
 }
 
 /// Plan a whole fill job.
-pub fn fill(chains: &[Chain], m: &LaserSetup, o: &FillOptions) -> Result<Job, FillError> {
+pub fn fill(chains: &[Chain], m: &LaserSetup, o: &FillOptions) -> Result<ContourJob, FillError> {
     let p = prepare(chains, o)?;
     let mut records = Vec::new();
     let warnings = plan_prepared(&p, m, o, |r| {
         records.extend(r);
         true
     });
-    Ok(Job {
+    Ok(ContourJob {
         records,
         warnings,
         cleanup: Default::default(),

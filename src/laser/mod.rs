@@ -13,7 +13,6 @@ pub mod contour;
 pub mod dubins;
 pub mod elem;
 pub mod fill;
-pub mod input;
 pub mod offset;
 pub mod order;
 pub mod patterns;

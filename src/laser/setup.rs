@@ -215,8 +215,8 @@ impl LaserSetup {
     /// long enough for the shutter window, no piece shorter than
     /// [`min_block`](Self::min_block), its last piece at least
     /// [`switch_tail`](Self::switch_tail).
-    pub fn connection_shape(&self) -> crate::laser::dubins::Shape {
-        crate::laser::dubins::Shape {
+    pub fn connection_shape(&self) -> crate::laser::dubins::ConnectionLimits {
+        crate::laser::dubins::ConnectionLimits {
             min_len: self.shutter_window(),
             min_piece: self.min_block(),
             tail: self.switch_tail(),

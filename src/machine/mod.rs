@@ -12,6 +12,7 @@
 //!
 //! This module sits below the planners and the simulator: the laser
 //! planner, pathgen, gsim, feedopt and pmac-send all read the same profile.
+#![warn(missing_docs)]
 
 pub mod pmac;
 
@@ -19,6 +20,7 @@ use serde::Deserialize;
 use std::path::Path;
 use thiserror::Error;
 
+/// The `schema` a profile file names.
 pub const SCHEMA: &str = "microcam.machine/1";
 
 /// Profiles that ship with microcam, by name. The files are the single
@@ -29,12 +31,16 @@ pub const BUILTIN: [(&str, &str); 3] = [
     ("lookahead", include_str!("../../testdata/machines/lookahead.json")),
 ];
 
+/// Why a profile could not be loaded (each names the profile).
 #[derive(Debug, Error)]
 pub enum MachineError {
+    /// The file could not be read.
     #[error("{0}: {1}")]
     Io(String, std::io::Error),
+    /// The file is not a profile's JSON (unknown or missing fields too).
     #[error("{0}: {1}")]
     Json(String, serde_json::Error),
+    /// A figure is out of range or the sections do not fit together.
     #[error("{0}: {1}")]
     Invalid(String, String),
 }
@@ -102,6 +108,8 @@ impl Shutter {
         (self.open_delay_ms + 0.5 * self.open_transfer_ms) * 1e-3
     }
 
+    /// Seconds from the close command to the beam half blocked: the
+    /// close delay and half the transfer time.
     pub fn close_latency_s(&self) -> f64 {
         (self.close_delay_ms + 0.5 * self.close_transfer_ms) * 1e-3
     }
@@ -111,16 +119,20 @@ impl Shutter {
 #[derive(Debug, Clone, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Machine {
+    /// [`SCHEMA`].
     pub schema: String,
+    /// The profile's name (messages, reports).
     pub name: String,
     /// Where the figures come from (free text, for people).
     #[serde(default)]
     pub note: Option<String>,
+    /// The motion model programs are timed with.
     pub controller: Controller,
     /// Axis travel, mm; absent = unchecked.
     #[serde(default)]
     pub limits_min_mm: Option<[f64; 3]>,
     #[serde(default)]
+    /// Upper axis travel, mm (with `limits_min_mm`).
     pub limits_max_mm: Option<[f64; 3]>,
     /// Highest path feed the controller will run; faster F is clamped.
     pub max_feed_mm_s: f64,
@@ -170,21 +182,33 @@ pub struct Rotary {
 #[derive(Debug, Clone, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Spindle {
+    /// Slowest speed the spindle runs at.
     pub min_rpm: f64,
+    /// Fastest speed.
     pub max_rpm: f64,
 }
 
-/// Command-line adjustments of a profile.
+/// Command-line adjustments of a profile: each `Some` replaces the
+/// profile's figure of the same name ([`Machine::apply`]).
 #[derive(Debug, Clone, Default)]
 pub struct Overrides {
+    /// `--controller`.
     pub controller: Option<Controller>,
+    /// `--ta-ms`.
     pub ta_ms: Option<f64>,
+    /// `--ts-ms`.
     pub ts_ms: Option<f64>,
+    /// `--accel-mm-s2`.
     pub accel_mm_s2: Option<f64>,
+    /// `--junction-deviation-mm`.
     pub junction_deviation_mm: Option<f64>,
+    /// `--max-feed-mm-s`.
     pub max_feed_mm_s: Option<f64>,
+    /// `--rapid-mm-s`.
     pub rapid_mm_s: Option<f64>,
+    /// `--block-rate-hz`.
     pub block_rate_hz: Option<f64>,
+    /// `--lookahead-blocks`.
     pub lookahead_blocks: Option<usize>,
     /// xmin,xmax,ymin,ymax,zmin,zmax.
     pub limits_mm: Option<[f64; 6]>,

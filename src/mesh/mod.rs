@@ -13,6 +13,7 @@
 //! - [`bvh`]: a bounding-volume hierarchy with ray and nearest-point queries.
 //! - [`parallel`]: first hits of many rays in one direction (a 2-D grid over
 //!   the projection; the verification rays).
+#![warn(missing_docs)]
 
 pub mod bvh;
 pub mod parallel;

@@ -64,7 +64,7 @@ pub struct Comparison {
 
 /// The run's totals (`microcam.plough2d/1`).
 #[derive(Debug, Clone, Serialize, PartialEq)]
-pub struct Summary {
+pub struct PloughSummary {
     pub schema: &'static str,
     pub source: Option<String>,
     pub method: &'static str,
@@ -100,7 +100,7 @@ fn round(v: f64, digits: i32) -> f64 {
 }
 
 /// Totals of a finished run.
-pub fn summary(run: &Plough, source: Option<String>) -> Summary {
+pub fn summary(run: &Plough, source: Option<String>) -> PloughSummary {
     let p: &Params = run.params();
     let steps = &run.steps;
     let (mut chip, mut plough, mut fsum, mut cutting, mut max) = (0.0, 0.0, 0.0, 0, 0.0f64);
@@ -132,7 +132,7 @@ pub fn summary(run: &Plough, source: Option<String>) -> Summary {
         }
     });
     let stock = run.stock();
-    Summary {
+    PloughSummary {
         schema: "microcam.plough2d/1",
         source,
         method: p.method.name(),

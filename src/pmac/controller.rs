@@ -47,7 +47,7 @@ pub mod err {
 pub enum Clock {
     /// Real time since `t0` times `scale` (simulated s per real s).
     Scaled { t0: Instant, scale: f64 },
-    /// Set by hand ([`Controller::set_time`]); unit tests.
+    /// Set by hand ([`Emulator::set_time`]); unit tests.
     Manual(f64),
 }
 
@@ -190,7 +190,7 @@ struct MDef {
 pub const COUNTS_PER_MM: f64 = 10_000.0;
 
 /// The controller state. Wrap it in a mutex to share between connections.
-pub struct Controller {
+pub struct Emulator {
     cfg: Config,
     clock: Clock,
     log: Option<Box<dyn Write + Send>>,
@@ -375,10 +375,10 @@ const PROGRAM_WORDS: &[&str] = &[
     "X", "Y", "Z",
 ];
 
-impl Controller {
+impl Emulator {
     pub fn new(cfg: Config, clock: Clock, log: Option<Box<dyn Write + Send>>) -> Self {
         let gather = cfg.gather_words.max(0);
-        Controller {
+        Emulator {
             cfg,
             clock,
             log,
@@ -1259,15 +1259,15 @@ impl Controller {
 mod tests {
     use super::*;
 
-    fn ctl() -> (Controller, Session) {
+    fn ctl() -> (Emulator, Session) {
         let cfg = Config {
             memory_words: 100,
             ..Config::default()
         };
-        (Controller::new(cfg, Clock::Manual(0.0), None), Session::default())
+        (Emulator::new(cfg, Clock::Manual(0.0), None), Session::default())
     }
 
-    fn ok(c: &mut Controller, s: &mut Session, l: &str) -> Vec<String> {
+    fn ok(c: &mut Emulator, s: &mut Session, l: &str) -> Vec<String> {
         c.command_line(s, l).unwrap_or_else(|e| panic!("{l}: ERR{e:03}"))
     }
 

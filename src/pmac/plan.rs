@@ -104,15 +104,15 @@ pub struct Chunk {
 }
 
 /// The program read and ready to cut.
-pub struct Job {
+pub struct UploadPlan {
     pub records: Vec<Record>,
     pub feed_unit: FeedUnit,
     pub dialect: Dialect,
     pub names: Names,
 }
 
-impl Job {
-    pub fn read(text: &str, names: &Names) -> Result<Job, PlanError> {
+impl UploadPlan {
+    pub fn read(text: &str, names: &Names) -> Result<UploadPlan, PlanError> {
         let opts = ReadOptions {
             shutter_var: names.shutter.clone(),
             line_counter_var: names.counter.clone(),
@@ -124,7 +124,7 @@ impl Job {
                 lines: text.lines().count(),
             });
         }
-        Ok(Job {
+        Ok(UploadPlan {
             records,
             feed_unit: dialect.feed_unit(),
             dialect,
@@ -262,7 +262,7 @@ impl Job {
                             Some(p) => (i, p),
                             None => (from_idx, pos),
                         };
-                        let job = Job {
+                        let job = UploadPlan {
                             records: self.records[s..].to_vec(),
                             feed_unit: self.feed_unit,
                             dialect: self.dialect,
@@ -445,7 +445,7 @@ impl MoveGeom {
 
 /// The rest of a job, from a resume point.
 pub struct Rest {
-    pub job: Job,
+    pub job: UploadPlan,
     pub start: P3,
     pub ta: Option<(Option<f64>, Option<f64>)>,
     pub counter0: u64,
@@ -550,12 +550,12 @@ mod tests {
     #[test]
     fn errors_name_the_line() {
         let names = super::Names::default();
-        let e = super::Job::read("; nothing\nM33=0\n", &names).err().unwrap();
+        let e = super::UploadPlan::read("; nothing\nM33=0\n", &names).err().unwrap();
         assert_eq!(
             e.to_string(),
             "the program has no moves (no motion line in its 2 lines)"
         );
-        let job = super::Job::read("G21 G90\nG1 X1 F0.0000000001\nG1 X2 F10\n", &names).unwrap();
+        let job = super::UploadPlan::read("G21 G90\nG1 X1 F0.0000000001\nG1 X2 F10\n", &names).unwrap();
         let e = job.chunks(None).err().unwrap().to_string();
         assert!(
             e.starts_with("line 2: writing PMAC text: toolpath record 1: feed"),
@@ -565,9 +565,9 @@ mod tests {
 
     use super::*;
 
-    fn laser() -> Job {
+    fn laser() -> UploadPlan {
         let text = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/testdata/writer/laser.pmac")).unwrap();
-        Job::read(&text, &Names::default()).unwrap()
+        UploadPlan::read(&text, &Names::default()).unwrap()
     }
 
     #[test]

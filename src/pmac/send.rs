@@ -7,11 +7,12 @@
 //! resume state is written naming the chunks confirmed complete. A chunk is
 //! confirmed only by what the controller reports (the line counter read
 //! back, and not running), never by what was sent.
+#![warn(missing_docs)]
 
 use crate::geometry::P3;
 use crate::pmac::client::{Client, ClientError, DownloadError};
 use crate::pmac::controller::parse_status;
-use crate::pmac::plan::{Chunk, MoveGeom, Names, marker_lines};
+use crate::pmac::plan::{Chunk, MARKER_WORDS, MoveGeom, Names, marker_lines};
 use serde::{Deserialize, Serialize};
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -33,6 +34,7 @@ pub enum Mode {
 }
 
 impl Mode {
+    /// The name `--mode` and the state file use.
     pub fn name(self) -> &'static str {
         match self {
             Mode::Program => "program",
@@ -42,14 +44,134 @@ impl Mode {
     }
 }
 
+/// The share of a buffer a job may fill: split chunks take at most this
+/// much of the free program memory `SIZE` reports, a rotary stream keeps
+/// its buffer at most this full (room for the controller's own bookkeeping
+/// and rounding in the word count).
+pub const BUFFER_FILL: f64 = 0.9;
+
+/// The commands that close any open buffer, empty the gather buffer and
+/// open program buffer `prog` cleared, ready for lines (before a download
+/// and before `SIZE` is read).
+pub fn open_program(prog: u32) -> [String; 3] {
+    [
+        "CLOSE".into(),
+        "DELETE GATHER".into(),
+        format!("OPEN PROG {prog} CLEAR"),
+    ]
+}
+
+/// The word budget of a split chunk: [`BUFFER_FILL`] of the `free` words
+/// the controller reports, at most `limit` when given, less the completion
+/// marker.
+pub fn split_budget(free: i64, limit: Option<usize>) -> usize {
+    let from_size = (free.max(0) as f64 * BUFFER_FILL) as usize;
+    limit
+        .map_or(from_size, |b| b.min(from_size))
+        .saturating_sub(MARKER_WORDS)
+}
+
+/// The word budget of a dry run, where no controller reports its free
+/// memory: `--buffer-words` less the marker in split mode, the chunk size
+/// in rotary mode, none for one program. `None` inside `Err` names the
+/// missing flag.
+pub fn dry_run_budget(
+    mode: Mode,
+    buffer_words: Option<usize>,
+    chunk_words: usize,
+) -> Result<Option<usize>, &'static str> {
+    match mode {
+        Mode::Program => Ok(None),
+        Mode::Split => buffer_words
+            .map(|b| Some(b.saturating_sub(MARKER_WORDS)))
+            .ok_or("--dry-run in split mode needs --buffer-words"),
+        Mode::Rotary => Ok(Some(chunk_words)),
+    }
+}
+
+/// One dry-run file: its name and text.
+pub struct PlanFile {
+    /// `chunk-NNN.pmac`, numbered from 1.
+    pub name: String,
+    /// The download as it would be sent (buffer chunks wrapped in
+    /// `OPEN PROG` ... `CLOSE` with their completion marker).
+    pub text: String,
+}
+
+/// A dry run: the chunks a job would be sent in, as download files, and the
+/// `microcam.pmac-plan/1` description of them (`plan.json`).
+pub fn dry_run(
+    job: &crate::pmac::plan::UploadPlan,
+    mode: Mode,
+    budget: Option<usize>,
+    prog: u32,
+    done_var: &str,
+) -> Result<(Vec<PlanFile>, serde_json::Value), crate::pmac::plan::PlanError> {
+    let chunks = match (mode, budget) {
+        (Mode::Rotary, Some(b)) => job.stream_chunks(b),
+        _ => job.chunks(budget),
+    }?;
+    let mut files = Vec::with_capacity(chunks.len());
+    let mut plan = Vec::with_capacity(chunks.len());
+    for (i, c) in chunks.iter().enumerate() {
+        let name = plan_file_name(i + 1);
+        let mut text = String::new();
+        let mut push = |l: &str| {
+            text.push_str(l);
+            text.push('\n');
+        };
+        if mode != Mode::Rotary {
+            open_program(prog).iter().for_each(|l| push(l));
+        }
+        c.lines.iter().for_each(|l| push(l));
+        if mode != Mode::Rotary {
+            marker_lines(done_var, i + 1).iter().for_each(|l| push(l));
+            push("CLOSE");
+        }
+        plan.push(serde_json::json!({
+            "file": name, "lines": c.lines.len(), "words": c.words,
+            "first_counter": c.first_counter, "last_counter": c.last_counter,
+            "start": c.start, "end": c.end, "seconds": c.seconds,
+        }));
+        files.push(PlanFile { name, text });
+    }
+    let summary = serde_json::json!({
+        "schema": "microcam.pmac-plan/1",
+        "mode": mode.name(),
+        "prog": prog,
+        "budget_words": budget,
+        "chunks": plan,
+        "lines": chunks.iter().map(|c| c.lines.len()).sum::<usize>(),
+        "estimated_seconds": chunks.iter().map(|c| c.seconds).sum::<f64>(),
+    });
+    Ok((files, summary))
+}
+
+/// The name of dry-run file `number` (1-based).
+pub fn plan_file_name(number: usize) -> String {
+    format!("chunk-{number:03}.pmac")
+}
+
+/// Whether a file named `name` is a chunk file that a plan of `chunks`
+/// files did not write (left by an earlier, longer plan).
+pub fn is_stale_plan_file(name: &str, chunks: usize) -> bool {
+    name.strip_prefix("chunk-")
+        .and_then(|r| r.strip_suffix(".pmac"))
+        .and_then(|d| d.parse::<usize>().ok())
+        .is_some_and(|k| k == 0 || k > chunks || name != plan_file_name(k))
+}
+
+/// What [`Sender`] needs besides the link and the chunks.
 #[derive(Debug, Clone)]
 pub struct SendOptions {
+    /// How the job reaches the controller.
     pub mode: Mode,
     /// Program buffer number for program and split modes.
     pub prog: u32,
     /// Rotary buffer size, words (`DEFINE ROT`).
     pub rotary_words: usize,
-    /// Fill the rotary buffer up to this fraction of its size.
+    /// Fill the rotary buffer up to this fraction of its size
+    /// ([`BUFFER_FILL`] unless a test wants otherwise).
     pub rotary_fill: f64,
     /// Time between status polls.
     pub poll: Duration,
@@ -60,6 +182,7 @@ pub struct SendOptions {
     pub stop_deadline: Duration,
     /// Reply timeout during a safety stop (longer than the normal one).
     pub stop_timeout: Duration,
+    /// The controller variables the job uses (shutter, counters, session).
     pub names: Names,
     /// Where the resume state goes.
     pub state_path: PathBuf,
@@ -76,9 +199,11 @@ pub struct SendOptions {
 /// `resume_at` (when set) has.
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 pub struct State {
+    /// Layout version of the state file (2).
     pub version: u32,
     /// FNV-1a of the input text: resume refuses another program.
     pub input_hash: String,
+    /// The mode the job was started in (resume keeps it).
     pub mode: Mode,
     /// Word budget the chunks were cut with (so resume cuts the same).
     pub budget: Option<usize>,
@@ -96,11 +221,53 @@ pub struct State {
 }
 
 impl State {
+    /// The state of a new job of `moves` moves read from text hashing to
+    /// `input_hash`, with a fresh session number (the clock and the process
+    /// id, so two sessions on one controller do not share one).
+    pub fn new(input_hash: String, mode: Mode, moves: u64) -> State {
+        let session = (std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map_or(0, |d| d.as_nanos() as u64)
+            ^ u64::from(std::process::id()))
+            % 1_000_000_000
+            + 1;
+        State {
+            version: 2,
+            input_hash,
+            mode,
+            budget: None,
+            moves,
+            next_move: 1,
+            resume_at: None,
+            session,
+            stopped: None,
+        }
+    }
+
+    /// Whether this saved state may resume the job whose text hashes to
+    /// `input_hash` in `mode`; the error says why not (`path` names the
+    /// state file).
+    pub fn check_resume(&self, input_hash: &str, mode: Mode, path: &Path) -> Result<(), String> {
+        if self.input_hash != input_hash {
+            return Err(format!(
+                "{} belongs to another program (input changed): refusing to resume",
+                path.display()
+            ));
+        }
+        if self.mode != mode {
+            return Err(format!("{} was written in {} mode", path.display(), self.mode.name()));
+        }
+        Ok(())
+    }
+
+    /// Read a state file.
     pub fn load(path: &Path) -> Result<State, SendError> {
         let text = std::fs::read_to_string(path).map_err(|e| SendError::State(format!("{}: {e}", path.display())))?;
         serde_json::from_str(&text).map_err(|e| SendError::State(format!("{}: {e}", path.display())))
     }
 
+    /// Write the state file whole (a temporary file renamed over it), so a
+    /// kill mid-write leaves the previous state.
     pub fn save(&self, path: &Path) -> Result<(), SendError> {
         let dir = path
             .parent()
@@ -114,6 +281,7 @@ impl State {
         Ok(())
     }
 
+    /// Where along `next_move` to resume (`resume_at` as a point).
     pub fn resume_point(&self) -> Option<P3> {
         self.resume_at.map(|a| P3::new(a[0], a[1], a[2]))
     }
@@ -175,22 +343,41 @@ pub fn input_hash(text: &str) -> String {
     format!("{h:016x}")
 }
 
+/// Why a session stopped.
 #[derive(Debug, Error)]
 pub enum SendError {
+    /// The link or the controller's reply (ERR, timeout, lost connection).
     #[error("{0}")]
     Client(#[from] ClientError),
+    /// A download failed part way (names the line).
     #[error("{0}")]
     Download(#[from] DownloadError),
+    /// Ctrl-C or SIGTERM.
     #[error("interrupted")]
     Interrupted,
+    /// Nothing changed on the controller for this long (at this counter).
     #[error("no progress on the controller for {0:?} (line counter {1})")]
     Stalled(Duration, u64),
+    /// The program stopped before its last line.
     #[error("program ended at line counter {got}, expected {want} (controller reset or program error)")]
-    Incomplete { got: u64, want: u64 },
+    Incomplete {
+        /// The counter the controller reported.
+        got: u64,
+        /// The counter of the chunk's last move.
+        want: u64,
+    },
+    /// The job or a chunk does not fit the controller's memory.
     #[error("the job needs {need} words, the controller has {free} free: use --mode split or rotary")]
-    TooBig { need: usize, free: i64 },
+    TooBig {
+        /// Words needed.
+        need: usize,
+        /// Words free (or allowed).
+        free: i64,
+    },
+    /// A reply that cannot be trusted (not a number, impossible counter).
     #[error("bad reply '{0}'")]
     BadReply(String),
+    /// The state file could not be read or written.
     #[error("resume state {0}")]
     State(String),
 }
@@ -237,41 +424,93 @@ fn count(s: &str) -> Result<u64, SendError> {
 
 /// What a session did, printed as JSON at the end.
 #[derive(Debug, Clone, Serialize, Default)]
-pub struct Summary {
+pub struct SendSummary {
+    /// [`Mode::name`].
     pub mode: String,
+    /// Chunks the job was cut into (from the resume point).
     pub chunks: usize,
+    /// Chunks run to completion.
     pub chunks_run: usize,
+    /// Moves in the job.
     pub moves: u64,
     /// First move this session ran (above 1 after --resume).
     pub first_move: u64,
+    /// Program lines downloaded.
     pub lines_sent: u64,
+    /// Requests sent to the controller.
     pub requests: u64,
+    /// The last line counter the controller confirmed.
     pub final_counter: u64,
     /// A beam-off rapid to the resume point was added.
     pub repositioned: bool,
+    /// Time spent downloading, s.
     pub upload_seconds: f64,
+    /// Wall time of the session, s.
     pub seconds: f64,
+    /// The chunks' estimated run time, s.
     pub estimated_run_seconds: f64,
+}
+
+impl SendSummary {
+    /// The summary of a session that had nothing to run: every move of the
+    /// state had executed.
+    pub fn finished(state: &State) -> SendSummary {
+        SendSummary {
+            mode: state.mode.name().into(),
+            moves: state.moves,
+            first_move: state.next_move,
+            final_counter: state.moves,
+            ..Default::default()
+        }
+    }
+
+    /// The JSON line pmac-send prints: the summary's fields and `ok`.
+    pub fn to_json(&self, ok: bool) -> serde_json::Value {
+        let mut v = serde_json::to_value(self).unwrap_or_default();
+        v["ok"] = serde_json::json!(ok);
+        v
+    }
 }
 
 /// A failed session: the error, what the safety stop did, and the state.
 #[derive(Debug)]
 pub struct Failure {
+    /// What stopped the session.
     pub error: SendError,
+    /// Whether the safety stop confirmed the shutter closed and the
+    /// program aborted (the error says why not).
     pub safe_stop: Result<(), String>,
+    /// The state as saved after the stop.
     pub state: State,
-    pub summary: Summary,
+    /// What the session did before it stopped.
+    pub summary: SendSummary,
+}
+
+impl Failure {
+    /// The JSON line pmac-send prints: the summary, `ok: false`, the
+    /// first move not run and the error.
+    pub fn to_json(&self) -> serde_json::Value {
+        let mut v = self.summary.to_json(false);
+        v["next_move"] = serde_json::json!(self.state.next_move);
+        v["error"] = serde_json::json!(self.error.to_string());
+        v
+    }
 }
 
 /// The controller's word after a safety stop: counter, session number,
 /// position (mm).
 #[derive(Debug, Clone, Copy)]
 pub struct Reading {
+    /// The line counter (x.5: a beam-off reposition before move x + 1).
     pub counter: f64,
+    /// The session variable.
     pub session: f64,
+    /// The motor positions, mm.
     pub pos: P3,
 }
 
+/// One session on one controller: runs chunks, watches progress, stops
+/// safely.
 pub struct Sender<'a> {
     client: Option<Client>,
     host: String,
@@ -279,12 +518,15 @@ pub struct Sender<'a> {
     opts: SendOptions,
     stop: Arc<AtomicBool>,
     progress: &'a mut dyn Write,
-    summary: Summary,
+    summary: SendSummary,
     last_note: Instant,
     moves: Vec<MoveGeom>,
 }
 
 impl<'a> Sender<'a> {
+    /// A session on `client` (connected to `host`); progress lines go to
+    /// `progress`, `stop` is set by the signal handler, `moves` are the
+    /// job's moves (to locate a stop).
     pub fn new(
         client: Client,
         host: &str,
@@ -300,7 +542,7 @@ impl<'a> Sender<'a> {
             opts,
             stop,
             progress,
-            summary: Summary::default(),
+            summary: SendSummary::default(),
             last_note: Instant::now() - Duration::from_secs(10),
             moves,
         }
@@ -337,10 +579,9 @@ impl<'a> Sender<'a> {
 
     /// Free words after clearing program `prog` and the gather buffer.
     pub fn free_words(&mut self) -> Result<i64, SendError> {
-        let prog = self.opts.prog;
-        self.cmd("CLOSE")?;
-        self.cmd("DELETE GATHER")?;
-        self.cmd(&format!("OPEN PROG {prog} CLEAR"))?;
+        for c in open_program(self.opts.prog) {
+            self.cmd(&c)?;
+        }
         self.cmd("CLOSE")?;
         let r = self.cmd("SIZE")?;
         let s = r.first().cloned().unwrap_or_default();
@@ -358,7 +599,7 @@ impl<'a> Sender<'a> {
     }
 
     /// Run the chunks (cut from the state's resume point).
-    pub fn run(mut self, chunks: &[Chunk], state: &mut State) -> Result<Summary, Box<Failure>> {
+    pub fn run(mut self, chunks: &[Chunk], state: &mut State) -> Result<SendSummary, Box<Failure>> {
         let t0 = Instant::now();
         self.summary.mode = self.opts.mode.name().into();
         self.summary.chunks = chunks.len();
@@ -535,9 +776,9 @@ impl<'a> Sender<'a> {
             let reposition = i == 0 && resumed;
             let lines = self.chunk_lines(chunk, reposition, i + 1);
             let t = Instant::now();
-            self.cmd("CLOSE")?;
-            self.cmd("DELETE GATHER")?;
-            self.cmd(&format!("OPEN PROG {prog} CLEAR"))?;
+            for c in open_program(prog) {
+                self.cmd(&c)?;
+            }
             // Send in slices so Ctrl-C is seen during long uploads.
             for part in lines.chunks(256) {
                 self.check_stop()?;
@@ -772,4 +1013,83 @@ fn parse_check(v: &[String]) -> Option<(bool, f64, Reading)> {
         num(&v[6])? / scale(&v[9])?,
     );
     Some((running, shutter, Reading { counter, session, pos }))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::pmac::plan::UploadPlan;
+
+    #[test]
+    fn split_budget_fills_ninety_percent_at_most_the_limit_less_the_marker() {
+        assert_eq!(split_budget(10_000, None), 9_000 - MARKER_WORDS);
+        assert_eq!(split_budget(10_000, Some(5_000)), 5_000 - MARKER_WORDS);
+        assert_eq!(split_budget(10_000, Some(50_000)), 9_000 - MARKER_WORDS);
+        assert_eq!(split_budget(-5, None), 0);
+        assert_eq!(split_budget(4, Some(4)), 0);
+    }
+
+    #[test]
+    fn dry_run_files_are_wrapped_buffers_or_bare_rotary_chunks() {
+        let mut text = String::from("G21 G90\n");
+        for i in 1..=40 {
+            text.push_str(&format!("G1 X{i} F10\n"));
+        }
+        let job = UploadPlan::read(&text, &Names::default()).unwrap();
+        let budget = dry_run_budget(Mode::Split, Some(60), 16).unwrap();
+        assert_eq!(budget, Some(60 - MARKER_WORDS));
+        let (files, plan) = dry_run(&job, Mode::Split, budget, 3, "P401").unwrap();
+        assert!(files.len() > 1, "{}", files.len());
+        assert_eq!(plan["chunks"].as_array().unwrap().len(), files.len());
+        for (i, f) in files.iter().enumerate() {
+            assert_eq!(f.name, plan_file_name(i + 1));
+            assert!(
+                f.text.starts_with("CLOSE\nDELETE GATHER\nOPEN PROG 3 CLEAR\n"),
+                "{}",
+                f.text
+            );
+            assert!(
+                f.text.ends_with(&format!("DWELL0\nP401={}\nCLOSE\n", i + 1)),
+                "{}",
+                f.text
+            );
+        }
+        let (rot, _) = dry_run(&job, Mode::Rotary, Some(16), 3, "P401").unwrap();
+        assert!(
+            rot.iter()
+                .all(|f| !f.text.contains("OPEN PROG") && !f.text.contains("P401="))
+        );
+        assert!(dry_run_budget(Mode::Split, None, 16).is_err());
+        assert_eq!(dry_run_budget(Mode::Program, None, 16), Ok(None));
+        assert!(is_stale_plan_file("chunk-005.pmac", 4));
+        assert!(!is_stale_plan_file("chunk-004.pmac", 4));
+        assert!(is_stale_plan_file("chunk-000.pmac", 4));
+        assert!(is_stale_plan_file("chunk-5.pmac", 4));
+        assert!(is_stale_plan_file("chunk-3.pmac", 4));
+        assert!(!is_stale_plan_file("plan.json", 4));
+    }
+
+    #[test]
+    fn resume_is_refused_for_another_input_or_mode() {
+        let s = State::new("abc".into(), Mode::Split, 5);
+        assert!(s.session >= 1 && s.session <= 1_000_000_000);
+        let p = Path::new("st.json");
+        assert!(s.check_resume("abc", Mode::Split, p).is_ok());
+        assert!(
+            s.check_resume("abd", Mode::Split, p)
+                .unwrap_err()
+                .contains("another program")
+        );
+        assert!(
+            s.check_resume("abc", Mode::Rotary, p)
+                .unwrap_err()
+                .contains("split mode")
+        );
+        let mut done = s.clone();
+        done.next_move = 6;
+        let v = SendSummary::finished(&done).to_json(true);
+        assert_eq!(v["ok"], true);
+        assert_eq!(v["final_counter"], 5);
+        assert_eq!(v["mode"], "split");
+    }
 }

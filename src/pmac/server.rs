@@ -6,7 +6,7 @@
 //! One thread per connection; each reply is written in ONE write, since
 //! clients such as dls-pmaclib read a reply with a single recv.
 
-use crate::pmac::controller::{Controller, Session};
+use crate::pmac::controller::{Emulator, Session};
 use crate::pmac::protocol::{self as p, Header};
 use std::io::{self, BufRead, BufReader, Read, Write};
 use std::net::{SocketAddr, TcpListener, TcpStream};
@@ -43,11 +43,11 @@ pub struct Server {
     addr: SocketAddr,
     stop: Arc<AtomicBool>,
     accept: Option<JoinHandle<()>>,
-    pub controller: Arc<Mutex<Controller>>,
+    pub controller: Arc<Mutex<Emulator>>,
 }
 
 struct Shared {
-    ctl: Arc<Mutex<Controller>>,
+    ctl: Arc<Mutex<Emulator>>,
     faults: Faults,
     requests: AtomicU64,
     stop: Arc<AtomicBool>,
@@ -57,7 +57,7 @@ struct Shared {
 impl Server {
     /// Listen on `addr` (port 0 picks a free one) and serve in background
     /// threads.
-    pub fn start(addr: SocketAddr, controller: Controller, faults: Faults) -> io::Result<Server> {
+    pub fn start(addr: SocketAddr, controller: Emulator, faults: Faults) -> io::Result<Server> {
         let listener = TcpListener::bind(addr)?;
         let addr = listener.local_addr()?;
         let stop = Arc::new(AtomicBool::new(false));
@@ -111,7 +111,7 @@ impl Drop for Server {
     }
 }
 
-fn lock(ctl: &Mutex<Controller>) -> std::sync::MutexGuard<'_, Controller> {
+fn lock(ctl: &Mutex<Emulator>) -> std::sync::MutexGuard<'_, Emulator> {
     // A panic elsewhere must not stop the emulator answering.
     ctl.lock().unwrap_or_else(|e| e.into_inner())
 }

@@ -100,7 +100,7 @@ pub struct PocketSpec {
 
 /// A planned pocket.
 #[derive(Debug, Clone)]
-pub struct Job {
+pub struct PocketJob {
     pub program: Program,
     pub region: Region,
     pub grid: Grid,
@@ -191,7 +191,7 @@ fn validate(s: &PocketSpec) -> Result<(), PocketError> {
 }
 
 /// Plan the pocket.
-pub fn plan(s: &PocketSpec) -> Result<Job, PocketError> {
+pub fn plan(s: &PocketSpec) -> Result<PocketJob, PocketError> {
     validate(s)?;
     let contact = Contact::new(&s.surface, s.cutter, s.gouge_tol);
     let region = Region::new(&s.boundary, s.cutter.radius());
@@ -268,7 +268,7 @@ pub fn plan(s: &PocketSpec) -> Result<Job, PocketError> {
     fig.passes = counts.into_iter().map(|(k, n)| (k.name().to_string(), n)).collect();
     estimates(&mut fig, &contact, &grid, &every, s);
     fig.measure(&program, &s.machine).map_err(PocketError::Time)?;
-    Ok(Job {
+    Ok(PocketJob {
         program,
         region,
         grid,

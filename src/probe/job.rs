@@ -22,12 +22,17 @@ pub enum Measure {
     Circle,
     /// A gauge block's width: scan `face_points` contacts along the first
     /// face, then touch the opposite face, `nominal_mm` away.
-    Width { nominal_mm: f64, face_points: usize },
+    Width {
+        /// The gauge's nominal width, mm.
+        nominal_mm: f64,
+        /// Contacts along the first face.
+        face_points: usize,
+    },
 }
 
 /// A job to run.
 #[derive(Debug, Clone)]
-pub struct Job {
+pub struct ProbeJob {
     /// The simulated part.
     pub part: Part,
     /// The design to compare with (usually the part itself).
@@ -62,7 +67,7 @@ pub struct Outcome {
 }
 
 /// Run a job.
-pub fn run(job: &Job) -> Result<Outcome, ProbeError> {
+pub fn run(job: &ProbeJob) -> Result<Outcome, ProbeError> {
     job.noise.check()?;
     let re = job.probe.radius();
     let u = job.noise.point_sigma_mm(&job.probe);
@@ -97,7 +102,7 @@ pub fn run(job: &Job) -> Result<Outcome, ProbeError> {
 /// The single touch on the face opposite the scanned one: from the fitted
 /// face's centroid, `nominal + D_e + R_o` across into (and through) the
 /// block, lifted over it in Z, then a guarded approach back.
-fn touch_other_face(job: &Job, scan: &mut Scan, nominal_mm: f64) -> Result<Contact, ProbeError> {
+fn touch_other_face(job: &ProbeJob, scan: &mut Scan, nominal_mm: f64) -> Result<Contact, ProbeError> {
     let re = job.probe.radius();
     let pts: Vec<P2> = scan.contacts.iter().map(|c| c.center).collect();
     let line = super::fit::line(&pts)?;

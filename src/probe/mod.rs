@@ -16,6 +16,7 @@
 //! - [`program`]: the probing program for a Turbo PMAC or an ISO control.
 //! - [`svg`]: a picture of the scan against the design.
 //! - [`report`]: the contact CSV and report JSON.
+#![warn(missing_docs)]
 
 pub mod fit;
 pub mod job;

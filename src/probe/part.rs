@@ -18,11 +18,25 @@ use std::f64::consts::TAU;
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Prim {
     /// A straight piece from `a` to `b`.
-    Line { a: P2, b: P2 },
+    Line {
+        /// Start.
+        a: P2,
+        /// End.
+        b: P2,
+    },
     /// A circular arc about `c` of radius `r`, starting at angle `a0`
     /// (radians) and sweeping `sweep` (positive counter-clockwise; +-2 pi is
     /// a full circle).
-    Arc { c: P2, r: f64, a0: f64, sweep: f64 },
+    Arc {
+        /// Centre.
+        c: P2,
+        /// Radius.
+        r: f64,
+        /// Start angle, radians.
+        a0: f64,
+        /// Signed sweep, radians.
+        sweep: f64,
+    },
 }
 
 impl Prim {

@@ -3,7 +3,7 @@
 //! standard uncertainty (`u_..._mm`, k = 1) and the 99 % interval of a
 //! normal estimate (`u99_..._mm`, k = 2.576).
 
-use super::job::{Job, Outcome};
+use super::job::{Outcome, ProbeJob};
 use super::measure::K99;
 use crate::geometry::P2;
 use serde::Serialize;
@@ -100,7 +100,7 @@ struct CoverageR {
 }
 
 #[derive(Serialize)]
-struct Report {
+struct ProbeReport {
     schema: &'static str,
     probe: ProbeR,
     noise: NoiseR,
@@ -114,13 +114,13 @@ struct Report {
 }
 
 /// The report JSON, pretty-printed, ending in a newline.
-pub fn json(job: &Job, out: &Outcome) -> String {
+pub fn json(job: &ProbeJob, out: &Outcome) -> String {
     let s = &out.scan;
     let path_length: f64 = s.path.iter().map(|m| (m.to - m.from).norm()).sum();
     let d = job.params.dir / job.params.dir.norm();
     let devs = &out.deviations;
     let nd = devs.len().max(1) as f64;
-    let rep = Report {
+    let rep = ProbeReport {
         schema: SCHEMA,
         probe: ProbeR {
             effective_diameter_mm: r(job.probe.effective_diameter_mm),

@@ -472,7 +472,7 @@ mod tests {
     use super::*;
     use crate::geometry::V3;
     use crate::machine::{Controller, Machine};
-    use crate::sim::time::{Block, Event, MoveClass, TimeModel};
+    use crate::sim::time::{Event, MotionBlock, MoveClass, TimeModel};
 
     fn machine(c: Controller) -> Machine {
         let mut m = Machine::builtin("lookahead");
@@ -491,7 +491,7 @@ mod tests {
         bm.keep_probes = true;
         let mut x = 0.0;
         for (i, &(l, f, beam)) in moves.iter().enumerate() {
-            let mut b = Block::straight(MoveClass::Line, V3::new(l, 0.0, 0.0), f);
+            let mut b = MotionBlock::straight(MoveClass::Line, V3::new(l, 0.0, 0.0), f);
             x += l;
             b.end = P3::new(x, 0.0, 0.0);
             b.beam = beam;

@@ -5,7 +5,7 @@ use super::beam::{BeamModel, ChainExposure, match_chains};
 use super::picture::Overlay;
 use super::report::{RemovalStats, TimeStats};
 use super::stock::Stock;
-use super::summary::Summary;
+use super::summary::PathSummary;
 use super::time::Limit;
 use crate::formats::{push_num, push_str_lit, push_uint};
 use crate::machine::Machine;
@@ -15,9 +15,9 @@ use crate::model::chain::Chain;
 pub const SCHEMA: &str = "microcam.gsim/1";
 
 /// Everything gsim reports.
-pub struct Report {
+pub struct GsimReport {
     pub machine: Machine,
-    pub summary: Summary,
+    pub summary: PathSummary,
     pub time: TimeStats,
     pub beam: BeamModel,
     /// With a drawing (`--chains`): the drawing chain index per cut and the
@@ -36,9 +36,9 @@ fn field(b: &mut String, k: &str, v: f64) {
     push_num(b, v);
 }
 
-impl Report {
+impl GsimReport {
     /// Compare the cuts with the drawing's chains (`tol` mm in XY).
-    pub fn with_drawing(mut self, chains: &[Chain], tol: f64) -> Report {
+    pub fn with_drawing(mut self, chains: &[Chain], tol: f64) -> GsimReport {
         self.drawing = Some(match_chains(&self.beam.cuts, chains, tol));
         self
     }

@@ -8,8 +8,8 @@ use super::beam::{BeamModel, CommandTiming, EXAMPLES};
 use super::picture::Overlay;
 use super::removal::{CutBlock, CutMove, Engine};
 use super::stock::Stock;
-use super::summary::Summary;
-use super::time::{Block, Event, Limit, MoveClass, TimeModel, TimedBlock};
+use super::summary::PathSummary;
+use super::time::{Event, Limit, MotionBlock, MoveClass, TimeModel, TimedBlock};
 use crate::cutter::Cutter;
 use crate::formats::{push_num, push_uint};
 use crate::geometry::{BBox3, P3, V3};
@@ -18,7 +18,7 @@ use crate::model::toolpath::{Header, MotionKind, Record};
 use std::io::Write;
 use thiserror::Error;
 
-pub use super::gsim_json::{Report, SCHEMA};
+pub use super::gsim_json::{GsimReport, SCHEMA};
 
 /// A program the machine must not run, or a failed write of the series.
 #[derive(Debug, Error)]
@@ -124,7 +124,7 @@ pub struct Simulator<W: Write> {
     /// Rotary axes after the last move that carried them (degrees).
     abc: Option<[f64; 3]>,
     index: u64,
-    summary: Summary,
+    summary: PathSummary,
     time: TimeModel,
     beam: BeamModel,
     stats: TimeStats,
@@ -152,7 +152,7 @@ impl<W: Write> Simulator<W> {
             pos: start,
             abc: None,
             index: 0,
-            summary: Summary::new(header.feed_unit, start),
+            summary: PathSummary::new(header.feed_unit, start),
             time: TimeModel::new(&machine),
             beam: BeamModel::new(&machine.shutter_or_instant(), timing),
             stats: TimeStats::default(),
@@ -280,7 +280,7 @@ impl<W: Write> Simulator<W> {
                             .ok_or_else(|| self.err(m.block, "arc of zero radius".into()))?;
                         self.check_limits(&arc.bbox(), m.block)?;
                         let len = arc.length();
-                        Block {
+                        MotionBlock {
                             line: None,
                             class,
                             length_mm: len,
@@ -298,7 +298,7 @@ impl<W: Write> Simulator<W> {
                     }
                     _ => {
                         self.check_limits(&BBox3::from_points(&[from, m.to]), m.block)?;
-                        Block::straight(class, delta, feed)
+                        MotionBlock::straight(class, delta, feed)
                     }
                 };
                 block.line = m.block;
@@ -414,7 +414,7 @@ impl<W: Write> Simulator<W> {
         }
     }
 
-    /// Keep what [`Report::with_drawing`] needs to match cuts to chains.
+    /// Keep what [`GsimReport::with_drawing`] needs to match cuts to chains.
     pub fn with_chain_probes(mut self) -> Self {
         self.beam.keep_probes = true;
         self
@@ -428,7 +428,7 @@ impl<W: Write> Simulator<W> {
     /// Bring the machine to rest and close the books.
     /// Returns the report and the series writers (blocks, removal, steps)
     /// for the caller to commit.
-    pub fn finish(mut self) -> Result<(Report, [Option<W>; 3]), SimError> {
+    pub fn finish(mut self) -> Result<(GsimReport, [Option<W>; 3]), SimError> {
         self.time.finish();
         self.drain()?;
         let t_end = self.time.now_s();
@@ -448,7 +448,7 @@ impl<W: Write> Simulator<W> {
             None => (None, None, None, None),
         };
         Ok((
-            Report {
+            GsimReport {
                 machine: self.machine,
                 summary: self.summary,
                 time: self.stats,
@@ -464,7 +464,7 @@ impl<W: Write> Simulator<W> {
 
 impl<W: Write> Removal<W> {
     /// Length of one step for `block`, when steps are asked for.
-    fn step_length(&self, block: &Block) -> Result<Option<f64>, SimError> {
+    fn step_length(&self, block: &MotionBlock) -> Result<Option<f64>, SimError> {
         let Some(plan) = &self.steps else { return Ok(None) };
         if block.class == MoveClass::Rapid {
             return Ok(None);
@@ -494,7 +494,7 @@ impl<W: Write> Removal<W> {
         Ok(Some(step))
     }
 
-    fn cut(&mut self, block: &Block, from: &P3, to: &P3, kind: &MotionKind) -> Result<(), SimError> {
+    fn cut(&mut self, block: &MotionBlock, from: &P3, to: &P3, kind: &MotionKind) -> Result<(), SimError> {
         let arc = match kind {
             MotionKind::Arc(a) => a.arc(*from, *to),
             _ => None,
@@ -650,7 +650,7 @@ mod tests {
     use crate::gcode::{ReadOptions, read_str};
     use crate::model::toolpath::{FeedUnit, Motion};
 
-    type Finished = (Report, [Option<Vec<u8>>; 3]);
+    type Finished = (GsimReport, [Option<Vec<u8>>; 3]);
 
     fn sim(text: &str, machine: Machine) -> Result<Finished, SimError> {
         let (d, recs) = read_str(text, &ReadOptions::default()).unwrap();

@@ -6,7 +6,7 @@ use crate::model::toolpath::{FeedUnit, MotionKind, Record};
 
 /// Running totals over a toolpath.
 #[derive(Debug, Clone, PartialEq)]
-pub struct Summary {
+pub struct PathSummary {
     pub feed_unit: FeedUnit,
     pub records: u64,
     pub rapids: u64,
@@ -25,9 +25,9 @@ pub struct Summary {
     pos: P3,
 }
 
-impl Summary {
+impl PathSummary {
     pub fn new(feed_unit: FeedUnit, start: P3) -> Self {
-        Summary {
+        PathSummary {
             feed_unit,
             records: 0,
             rapids: 0,
@@ -175,7 +175,7 @@ mod tests {
             &ReadOptions::default(),
         )
         .unwrap();
-        let mut s = Summary::new(FeedUnit::MmPerMin, P3::origin());
+        let mut s = PathSummary::new(FeedUnit::MmPerMin, P3::origin());
         recs.iter().for_each(|r| s.add(r));
         assert_eq!((s.rapids, s.lines, s.arcs, s.dwells), (1, 1, 1, 1));
         assert!((s.rapid_length_mm - 1.0).abs() < 1e-12);

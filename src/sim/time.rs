@@ -93,7 +93,7 @@ impl MoveClass {
 
 /// A move as the time models see it.
 #[derive(Debug, Clone, PartialEq)]
-pub struct Block {
+pub struct MotionBlock {
     /// Source line.
     pub line: Option<u64>,
     pub class: MoveClass,
@@ -119,12 +119,12 @@ pub struct Block {
     pub rotary_deg: f64,
 }
 
-impl Block {
+impl MotionBlock {
     /// A straight move (rapid or line) by its axis displacement.
-    pub fn straight(class: MoveClass, delta: V3, feed_mm_s: f64) -> Block {
+    pub fn straight(class: MoveClass, delta: V3, feed_mm_s: f64) -> MotionBlock {
         let l = delta.norm();
         let dir = if l > 0.0 { delta / l } else { V3::zeros() };
-        Block {
+        MotionBlock {
             line: None,
             class,
             length_mm: l,
@@ -173,7 +173,7 @@ pub const MAX_PIECES: usize = 3;
 /// A block with its timing.
 #[derive(Debug, Clone, PartialEq)]
 pub struct TimedBlock {
-    pub block: Block,
+    pub block: MotionBlock,
     /// When the path crosses into this block (s from program start).
     pub t_start_s: f64,
     pub time_s: f64,
@@ -259,7 +259,7 @@ impl TimeModel {
     /// linear axes move has its feed lowered so that no rotary axis turns
     /// faster than its maximum. A rapid's rotary travel beside linear
     /// travel is not timed.
-    pub fn push_move(&mut self, mut b: Block) {
+    pub fn push_move(&mut self, mut b: MotionBlock) {
         if b.rotary_deg > 0.0 {
             if b.length_mm <= 0.0 {
                 self.push_rotary_only(b);
@@ -279,7 +279,7 @@ impl TimeModel {
     }
 
     /// A move of the rotary axes alone: motion stops, the axes turn.
-    fn push_rotary_only(&mut self, b: Block) {
+    fn push_rotary_only(&mut self, b: MotionBlock) {
         let r = self.rotary;
         let v = if b.class == MoveClass::Rapid {
             r.rapid_deg_s
@@ -463,7 +463,7 @@ struct Pmac {
 }
 
 struct Planned {
-    block: Block,
+    block: MotionBlock,
     /// Nominal move time and plateau speed.
     time: f64,
     v: f64,
@@ -488,7 +488,7 @@ impl Pmac {
         }
     }
 
-    fn plan(&self, block: Block) -> Planned {
+    fn plan(&self, block: MotionBlock) -> Planned {
         let acc = crate::machine::pmac::accel_time_s(self.ta_ms, self.ts_ms);
         let commanded = block.feed_mm_s;
         let f = commanded.min(self.max_feed);
@@ -516,7 +516,7 @@ impl Pmac {
         }
     }
 
-    fn push_move(&mut self, b: Block, out: &mut VecDeque<Event>) {
+    fn push_move(&mut self, b: MotionBlock, out: &mut VecDeque<Event>) {
         if b.class == MoveClass::Rapid {
             // RAPID is not blended with LINEAR/CIRCLE: stop, jog, stop.
             self.stop(out);
@@ -704,7 +704,7 @@ struct Lookahead {
 }
 
 struct LBlock {
-    block: Block,
+    block: MotionBlock,
     nominal: f64,
     commanded: f64,
     nominal_limit: Limit,
@@ -730,7 +730,7 @@ impl Lookahead {
         }
     }
 
-    fn push_move(&mut self, b: Block, out: &mut VecDeque<Event>) {
+    fn push_move(&mut self, b: MotionBlock, out: &mut VecDeque<Event>) {
         let commanded = if b.class == MoveClass::Rapid {
             self.rapid
         } else {
@@ -848,7 +848,7 @@ mod tests {
         m
     }
 
-    fn run(m: &Machine, blocks: &[Block]) -> Vec<TimedBlock> {
+    fn run(m: &Machine, blocks: &[MotionBlock]) -> Vec<TimedBlock> {
         let mut tm = TimeModel::new(m);
         for b in blocks {
             tm.push_move(b.clone());
@@ -868,8 +868,8 @@ mod tests {
         v
     }
 
-    fn line(dx: f64, dy: f64, f: f64) -> Block {
-        Block::straight(MoveClass::Line, V3::new(dx, dy, 0.0), f)
+    fn line(dx: f64, dy: f64, f: f64) -> MotionBlock {
+        MotionBlock::straight(MoveClass::Line, V3::new(dx, dy, 0.0), f)
     }
 
     fn close(a: f64, b: f64, tol: f64) -> bool {
@@ -1047,10 +1047,10 @@ mod tests {
                 accel_deg_s2: 300.0,
             });
             // Indexing: 90 degrees at F 60 deg/s capped to 30, 0.1 s ramps.
-            let mut index = Block::straight(MoveClass::Line, V3::zeros(), 60.0);
+            let mut index = MotionBlock::straight(MoveClass::Line, V3::zeros(), 60.0);
             index.rotary_deg = 90.0;
             // Rapid indexing: 9 degrees cannot reach 90 deg/s: a triangle.
-            let mut rapid = Block::straight(MoveClass::Rapid, V3::zeros(), 0.0);
+            let mut rapid = MotionBlock::straight(MoveClass::Rapid, V3::zeros(), 0.0);
             rapid.rotary_deg = 9.0;
             // Both: 1 mm at 3 mm/s while turning 60 degrees: the rotary
             // maximum (30 deg/s) holds the feed to 0.5 mm/s.
@@ -1075,7 +1075,7 @@ mod tests {
         let mut m = machine(Controller::Pmac);
         m.rapid_mm_s = 10.0;
         m.rapid_accel_mm_s2 = 100.0;
-        let rapid = Block::straight(MoveClass::Rapid, V3::new(10.0, 0.5, 0.0), 0.0);
+        let rapid = MotionBlock::straight(MoveClass::Rapid, V3::new(10.0, 0.5, 0.0), 0.0);
         let t = run(&m, &[line(1.0, 0.0, 3.0), rapid, line(1.0, 0.0, 3.0)]);
         check_consistent(&t);
         // X: 10 mm at 10 mm/s with 0.1 s ramps = 1.1 s; Y is faster.
@@ -1093,7 +1093,7 @@ mod tests {
         let mut reached = None;
         for i in 1..=16 {
             let s = 0.05 * i as f64;
-            let blocks: Vec<Block> = (0..40).map(|_| line(s, 0.0, 3.0)).collect();
+            let blocks: Vec<MotionBlock> = (0..40).map(|_| line(s, 0.0, 3.0)).collect();
             let t = run(&m, &blocks);
             check_consistent(&t);
             let mid = &t[20];
@@ -1153,10 +1153,10 @@ mod tests {
                     8 => tm.push_dwell(l * 0.01, None),
                     // A PMAC with zero acceleration time jumps in speed; not tested.
                     9 => tm.set_accel(Some(1.0 + l * 50.0), Some(l * 10.0)),
-                    5 => tm.push_move(Block::straight(MoveClass::Rapid, d * l, 0.0)),
+                    5 => tm.push_move(MotionBlock::straight(MoveClass::Rapid, d * l, 0.0)),
                     6 | 7 => {
                         // An arc turning by up to a right angle.
-                        let mut b = Block::straight(MoveClass::Arc, d * l, f);
+                        let mut b = MotionBlock::straight(MoveClass::Arc, d * l, f);
                         b.dir_in = dir;
                         b.dir_out = d;
                         b.radius_mm = r;
@@ -1166,7 +1166,7 @@ mod tests {
                         }
                         tm.push_move(b);
                     }
-                    _ => tm.push_move(Block::straight(MoveClass::Line, d * l, f)),
+                    _ => tm.push_move(MotionBlock::straight(MoveClass::Line, d * l, f)),
                 }
                 if l > 0.0 && k != 8 && k != 9 {
                     dir = d;

@@ -1,15 +1,10 @@
-//! Cutter locations in: CL data text (3- or 5-axis) or a G-code program.
-//!
-//! CL data (docs/formats.md): one location per line, numbers separated by
-//! commas, tabs or spaces; `x y z` (tool tip, axis along +Z) or
-//! `x y z x1 y1 z1` (tip and a second point on the tool axis towards the
-//! holder), the layouts of Singh 2014's Annexures 1 and 2. Header lines
-//! (any line before the first location whose first word is not a number),
-//! blank lines and `#` comments are skipped. The annexures number their
-//! rows, so a leading record number is dropped when a line has 4 or 7
-//! numbers and the first is a whole number.
+//! Cutter locations in: CL data text (3- or 5-axis, read by
+//! [`crate::formats::cldata::read_cldata`], the one CL reader) or a G-code
+//! program.
 
 use crate::dexel::tool::Location;
+use crate::formats::FormatError;
+use crate::formats::cldata::{ClData, read_cldata};
 use crate::gcode::ReadOptions;
 use crate::geometry::{P3, V3};
 use crate::model::toolpath::{MotionKind, Record};
@@ -17,84 +12,59 @@ use crate::source::ToolpathSource;
 use std::io::BufRead;
 use thiserror::Error;
 
-/// Why CL data could not be read.
+/// Why cutter locations could not be read.
 #[derive(Debug, Error)]
 pub enum ClError {
+    /// The CL text is not CL data (names the line).
     #[error("{0}")]
-    Io(#[from] std::io::Error),
+    Format(#[from] FormatError),
+    /// A location the verifier cannot use (names the line).
     #[error("line {line}: {message}")]
-    Line { line: usize, message: String },
+    Line {
+        /// 1-based line of the location.
+        line: u64,
+        /// What is wrong with it.
+        message: String,
+    },
+    /// Neither rows nor moves.
     #[error("no cutter locations")]
     Empty,
+    /// The program could not be read or interpreted.
     #[error("{0}")]
     Program(String),
 }
 
-fn bad(line: usize, message: impl Into<String>) -> ClError {
-    ClError::Line {
-        line,
-        message: message.into(),
+/// The tool locations of CL data: tip and unit axis (+Z for 3-axis rows).
+/// An axis point on the tip, or no rows, is an error.
+pub fn locations(data: &ClData) -> Result<Vec<Location>, ClError> {
+    if data.points.is_empty() {
+        return Err(ClError::Empty);
     }
-}
-
-/// Read CL data; `true` in the result when it was 5-axis.
-pub fn read_cl<R: BufRead>(r: R) -> Result<(Vec<Location>, bool), ClError> {
-    let mut out = Vec::new();
-    let mut width: Option<usize> = None;
-    for (n, line) in r.lines().enumerate() {
-        let line = line?;
-        let ln = n + 1;
-        let text = line.split('#').next().unwrap_or("").trim();
-        if text.is_empty() {
-            continue;
-        }
-        let words: Vec<&str> = text
-            .split(|c: char| c == ',' || c.is_whitespace())
-            .filter(|w| !w.is_empty())
-            .collect();
-        let nums: Result<Vec<f64>, _> = words.iter().map(|w| w.parse::<f64>()).collect();
-        let Ok(mut nums) = nums else {
-            if out.is_empty() && words[0].parse::<f64>().is_err() {
-                continue; // a header line
+    let mut out = Vec::with_capacity(data.points.len());
+    for (i, &tip) in data.points.iter().enumerate() {
+        let axis = match data.axis.get(i) {
+            Some(&q) => {
+                let v = q - tip;
+                let l = v.norm();
+                if l.is_nan() || l <= 1e-9 {
+                    return Err(ClError::Line {
+                        line: data.line_of(i),
+                        message: "the second axis point is on the tool tip".into(),
+                    });
+                }
+                v / l
             }
-            return Err(bad(ln, format!("'{text}': expected numbers")));
-        };
-        if (nums.len() == 4 || nums.len() == 7) && nums[0].fract() == 0.0 {
-            nums.remove(0);
-        }
-        if nums.len() != 3 && nums.len() != 6 {
-            return Err(bad(
-                ln,
-                format!("{} numbers; expected x y z or x y z x1 y1 z1", nums.len()),
-            ));
-        }
-        if nums.iter().any(|v| !v.is_finite()) {
-            return Err(bad(ln, "a number is not finite"));
-        }
-        match width {
-            None => width = Some(nums.len()),
-            Some(w) if w != nums.len() => {
-                return Err(bad(ln, format!("{} numbers after lines of {w}", nums.len())));
-            }
-            _ => {}
-        }
-        let tip = P3::new(nums[0], nums[1], nums[2]);
-        let axis = if nums.len() == 6 {
-            let v = P3::new(nums[3], nums[4], nums[5]) - tip;
-            let l = v.norm();
-            if l.is_nan() || l <= 1e-9 {
-                return Err(bad(ln, "the second axis point is on the tool tip"));
-            }
-            v / l
-        } else {
-            V3::z()
+            None => V3::z(),
         };
         out.push(Location { tip, axis });
     }
-    if out.is_empty() {
-        return Err(ClError::Empty);
-    }
-    Ok((out, width == Some(6)))
+    Ok(out)
+}
+
+/// Read CL data as tool locations; `true` in the result when it was 5-axis.
+pub fn read_cl<R: BufRead>(r: R) -> Result<(Vec<Location>, bool), ClError> {
+    let data = read_cldata(r)?;
+    Ok((locations(&data)?, data.is_five_axis()))
 }
 
 /// The locations a program visits (3-axis, tool along +Z): every move's

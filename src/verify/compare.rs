@@ -11,7 +11,9 @@ use rayon::prelude::*;
 /// One comparison point.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Sample {
+    /// Where the ray was cast, mm.
     pub x: f64,
+    /// Where the ray was cast, mm.
     pub y: f64,
     /// Top of the design (`None`: the ray misses it).
     pub design_z: Option<f64>,
@@ -74,10 +76,13 @@ pub fn sample(sim: &Simulation, design: &Design, xs: &[f64], ys: &[f64]) -> Vec<
 /// What the comparison found.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct Stats {
+    /// Half-width of the tolerance band, mm.
     pub band_mm: f64,
+    /// Points compared or not.
     pub points: usize,
     /// Points where the design or the stock has no surface.
     pub not_compared: usize,
+    /// Points within the band.
     pub in_band: usize,
     /// Points above the band (excess material, under-cut).
     pub excess: usize,
@@ -85,9 +90,11 @@ pub struct Stats {
     pub gouge: usize,
     /// Largest excess and gouge (both ≥ 0), mm.
     pub max_excess_mm: f64,
+    /// See `max_excess_mm`.
     pub max_gouge_mm: f64,
     /// Root mean square of the deviations, mm.
     pub rms_mm: f64,
+    /// Mean deviation (machined minus design), mm.
     pub mean_mm: f64,
 }
 

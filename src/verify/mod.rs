@@ -12,6 +12,7 @@
 //! - [`cl`]: CL data text and G-code programs to cutter locations.
 //! - [`compare`]: rays on a grid, deviation statistics, profiles.
 //! - [`plot`]: the deviation map (SVG, PNG) and the profile plot.
+#![warn(missing_docs)]
 
 pub mod cl;
 pub mod compare;
@@ -24,23 +25,30 @@ use rayon::prelude::*;
 
 /// What to simulate.
 #[derive(Debug, Clone)]
-pub struct Job {
+pub struct VerifyJob {
+    /// Lowest corner of the stock box, mm.
     pub stock_min: P3,
+    /// Highest corner of the stock box, mm.
     pub stock_max: P3,
+    /// The cutter, with its flute length.
     pub tool: ToolShape,
     /// Dexel spacing, mm.
     pub spacing: f64,
     /// Largest allowed distance between the true swept volume and the one
     /// cut (5-axis axis steps, torus corner ring), mm.
     pub sweep_tol: f64,
+    /// Tool locations in cutting order (tip and axis).
     pub locations: Vec<Location>,
 }
 
 /// The simulated part.
 #[derive(Debug)]
 pub struct Simulation {
+    /// The machined stock.
     pub dexels: TriDexel,
+    /// The volume each move swept, in order.
     pub sweeps: Vec<MoveSweep>,
+    /// What the cutting did (moves, dexels touched).
     pub stats: CutStats,
     /// Largest shape error of any move's pieces, mm.
     pub shape_error_mm: f64,
@@ -49,7 +57,7 @@ pub struct Simulation {
 
 /// The sweeps of all moves (a standing tool at the first location, then
 /// one per move).
-pub fn sweeps(job: &Job) -> Vec<MoveSweep> {
+pub fn sweeps(job: &VerifyJob) -> Vec<MoveSweep> {
     let locs = &job.locations;
     let mut pairs: Vec<(usize, usize)> = vec![(0, 0)];
     pairs.extend((1..locs.len()).map(|k| (k - 1, k)));
@@ -60,7 +68,7 @@ pub fn sweeps(job: &Job) -> Vec<MoveSweep> {
 }
 
 /// Cut the job's stock.
-pub fn simulate(job: &Job) -> Result<Simulation, DexelError> {
+pub fn simulate(job: &VerifyJob) -> Result<Simulation, DexelError> {
     let mut dexels = TriDexel::new(job.stock_min, job.stock_max, job.spacing)?;
     let sweeps = sweeps(job);
     let stats = dexels.cut(&sweeps);
@@ -199,7 +207,7 @@ mod tests {
             tip: P3::new(x, y, z),
             axis: V3::new(0.2, 0.1, 1.0).normalize(),
         };
-        let job = Job {
+        let job = VerifyJob {
             stock_min: P3::new(0.0, 0.0, -3.0),
             stock_max: P3::new(10.0, 10.0, 0.0),
             tool: ToolShape {

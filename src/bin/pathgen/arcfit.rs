@@ -13,7 +13,12 @@ pub(crate) struct ArcfitArgs {
     /// Points, one 'x y' (or 'x,y') per line, '#' comments; '-' for stdin.
     file: Option<PathBuf>,
     /// Largest deviation from the polyline (mm).
-    #[arg(long, default_value_t = 0.001)]
+    #[arg(
+        long = "arc-tol",
+        alias = "tolerance",
+        value_name = "ARC_TOL",
+        default_value_t = 0.001
+    )]
     tolerance: f64,
     /// Print a JSON report (blocks, deviation) instead of chains.
     #[arg(long)]
@@ -28,7 +33,7 @@ pub(crate) struct ArcfitArgs {
 }
 
 pub(crate) fn arcfit_cmd(a: ArcfitArgs) -> Result<(), CliError> {
-    let tol = positive("tolerance", a.tolerance)?;
+    let tol = positive("arc-tol", a.tolerance)?;
     let mut input = cli::open_input(a.file.as_deref())?;
     let name = input.name.clone();
     let text = cli::read_to_string(&mut input)?;

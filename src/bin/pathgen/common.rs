@@ -72,21 +72,16 @@ pub(crate) struct MachineArgs {
     pub(crate) feed: f64,
     /// Acceleration time TA (ms). Default: the profile's (on a Turbo PMAC
     /// its TA/TS rule; on a look-ahead planner V over its acceleration).
-    #[arg(long = "ta-ms", visible_alias = "ta", allow_negative_numbers = true)]
+    #[arg(long = "ta-ms", alias = "ta", allow_negative_numbers = true)]
     pub(crate) ta: Option<f64>,
     /// Deceleration time TD (ms). Default: TA.
-    #[arg(long = "td-ms", visible_alias = "td", allow_negative_numbers = true)]
+    #[arg(long = "td-ms", alias = "td", allow_negative_numbers = true)]
     pub(crate) td: Option<f64>,
     /// S-curve time TS (ms) written into the program.
-    #[arg(
-        long = "ts-ms",
-        visible_alias = "ts",
-        default_value_t = 0.0,
-        allow_negative_numbers = true
-    )]
+    #[arg(long = "ts-ms", alias = "ts", default_value_t = 0.0, allow_negative_numbers = true)]
     pub(crate) ts: f64,
     /// Acceleration (mm/s^2): sets TA = TD = V/a instead.
-    #[arg(long = "accel-mm-s2", visible_alias = "accel", allow_negative_numbers = true)]
+    #[arg(long = "accel-mm-s2", alias = "accel", allow_negative_numbers = true)]
     pub(crate) accel: Option<f64>,
     /// Shutter delay before opening starts (ms). Default: the profile's.
     #[arg(long, allow_negative_numbers = true)]
@@ -115,7 +110,7 @@ pub(crate) struct MachineArgs {
     /// PMAC: TA (whole ms) of the blocks at V between a path's ramps.
     /// Default: 2 × the close delay, so the close command sits on the
     /// boundary at the cut end.
-    #[arg(long = "cut-ta-ms", visible_alias = "cut-ta")]
+    #[arg(long = "cut-ta-ms", alias = "cut-ta")]
     pub(crate) cut_ta: Option<f64>,
 }
 
@@ -257,7 +252,12 @@ pub(crate) struct WriterArgs {
     #[arg(long)]
     pub(crate) shutter_immediate: bool,
     /// Line-counter variable (PMAC), one increment per motion block.
-    #[arg(long, default_value = "P400")]
+    #[arg(
+        long = "line-counter-var",
+        alias = "line-counter",
+        value_name = "LINE_COUNTER_VAR",
+        default_value = "P400"
+    )]
     pub(crate) line_counter: String,
     /// Write no line counter.
     #[arg(long)]
@@ -410,6 +410,27 @@ pub(crate) fn write_records(
             Ok(())
         }
     }
+}
+
+/// [`write_streamed`], counting as the chunks pass the feed moves a Turbo
+/// PMAC would stretch (`laser::audit::stretched_blocks`): (stretched, all)
+/// for [`short_note`], which the caller prints after its other notes.
+pub(crate) fn write_streamed_counting_short(
+    o: &GenOutput,
+    source: Option<String>,
+    m: &LaserSetup,
+    produce: impl FnOnce(&mut dyn FnMut(Vec<Record>) -> bool),
+) -> Result<(usize, usize), CliError> {
+    let (mut short, mut total) = (0, 0);
+    write_streamed(o, source, |sink| {
+        produce(&mut |chunk| {
+            let (s, t) = microcam::laser::audit::stretched_blocks(&chunk, m, P3::origin());
+            short += s;
+            total += t;
+            sink(chunk)
+        })
+    })?;
+    Ok((short, total))
 }
 
 /// Write records handed over in chunks by `produce` on a second thread, so

@@ -2,16 +2,15 @@
 
 use super::common::{
     GenOutput, MachineArgs, at_least_one, finite, non_negative, parse_pair_f64, parse_pair_u32, short_note, warn_all,
-    write_generated, write_streamed,
+    write_generated, write_streamed_counting_short,
 };
 use clap::Args as ClapArgs;
 use microcam::cli::{self, CliError};
+use microcam::formats::read_chains;
 use microcam::geometry::P2;
-use microcam::geometry::P3;
 use microcam::laser::contour::{
     ContourOptions, DEFAULT_CLEANUP_TOL, Direction, OrderMode, contour, contour_streamed, estimated_moves,
 };
-use microcam::laser::input::read_chains;
 use microcam::laser::offset::Side;
 use microcam::laser::setup::LaserSetup;
 use microcam::machine::Machine;
@@ -131,16 +130,10 @@ pub(crate) fn contour_cmd(a: ContourArgs) -> Result<(), CliError> {
         cleanup_note(&job.cleanup, &m, &o);
         return write_generated(&job.records, &a.out, source, &m);
     }
-    let (mut short, mut total) = (0, 0);
     let mut warnings = Vec::new();
     let mut cleanup = Default::default();
-    write_streamed(&a.out, source, |sink| {
-        (warnings, cleanup) = contour_streamed(&chains, &m, &o, |chunk| {
-            let (s, t) = microcam::laser::audit::stretched_blocks(&chunk, &m, P3::origin());
-            short += s;
-            total += t;
-            sink(chunk)
-        });
+    let (short, total) = write_streamed_counting_short(&a.out, source, &m, |sink| {
+        (warnings, cleanup) = contour_streamed(&chains, &m, &o, sink);
     })?;
     warn_all(&warnings);
     cleanup_note(&cleanup, &m, &o);

@@ -11,10 +11,10 @@ use microcam::dropcutter::output::{Feeds, toolpath_records, write_cldata, write_
 use microcam::dropcutter::raster::{Direction, Pattern, Raster, chain_passes};
 use microcam::dropcutter::{DropCutter, DropError};
 use microcam::formats::cldata::ClWriter;
+use microcam::formats::read_chains;
 use microcam::formats::toolpath::ToolpathWriter;
 use microcam::gcode::Dialect;
 use microcam::geometry::{P2, P3};
-use microcam::laser::input::read_chains;
 use microcam::mesh::{ReadOptions, Units};
 use microcam::model::toolpath::{FeedUnit, Header};
 use microcam::progress::{Meter, Show};
@@ -23,11 +23,11 @@ use std::path::PathBuf;
 
 pub const EXAMPLES: &str = "\
 Examples:
-  pathgen dropcutter part.stl --cutter ball:1 --step-over 0.1 --step-forward 0.05 > part.cl
-  pathgen dropcutter part.stl --cutter torus:2:0.25 --step-over 0.2 --direction y --pattern one-way --format toolpath
-  pathgen dropcutter part.stl --cutter flat:1 --step-over 0.1 --chord-tol 0.001 --gcode iso > part.ngc
-  dxf2chains path.dxf | pathgen dropcutter part.stl --cutter ball:0.5 --chains - --step-forward 0.02
-  pathgen dropcutter part.stl --cutter flat:2 --step-over 0.5 --five-axis --lead 5 --tilt 0 > part5.cl
+  pathgen dropcutter part.stl --tool ball:1 --step-over 0.1 --step-forward 0.05 > part.cl
+  pathgen dropcutter part.stl --tool torus:2:0.25 --step-over 0.2 --direction y --pattern one-way --format toolpath
+  pathgen dropcutter part.stl --tool flat:1 --step-over 0.1 --chord-tol 0.001 --gcode iso > part.ngc
+  dxf2chains path.dxf | pathgen dropcutter part.stl --tool ball:0.5 --chains - --step-forward 0.02
+  pathgen dropcutter part.stl --tool flat:2 --step-over 0.5 --five-axis --lead 5 --tilt 0 > part5.cl
 
 The mesh is STL (ASCII or binary) or OBJ in mm unless --units says otherwise.
 CL data rows are 'x y z' (tool tip) or, with --five-axis, 'x y z x1 y1 z1'
@@ -74,7 +74,7 @@ pub struct DropcutterArgs {
     #[arg(short, long)]
     quiet: bool,
     /// Cutter: flat:D, ball:D or torus:D:RC (mm).
-    #[arg(long)]
+    #[arg(long = "tool", alias = "cutter", value_name = "TOOL")]
     cutter: String,
     /// Units of the mesh coordinates.
     #[arg(long, value_enum, default_value = "mm")]
@@ -169,7 +169,7 @@ fn positive(name: &str, v: f64) -> Result<f64, CliError> {
 }
 
 pub fn run(a: DropcutterArgs) -> Result<(), CliError> {
-    let cutter = Cutter::parse(&a.cutter).map_err(|e| CliError::input(format!("--cutter {e}")))?;
+    let cutter = Cutter::parse(&a.cutter).map_err(|e| CliError::input(format!("--tool: {e}")))?;
     if a.five_axis && (a.gcode.is_some() || a.format != FormatArg::Cl) {
         return Err(CliError::input(
             "--five-axis writes CL data only (toolpaths and G-code here are 3-axis)",

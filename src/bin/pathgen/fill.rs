@@ -1,26 +1,25 @@
 //! `pathgen fill`: area fill of closed chains (offset passes or hatch),
 //! planned by the laser machinery. Included from pathgen.rs.
 
-use super::common::{GenOutput, MachineArgs, short_note, warn_all, write_generated, write_streamed};
+use super::common::{GenOutput, MachineArgs, short_note, warn_all, write_generated, write_streamed_counting_short};
 use clap::Args as ClapArgs;
 use microcam::cli::{self, CliError};
-use microcam::geometry::P3;
+use microcam::formats::read_chains;
 use microcam::laser::fill::{FillOptions, Pattern, plan_prepared, prepare};
-use microcam::laser::input::read_chains;
 use std::path::PathBuf;
 
 pub const EXAMPLES: &str = "\
 Examples:
   pathgen slice part.stl --z-step 0.01 --arc-tol 0.0005 | pathgen fill --gcode pmac > part.pmc
   pathgen fill region.chains                                offset passes, stepover = beam radius
-  pathgen fill --pattern hatch --angle 45 --outline --stepover 0.004 region.chains
+  pathgen fill --pattern hatch --angle 45 --outline --step-over 0.004 region.chains
   dxf2chains logo.dxf | pathgen fill --beam-diameter 0.02 --svg logo.svg > logo.jsonl
 
 Input is microcam.chains/1 ('-' or no FILE reads stdin): closed chains,
 grouped by their Z (one level each, in input order) and nested by
 containment (a chain inside an odd number of others is a hole). Open
 chains are ignored with a warning. The beam centre stays one beam radius
-inside each region and outside its holes; passes are --stepover apart
+inside each region and outside its holes; passes are --step-over apart
 (default the beam radius) and joined by beam-off links at the feed, then
 planned like `pathgen contour` (leads, corner loops, shutter timing).
 Method: Bayesteh (2013) §6.3.3.6, sections of a model filled level by
@@ -40,7 +39,12 @@ pub struct FillArgs {
     #[arg(long, default_value_t = 0.01, allow_negative_numbers = true)]
     beam_diameter: f64,
     /// Distance between passes (mm). Default: the beam radius.
-    #[arg(long, allow_negative_numbers = true)]
+    #[arg(
+        long = "step-over",
+        alias = "stepover",
+        value_name = "STEP_OVER",
+        allow_negative_numbers = true
+    )]
     stepover: Option<f64>,
     /// Hatch: direction of the lines (degrees from +X).
     #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
@@ -85,15 +89,9 @@ pub fn run(a: FillArgs) -> Result<(), CliError> {
         warn_all(&warnings);
         return write_generated(&records, &a.out, source, &m);
     }
-    let (mut short, mut total) = (0, 0);
     let mut warnings = Vec::new();
-    write_streamed(&a.out, source, |sink| {
-        warnings = plan_prepared(&prepared, &m, &o, |chunk| {
-            let (s, t) = microcam::laser::audit::stretched_blocks(&chunk, &m, P3::origin());
-            short += s;
-            total += t;
-            sink(chunk)
-        });
+    let (short, total) = write_streamed_counting_short(&a.out, source, &m, |sink| {
+        warnings = plan_prepared(&prepared, &m, &o, sink);
     })?;
     warn_all(&warnings);
     short_note(short, total, &m);

@@ -75,7 +75,12 @@ pub(crate) struct SpiralArgs {
     #[arg(long)]
     inward: bool,
     /// Archimedean: largest deviation of the arcs from the spiral (mm).
-    #[arg(long, default_value_t = 1e-5)]
+    #[arg(
+        long = "arc-tol",
+        alias = "tolerance",
+        value_name = "ARC_TOL",
+        default_value_t = 1e-5
+    )]
     tolerance: f64,
     #[command(flatten)]
     machine: MachineArgs,
@@ -138,7 +143,12 @@ pub(crate) struct ConeArgs {
     /// Beam spot diameter (mm): each section is filled to its edge minus the radius.
     #[arg(long, default_value_t = 0.01)]
     beam_diameter: f64,
-    #[arg(long, default_value_t = 1e-5)]
+    #[arg(
+        long = "arc-tol",
+        alias = "tolerance",
+        value_name = "ARC_TOL",
+        default_value_t = 1e-5
+    )]
     tolerance: f64,
     #[command(flatten)]
     machine: MachineArgs,
@@ -180,7 +190,7 @@ pub(crate) fn helix_cmd(a: HelixArgs) -> Result<(), CliError> {
 pub(crate) fn spiral_cmd(a: SpiralArgs) -> Result<(), CliError> {
     let m = a.out.setup(&a.machine)?;
     let step = positive("step", a.step)?;
-    let tol = positive("tolerance", a.tolerance)?;
+    let tol = positive("arc-tol", a.tolerance)?;
     let c = P3::new(a.center.0, a.center.1, finite("z", a.z)?);
     let path = if a.kind == "square" {
         let size = positive(
@@ -209,7 +219,7 @@ pub(crate) fn spiral_cmd(a: SpiralArgs) -> Result<(), CliError> {
             .check_size("spiral", patterns::archimedean_pieces(inner, step, r), &how)?;
         let max = usize::try_from(a.out.max_moves).unwrap_or(usize::MAX);
         patterns::archimedean_limited(c, inner, step, r, a.inward, tol, max)
-            .map_err(|n| a.out.too_big("spiral", n, &format!("{how} within --tolerance {tol}")))?
+            .map_err(|n| a.out.too_big("spiral", n, &format!("{how} within --arc-tol {tol}")))?
     };
     finish_pattern(vec![all_cut(path)], &m, &a.out, "spiral")
 }
@@ -250,7 +260,7 @@ pub(crate) fn cone_cmd(a: ConeArgs) -> Result<(), CliError> {
     let (d1, d2) = (positive("d1", a.d1)?, positive("d2", a.d2)?);
     let beam = non_negative("beam-diameter", a.beam_diameter)?;
     let step = positive("step", a.step.unwrap_or(beam))?;
-    let tol = positive("tolerance", a.tolerance)?;
+    let tol = positive("arc-tol", a.tolerance)?;
     let levels = at_least_one("levels", a.levels)?;
     let z0 = finite("z", a.z)?;
     // At least the widest section's spiral on every level.
@@ -271,11 +281,8 @@ pub(crate) fn cone_cmd(a: ConeArgs) -> Result<(), CliError> {
         }
         let c = P3::new(a.center.0, a.center.1, z);
         let path = patterns::archimedean_limited(c, step, step, r, false, tol, budget).map_err(|n| {
-            a.out.too_big(
-                "cone",
-                n * f64::from(levels),
-                &format!("{how} within --tolerance {tol}"),
-            )
+            a.out
+                .too_big("cone", n * f64::from(levels), &format!("{how} within --arc-tol {tol}"))
         })?;
         budget = budget.saturating_sub(path.len());
         paths.push(all_cut(path));

@@ -6,8 +6,8 @@ use cavalier_contours::polyline::{PlineSource, PlineSourceMut, Polyline};
 use clap::{Args as ClapArgs, ValueEnum};
 use microcam::cli::{self, CliError, Output};
 use microcam::cutter::Cutter;
+use microcam::formats::read_chains;
 use microcam::geometry::P2;
-use microcam::laser::input::read_chains;
 use microcam::machine::Machine;
 use microcam::pocket::layers::Feeds;
 use microcam::pocket::motion::{FitOptions, MotionMode};
@@ -126,7 +126,12 @@ pub struct PocketArgs {
     #[arg(long, value_enum, default_value = "lines")]
     motion: MotionArg,
     /// Largest distance of a grid point from its arc or Bezier (mm).
-    #[arg(long, default_value_t = 0.001)]
+    #[arg(
+        long = "arc-tol",
+        alias = "tolerance",
+        value_name = "ARC_TOL",
+        default_value_t = 0.001
+    )]
     tolerance: f64,
     /// Arcs of larger radius become lines (mm).
     #[arg(long, default_value_t = 1000.0)]
@@ -138,7 +143,7 @@ pub struct PocketArgs {
     #[arg(long, value_enum, default_value = "grid")]
     strategy: StrategyArg,
     /// Offset strategy: distance between loops (default: the smaller grid pitch).
-    #[arg(long)]
+    #[arg(long = "step-over", alias = "stepover", value_name = "STEP_OVER")]
     stepover: Option<f64>,
     /// Machine for the predicted cycle time: micro-mill, laser-stage, lookahead or a profile file.
     #[arg(long, default_value = "micro-mill")]

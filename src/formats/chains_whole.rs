@@ -1,8 +1,10 @@
-//! Reading a whole chains stream on every core. Contouring needs every
-//! chain before it can order them, so nothing is lost by holding the text;
+//! Reading a whole chains stream on every core. Contouring, pocketing and
+//! gsim's per-chain report need every chain before they start, so nothing
+//! is lost by holding the text;
 //! parsing JSON is then the largest serial cost, so the text is cut at line
 //! boundaries into chunks that the streaming reader parses in parallel.
 //! Errors keep the line numbers of the whole stream.
+#![warn(missing_docs)]
 
 use crate::formats::FormatError;
 use crate::formats::chains::ChainsReader;
