@@ -208,7 +208,14 @@ pub fn to_elems(dp: &Dubins, p0: P2, h0: f64, goal: P2, plane: Plane, nz: f64) -
 /// at least `min_len` long (so the shutter has time to close and reopen),
 /// with no piece shorter than `min_piece` and a last piece of at least
 /// `tail` (see [`connect`]).
-pub fn corner_loop(corner: P3, din: V2, dout: V2, r: f64, shape: ConnectionLimits, plane: Plane) -> Option<Vec<Segment>> {
+pub fn corner_loop(
+    corner: P3,
+    din: V2,
+    dout: V2,
+    r: f64,
+    shape: ConnectionLimits,
+    plane: Plane,
+) -> Option<Vec<Segment>> {
     connect(corner, din, corner, dout, r, shape, plane)
 }
 
