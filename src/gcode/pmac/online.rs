@@ -257,7 +257,9 @@ impl PmacInterpreter {
                 return Ok(false);
             }
         };
-        let last = u64::from(first) + count.saturating_sub(1).saturating_mul(step);
+        // Saturating: a count or step of 20 digits must land past VAR_MAX
+        // (and be refused), not wrap round to a small last variable.
+        let last = u64::from(first).saturating_add(count.saturating_sub(1).saturating_mul(step));
         if count == 0 || step == 0 || last > u64::from(VAR_MAX) {
             self.note_unapplied(
                 cur,

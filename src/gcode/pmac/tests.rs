@@ -716,6 +716,11 @@ fn online_assignments_are_applied_and_ranges_cover_every_variable() {
     assert_eq!(notes.len(), 3, "{notes:?}");
     assert!(notes[0].1.contains("runs past I8191"), "{notes:?}");
     assert!(notes[1].1.contains("template macro"), "{notes:?}");
+    // A count of 20 digits: refused at once (it used to overflow the last
+    // variable's number round to a small one and loop, the pmac_read fuzz
+    // target found).
+    let (_, n2) = read_noted("I888,57777777777777777777,1=4\nOPEN PROG 1\nCLOSE\n", pmac_opts());
+    assert!(n2[0].1.contains("runs past I8191"), "{n2:?}");
     assert!(notes[2].1.contains("not applied"), "{notes:?}");
 }
 
