@@ -597,7 +597,7 @@ pub fn read_line_any_ending<R: BufRead + ?Sized>(input: &mut R, buf: &mut Vec<u8
             if avail.is_empty() {
                 return Ok(total);
             }
-            match avail.iter().position(|&c| c == b'\n' || c == b'\r') {
+            match memchr::memchr2(b'\n', b'\r', avail) {
                 Some(i) => {
                     buf.extend_from_slice(&avail[..=i]);
                     (Some(avail[i]), i + 1)

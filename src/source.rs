@@ -70,6 +70,27 @@ impl ToolpathSource {
     pub fn name(&self) -> &str {
         &self.name
     }
+
+    /// Append up to `max` records to `out`; fewer only at the end of the
+    /// input. What the iterator yields, in batches: the G-code reader
+    /// moves its records straight into `out` (see
+    /// [`ProgramReader::next_batch`]).
+    pub fn next_batch(&mut self, out: &mut Vec<Record>, max: usize) -> Result<(), CliError> {
+        let name = &self.name;
+        match &mut self.inner {
+            Inner::Gcode(r) => r.next_batch(out, max).map_err(|e| CliError::in_file(name, e)),
+            Inner::Json(r) => {
+                while out.len() < max {
+                    match r.next() {
+                        Some(Ok(x)) => out.push(x),
+                        Some(Err(e)) => return Err(CliError::in_file(name, e)),
+                        None => break,
+                    }
+                }
+                Ok(())
+            }
+        }
+    }
 }
 
 impl Iterator for ToolpathSource {

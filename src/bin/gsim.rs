@@ -5,7 +5,7 @@ use clap::Parser;
 use microcam::cli::{self, CliError, Output};
 use microcam::cutter::Cutter;
 use microcam::formats::read_chains;
-use microcam::formats::toolpath::{StreamError, write_stream};
+use microcam::formats::toolpath::{StreamError, write_stream_batches};
 use microcam::gcode::{Dialect, ReadOptions};
 use microcam::geometry::P3;
 use microcam::machine::{Controller, Machine, Overrides};
@@ -305,13 +305,15 @@ fn simulate(
     };
     if args.moves {
         let header = source.header.clone();
-        let records = source.inspect(|r| {
-            if let Ok(r) = r {
-                observe(r);
-            }
-        });
+        let mut source = source;
+        let fill = |batch: &mut Vec<Record>, max: usize| {
+            let from = batch.len();
+            source.next_batch(batch, max)?;
+            batch[from..].iter().for_each(&mut observe);
+            Ok(())
+        };
         // Interpret on this thread, format and write on another.
-        match write_stream(&header, records, &mut out) {
+        match write_stream_batches(&header, fill, &mut out) {
             Ok(_) => {}
             Err(StreamError::Source(e)) => return Err(e),
             Err(StreamError::Io(e)) => return Err(e.into()),

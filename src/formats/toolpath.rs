@@ -577,6 +577,32 @@ where
     W: Write + Send,
     I: Iterator<Item = Result<Record, E>>,
 {
+    let mut records = records;
+    write_stream_batches(
+        header,
+        |batch: &mut Vec<Record>, max: usize| {
+            while batch.len() < max {
+                match records.next() {
+                    Some(r) => batch.push(r?),
+                    None => break,
+                }
+            }
+            Ok(())
+        },
+        out,
+    )
+}
+
+/// [`write_stream`] for a producer that fills whole batches: `fill(batch,
+/// max)` appends up to `max` records to `batch` (fewer only at the end) or
+/// fails. A producer that can move its records straight into the batch
+/// (the G-code reader: [`crate::gcode::ProgramReader::next_batch`]) saves
+/// the copies an iterator makes of each record on the way.
+pub fn write_stream_batches<W, E, F>(header: &Header, mut fill: F, out: W) -> Result<W, StreamError<E>>
+where
+    W: Write + Send,
+    F: FnMut(&mut Vec<Record>, usize) -> Result<(), E>,
+{
     let (tx, rx) = std::sync::mpsc::sync_channel::<Vec<Record>>(4);
     let (back_tx, back_rx) = std::sync::mpsc::channel::<Vec<Record>>();
     std::thread::scope(|s| {
@@ -593,25 +619,22 @@ where
             }
             w.finish()
         });
-        let mut batch = Vec::with_capacity(BATCH);
         let mut failed = None;
-        for r in records {
-            match r {
-                Ok(r) => batch.push(r),
-                Err(e) => {
-                    failed = Some(e);
-                    break;
-                }
+        loop {
+            let mut batch = back_rx.try_recv().unwrap_or_else(|_| Vec::with_capacity(BATCH));
+            if let Err(e) = fill(&mut batch, BATCH) {
+                // Nothing of a failed source is committed: its last batch
+                // is dropped and the caller reports the error.
+                failed = Some(e);
+                break;
             }
-            if batch.len() == BATCH {
-                let next = back_rx.try_recv().unwrap_or_else(|_| Vec::with_capacity(BATCH));
-                if tx.send(std::mem::replace(&mut batch, next)).is_err() {
-                    break; // the writer failed; its error is reported below
-                }
+            let last = batch.len() < BATCH;
+            if !batch.is_empty() && tx.send(batch).is_err() {
+                break; // the writer failed; its error is reported below
             }
-        }
-        if failed.is_none() && !batch.is_empty() {
-            let _ = tx.send(batch);
+            if last {
+                break;
+            }
         }
         drop(tx);
         let written = writer

@@ -155,7 +155,8 @@ impl IsoInterpreter {
                 continue;
             }
             let Some(ol) = self.oline(ln)? else {
-                let b = self.parse_block(ln)?;
+                let mut b = Block::new();
+                self.parse_block(&mut b, ln)?;
                 self.execute(&b, ln, out)?;
                 pc += 1;
                 continue;

@@ -529,7 +529,8 @@ impl LineInterpreter for IsoInterpreter {
             return Ok(());
         }
         self.any_code_seen = true;
-        let b = self.parse_block(lineno)?;
+        let mut b = Block::new();
+        self.parse_block(&mut b, lineno)?;
         self.execute(&b, lineno, out)
     }
 

@@ -151,13 +151,15 @@ impl IsoInterpreter {
         Ok(())
     }
 
-    pub(super) fn parse_block(&mut self, lineno: u64) -> Result<Block, GcodeError> {
-        let mut b = Block::new();
+    /// Parse the normalised line into `b` (a fresh [`Block::new`]). The
+    /// block is filled in place rather than returned: it is over 500 bytes,
+    /// and returning it cost a copy per line.
+    pub(super) fn parse_block(&mut self, b: &mut Block, lineno: u64) -> Result<(), GcodeError> {
         self.assigns.clear();
         let norm = std::mem::take(&mut self.norm);
-        let res = self.parse_words(&norm, &mut b, lineno);
+        let res = self.parse_words(&norm, b, lineno);
         self.norm = norm;
-        res.map(|_| b)
+        res
     }
 
     pub(super) fn parse_words(&mut self, s: &[u8], b: &mut Block, lineno: u64) -> Result<(), GcodeError> {
