@@ -1,5 +1,7 @@
 use super::*;
+use crate::mesh::Mesh;
 use crate::mesh::solids;
+use build::PAR_MIN;
 use proptest::prelude::*;
 
 fn brute_first(m: &Mesh, ray: &Ray) -> Option<f64> {
