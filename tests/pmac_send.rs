@@ -8,7 +8,7 @@ use microcam::gcode::{ReadOptions, read_str};
 use microcam::geometry::P3;
 use microcam::model::toolpath::Record;
 use microcam::pmac::controller::{Clock, Config, Emulator};
-use microcam::pmac::plan::{Names, UploadPlan};
+use microcam::pmac::upload_plan::{Names, UploadPlan};
 use microcam::pmac::server::{Faults, Server};
 use serde_json::Value;
 use std::net::SocketAddr;

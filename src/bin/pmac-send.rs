@@ -4,7 +4,7 @@
 use clap::{Parser, ValueEnum};
 use microcam::cli::{self, CliError};
 use microcam::pmac::client::{Client, Transport};
-use microcam::pmac::plan::{Names, UploadPlan};
+use microcam::pmac::upload_plan::{Names, UploadPlan};
 use microcam::pmac::send::{
     BUFFER_FILL, Mode, SendError, SendOptions, SendSummary, Sender, State, dry_run_budget, input_hash,
     is_stale_plan_file, split_budget,

@@ -12,7 +12,7 @@
 use crate::geometry::P3;
 use crate::pmac::client::{Client, ClientError, DownloadError};
 use crate::pmac::controller::parse_status;
-use crate::pmac::plan::{Chunk, MARKER_WORDS, MoveGeom, Names, marker_lines};
+use crate::pmac::upload_plan::{Chunk, MARKER_WORDS, MoveGeom, Names, marker_lines};
 use serde::{Deserialize, Serialize};
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -101,12 +101,12 @@ pub struct PlanFile {
 /// A dry run: the chunks a job would be sent in, as download files, and the
 /// `microcam.pmac-plan/1` description of them (`plan.json`).
 pub fn dry_run(
-    job: &crate::pmac::plan::UploadPlan,
+    job: &crate::pmac::upload_plan::UploadPlan,
     mode: Mode,
     budget: Option<usize>,
     prog: u32,
     done_var: &str,
-) -> Result<(Vec<PlanFile>, serde_json::Value), crate::pmac::plan::PlanError> {
+) -> Result<(Vec<PlanFile>, serde_json::Value), crate::pmac::upload_plan::PlanError> {
     let chunks = match (mode, budget) {
         (Mode::Rotary, Some(b)) => job.stream_chunks(b),
         _ => job.chunks(budget),
@@ -1018,7 +1018,7 @@ fn parse_check(v: &[String]) -> Option<(bool, f64, Reading)> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::pmac::plan::UploadPlan;
+    use crate::pmac::upload_plan::UploadPlan;
 
     #[test]
     fn split_budget_fills_ninety_percent_at_most_the_limit_less_the_marker() {
