@@ -31,27 +31,45 @@ pub const DEFAULT_TA_MS: f64 = 10.0;
 /// Variables per letter (0..=8191, as on a Turbo PMAC).
 const VARS: usize = 8192;
 
-/// The ERR numbers the emulator answers (Turbo PMAC Software Reference, "Error codes"; docs/pmac-send.md).
+/// The ERR numbers the emulator answers, as the Turbo PMAC Software
+/// Reference numbers them (docs/pmac-send.md lists where each arises).
 pub mod err {
+    /// ERR001: not allowed while a program runs (OPEN PROG, DEFINE ROT, B,
+    /// R during a run).
     pub const RUNNING: u16 = 1;
+    /// ERR003: a data error or an unrecognised command.
     pub const DATA: u16 = 3;
+    /// ERR004: a character above ASCII 127.
+    pub const ILLEGAL_CHAR: u16 = 4;
+    /// ERR005: a program word or CLEAR with no buffer open.
     pub const NEEDS_OPEN_BUFFER: u16 = 5;
+    /// ERR006: no room in the buffer (or user memory) for the line.
     pub const NO_ROOM: u16 = 6;
+    /// ERR007: the buffer is already open or defined.
     pub const IN_USE: u16 = 7;
+    /// ERR014: the addressed coordinate system has no motors (only &1 has).
     pub const NO_MOTORS: u16 = 14;
+    /// ERR015: R with the coordinate system not pointed at a valid buffer.
     pub const BAD_POINTER: u16 = 15;
 }
 
 /// Where simulated time comes from.
 #[derive(Debug, Clone, Copy)]
 pub enum Clock {
-    /// Real time since `t0` times `scale` (simulated s per real s).
-    Scaled { t0: Instant, scale: f64 },
+    /// Real time since `t0` times `scale`.
+    Scaled {
+        /// The real instant simulated time 0 stands for.
+        t0: Instant,
+        /// Simulated seconds per real second (> 0).
+        scale: f64,
+    },
     /// Set by hand ([`Emulator::set_time`]); unit tests.
     Manual(f64),
 }
 
 impl Clock {
+    /// A clock starting now that runs `scale` simulated seconds per real
+    /// second; a scale that is not a positive number means 1.
     pub fn scaled(scale: f64) -> Clock {
         Clock::Scaled {
             t0: Instant::now(),
@@ -70,7 +88,8 @@ impl Clock {
 /// Emulator settings.
 #[derive(Debug, Clone)]
 pub struct Config {
-    /// User memory for buffers, long words.
+    /// User memory for program, rotary and gather buffers, long words
+    /// (`SIZE` answers what is free).
     pub memory_words: i64,
     /// Words a gather buffer holds at power-on (it eats memory until
     /// `DELETE GATHER`, as on a controller left with one defined).
@@ -189,7 +208,8 @@ struct MDef {
 /// `10000X` etc.).
 pub const COUNTS_PER_MM: f64 = 10_000.0;
 
-/// The controller state. Wrap it in a mutex to share between connections.
+/// The controller state: buffers, variables, the running program and the
+/// stage. Wrap it in a mutex to share between connections.
 pub struct Emulator {
     cfg: Config,
     clock: Clock,
@@ -278,6 +298,8 @@ pub fn parse_status(s: &str) -> Option<(bool, bool)> {
 /// coordinate system persists per connection, as per port on a controller.
 #[derive(Debug, Clone)]
 pub struct Session {
+    /// The addressed coordinate system (`&n`, 1..=16; 1 at first and after
+    /// a reset).
     pub cs: u32,
     /// The buffer this port has open: each port of a Turbo PMAC has its
     /// own, so a second connection (a safety stop) is not caught in a
@@ -286,7 +308,7 @@ pub struct Session {
     /// The controller's reset count when this session last spoke: a reset
     /// closes every port's buffer.
     epoch: u64,
-    /// The addressed motor (`#n`).
+    /// The addressed motor (`#n`, 1..=8; motors 1-3 are X, Y, Z).
     pub motor: u32,
 }
 
@@ -376,6 +398,8 @@ const PROGRAM_WORDS: &[&str] = &[
 ];
 
 impl Emulator {
+    /// A controller as at power-on with `cfg`, its time from `clock`, its
+    /// events written to `log` as JSON Lines (`None`: no log).
     pub fn new(cfg: Config, clock: Clock, log: Option<Box<dyn Write + Send>>) -> Self {
         let gather = cfg.gather_words.max(0);
         Emulator {
@@ -407,10 +431,12 @@ impl Emulator {
         }
     }
 
+    /// Simulated time now, s.
     pub fn now(&self) -> f64 {
         self.clock.now()
     }
 
+    /// A program runs on &1 (a rotary one waiting for lines still runs).
     pub fn running(&self) -> bool {
         self.run.is_some()
     }
@@ -421,6 +447,8 @@ impl Emulator {
         self.run.as_ref().is_none_or(|r| r.segs.is_empty())
     }
 
+    /// The value of variable `letter``n` (I, P, Q or M, either case; an
+    /// M-variable pointed at a P-variable reads it); 0 for anything else.
     pub fn var(&self, letter: u8, n: usize) -> f64 {
         let (letter, n) = self.resolve(letter, n);
         var_index(letter)
@@ -896,7 +924,7 @@ impl Emulator {
             sess.cs = 1;
         }
         if !line.is_ascii() {
-            return Err(4);
+            return Err(err::ILLEGAL_CHAR);
         }
         let up = line.to_ascii_uppercase();
         // Strip a comment; the controller never stores it.

@@ -9,6 +9,8 @@
 //!   where the beam is off, words of memory, the point a resume starts from.
 //! - [`send`]: upload, run and watch, with safety stops and resume state.
 
+#![warn(missing_docs)]
+
 pub mod client;
 pub mod controller;
 pub mod protocol;

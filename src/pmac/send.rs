@@ -7,7 +7,6 @@
 //! resume state is written naming the chunks confirmed complete. A chunk is
 //! confirmed only by what the controller reports (the line counter read
 //! back, and not running), never by what was sent.
-#![warn(missing_docs)]
 
 use crate::geometry::P3;
 use crate::pmac::client::{Client, ClientError, DownloadError};
