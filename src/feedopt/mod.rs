@@ -19,6 +19,8 @@
 //! and a second run gives the same program: the schedule depends on the
 //! geometry alone, and marked lines are taken out before simulating.
 
+#![warn(missing_docs)]
+
 pub mod force;
 pub mod report;
 pub mod sample;
@@ -45,26 +47,46 @@ pub const MAX_STEPS: usize = 20_000_000;
 /// Why a program cannot be scheduled.
 #[derive(Debug, Error)]
 pub enum FeedoptError {
+    /// The program does not read (either dialect).
     #[error("{0}")]
     Gcode(#[from] GcodeError),
+    /// A feed move on this source line has no spindle speed to turn its
+    /// feed into a feed per tooth.
     #[error("line {0}: no spindle speed for this feed move (an S word before it, or --rpm)")]
     NoSpindle(u64),
+    /// The feed moves' extent (first text) misses the stock box (second),
+    /// both as "lo..hi" per axis.
     #[error("the path (X {0}) does not overlap the stock (X {1}): check --stock")]
     NoOverlap(String, String),
+    /// Every feed move runs in air: there is no chip to schedule by.
     #[error("the tool never cuts the stock: no feed move removes material (check --stock, --tool and the program's Z)")]
     NeverCuts,
+    /// An ISO program in inches (G20): F words would be in inch/min.
     #[error("inch programs (G20) are not supported: feedopt writes F in mm/min")]
     Inch,
+    /// An ISO program in inverse-time or per-revolution feed mode (the
+    /// mode's name): its F words are not a speed.
     #[error("{0} programs are not supported: feedopt writes F in mm/min (G94)")]
     FeedMode(&'static str),
+    /// The feed path divided by the step length exceeds [`MAX_STEPS`].
     #[error(
         "the simulation would take about {steps:.3e} steps of {step_mm:e} mm (more than {max}): raise --step-mm or --fz-min-um"
     )]
-    TooManySteps { steps: f64, step_mm: f64, max: usize },
+    TooManySteps {
+        /// Estimated steps: feed path length over `step_mm`.
+        steps: f64,
+        /// The step length asked for, mm.
+        step_mm: f64,
+        /// The limit, [`MAX_STEPS`].
+        max: usize,
+    },
+    /// The stock box or cell size cannot make a height field.
     #[error("--stock: {0}")]
     Stock(#[from] StockError),
+    /// An option out of range; the text names the flag.
     #[error("{0}")]
     Options(String),
+    /// gsim's time model refused the program (before or after scheduling).
     #[error("simulating the program: {0}")]
     Sim(#[from] SimError),
 }
@@ -105,20 +127,28 @@ pub enum Target {
 /// Everything feedopt needs besides the program.
 #[derive(Debug, Clone)]
 pub struct Options {
+    /// How new feeds are written (one per block, or split).
     pub mode: Mode,
+    /// How a block's feed is taken from its steps' targets.
     pub by: By,
+    /// What the schedule holds constant (chip volume band or force).
     pub target: Target,
     /// Feed per tooth at the largest chip, mm.
     pub fz_min_mm: f64,
     /// Feed per tooth at the smallest chip, mm.
     pub fz_max_mm: f64,
+    /// Teeth of the cutter (feed per tooth = feed / (rpm / 60 × flutes)).
     pub flutes: u32,
     /// Spindle speed overriding the program's S words, rpm.
     pub rpm: Option<f64>,
+    /// The cutter's shape for the removal simulation.
     pub cutter: Cutter,
-    /// Stock box corners, mm.
+    /// Stock box, lowest corner, mm.
     pub stock_min: P3,
+    /// Stock box, highest corner, mm; its Z is the top the force model's
+    /// axial depth is measured from.
     pub stock_max: P3,
+    /// Cell size of the height-field stock, mm.
     pub cell_mm: f64,
     /// Simulation step, mm (default: f_min per tooth × 10, the thesis'
     /// scale factor).
@@ -134,31 +164,49 @@ pub struct Options {
     /// Neighbouring sub-blocks whose feeds differ by less than this
     /// (relative) are merged.
     pub merge_tol: f64,
+    /// The machine profile: controller kind, TA/TS or block time for the
+    /// minimum block time, and gsim's time model for cycle times.
     pub machine: Machine,
+    /// How the program is read (dialect, or `None` to sniff it; the start
+    /// point).
     pub read: ReadOptions,
     /// The force model's coefficients; `None` = no force figures.
     pub force: Option<Coefficients>,
 }
 
-/// One step of the per-step series.
+/// One step of the per-step series (feed moves only, in program order).
 #[derive(Debug, Clone, PartialEq)]
 pub struct SeriesRow {
+    /// Source line of the move the step belongs to.
     pub line: Option<u64>,
+    /// Where the step ends, mm.
     pub end: P3,
+    /// Path distance at the step's end over all feed moves, mm.
     pub s_mm: f64,
+    /// Chip cross-section: volume removed per mm of path, mm².
     pub area_mm2: f64,
+    /// The step is scheduled: it moves in XY and takes more than a
+    /// thousandth of the largest chip.
     pub cutting: bool,
+    /// Feed per tooth as programmed, mm.
     pub fz_before_mm: f64,
+    /// Feed per tooth as written, mm.
     pub fz_after_mm: f64,
+    /// Mean cutting force at the programmed feed, N (with a force model).
     pub force_before_n: Option<f64>,
+    /// Mean cutting force at the written feed, N (with a force model).
     pub force_after_n: Option<f64>,
 }
 
 /// The result: the new program, the report and the series.
 #[derive(Debug, Clone)]
 pub struct Outcome {
+    /// The program with new F words (and, in split mode, marked sub-block
+    /// lines), otherwise byte for byte the input.
     pub program: String,
+    /// What was done and what it gains.
     pub report: report::FeedoptReport,
+    /// One row per simulation step.
     pub series: Vec<SeriesRow>,
 }
 
@@ -201,7 +249,9 @@ pub fn strip_marked(text: &str, dialect: Dialect) -> String {
         .collect()
 }
 
-/// Schedule the feeds of `input` (G-code of either dialect).
+/// Schedule the feeds of `input` (G-code of either dialect): simulate,
+/// map chips to feeds, write the program in the chosen mode (falling back
+/// to one feed per block where a split would not save time).
 pub fn optimise(input: &str, o: &Options) -> Result<Outcome, FeedoptError> {
     check(o)?;
     let dialect = o
