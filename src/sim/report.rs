@@ -23,10 +23,23 @@ pub use super::gsim_json::{GsimReport, SCHEMA};
 /// A program the machine must not run, or a failed write of the series.
 #[derive(Debug, Error)]
 pub enum SimError {
+    /// A record read from a source line the machine must not run.
     #[error("line {line}: {msg}")]
-    Line { line: u64, msg: String },
+    Line {
+        /// The source line (1-based).
+        line: u64,
+        /// What is wrong with it.
+        msg: String,
+    },
+    /// The same for a record with no source line (a toolpath record).
     #[error("record {index}: {msg}")]
-    Record { index: u64, msg: String },
+    Record {
+        /// The record's position in the input, 1-based.
+        index: u64,
+        /// What is wrong with it.
+        msg: String,
+    },
+    /// Writing a CSV series failed.
     #[error("block series: {0}")]
     Io(#[from] std::io::Error),
 }
@@ -37,38 +50,59 @@ pub const BLOCKS_HEADER: &str = "line,kind,length_mm,commanded_feed_mm_s,achieve
 /// A block that did not reach its feed, for the report.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Example {
+    /// Its source line.
     pub line: Option<u64>,
+    /// Its path length, mm.
     pub length_mm: f64,
+    /// The feed it was meant to run at, mm/s.
     pub commanded_feed_mm_s: f64,
+    /// The feed it peaked at, mm/s.
     pub achieved_feed_mm_s: f64,
+    /// Why it fell short.
     pub limited_by: Limit,
 }
 
 /// Time figures.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct TimeStats {
+    /// Time from the first move to rest after the last, s: cutting, rapid
+    /// and dwell times add up to it.
     pub cycle_time_s: f64,
+    /// Time in feed moves (lines and arcs), s.
     pub cutting_time_s: f64,
+    /// Time in rapids, s.
     pub rapid_time_s: f64,
+    /// Time in dwells, s.
     pub dwell_time_s: f64,
     /// Feed-move length over commanded feed: the time a program "should" take.
     pub ideal_cutting_time_s: f64,
+    /// Feed moves timed.
     pub feed_blocks: u64,
+    /// Of those, the ones that did not reach their commanded feed.
     pub limited_blocks: u64,
+    /// Limited blocks per reason, indexed as [`Limit::ALL`].
     pub limited_by: [u64; Limit::ALL.len()],
+    /// The first [`EXAMPLES`] limited blocks.
     pub examples: Vec<Example>,
+    /// The lowest peak feed of a feed move with length, mm/s (`None`
+    /// without one).
     pub min_achieved_feed_mm_s: Option<f64>,
 }
 
 /// Material removal figures.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct RemovalStats {
+    /// Stock volume before the program, mm³.
     pub initial_volume_mm3: f64,
+    /// Volume the program removed, mm³.
     pub removed_volume_mm3: f64,
+    /// The most one block removed, mm³.
     pub max_block_volume_mm3: f64,
+    /// That block's source line.
     pub max_block_line: Option<u64>,
     /// Rapids that removed material (a crash on a real machine).
     pub rapids_in_material: u64,
+    /// Source lines of the first [`EXAMPLES`] of those rapids.
     pub rapid_lines: Vec<u64>,
 }
 
@@ -76,7 +110,9 @@ pub struct RemovalStats {
 /// per tooth × `scale`.
 #[derive(Debug, Clone, PartialEq)]
 pub struct StepPlan {
+    /// Teeth of the cutter.
     pub flutes: u32,
+    /// Step length in feeds per tooth (the thesis uses 10).
     pub scale: f64,
     /// Spindle speed overriding the program's S words, rpm.
     pub rpm: Option<f64>,
@@ -84,12 +120,17 @@ pub struct StepPlan {
 
 /// The engine, its stock and the per-block removal series.
 pub struct Removal<W: Write> {
+    /// The removal engine on a height-field stock.
     pub engine: Engine<Stock>,
+    /// Where the per-block removal CSV goes (`--removal`).
     pub csv: Option<W>,
+    /// The figures so far.
     pub stats: RemovalStats,
+    /// Cut feed moves in steps of feed per tooth, when asked.
     pub steps: Option<StepPlan>,
+    /// Where the per-step CSV goes (`--steps`).
     pub steps_csv: Option<W>,
-    /// The program's spindle speed so far.
+    /// The program's spindle speed so far, rpm.
     pub rpm: Option<f64>,
     /// The CSV header depends on whether steps are on: written with the
     /// first row.
@@ -251,6 +292,11 @@ impl<W: Write> Simulator<W> {
         Ok(())
     }
 
+    /// The next record: summarised, timed, and cut from the stock when
+    /// removal is on; finished blocks' rows go to the series. A move outside
+    /// the machine's travel, a feed move without a positive feed, an arc of
+    /// zero radius, a negative dwell or a tool with no cutter is an error
+    /// naming its line.
     pub fn add(&mut self, rec: &Record) -> Result<(), SimError> {
         self.index += 1;
         self.summary.add(rec);

@@ -9,7 +9,8 @@
 //! move nearest the cell. For moves that change height the underside over
 //! a cell is a convex function of the position along the move, minimised by
 //! golden-section search (exact to 1e-10 of the move). Arcs are cut into
-//! chords whose sagitta stays under a tenth of a cell. Rows are processed in parallel with rayon.
+//! chords whose sagitta stays under a tenth of a cell. Rows are processed
+//! in parallel with rayon.
 //!
 //! The cutter's shape lives in [`crate::cutter`]; STL export is in
 //! `sim::stl`, pictures in `sim::picture`.
@@ -19,8 +20,11 @@ use crate::geometry::{Arc3, P3};
 use rayon::prelude::*;
 use thiserror::Error;
 
+/// A stock box that cannot make a height field.
 #[derive(Debug, Error, PartialEq)]
 pub enum StockError {
+    /// The cell is not positive, the box is empty or not finite, or it
+    /// would take more than 400 million cells; the text says which.
     #[error("stock box {0}")]
     Box(String),
 }
@@ -28,14 +32,24 @@ pub enum StockError {
 /// Height-field stock over `[x0, x0 + nx·cell] × [y0, y0 + ny·cell]`.
 #[derive(Debug, Clone)]
 pub struct Stock {
+    /// X of the grid's low edge, mm; cell `i` is centred on
+    /// `x0 + (i + 0.5)·cell`.
     pub x0: f64,
+    /// Y of the grid's low edge, mm; row `j` is centred on
+    /// `y0 + (j + 0.5)·cell`.
     pub y0: f64,
+    /// Side of a square cell, mm (> 0).
     pub cell: f64,
+    /// Cells along X (>= 1).
     pub nx: usize,
+    /// Rows along Y (>= 1).
     pub ny: usize,
+    /// Z of the stock's bottom, mm: a cell cut lower holds no material.
     pub bottom: f64,
+    /// Z of the stock's top before cutting, mm.
     pub top: f64,
-    /// Row-major heights (`y` rows of `x` cells).
+    /// Row-major heights of each cell's material top, mm (`ny` rows of
+    /// `nx` cells); never above `top`.
     pub z: Vec<f64>,
     /// Cells examined by the cuts so far (the work done, for benchmarks).
     pub cells_visited: u64,
@@ -45,6 +59,8 @@ pub struct Stock {
 const PAR_CELLS: usize = 1 << 14;
 
 impl Stock {
+    /// Uncut stock filling the box `min`..`max` (mm) with cells of `cell`
+    /// mm; the box's X and Y sizes are rounded to whole cells.
     pub fn new(min: P3, max: P3, cell: f64) -> Result<Stock, StockError> {
         if !(cell.is_finite() && cell > 0.0) {
             return Err(StockError::Box(format!("cell {cell} mm is not positive")));

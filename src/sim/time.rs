@@ -51,6 +51,7 @@ pub enum Limit {
 }
 
 impl Limit {
+    /// Every limit but [`Limit::None`], in the order reports count them.
     pub const ALL: [Limit; 6] = [
         Limit::MaxFeed,
         Limit::Ta,
@@ -60,6 +61,8 @@ impl Limit {
         Limit::Acceleration,
     ];
 
+    /// The name in reports and the per-block CSV (empty for
+    /// [`Limit::None`]).
     pub fn name(self) -> &'static str {
         match self {
             Limit::None => "",
@@ -76,12 +79,17 @@ impl Limit {
 /// What kind of block.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum MoveClass {
+    /// A positioning move at the machine's rapid speed (not blended on a
+    /// PMAC; timed per axis).
     Rapid,
+    /// A straight feed move.
     Line,
+    /// A circular (or helical) feed move.
     Arc,
 }
 
 impl MoveClass {
+    /// The name in the moves and per-block CSVs.
     pub fn name(self) -> &'static str {
         match self {
             MoveClass::Rapid => "rapid",
@@ -96,12 +104,15 @@ impl MoveClass {
 pub struct MotionBlock {
     /// Source line.
     pub line: Option<u64>,
+    /// Rapid, line or arc.
     pub class: MoveClass,
+    /// Path length, mm (0 for a move of the rotary axes alone).
     pub length_mm: f64,
     /// Commanded path feed, mm/s; ignored for rapids.
     pub feed_mm_s: f64,
-    /// Unit tangents at start and end (zero for a zero-length move).
+    /// Unit tangent at the start (zero for a zero-length move).
     pub dir_in: V3,
+    /// Unit tangent at the end (zero for a zero-length move).
     pub dir_out: V3,
     /// Arc radius (infinite for straight moves).
     pub radius_mm: f64,
@@ -109,10 +120,13 @@ pub struct MotionBlock {
     pub delta: V3,
     /// End point (mm), for matching cuts to drawing chains.
     pub end: crate::geometry::P3,
+    /// The beam (shutter) is on during the move.
     pub beam: bool,
     /// How a shutter switch before this block was commanded, when the
     /// program says (PMAC `==` / `=`).
     pub beam_switch: Option<crate::model::toolpath::ShutterSwitch>,
+    /// The drawing chain the move was generated from, when the toolpath
+    /// says (matches cuts to chains).
     pub chain: Option<u64>,
     /// Travel of the rotary axes A, B, C (degrees, the length of their
     /// joint displacement); 0 for a 3-axis move.
@@ -146,8 +160,11 @@ impl MotionBlock {
 /// `v1` (mm/s) over `dt` seconds.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct Piece {
+    /// Duration, s (>= 0).
     pub dt: f64,
+    /// Speed at its start, mm/s.
     pub v0: f64,
+    /// Speed at its end, mm/s.
     pub v1: f64,
 }
 
@@ -162,6 +179,7 @@ impl Piece {
         self.v0 * (b - a) + 0.5 * k * (b * b - a * a)
     }
 
+    /// Distance covered over the whole piece, mm.
     pub fn distance(&self) -> f64 {
         0.5 * (self.v0 + self.v1) * self.dt
     }
@@ -173,15 +191,20 @@ pub const MAX_PIECES: usize = 3;
 /// A block with its timing.
 #[derive(Debug, Clone, PartialEq)]
 pub struct TimedBlock {
+    /// The move as given.
     pub block: MotionBlock,
     /// When the path crosses into this block (s from program start).
     pub t_start_s: f64,
+    /// How long the path stays in it, s: the sum of its pieces.
     pub time_s: f64,
     /// When the controller starts executing the move: the start of the
     /// blend into it on a PMAC (where `M33==` takes effect), `t_start_s` on a
     /// look-ahead planner.
     pub exec_start_s: f64,
+    /// The speed curve over the block, the first `n_pieces` used (see
+    /// [`TimedBlock::pieces`]); they cover exactly `block.length_mm`.
     pub pieces: [Piece; MAX_PIECES],
+    /// Pieces in use, 0..=[`MAX_PIECES`].
     pub n_pieces: usize,
     /// The block's peak feed, mm/s: the top of its trapezoid (look-ahead)
     /// or its plateau speed (PMAC).
@@ -189,15 +212,18 @@ pub struct TimedBlock {
     /// The feed the block was meant to run at (commanded, or the rapid
     /// speed), mm/s.
     pub commanded_feed_mm_s: f64,
+    /// Why `achieved_feed_mm_s` is below `commanded_feed_mm_s`, if it is.
     pub limited_by: Limit,
 }
 
 impl TimedBlock {
+    /// The pieces in use, in time order.
     pub fn pieces(&self) -> &[Piece] {
         &self.pieces[..self.n_pieces]
     }
 
-    /// Path length covered between absolute times `a` and `b`.
+    /// Path length covered between absolute times `a` and `b` (s from
+    /// program start), mm.
     pub fn distance_between(&self, a: f64, b: f64) -> f64 {
         let mut t = self.t_start_s;
         let mut d = 0.0;
@@ -218,15 +244,21 @@ impl TimedBlock {
 #[allow(clippy::large_enum_variant)]
 #[derive(Debug, Clone, PartialEq)]
 pub enum Event {
+    /// A move, timed.
     Block(TimedBlock),
+    /// A dwell: the stage at rest for `seconds`.
     Dwell {
+        /// When it starts, s from program start (motion has stopped).
         t_start_s: f64,
+        /// How long it lasts, s.
         seconds: f64,
+        /// Source line.
         line: Option<u64>,
     },
 }
 
-/// A controller model fed one record at a time.
+/// A controller model fed one record at a time; timed events come out of
+/// [`TimeModel::pop`] as soon as what follows can no longer change them.
 pub struct TimeModel {
     inner: Inner,
     out: VecDeque<Event>,
@@ -239,6 +271,8 @@ enum Inner {
 }
 
 impl TimeModel {
+    /// The model `m.controller` names, with `m`'s speeds, accelerations,
+    /// TA/TS, block rate and rotary limits, at time 0 and at rest.
     pub fn new(m: &Machine) -> TimeModel {
         let inner = match m.controller {
             Controller::Pmac => Inner::Pmac(Pmac::new(m)),
@@ -371,7 +405,8 @@ impl TimeModel {
         self.out.pop_front()
     }
 
-    /// Time when everything emitted so far has finished.
+    /// Time when everything emitted so far has finished, s from program
+    /// start.
     pub fn now_s(&self) -> f64 {
         match &self.inner {
             Inner::Pmac(p) => p.t,
