@@ -66,7 +66,8 @@ fn write_message(e: &crate::gcode::writer::WriteError) -> String {
 #[derive(Debug, Clone)]
 pub struct Names {
     /// The shutter output: 1 opens the beam, 0 closes it. Read from the
-    /// program as the beam state and written synchronously (`M33==0`).
+    /// program as each move's beam state; every chunk ends closing it
+    /// synchronously (`M33==0`).
     pub shutter: String,
     /// The line counter P-variable: the writer numbers motion lines 1, 2, ...
     /// on it, so a value read back names the move the stage is on.

@@ -65,8 +65,8 @@ pub struct Example {
 /// Time figures.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct TimeStats {
-    /// Time from the first move to rest after the last, s: cutting, rapid
-    /// and dwell times add up to it.
+    /// Time from the program's start to rest after its last move or dwell,
+    /// s: cutting, rapid and dwell times add up to it.
     pub cycle_time_s: f64,
     /// Time in feed moves (lines and arcs), s.
     pub cutting_time_s: f64,
