@@ -15,10 +15,9 @@
 //!
 //! The shutter then passes the beam from `open_delay + open_transfer/2`
 //! after an open command until `close_delay + close_transfer/2` after a
-//! close command (see [`Shutter`](crate::machine::Shutter)). Path length
-//! covered while the beam passes is exposed; exposed length on beam-off
-//! moves is over-exposure, unexposed length on beam-on moves is the drawing
-//! left uncut.
+//! close command (see [`Shutter`]). Path length covered while the beam
+//! passes is exposed; exposed length on beam-off moves is over-exposure,
+//! unexposed length on beam-on moves is the drawing left uncut.
 //!
 //! Cuts: beam-on moves are grouped by their `chain` id when the toolpath
 //! carries one, else into runs of consecutive beam-on moves (a G-code

@@ -1,9 +1,11 @@
 //! One session on one controller: download, run, watch the counters, and
 //! stop safely on any fault.
 
-use super::{Failure, Mode, POSITION_TOL_MM, Reading, SendError, SendOptions, SendSummary, State, locate, open_program};
+use super::{
+    Failure, Mode, POSITION_TOL_MM, Reading, SendError, SendOptions, SendSummary, State, locate, open_program,
+};
 use crate::geometry::P3;
-use crate::pmac::client::Client;
+use crate::pmac::client::{Client, ClientError};
 use crate::pmac::controller::parse_status;
 use crate::pmac::upload_plan::{Chunk, MoveGeom, marker_lines};
 use std::io::Write;
