@@ -4,11 +4,11 @@
 use clap::{Parser, ValueEnum};
 use microcam::cli::{self, CliError};
 use microcam::pmac::client::{Client, Transport};
-use microcam::pmac::plan::{Names, UploadPlan};
 use microcam::pmac::send::{
     BUFFER_FILL, Mode, SendError, SendOptions, SendSummary, Sender, State, dry_run_budget, input_hash,
     is_stale_plan_file, split_budget,
 };
+use microcam::pmac::upload_plan::{Names, UploadPlan};
 use std::io::Write;
 use std::net::ToSocketAddrs;
 use std::path::{Path, PathBuf};

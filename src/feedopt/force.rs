@@ -21,10 +21,15 @@ use thiserror::Error;
 /// A coefficient file that does not make a model.
 #[derive(Debug, Error)]
 pub enum ForceError {
+    /// The file (named first) is not a JSON object with exactly the four
+    /// coefficient fields.
     #[error("{0}: {1}")]
     Json(String, serde_json::Error),
+    /// The file (named first) cannot be read.
     #[error("{0}: {1}")]
     Io(String, std::io::Error),
+    /// In the file named first, the field named second is negative or not
+    /// finite.
     #[error("{0}: {1} must be a finite number >= 0")]
     Value(String, &'static str),
 }
@@ -114,7 +119,9 @@ impl Engagement {
 /// The model for a tool with `flutes` teeth.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ForceModel {
+    /// The material's and tool's force coefficients.
     pub k: Coefficients,
+    /// Teeth of the tool (the mean force scales with them).
     pub flutes: u32,
 }
 

@@ -19,11 +19,15 @@
 //! and a second run gives the same program: the schedule depends on the
 //! geometry alone, and marked lines are taken out before simulating.
 
+#![warn(missing_docs)]
+
 pub mod force;
 pub mod report;
 pub mod sample;
 pub mod schedule;
 pub mod text;
+
+mod rewrite;
 
 use crate::cutter::Cutter;
 use crate::gcode::{Dialect, GcodeError, ReadOptions, detect_dialect, read_str};
@@ -36,7 +40,8 @@ use crate::sim::report::{SimError, Simulator};
 use crate::sim::stock::{Stock, StockError};
 use crate::sim::time::MoveClass;
 use force::{Coefficients, Engagement, ForceModel};
-use schedule::{Band, By, Segment, Step, Targets};
+use rewrite::FeedPlan;
+use schedule::{Band, By, Step, Targets};
 use thiserror::Error;
 
 /// Most simulation steps one run may take (each a record in the series).
@@ -45,26 +50,46 @@ pub const MAX_STEPS: usize = 20_000_000;
 /// Why a program cannot be scheduled.
 #[derive(Debug, Error)]
 pub enum FeedoptError {
+    /// The program does not read (either dialect).
     #[error("{0}")]
     Gcode(#[from] GcodeError),
+    /// A feed move on this source line has no spindle speed to turn its
+    /// feed into a feed per tooth.
     #[error("line {0}: no spindle speed for this feed move (an S word before it, or --rpm)")]
     NoSpindle(u64),
+    /// The feed moves' extent (first text) misses the stock box (second),
+    /// both as "lo..hi" per axis.
     #[error("the path (X {0}) does not overlap the stock (X {1}): check --stock")]
     NoOverlap(String, String),
+    /// Every feed move runs in air: there is no chip to schedule by.
     #[error("the tool never cuts the stock: no feed move removes material (check --stock, --tool and the program's Z)")]
     NeverCuts,
+    /// An ISO program in inches (G20): F words would be in inch/min.
     #[error("inch programs (G20) are not supported: feedopt writes F in mm/min")]
     Inch,
+    /// An ISO program in inverse-time or per-revolution feed mode (the
+    /// mode's name): its F words are not a speed.
     #[error("{0} programs are not supported: feedopt writes F in mm/min (G94)")]
     FeedMode(&'static str),
+    /// The feed path divided by the step length exceeds [`MAX_STEPS`].
     #[error(
         "the simulation would take about {steps:.3e} steps of {step_mm:e} mm (more than {max}): raise --step-mm or --fz-min-um"
     )]
-    TooManySteps { steps: f64, step_mm: f64, max: usize },
+    TooManySteps {
+        /// Estimated steps: feed path length over `step_mm`.
+        steps: f64,
+        /// The step length asked for, mm.
+        step_mm: f64,
+        /// The limit, [`MAX_STEPS`].
+        max: usize,
+    },
+    /// The stock box or cell size cannot make a height field.
     #[error("--stock: {0}")]
     Stock(#[from] StockError),
+    /// An option out of range; the text names the flag.
     #[error("{0}")]
     Options(String),
+    /// gsim's time model refused the program (before or after scheduling).
     #[error("simulating the program: {0}")]
     Sim(#[from] SimError),
 }
@@ -105,20 +130,28 @@ pub enum Target {
 /// Everything feedopt needs besides the program.
 #[derive(Debug, Clone)]
 pub struct Options {
+    /// How new feeds are written (one per block, or split).
     pub mode: Mode,
+    /// How a block's feed is taken from its steps' targets.
     pub by: By,
+    /// What the schedule holds constant (chip volume band or force).
     pub target: Target,
     /// Feed per tooth at the largest chip, mm.
     pub fz_min_mm: f64,
     /// Feed per tooth at the smallest chip, mm.
     pub fz_max_mm: f64,
+    /// Teeth of the cutter (feed per tooth = feed / (rpm / 60 × flutes)).
     pub flutes: u32,
     /// Spindle speed overriding the program's S words, rpm.
     pub rpm: Option<f64>,
+    /// The cutter's shape for the removal simulation.
     pub cutter: Cutter,
-    /// Stock box corners, mm.
+    /// Stock box, lowest corner, mm.
     pub stock_min: P3,
+    /// Stock box, highest corner, mm; its Z is the top the force model's
+    /// axial depth is measured from.
     pub stock_max: P3,
+    /// Cell size of the height-field stock, mm.
     pub cell_mm: f64,
     /// Simulation step, mm (default: f_min per tooth × 10, the thesis'
     /// scale factor).
@@ -134,31 +167,49 @@ pub struct Options {
     /// Neighbouring sub-blocks whose feeds differ by less than this
     /// (relative) are merged.
     pub merge_tol: f64,
+    /// The machine profile: controller kind, TA/TS or block time for the
+    /// minimum block time, and gsim's time model for cycle times.
     pub machine: Machine,
+    /// How the program is read (dialect, or `None` to sniff it; the start
+    /// point).
     pub read: ReadOptions,
     /// The force model's coefficients; `None` = no force figures.
     pub force: Option<Coefficients>,
 }
 
-/// One step of the per-step series.
+/// One step of the per-step series (feed moves only, in program order).
 #[derive(Debug, Clone, PartialEq)]
 pub struct SeriesRow {
+    /// Source line of the move the step belongs to.
     pub line: Option<u64>,
+    /// Where the step ends, mm.
     pub end: P3,
+    /// Path distance at the step's end over all feed moves, mm.
     pub s_mm: f64,
+    /// Chip cross-section: volume removed per mm of path, mm².
     pub area_mm2: f64,
+    /// The step is scheduled: it moves in XY and takes more than a
+    /// thousandth of the largest chip.
     pub cutting: bool,
+    /// Feed per tooth as programmed, mm.
     pub fz_before_mm: f64,
+    /// Feed per tooth as written, mm.
     pub fz_after_mm: f64,
+    /// Mean cutting force at the programmed feed, N (with a force model).
     pub force_before_n: Option<f64>,
+    /// Mean cutting force at the written feed, N (with a force model).
     pub force_after_n: Option<f64>,
 }
 
 /// The result: the new program, the report and the series.
 #[derive(Debug, Clone)]
 pub struct Outcome {
+    /// The program with new F words (and, in split mode, marked sub-block
+    /// lines), otherwise byte for byte the input.
     pub program: String,
+    /// What was done and what it gains.
     pub report: report::FeedoptReport,
+    /// One row per simulation step.
     pub series: Vec<SeriesRow>,
 }
 
@@ -201,7 +252,9 @@ pub fn strip_marked(text: &str, dialect: Dialect) -> String {
         .collect()
 }
 
-/// Schedule the feeds of `input` (G-code of either dialect).
+/// Schedule the feeds of `input` (G-code of either dialect): simulate,
+/// map chips to feeds, write the program in the chosen mode (falling back
+/// to one feed per block where a split would not save time).
 pub fn optimise(input: &str, o: &Options) -> Result<Outcome, FeedoptError> {
     check(o)?;
     let dialect = o
@@ -463,7 +516,7 @@ pub fn optimise(input: &str, o: &Options) -> Result<Outcome, FeedoptError> {
     });
 
     // Feeds per move (program units), then the program.
-    let plan = Plan {
+    let plan = FeedPlan {
         o,
         dialect,
         targets: &targets,
@@ -646,154 +699,4 @@ fn to_fz(feed: f64, rpm: f64, flutes: u32, d: Dialect) -> f64 {
 /// Feed in the dialect's unit from feed per tooth, on the printed grid.
 fn from_fz(fz: f64, rpm: f64, flutes: u32, d: Dialect) -> f64 {
     text::floor_feed(fz * rpm / 60.0 * flutes as f64 / d.feed_unit().to_mm_per_s(), d)
-}
-
-/// The schedule's inputs, shared by the modes.
-struct Plan<'a> {
-    o: &'a Options,
-    dialect: Dialect,
-    targets: &'a Targets<'a>,
-    moves: &'a [Option<MoveInfo>],
-    t_min: f64,
-}
-
-impl Plan<'_> {
-    /// Program feed of steps `i..j` of a move, or the air feed.
-    fn feed(&self, mi: &MoveInfo, i: usize, j: usize, by: By) -> f64 {
-        let o = self.o;
-        match self.targets.feed(mi.first + i, mi.first + j, by) {
-            Some(fz) => from_fz(fz.clamp(o.fz_min_mm, o.fz_max_mm), mi.rpm, o.flutes, self.dialect),
-            None if mi.plunge => mi.feed,
-            None => o
-                .air_feed
-                .unwrap_or_else(|| from_fz(o.fz_max_mm, mi.rpm, o.flutes, self.dialect)),
-        }
-    }
-
-    /// Segments per move (`None` for rapids): one per block, or split.
-    fn segments(&self, mode: Mode, incremental: bool) -> Vec<Option<Vec<Segment>>> {
-        let lines_with_many = {
-            let mut count = std::collections::HashMap::new();
-            for mi in self.moves.iter().flatten() {
-                *count.entry(mi.line).or_insert(0u32) += 1;
-            }
-            count
-        };
-        self.moves
-            .iter()
-            .map(|mi| {
-                let mi = mi.as_ref()?;
-                let one = vec![Segment {
-                    start: 0,
-                    end: mi.n,
-                    feed: self.feed(mi, 0, mi.n, self.o.by),
-                }];
-                let splittable = mode != Mode::PerBlock
-                    && !incremental
-                    && matches!(mi.kind, MotionKind::Line)
-                    && !mi.plunge
-                    && lines_with_many.get(&mi.line) == Some(&1)
-                    && self.targets.feed(mi.first, mi.first + mi.n, By::Mean).is_some();
-                if !splittable {
-                    return Some(one);
-                }
-                let f = |i: usize, j: usize| -> Option<f64> {
-                    self.targets.feed(mi.first + i, mi.first + j, By::Mean)?;
-                    let pf = self.feed(mi, i, j, By::Mean);
-                    Some(pf * self.dialect.feed_unit().to_mm_per_s())
-                };
-                if mode == Mode::Naive {
-                    let segs: Vec<Segment> = (0..mi.n)
-                        .map(|k| Segment {
-                            start: k,
-                            end: k + 1,
-                            feed: self.feed(mi, k, k + 1, By::Mean),
-                        })
-                        .collect();
-                    return Some(segs);
-                }
-                // A margin over the minimum for the 0.0001 mm rounding of
-                // the sub-block ends.
-                let t_min = self.t_min * 1.01 + 1e-4;
-                let segs = schedule::split_block(mi.n, mi.step_mm, t_min, 0.02 * self.t_min, 300, &f)?;
-                let segs = schedule::merge_similar(segs, self.o.merge_tol, &f);
-                let unit = self.dialect.feed_unit().to_mm_per_s();
-                Some(
-                    segs.into_iter()
-                        .map(|s| Segment {
-                            feed: s.feed / unit,
-                            ..s
-                        })
-                        .collect(),
-                )
-            })
-            .collect()
-    }
-
-    /// The program with these feeds; returns it and the number of source
-    /// lines changed.
-    fn write(&self, base: &str, recs: &[Record], segs: &[Option<Vec<Segment>>]) -> (String, usize) {
-        let d = self.dialect;
-        let lines = text::lines(base);
-        // Per source line: the feed to write (smallest of its moves) and
-        // the sub-blocks to insert before it.
-        let mut feed_of: Vec<Option<f64>> = vec![None; lines.len()];
-        let mut keep: Vec<bool> = vec![true; lines.len()];
-        let mut inserts: Vec<Vec<String>> = vec![Vec::new(); lines.len()];
-        let mut k = 0;
-        for r in recs {
-            let Record::Move(m) = r else { continue };
-            let (Some(mi), Some(sg)) = (&self.moves[k], &segs[k]) else {
-                k += 1;
-                continue;
-            };
-            k += 1;
-            let Some(l) = m
-                .block
-                .and_then(|b| (b as usize).checked_sub(1))
-                .filter(|l| *l < lines.len())
-            else {
-                continue;
-            };
-            let last = sg.last().map_or(mi.feed, |s| s.feed);
-            feed_of[l] = Some(feed_of[l].map_or(last, |f: f64| f.min(last)));
-            keep[l] &= mi.plunge;
-            if sg.len() > 1
-                && let Some(axes) = text::plain_linear(lines[l].body, d)
-            {
-                for s in &sg[..sg.len() - 1] {
-                    let t = s.end as f64 / mi.n as f64;
-                    let p = mi.from + (mi.to - mi.from) * t;
-                    let mut to = [None; 3];
-                    for a in 0..3 {
-                        if let Some(v) = axes[a] {
-                            let off = mi.to[a] - v;
-                            to[a] = Some(p[a] - off);
-                        }
-                    }
-                    inserts[l].push(text::sub_block(d, to, &text::format_feed(s.feed, d)));
-                }
-            }
-        }
-        let mut out = String::with_capacity(base.len() + base.len() / 8);
-        let mut changed = 0;
-        for (l, line) in lines.iter().enumerate() {
-            for ins in &inserts[l] {
-                out.push_str(ins);
-                out.push_str(if line.eol.is_empty() { "\n" } else { line.eol });
-            }
-            match feed_of[l] {
-                Some(f) if !keep[l] || text::f_words(line.body, d).is_empty() => {
-                    let b = text::set_feed(line.body, d, &text::format_feed(f, d));
-                    if b != line.body {
-                        changed += 1;
-                    }
-                    out.push_str(&b);
-                }
-                _ => out.push_str(line.body),
-            }
-            out.push_str(line.eol);
-        }
-        (out, changed)
-    }
 }

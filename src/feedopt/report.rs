@@ -14,9 +14,13 @@ pub const SCHEMA: &str = "microcam.feedopt/1";
 /// Mean, extremes and spread of a series.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct Stats {
+    /// Values in the series.
     pub count: u64,
+    /// Their mean.
     pub mean: f64,
+    /// The smallest value.
     pub min: f64,
+    /// The largest value.
     pub max: f64,
     /// Standard deviation.
     pub std: f64,
@@ -50,44 +54,76 @@ impl Stats {
 /// Cutting-force figures, before and after.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ForceFigures {
+    /// The coefficients the figures were computed with.
     pub coefficients: Coefficients,
+    /// Mean force over the cutting steps, weighted by their machining time,
+    /// at the programmed feeds, N.
     pub mean_before_n: f64,
+    /// The same at the written feeds, N.
     pub mean_after_n: f64,
+    /// Largest one-tooth peak force of a cutting step at the programmed
+    /// feeds, N.
     pub peak_before_n: f64,
+    /// The same at the written feeds, N.
     pub peak_after_n: f64,
 }
 
 /// Everything feedopt reports.
 #[derive(Debug, Clone)]
 pub struct FeedoptReport {
+    /// The mode asked for.
     pub mode: Mode,
     /// The mode whose program was written (split falls back to per-block
     /// when it cannot win).
     pub mode_used: Mode,
+    /// What the schedule held constant.
     pub target: Target,
+    /// How a block's feed was taken from its steps.
     pub by: By,
+    /// The program's dialect (the output keeps it).
     pub dialect: Dialect,
+    /// The machine profile's name.
     pub machine: String,
+    /// The shortest sub-block split mode allows, s.
     pub min_block_s: f64,
+    /// Feed per tooth at the largest chip, mm (reported in µm).
     pub fz_min_mm: f64,
+    /// Feed per tooth at the smallest chip, mm (reported in µm).
     pub fz_max_mm: f64,
+    /// Teeth of the cutter.
     pub flutes: u32,
+    /// Simulation step along the path, mm.
     pub step_mm: f64,
+    /// Height-field cell size, mm.
     pub cell_mm: f64,
+    /// Moving-average window, mm of path.
     pub window_mm: f64,
+    /// Smallest and largest chip cross-section of the cutting steps.
     pub band: Band,
     /// Largest chip volume per tooth allowed: the largest chip at f_min.
     pub chip_cap_mm3: f64,
+    /// Predicted cycle time of the input program (gsim's time model), s.
     pub cycle_time_before_s: f64,
+    /// Predicted cycle time of the program written, s.
     pub cycle_time_after_s: f64,
+    /// Predicted cycle time with one feed per block, s: what split mode
+    /// has to beat.
     pub per_block_cycle_time_s: f64,
-    /// Chip volume per tooth over the cutting steps, mm³.
+    /// Chip volume per tooth over the cutting steps at the programmed
+    /// feeds, mm³.
     pub chip_before: Stats,
+    /// The same at the written feeds, mm³.
     pub chip_after: Stats,
+    /// Cutting-force figures, when a force model was given.
     pub force: Option<ForceFigures>,
+    /// Feed moves (lines and arcs) in the program.
     pub feed_moves: u64,
+    /// Source lines whose text changed (a new F word).
     pub blocks_changed: u64,
+    /// Sub-block lines inserted (split and naive modes).
     pub blocks_added: u64,
+    /// Things the user should know: rapids that cut, a split that lost,
+    /// blocks not split.
     pub notes: Vec<String>,
 }
 
@@ -303,10 +339,12 @@ pub fn profiles_svg(rows: &[SeriesRow], title: &str) -> String {
 pub const PNG_WIDTH: usize = 900;
 /// Height of the profile picture, pixels.
 pub const PNG_HEIGHT: usize = 520;
-/// Colours of the profile picture: the program before (grey) and after
-/// (blue), the frames (black), on white.
+/// Colour of the program before in the profile picture (grey), RGB; the
+/// background is white.
 pub const PNG_BEFORE: [u8; 3] = [150, 150, 150];
+/// Colour of the program after (blue), RGB.
 pub const PNG_AFTER: [u8; 3] = [31, 95, 191];
+/// Colour of the panel frames (black), RGB.
 pub const PNG_FRAME: [u8; 3] = [0, 0, 0];
 
 /// The same two profiles as [`profiles_svg`] as RGB pixels (rows top

@@ -16,6 +16,7 @@ pub struct Pocket {
     pub corner: f64,
     /// Depth below the stock top (z = 0).
     pub depth: f64,
+    /// Diameter of the flat end mill that cuts it.
     pub tool_diameter: f64,
     /// Distance between passes.
     pub stepover: f64,

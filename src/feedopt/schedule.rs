@@ -26,7 +26,9 @@ pub struct Step {
 /// cross-section over the scheduled steps.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Band {
+    /// The smallest chip cross-section of a cutting step, mm².
     pub area_min_mm2: f64,
+    /// The largest chip cross-section of a cutting step, mm².
     pub area_max_mm2: f64,
 }
 
@@ -42,7 +44,9 @@ impl Band {
         })
     }
 
-    /// Eq. 3.2 corrected: feed per tooth for chip cross-section `a`.
+    /// Eq. 3.2 corrected: feed per tooth (mm) for chip cross-section `a`
+    /// (mm²), `fz_max` at the band's bottom, `fz_min` at its top and
+    /// beyond; `fz_min` when the band has no width.
     pub fn map(&self, a: f64, fz_min: f64, fz_max: f64) -> f64 {
         let span = self.area_max_mm2 - self.area_min_mm2;
         if span <= 0.0 {
@@ -80,12 +84,17 @@ pub fn moving_average(steps: &[Step], u: &[f64], window_mm: f64) -> Vec<f64> {
     out
 }
 
-/// Per-step targets for one block's sub-range: prefix sums of the smoothed
-/// target over cutting steps, the count of cutting steps, and the caps.
+/// Per-step feed-per-tooth targets (mm) over the whole series, indexed by
+/// step; [`Targets::feed`] reduces a block's sub-range of them.
 pub struct Targets<'a> {
+    /// The target after the moving average.
     pub smooth: &'a [f64],
+    /// The target before smoothing ([`By::Max`] takes its smallest).
     pub raw: &'a [f64],
+    /// The largest feed per tooth that keeps the step's chip within the
+    /// cap (the largest chip at f_min).
     pub cap: &'a [f64],
+    /// Which steps are scheduled; the others take no part.
     pub cutting: &'a [bool],
 }
 
@@ -99,7 +108,8 @@ pub enum By {
 }
 
 impl Targets<'_> {
-    /// Feed per tooth for steps `i..j`, or `None` when none of them cuts.
+    /// Feed per tooth (mm) for steps `i..j`, by `by` and never above any of
+    /// their caps, or `None` when none of them cuts.
     pub fn feed(&self, i: usize, j: usize, by: By) -> Option<f64> {
         let (mut sum, mut n, mut lo_raw, mut cap) = (0.0, 0usize, f64::INFINITY, f64::INFINITY);
         for k in i..j {
@@ -121,12 +131,16 @@ impl Targets<'_> {
     }
 }
 
-/// A block cut into segments of steps, each with its feed (program units).
+/// Part of a block: a range of its steps and the feed it runs at. The
+/// feed is mm/s out of [`split_block`] and [`merge_similar`], in the
+/// program's feed unit once the schedule converts it for writing.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Segment {
-    /// Steps `start..end` of the block.
+    /// First step of the block in the segment (0-based).
     pub start: usize,
+    /// One past its last step.
     pub end: usize,
+    /// The segment's feed.
     pub feed: f64,
 }
 

@@ -10,7 +10,9 @@ pub const MARK: &str = "feedopt split";
 /// A source line: its text without the line end, and the line end.
 #[derive(Debug, Clone, Copy)]
 pub struct Line<'a> {
+    /// The line's text without its end.
     pub body: &'a str,
+    /// `\n`, `\r\n`, or empty on a last line without an end.
     pub eol: &'a str,
 }
 

@@ -20,16 +20,35 @@ pub enum Transport {
     Line,
 }
 
+/// Why a command or download failed: the link ([`ClientError::is_link`])
+/// or the controller's refusal.
 #[derive(Debug, Error)]
 pub enum ClientError {
+    /// The host did not resolve or refused the connection.
     #[error("cannot connect to {addr}: {source}")]
-    Connect { addr: String, source: io::Error },
+    Connect {
+        /// The host as given (`host:port`).
+        addr: String,
+        /// The resolver's or the socket's error.
+        source: io::Error,
+    },
+    /// A read or write on an open connection failed, or the controller
+    /// closed it.
     #[error("connection lost: {0}")]
     Io(#[from] io::Error),
+    /// No complete reply came within the client's timeout.
     #[error("no reply within {0:?}")]
     Timeout(Duration),
+    /// The controller answered `ERRnnn` (the Turbo PMAC manual lists the
+    /// numbers: 3 unrecognised command, 6 no room, ...).
     #[error("controller answered ERR{code:03} to '{cmd}'")]
-    Pmac { code: u16, cmd: String },
+    Pmac {
+        /// The ERR number.
+        code: u16,
+        /// The command it refused.
+        cmd: String,
+    },
+    /// A command that cannot be sent, or an answer that does not frame.
     #[error("{0}")]
     Protocol(#[from] ProtocolError),
 }
@@ -45,6 +64,8 @@ impl ClientError {
     }
 }
 
+/// One connection to a controller, with the transport and timeout it was
+/// opened with; replies are read whole before the next request goes out.
 pub struct Client {
     stream: TcpStream,
     transport: Transport,
@@ -95,6 +116,7 @@ impl Client {
         Client::connect(&self.addr.to_string(), self.transport, self.timeout)
     }
 
+    /// How this client's commands travel.
     pub fn transport(&self) -> Transport {
         self.transport
     }
@@ -209,7 +231,10 @@ impl Client {
 #[derive(Debug, Error)]
 #[error("{error} (after {stored} lines were stored)")]
 pub struct DownloadError {
+    /// Lines of the download the controller took (all before the failing
+    /// one); a retry starts after them.
     pub stored: usize,
+    /// What failed.
     #[source]
     pub error: ClientError,
 }

@@ -14,13 +14,25 @@ pub const VR_DOWNLOAD: u8 = 0x40;
 /// RequestType of a request that only asks for data.
 pub const VR_UPLOAD: u8 = 0xC0;
 
+// Request codes (the header's second byte), as the Turbo PMAC manual names
+// them.
+/// Send one command line; its reply is kept for GETLINE (the answer is a
+/// single 0x40 byte).
 pub const SENDLINE: u8 = 0xB0;
+/// Fetch reply text kept from SENDLINE (a single 0 when there is none).
 pub const GETLINE: u8 = 0xB1;
+/// Drop every reply text not yet fetched.
 pub const FLUSH: u8 = 0xB3;
+/// Send one command line and get its reply text in the answer.
 pub const GETRESPONSE: u8 = 0xBF;
+/// Ask whether SENDLINE reply text waits (first byte 1) or not (0).
 pub const READREADY: u8 = 0xC2;
+/// Send a control character (header value) and get its reply text.
 pub const CTRL_RESPONSE: u8 = 0xC4;
+/// Fetch the next [`REPLY_CHUNK`] of a reply too long for one answer.
 pub const GETBUFFER: u8 = 0xC5;
+/// Send up to [`WRITEBUFFER_MAX`] bytes of NUL-terminated lines at once;
+/// the answer is a 4-byte status ([`writebuffer_status`]).
 pub const WRITEBUFFER: u8 = 0xC6;
 
 /// Largest reply chunk; longer replies continue on GETBUFFER.
@@ -28,21 +40,31 @@ pub const REPLY_CHUNK: usize = 1400;
 /// Largest WRITEBUFFER payload.
 pub const WRITEBUFFER_MAX: usize = 1024;
 
+/// Ends a complete data reply (I3=2).
 pub const ACK: u8 = 0x06;
+/// Starts an error reply, `BEL ERRnnn CR` (I6=1).
 pub const BEL: u8 = 0x07;
+/// Ends each line of reply text.
 pub const CR: u8 = 0x0D;
 
 /// The request header; 16-bit fields are big-endian on the wire.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Header {
+    /// [`VR_DOWNLOAD`] (a payload follows) or [`VR_UPLOAD`].
     pub request_type: u8,
+    /// The request code ([`GETRESPONSE`], [`WRITEBUFFER`], ...).
     pub request: u8,
+    /// Request argument: the control character of [`CTRL_RESPONSE`], else 0.
     pub value: u16,
+    /// Request argument, 0 in every request this crate makes.
     pub index: u16,
+    /// Payload bytes following a download request, or the most reply bytes
+    /// an upload request wants.
     pub length: u16,
 }
 
 impl Header {
+    /// A header with `value` and `index` zero.
     pub fn new(request_type: u8, request: u8, length: u16) -> Self {
         Header {
             request_type,
@@ -53,6 +75,7 @@ impl Header {
         }
     }
 
+    /// The 8 bytes on the wire.
     pub fn encode(&self) -> [u8; 8] {
         let v = self.value.to_be_bytes();
         let i = self.index.to_be_bytes();
@@ -60,6 +83,8 @@ impl Header {
         [self.request_type, self.request, v[0], v[1], i[0], i[1], l[0], l[1]]
     }
 
+    /// A header from its 8 wire bytes (any bytes make a header; the
+    /// request code is checked by whoever serves it).
     pub fn decode(b: &[u8; 8]) -> Self {
         Header {
             request_type: b[0],
@@ -79,10 +104,16 @@ impl Header {
 /// Protocol-level faults (not controller ERR replies).
 #[derive(Debug, Error, PartialEq, Eq)]
 pub enum ProtocolError {
+    /// A command of this many bytes exceeds the packet limit (the second
+    /// number).
     #[error("command of {0} bytes is too long for one packet (limit {1})")]
     TooLong(usize, usize),
+    /// A command holds a byte below 0x20 or DEL, which would end or garble
+    /// it on the controller.
     #[error("command contains a control character or NUL")]
     BadChar,
+    /// The controller's answer does not follow the framing; the text says
+    /// what was wrong.
     #[error("malformed reply: {0}")]
     BadReply(String),
 }
@@ -130,7 +161,9 @@ fn check_command(cmd: &str, limit: usize) -> Result<(), ProtocolError> {
 /// One WRITEBUFFER packet: the request bytes and how many lines it holds.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Packet {
+    /// Header and payload, ready to write.
     pub bytes: Vec<u8>,
+    /// Program lines in the payload.
     pub lines: usize,
 }
 
@@ -208,7 +241,10 @@ pub fn frame_reply(result: &Result<Vec<String>, u16>) -> Vec<u8> {
 /// What a complete reply says.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub enum Reply {
+    /// The lines of reply text (without CR; none for a command that
+    /// answers nothing).
     Data(Vec<String>),
+    /// The controller refused the command: `ERRnnn`'s number.
     Error(u16),
 }
 

@@ -38,11 +38,13 @@ pub struct Faults {
     pub lie_at: Option<u64>,
 }
 
-/// A running emulator server.
+/// A running emulator server; dropping it stops accepting connections.
 pub struct Server {
     addr: SocketAddr,
     stop: Arc<AtomicBool>,
     accept: Option<JoinHandle<()>>,
+    /// The emulated controller the connections share; tests and pmac-emu
+    /// inspect it (time, buffers, event log) while clients talk.
     pub controller: Arc<Mutex<Emulator>>,
 }
 
@@ -90,6 +92,7 @@ impl Server {
         })
     }
 
+    /// The address it listens on (with the port chosen when 0 was asked).
     pub fn addr(&self) -> SocketAddr {
         self.addr
     }

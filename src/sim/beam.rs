@@ -15,10 +15,9 @@
 //!
 //! The shutter then passes the beam from `open_delay + open_transfer/2`
 //! after an open command until `close_delay + close_transfer/2` after a
-//! close command (see [`Shutter`](crate::machine::Shutter)). Path length
-//! covered while the beam passes is exposed; exposed length on beam-off
-//! moves is over-exposure, unexposed length on beam-on moves is the drawing
-//! left uncut.
+//! close command (see [`Shutter`]). Path length covered while the beam
+//! passes is exposed; exposed length on beam-off moves is over-exposure,
+//! unexposed length on beam-on moves is the drawing left uncut.
 //!
 //! Cuts: beam-on moves are grouped by their `chain` id when the toolpath
 //! carries one, else into runs of consecutive beam-on moves (a G-code
@@ -49,6 +48,7 @@ pub enum CommandTiming {
 }
 
 impl CommandTiming {
+    /// The name in gsim's report and on its command line.
     pub fn name(self) -> &'static str {
         match self {
             CommandTiming::Sync => "sync",
@@ -61,16 +61,20 @@ impl CommandTiming {
 /// One cut: a chain or a run of beam-on moves.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct Cut {
+    /// The chain id its moves carry, or `None` for a run of beam-on moves
+    /// without one.
     pub chain: Option<u64>,
+    /// Source line of its first beam-on move.
     pub first_line: Option<u64>,
+    /// Source line of its last beam-on move.
     pub last_line: Option<u64>,
-    /// Beam-on path length.
+    /// Beam-on path length, mm.
     pub length_mm: f64,
-    /// Of that, exposed.
+    /// Of that, exposed, mm.
     pub exposed_mm: f64,
-    /// Beam-off path exposed by this cut's shutter window.
+    /// Beam-off path exposed by this cut's shutter window, mm.
     pub overexposed_mm: f64,
-    /// Time the beam passed while the machine stood still (dwells).
+    /// Time the beam passed while the machine stood still (dwells), s.
     pub stationary_exposure_s: f64,
     /// End points of the first few beam-on moves, to find the drawing
     /// chain this cut belongs to.
@@ -78,6 +82,7 @@ pub struct Cut {
 }
 
 impl Cut {
+    /// Beam-on length the beam did not reach: drawing left uncut, mm.
     pub fn unexposed_mm(&self) -> f64 {
         (self.length_mm - self.exposed_mm).max(0.0)
     }
@@ -122,6 +127,7 @@ impl Item {
 
 /// The beam model, fed the timed moves in order.
 pub struct BeamModel {
+    /// When shutter switches the program does not qualify take effect.
     pub timing: CommandTiming,
     open_lat: f64,
     close_lat: f64,
@@ -137,17 +143,20 @@ pub struct BeamModel {
     current: Option<usize>,
     items: VecDeque<Item>,
     lights: VecDeque<Light>,
+    /// The cuts so far, in order of their first beam-on move; final after
+    /// [`BeamModel::finish`].
     pub cuts: Vec<Cut>,
     by_chain: HashMap<u64, usize>,
     /// Shutter open commands.
     pub opens: u64,
-    /// Command windows shorter than the minimum exposure, and the first
-    /// few of their lines.
+    /// Command windows (open to close) shorter than the shutter's minimum
+    /// exposure.
     pub short_exposures: u64,
+    /// Source lines of the first [`EXAMPLES`] of those open commands.
     pub short_exposure_lines: Vec<u64>,
     /// Open commands whose close came before the beam got through.
     pub missed_exposures: u64,
-    /// Total time the shutter passes the beam.
+    /// Total time the shutter passes the beam, s.
     pub light_time_s: f64,
     /// Keep probe points for matching cuts to a drawing (`--chains`);
     /// off by default, since they cost a few hundred bytes per cut.
@@ -161,6 +170,8 @@ pub const EXAMPLES: usize = 20;
 const PROBES: usize = 16;
 
 impl BeamModel {
+    /// A model with `shutter`'s latencies and minimum exposure, shutter
+    /// closed, no cuts.
     pub fn new(shutter: &Shutter, timing: CommandTiming) -> BeamModel {
         BeamModel {
             timing,
@@ -197,6 +208,9 @@ impl BeamModel {
         self.cuts.len() - 1
     }
 
+    /// The next timed move: assigns it to a cut, issues a shutter command
+    /// where its beam state changes, and settles what no later command can
+    /// change.
     pub fn add_block(&mut self, tb: &TimedBlock) {
         let b = &tb.block;
         let cut = if b.beam {
@@ -258,6 +272,8 @@ impl BeamModel {
         self.settle(tb.exec_start_s.min(tb.t_start_s) + self.open_lat.min(self.close_lat));
     }
 
+    /// A dwell from `t0` for `seconds` (s): the stage stands still, and an
+    /// immediate shutter command after it acts when it ends.
     pub fn add_dwell(&mut self, t0: f64, seconds: f64) {
         self.items.push_back(Item::Dwell { t0, t1: t0 + seconds });
         self.dwell_end = Some(t0 + seconds);
@@ -364,22 +380,27 @@ impl BeamModel {
         }
     }
 
+    /// Beam-on path length of all cuts: what the program means to cut, mm.
     pub fn intended_mm(&self) -> f64 {
         self.cuts.iter().map(|c| c.length_mm).sum()
     }
 
+    /// Of that, the length the beam reached, mm.
     pub fn exposed_mm(&self) -> f64 {
         self.cuts.iter().map(|c| c.exposed_mm).sum()
     }
 
+    /// Beam-on length the beam did not reach, mm.
     pub fn unexposed_mm(&self) -> f64 {
         self.cuts.iter().map(|c| c.unexposed_mm()).sum()
     }
 
+    /// Beam-off length the beam reached, mm.
     pub fn overexposed_mm(&self) -> f64 {
         self.cuts.iter().map(|c| c.overexposed_mm).sum()
     }
 
+    /// Time the beam passed with the stage at rest (dwells), s.
     pub fn stationary_exposure_s(&self) -> f64 {
         self.cuts.iter().map(|c| c.stationary_exposure_s).sum()
     }
@@ -388,13 +409,17 @@ impl BeamModel {
 /// Exposure of one chain of the drawing (`--chains`).
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct ChainExposure {
+    /// The chain's id in the drawing.
     pub id: u64,
+    /// The chain's length, mm.
     pub drawing_length_mm: f64,
-    /// Cuts matched to this chain, their beam-on length, and how much of
-    /// that was exposed or spilled onto beam-off path.
+    /// Cuts matched to this chain.
     pub cuts: u64,
+    /// Their beam-on length, mm.
     pub cut_length_mm: f64,
+    /// Of that, exposed, mm.
     pub exposed_mm: f64,
+    /// Beam-off path their shutter windows exposed, mm.
     pub overexposed_mm: f64,
 }
 

@@ -16,9 +16,13 @@ pub const SCHEMA: &str = "microcam.gsim/1";
 
 /// Everything gsim reports.
 pub struct GsimReport {
+    /// The machine profile simulated.
     pub machine: Machine,
+    /// Counts, lengths and extents of the path.
     pub summary: PathSummary,
+    /// Cycle time and what limited the feeds.
     pub time: TimeStats,
+    /// The beam model with its cuts, settled.
     pub beam: BeamModel,
     /// With a drawing (`--chains`): the drawing chain index per cut and the
     /// exposure per drawing chain.

@@ -10,6 +10,8 @@
 //! - [`report`]: all of it in one streaming pass.
 //! - [`gsim_json`]: the gsim report as JSON.
 
+#![warn(missing_docs)]
+
 pub mod beam;
 pub mod gsim_json;
 pub mod picture;

@@ -28,6 +28,8 @@ pub struct Overlay {
 }
 
 impl Overlay {
+    /// An empty overlay with the picture's pixels over `s`: one per cell,
+    /// or per block of cells when the stock is wider than [`MAX_SIDE`].
     pub fn for_stock(s: &Stock) -> Overlay {
         let step = s.nx.max(s.ny).div_ceil(MAX_SIDE).max(1);
         let (w, h) = (s.nx.div_ceil(step), s.ny.div_ceil(step));

@@ -46,8 +46,11 @@ const BATCH_PIECES: usize = 4096;
 pub struct CutMove {
     /// Source line (or record) the move came from, carried through.
     pub line: Option<u64>,
+    /// Rapid, line or arc (carried through to the block; rapids cut too).
     pub class: MoveClass,
+    /// Tool tip where the move starts, mm.
     pub from: P3,
+    /// Tool tip where it ends, mm.
     pub to: P3,
     /// The arc when the move is one (its start is `from`, its end `to`).
     pub arc: Option<Arc3>,
@@ -62,14 +65,18 @@ pub struct CutMove {
 pub struct CutStep {
     /// Tool tip at the end of the step.
     pub end: P3,
+    /// Material the step removed, mm³.
     pub volume_mm3: f64,
 }
 
 /// A move after cutting.
 #[derive(Debug, Clone, PartialEq)]
 pub struct CutBlock {
+    /// The move's source line, as given in [`CutMove::line`].
     pub line: Option<u64>,
+    /// The move's class, as given.
     pub class: MoveClass,
+    /// The move's path length, mm, as given.
     pub length_mm: f64,
     /// True when the move was cut in steps of a given length.
     pub stepped: bool,
@@ -94,7 +101,11 @@ struct Queued {
 /// Cuts moves on a workpiece in batches and hands back the finished blocks
 /// in order.
 pub struct Engine<S: Workpiece> {
+    /// The material; read it (volume, heights) between batches, after
+    /// [`Engine::flush`].
     pub stock: S,
+    /// The cutter the next batch cuts with: flush before changing it, or
+    /// queued moves are cut with the new one.
     pub cutter: Cutter,
     pieces: Vec<(P3, P3)>,
     queued: Vec<Queued>,

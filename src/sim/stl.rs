@@ -18,6 +18,7 @@
 //! default `tol` is a quarter of the cell, so half a cell at most.
 //! The part covered is the box between the outermost cell centres, half a
 //! cell inside the stock box on each side.
+
 use super::stock::Stock;
 use std::io::{self, Write};
 
@@ -55,13 +56,22 @@ fn tri(out: &mut Vec<u8>, a: V, b: V, c: V) {
 /// row-major, above a flat bottom.
 #[derive(Debug, Clone, Copy)]
 pub struct Heights<'a> {
+    /// X of the grid's low edge, mm.
     pub x0: f64,
+    /// Y of the grid's low edge, mm.
     pub y0: f64,
+    /// Spacing of the heights along X, mm.
     pub dx: f64,
+    /// Spacing of the heights along Y, mm.
     pub dy: f64,
+    /// Heights per row.
     pub nx: usize,
+    /// Rows.
     pub ny: usize,
+    /// The heights, mm, row-major (`ny` rows of `nx`); a height below
+    /// `bottom` is meshed at `bottom`.
     pub z: &'a [f64],
+    /// Z of the flat bottom, mm.
     pub bottom: f64,
 }
 
@@ -83,6 +93,7 @@ impl<'a> From<&'a Stock> for Heights<'a> {
 /// What [`write_heights_stl`] wrote.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct StlStats {
+    /// Triangles written (top, walls and bottom).
     pub triangles: u64,
     /// Triangles one-per-half-square meshing would have written.
     pub per_cell_triangles: u64,

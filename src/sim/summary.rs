@@ -7,17 +7,29 @@ use crate::model::toolpath::{FeedUnit, MotionKind, Record};
 /// Running totals over a toolpath.
 #[derive(Debug, Clone, PartialEq)]
 pub struct PathSummary {
+    /// The unit of the toolpath's feeds (and of `min_feed`, `max_feed`).
     pub feed_unit: FeedUnit,
+    /// Records seen, of every kind.
     pub records: u64,
+    /// Rapid moves.
     pub rapids: u64,
+    /// Straight feed moves.
     pub lines: u64,
+    /// Arc moves.
     pub arcs: u64,
+    /// Dwells.
     pub dwells: u64,
+    /// Length of moves without a feed (rapids), mm.
     pub rapid_length_mm: f64,
+    /// Length of moves with a feed, mm (arcs exactly, helix included).
     pub feed_length_mm: f64,
+    /// Length of moves with the beam on, mm.
     pub beam_on_length_mm: f64,
+    /// Dwell time, s.
     pub dwell_s: f64,
+    /// Lowest programmed feed, in `feed_unit`.
     pub min_feed: Option<f64>,
+    /// Highest programmed feed, in `feed_unit`.
     pub max_feed: Option<f64>,
     /// Extents of every end point and arc extreme (mm); `None` before the
     /// first move.
@@ -26,6 +38,8 @@ pub struct PathSummary {
 }
 
 impl PathSummary {
+    /// Empty totals for a toolpath starting at `start` (mm) with feeds in
+    /// `feed_unit`.
     pub fn new(feed_unit: FeedUnit, start: P3) -> Self {
         PathSummary {
             feed_unit,

@@ -23,10 +23,23 @@ pub use super::gsim_json::{GsimReport, SCHEMA};
 /// A program the machine must not run, or a failed write of the series.
 #[derive(Debug, Error)]
 pub enum SimError {
+    /// A record read from a source line the machine must not run.
     #[error("line {line}: {msg}")]
-    Line { line: u64, msg: String },
+    Line {
+        /// The source line (1-based).
+        line: u64,
+        /// What is wrong with it.
+        msg: String,
+    },
+    /// The same for a record with no source line (a toolpath record).
     #[error("record {index}: {msg}")]
-    Record { index: u64, msg: String },
+    Record {
+        /// The record's position in the input, 1-based.
+        index: u64,
+        /// What is wrong with it.
+        msg: String,
+    },
+    /// Writing a CSV series failed.
     #[error("block series: {0}")]
     Io(#[from] std::io::Error),
 }
@@ -37,38 +50,59 @@ pub const BLOCKS_HEADER: &str = "line,kind,length_mm,commanded_feed_mm_s,achieve
 /// A block that did not reach its feed, for the report.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Example {
+    /// Its source line.
     pub line: Option<u64>,
+    /// Its path length, mm.
     pub length_mm: f64,
+    /// The feed it was meant to run at, mm/s.
     pub commanded_feed_mm_s: f64,
+    /// The feed it peaked at, mm/s.
     pub achieved_feed_mm_s: f64,
+    /// Why it fell short.
     pub limited_by: Limit,
 }
 
 /// Time figures.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct TimeStats {
+    /// Time from the program's start to rest after its last move or dwell,
+    /// s: cutting, rapid and dwell times add up to it.
     pub cycle_time_s: f64,
+    /// Time in feed moves (lines and arcs), s.
     pub cutting_time_s: f64,
+    /// Time in rapids, s.
     pub rapid_time_s: f64,
+    /// Time in dwells, s.
     pub dwell_time_s: f64,
     /// Feed-move length over commanded feed: the time a program "should" take.
     pub ideal_cutting_time_s: f64,
+    /// Feed moves timed.
     pub feed_blocks: u64,
+    /// Of those, the ones that did not reach their commanded feed.
     pub limited_blocks: u64,
+    /// Limited blocks per reason, indexed as [`Limit::ALL`].
     pub limited_by: [u64; Limit::ALL.len()],
+    /// The first [`EXAMPLES`] limited blocks.
     pub examples: Vec<Example>,
+    /// The lowest peak feed of a feed move with length, mm/s (`None`
+    /// without one).
     pub min_achieved_feed_mm_s: Option<f64>,
 }
 
 /// Material removal figures.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct RemovalStats {
+    /// Stock volume before the program, mm³.
     pub initial_volume_mm3: f64,
+    /// Volume the program removed, mm³.
     pub removed_volume_mm3: f64,
+    /// The most one block removed, mm³.
     pub max_block_volume_mm3: f64,
+    /// That block's source line.
     pub max_block_line: Option<u64>,
     /// Rapids that removed material (a crash on a real machine).
     pub rapids_in_material: u64,
+    /// Source lines of the first [`EXAMPLES`] of those rapids.
     pub rapid_lines: Vec<u64>,
 }
 
@@ -76,7 +110,9 @@ pub struct RemovalStats {
 /// per tooth × `scale`.
 #[derive(Debug, Clone, PartialEq)]
 pub struct StepPlan {
+    /// Teeth of the cutter.
     pub flutes: u32,
+    /// Step length in feeds per tooth (the thesis uses 10).
     pub scale: f64,
     /// Spindle speed overriding the program's S words, rpm.
     pub rpm: Option<f64>,
@@ -84,12 +120,17 @@ pub struct StepPlan {
 
 /// The engine, its stock and the per-block removal series.
 pub struct Removal<W: Write> {
+    /// The removal engine on a height-field stock.
     pub engine: Engine<Stock>,
+    /// Where the per-block removal CSV goes (`--removal`).
     pub csv: Option<W>,
+    /// The figures so far.
     pub stats: RemovalStats,
+    /// Cut feed moves in steps of feed per tooth, when asked.
     pub steps: Option<StepPlan>,
+    /// Where the per-step CSV goes (`--steps`).
     pub steps_csv: Option<W>,
-    /// The program's spindle speed so far.
+    /// The program's spindle speed so far, rpm.
     pub rpm: Option<f64>,
     /// The CSV header depends on whether steps are on: written with the
     /// first row.
@@ -251,6 +292,11 @@ impl<W: Write> Simulator<W> {
         Ok(())
     }
 
+    /// The next record: summarised, timed, and cut from the stock when
+    /// removal is on; finished blocks' rows go to the series. A move outside
+    /// the machine's travel, a feed move without a positive feed, an arc of
+    /// zero radius, a negative dwell or a tool with no cutter is an error
+    /// naming its line.
     pub fn add(&mut self, rec: &Record) -> Result<(), SimError> {
         self.index += 1;
         self.summary.add(rec);
@@ -645,143 +691,4 @@ fn csv_row(b: &mut String, ev: &Event) {
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::gcode::{ReadOptions, read_str};
-    use crate::model::toolpath::{FeedUnit, Motion};
-
-    type Finished = (GsimReport, [Option<Vec<u8>>; 3]);
-
-    fn sim(text: &str, machine: Machine) -> Result<Finished, SimError> {
-        let (d, recs) = read_str(text, &ReadOptions::default()).unwrap();
-        let header = Header {
-            feed_unit: d.feed_unit(),
-            source: None,
-        };
-        let mut s = Simulator::new(&header, machine, CommandTiming::Sync, P3::origin(), Some(Vec::new()));
-        for r in &recs {
-            s.add(r)?;
-        }
-        s.finish()
-    }
-
-    #[test]
-    fn times_add_up_and_the_series_has_a_row_per_block() {
-        let mut m = Machine::builtin("lookahead");
-        m.accel_mm_s2 = 100.0;
-        m.block_rate_hz = 0.0;
-        // 10 mm at 600 mm/min = 10 mm/s: 1.1 s; G4 P0.5; rapid back.
-        let (r, [csv, ..]) = sim("G1 X10 F600\nG4 P0.5\nG0 X0\n", m).unwrap();
-        assert!((r.time.cutting_time_s - 1.1).abs() < 1e-12);
-        assert_eq!(r.time.dwell_time_s, 0.5);
-        let total = r.time.cutting_time_s + r.time.dwell_time_s + r.time.rapid_time_s;
-        assert!((r.time.cycle_time_s - total).abs() < 1e-12);
-        assert!((r.time.ideal_cutting_time_s - 1.0).abs() < 1e-12);
-        let csv = String::from_utf8(csv.unwrap()).unwrap();
-        let rows: Vec<&str> = csv.lines().collect();
-        assert_eq!(rows[0], BLOCKS_HEADER.trim_end());
-        assert_eq!(rows[1], "1,line,10,10,10,1.1,");
-        assert_eq!(rows[2], "2,dwell,0,,,0.5,");
-        assert!(rows[3].starts_with("3,rapid,10,100,"));
-        assert_eq!(rows.len(), 4);
-    }
-
-    #[test]
-    fn bad_programs_name_their_line() {
-        let mut m = Machine::builtin("lookahead");
-        m.limits_min_mm = Some([0.0, 0.0, -5.0]);
-        m.limits_max_mm = Some([10.0, 10.0, 5.0]);
-        // The arc's end is inside but its extent is not.
-        let e = sim("G1 X5 Y5 F100\nG2 X5 Y5 I3 J0\n", m.clone()).err().unwrap();
-        assert!(e.to_string().starts_with("line 2: move reaches X11"), "{e}");
-        let e = sim("G1 X5 F100\nG0 Z6\n", m).err().unwrap();
-        assert!(e.to_string().starts_with("line 2:"), "{e}");
-        // A toolpath record with no feed on a feed move.
-        let h = Header {
-            feed_unit: FeedUnit::MmPerS,
-            source: None,
-        };
-        let mut s: Simulator<Vec<u8>> = Simulator::new(
-            &h,
-            Machine::builtin("laser-stage"),
-            CommandTiming::Sync,
-            P3::origin(),
-            None,
-        );
-        let rec = Record::Move(Motion {
-            kind: MotionKind::Line,
-            to: P3::new(1.0, 0.0, 0.0),
-            feed: Some(0.0),
-            beam: false,
-            beam_switch: None,
-            role: None,
-            chain: None,
-            block: None,
-            tool: Default::default(),
-        });
-        let e = s.add(&rec).unwrap_err().to_string();
-        assert_eq!(e, "record 1: feed move with feed 0");
-    }
-
-    #[test]
-    fn steps_split_blocks_by_feed_per_tooth_and_add_up() {
-        // 2 mm/s at 60,000 rpm with 2 flutes: 1 µm per tooth, steps of 10 µm.
-        let text = "G0 Z1\nS60000\nG1 Z-0.1 F120\nG1 X0.5\n";
-        let (d, recs) = read_str(text, &ReadOptions::default()).unwrap();
-        let header = Header {
-            feed_unit: d.feed_unit(),
-            source: None,
-        };
-        let stock = Stock::new(P3::new(-1.0, -1.0, -1.0), P3::new(2.0, 1.0, 0.0), 0.01).unwrap();
-        let mut s = Simulator::new(
-            &header,
-            Machine::builtin("lookahead"),
-            CommandTiming::Sync,
-            P3::origin(),
-            None,
-        )
-        .with_removal(stock, Cutter::Flat { radius: 0.397 }, Some(Vec::new()))
-        .with_steps(
-            StepPlan {
-                flutes: 2,
-                scale: 10.0,
-                rpm: None,
-            },
-            Some(Vec::new()),
-        );
-        for r in &recs {
-            s.add(r).unwrap();
-        }
-        let (r, [_, removal, steps]) = s.finish().unwrap();
-        let steps = String::from_utf8(steps.unwrap()).unwrap();
-        let of_line = |l: &str| -> Vec<f64> {
-            steps
-                .lines()
-                .skip(1)
-                .filter(|row| row.split(',').next() == Some(l))
-                .map(|row| row.rsplit(',').next().unwrap().parse().unwrap())
-                .collect()
-        };
-        // 0.5 mm in 10 µm steps.
-        let v4 = of_line("4");
-        assert_eq!(v4.len(), 50);
-        let removal = String::from_utf8(removal.unwrap()).unwrap();
-        let row4: Vec<&str> = removal
-            .lines()
-            .find(|l| l.starts_with("4,"))
-            .unwrap()
-            .split(',')
-            .collect();
-        let block: f64 = row4[3].parse().unwrap();
-        assert!(
-            (v4.iter().sum::<f64>() - block).abs() < 1e-8,
-            "steps add up to the block"
-        );
-        assert_eq!(row4[5], "50");
-        // In the steady part of the slot each step removes width × depth × step.
-        let mid = v4[25];
-        assert!((mid - 0.794 * 0.1 * 0.01).abs() < 0.05 * mid, "{mid}");
-        let (stats, stock) = r.removal.as_ref().unwrap();
-        assert!((stats.removed_volume_mm3 - (6.0 - stock.volume())).abs() < 1e-9);
-    }
-}
+mod tests;

@@ -18,8 +18,10 @@ use crate::pmac::protocol::line_words;
 use serde::Serialize;
 use thiserror::Error;
 
+/// Why a program cannot be planned for upload.
 #[derive(Debug, Error)]
 pub enum PlanError {
+    /// The program text does not read as ISO G-code or PMAC text.
     #[error("{0}")]
     Read(#[from] crate::gcode::GcodeError),
     /// Starts "line N: " when the record came from a source line, so the
@@ -30,9 +32,21 @@ pub enum PlanError {
         "no place to cut within {budget} words after line counter {counter}: the beam stays on for longer than a \
          buffer holds (use rotary mode or a larger buffer)"
     )]
-    NoCut { budget: usize, counter: u64 },
+    /// A strict (split-mode) plan found no point where the beam is off
+    /// between two moves within `budget` words after the move whose line
+    /// counter is `counter`: no buffer of that size can hold the stretch.
+    NoCut {
+        /// The buffer budget, memory words.
+        budget: usize,
+        /// Line counter of the last move already planned.
+        counter: u64,
+    },
     #[error("the program has no moves{}", if *.lines > 0 { format!(" (no motion line in its {lines} lines)") } else { String::new() })]
-    Empty { lines: usize },
+    /// The program has no motion at all (nothing to upload).
+    Empty {
+        /// Lines of program text read (0 when a plan came out empty).
+        lines: usize,
+    },
 }
 
 fn write_message(e: &crate::gcode::writer::WriteError) -> String {
@@ -47,10 +61,16 @@ fn write_message(e: &crate::gcode::writer::WriteError) -> String {
     }
 }
 
-/// Variable names used in the generated text.
+/// The controller variables the uploaded text uses; the defaults are the
+/// laser stage's (`M33` shutter, `P400`..`P402`, `M7400`).
 #[derive(Debug, Clone)]
 pub struct Names {
+    /// The shutter output: 1 opens the beam, 0 closes it. Read from the
+    /// program as each move's beam state; every chunk ends closing it
+    /// synchronously (`M33==0`).
     pub shutter: String,
+    /// The line counter P-variable: the writer numbers motion lines 1, 2, ...
+    /// on it, so a value read back names the move the stage is on.
     pub counter: String,
     /// Set to the chunk number at the very end of a buffer chunk, after
     /// `DWELL0` (which stops look-ahead): it changes only once all motion
@@ -86,32 +106,47 @@ impl Default for Names {
     }
 }
 
-/// One chunk of the job.
+/// One chunk of the job: the lines one buffer fill (split mode) or one unit
+/// of resume (rotary stream) holds. It starts and ends with the beam off and
+/// restates every modal setting it relies on, so it runs alone.
 #[derive(Debug, Clone, Serialize)]
 pub struct Chunk {
     /// Lines to store in a buffer (no OPEN / CLOSE).
     pub lines: Vec<String>,
     /// Memory words the lines take (as `SIZE` counts).
     pub words: usize,
-    /// Line counter values of its first and last motion line.
+    /// Line counter value of its first motion line (1-based over the job).
     pub first_counter: u64,
+    /// Line counter value of its last motion line; the next chunk's
+    /// `first_counter` is one more.
     pub last_counter: u64,
-    /// Where the stage is when the chunk starts, mm.
+    /// Where the stage is when the chunk starts, X Y Z in mm.
     pub start: [f64; 3],
+    /// Where the stage is when the chunk's last move ends, X Y Z in mm.
     pub end: [f64; 3],
-    /// Estimated run time, s (trapezoid model: max(length/F, TA)).
+    /// Estimated run time, s: gsim's Turbo PMAC time model ([`estimate`]).
     pub seconds: f64,
 }
 
-/// The program read and ready to cut.
+/// The program read and ready to cut into chunks: its toolpath records,
+/// which are rewritten as PMAC text chunk by chunk.
 pub struct UploadPlan {
+    /// The program as toolpath records (moves, dwells, TA/TS, ...); holds at
+    /// least one move.
     pub records: Vec<Record>,
+    /// The unit of the program's F words, from its dialect: mm/min for ISO,
+    /// mm/s for PMAC text.
     pub feed_unit: FeedUnit,
+    /// The dialect the text was read as (ISO G-code or PMAC).
     pub dialect: Dialect,
+    /// The controller variables the chunks use.
     pub names: Names,
 }
 
 impl UploadPlan {
+    /// Read program text in either dialect, the shutter and line counter
+    /// recognised by `names`. A text without a single move is
+    /// [`PlanError::Empty`].
     pub fn read(text: &str, names: &Names) -> Result<UploadPlan, PlanError> {
         let opts = ReadOptions {
             shutter_var: names.shutter.clone(),
@@ -292,7 +327,11 @@ impl UploadPlan {
         self.cut_from(budget, strict, P3::origin(), None, 0)
     }
 
-    /// Cut starting at `pos` with TA `ta` and the counter at `counter0`.
+    /// Cut into chunks of at most `budget` words (`None`: one chunk),
+    /// starting with the stage at `pos`, TA/TS `ta` (ms) in force and the
+    /// line counter at `counter0`, as a resume does with a [`Rest`]. With
+    /// `strict`, a beam-on stretch longer than the budget is
+    /// [`PlanError::NoCut`]; without, it makes one longer chunk.
     pub fn cut_from(
         &self,
         budget: Option<usize>,
@@ -392,10 +431,14 @@ impl UploadPlan {
 /// A move's geometry, for finding where along the job the stage stopped.
 #[derive(Debug, Clone, Copy)]
 pub struct MoveGeom {
+    /// Where the move starts, mm.
     pub from: P3,
+    /// Where the move ends, mm.
     pub to: P3,
-    /// Centre, counter-clockwise, plane, extra turns.
+    /// For an arc: centre, counter-clockwise, plane, extra turns; `None`
+    /// for a line or rapid.
     pub arc: Option<(P3, bool, crate::geometry::Plane, u32)>,
+    /// The beam is on during the move.
     pub beam: bool,
 }
 
@@ -413,7 +456,8 @@ impl MoveGeom {
         Arc3::new(c, self.from, self.to, ccw, plane, turns)
     }
 
-    /// The point of the move nearest `p`: (distance, length along the move).
+    /// The point of the move nearest `p`: (distance from `p`, length along
+    /// the move from its start), both mm.
     pub fn project(&self, p: P3) -> (f64, f64) {
         if let Some(a) = self.arc3() {
             if let Some((q, t)) = a.closest_point(&p) {
@@ -432,7 +476,7 @@ impl MoveGeom {
         ((q - p).norm(), t * l2.sqrt())
     }
 
-    /// The point `s` mm along the move.
+    /// The point `s` mm along the move (clamped to the move).
     pub fn point_at(&self, s: f64) -> P3 {
         let len = self.length();
         let t = if len > 0.0 { (s / len).clamp(0.0, 1.0) } else { 1.0 };
@@ -443,11 +487,18 @@ impl MoveGeom {
     }
 }
 
-/// The rest of a job, from a resume point.
+/// The rest of a job, from a resume point ([`UploadPlan::rest`]), with
+/// what [`UploadPlan::cut_from`] needs to continue it.
 pub struct Rest {
+    /// The records still to run (the first may be a partial move).
     pub job: UploadPlan,
+    /// Where the stage is when the rest starts, mm.
     pub start: P3,
+    /// TA and TS (ms) set by the part already run, restated in the first
+    /// chunk; `None` when none was set.
     pub ta: Option<(Option<f64>, Option<f64>)>,
+    /// The line counter before the rest's first move, so counters go on
+    /// numbering moves of the whole job.
     pub counter0: u64,
 }
 
@@ -486,8 +537,6 @@ pub fn offset_counter(line: &str, var: &str, offset: u64) -> String {
     out
 }
 
-/// The trapezoid time model the emulator uses: a move takes
-/// max(length / F, TA); rapids at [`RAPID_MM_S`]; dwells their time.
 /// Run time (s) of `records` from `start` under gsim's Turbo PMAC time
 /// model on the laser stage's profile (TA/TS records in the program apply),
 /// so the time left that pmac-send shows is the simulator's prediction. A
@@ -514,7 +563,8 @@ pub fn estimate(records: &[Record], start: P3, unit: FeedUnit) -> f64 {
     trapezoid_estimate(records, start, unit)
 }
 
-/// max(L/F, TA) per move: the fallback estimate.
+/// max(L/F, TA) per move: the fallback estimate, the emulator's trapezoid
+/// model (rapids at [`RAPID_MM_S`], dwells their time).
 fn trapezoid_estimate(records: &[Record], start: P3, unit: FeedUnit) -> f64 {
     let mut pos = start;
     let mut ta = DEFAULT_TA_MS / 1000.0;
