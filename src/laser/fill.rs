@@ -20,7 +20,7 @@
 //! outside every hole. The passes of a region are joined by beam-off
 //! links at V (Dubins paths of the stage's least radius, long enough for
 //! the shutter) into one path, which the laser planner
-//! ([`super::plan::plan_tagged`]) turns into moves like any other: lead-in
+//! ([`super::constant_velocity::plan_tagged`]) turns into moves like any other: lead-in
 //! and lead-out, corner loops, shutter timing, PMAC pacing. Regions are cut
 //! in nearest-neighbour order, level after level.
 //!
@@ -35,7 +35,7 @@ use super::contour::{ContourJob, Warning};
 use super::dubins::connect;
 use super::offset::{continue_line, from_polyline, join_closed_ends, to_polyline};
 use super::order;
-use super::plan::{Note, Tagged, plan_tagged, ramps_record, to_records};
+use super::constant_velocity::{Note, Tagged, plan_tagged, ramps_record, to_records};
 use super::setup::LaserSetup;
 use crate::geometry::{P2, P3, Plane, V2};
 use crate::model::chain::{Chain, Segment};

@@ -16,7 +16,7 @@ pub mod fill;
 pub mod offset;
 pub mod order;
 pub mod patterns;
-pub mod plan;
+pub mod constant_velocity;
 pub mod setup;
 pub mod svg;
 

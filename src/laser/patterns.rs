@@ -5,7 +5,7 @@
 
 use super::arcfit::biarc;
 use super::dubins::connect;
-use super::plan::Tagged;
+use super::constant_velocity::Tagged;
 use super::setup::LaserSetup;
 use crate::geometry::Segment;
 use crate::geometry::arc::Arc3;
