@@ -6,6 +6,7 @@ use super::curves::{Conic, Curve, FitPoints, Nurbs, fit_biarcs};
 use super::entities::{Entity, EntityShape, Insert};
 use super::ocs::Affine;
 use super::reader::Pos;
+use crate::geometry::tol::normalize_angle;
 use crate::geometry::{P3, V3};
 use crate::model::chain::Segment;
 use std::collections::{BTreeMap, HashMap};
@@ -212,7 +213,8 @@ impl Expander<'_> {
             EntityShape::Arc { c, r, a0, a1, ext } => {
                 let t = t.then_after(&Affine::ocs(*ext));
                 let a0r = a0.to_radians();
-                let mut sweep = (a1 - a0).to_radians().rem_euclid(TAU);
+                // Counter-clockwise from a0 to a1; equal angles are a full circle.
+                let mut sweep = normalize_angle((a1 - a0).to_radians());
                 if sweep == 0.0 {
                     sweep = TAU;
                 }
@@ -254,7 +256,7 @@ impl Expander<'_> {
             } => {
                 let n = ext.try_normalize(1e-12).unwrap_or(V3::z());
                 let minor = n.cross(major) * *ratio;
-                let mut sweep = (t1 - t0).rem_euclid(TAU);
+                let mut sweep = normalize_angle(t1 - t0);
                 if sweep < 1e-12 {
                     sweep = TAU;
                 }
