@@ -225,7 +225,7 @@ fn set_coord(points: &mut [P3], axis: usize, v: f64) {
     }
 }
 
-/// Read the tags of one entity of type `kind` into `s`, stopping before the
+/// Read the tags of one entity into `s`, stopping before the
 /// next `0` tag.
 fn read_tags(r: &mut Reader, s: &mut Scratch) -> Result<(), DxfError> {
     s.clear();

@@ -15,6 +15,7 @@
 //! The file is read once, front to back; ENTITIES are expanded as they are
 //! read, so memory holds the block definitions and the output geometry but
 //! never the whole file. See docs/dxf.md.
+#![warn(missing_docs)]
 
 pub mod chain;
 pub mod curves;

@@ -4,7 +4,7 @@
 //! whole fit has continuous tangents — no corner loops, no speed changes —
 //! and far fewer blocks than a polyline at the same tolerance. Sharp corners
 //! in the input are kept as corners. docs/arcfit.md compares it with the
-//! seed's curvature matching ([`super::arcfit_seed`]).
+//! curvature matching of Bayesteh (2013) ([`super::arcfit_seed`]).
 
 use crate::geometry::Segment;
 use crate::geometry::arc::Arc3;

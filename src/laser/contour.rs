@@ -1,9 +1,9 @@
 //! `pathgen contour`: chains -> offset paths -> ordered, planned moves.
 
 use super::cleanup::{CleanOptions, CleanStats, clean_path};
+use super::constant_velocity::{Note, plan_path, to_records};
 use super::offset::{Side, offset_chain, to_polyline};
 use super::order;
-use super::constant_velocity::{Note, plan_path, to_records};
 use super::setup::LaserSetup;
 use crate::geometry::Segment;
 use crate::geometry::{P2, P3, V3};

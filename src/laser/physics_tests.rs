@@ -345,8 +345,8 @@ fn planning_is_deterministic() {
 
 #[test]
 fn patterns_obey_the_machine() {
-    use super::patterns::*;
     use super::constant_velocity::{all_cut, plan_paths};
+    use super::patterns::*;
     use crate::geometry::Plane;
     let m = LaserSetup::default().with_accel(200.0);
     let c = P3::new(1.0, 1.0, 0.0);
