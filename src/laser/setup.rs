@@ -308,7 +308,7 @@ mod tests {
     use super::*;
 
     #[test]
-    fn defaults_follow_the_seed_shutter() {
+    fn defaults_follow_the_shutter_of_bayesteh_2013() {
         let m = LaserSetup::default();
         m.validate().unwrap();
         // 29 ms window at 2 mm/s.
