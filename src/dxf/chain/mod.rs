@@ -1,14 +1,14 @@
 //! Chain detection: from loose lines and arcs to ordered, oriented chains.
 //!
 //! Near-linear throughout, in four ideas, one file each:
-//! - [`nodes`]: end points clustered into nodes with a spatial hash (and a
+//! - `nodes.rs`: end points clustered into nodes with a spatial hash (and a
 //!   short list of the nodes just seen, which catches the shared end of
 //!   consecutive pieces without a probe);
-//! - [`repair`]: zero-length pieces, collinear overlaps (buckets of
+//! - `repair.rs`: zero-length pieces, collinear overlaps (buckets of
 //!   direction and offset), duplicates (pieces between the same two nodes,
 //!   found through the node adjacency), snapping;
-//! - [`walk`]: the graph walk from nodes of degree != 2, then cycles;
-//! - [`orient`]: nesting depth through a grid over the closed chains'
+//! - `walk.rs`: the graph walk from nodes of degree != 2, then cycles;
+//! - `orient.rs`: nesting depth through a grid over the closed chains'
 //!   boxes, and the exact point-in-chain and area tests.
 //!
 //! The chaining of Bayesteh (2013) compares every pair of segments; this
