@@ -5,6 +5,7 @@
 //!
 //! Arcs outside the XY plane are drawn as their chords' projection, which
 //! is what a top view shows of them up to their bulge.
+#![warn(missing_docs)]
 
 use crate::formats::push_num;
 use crate::geometry::{P3, Plane};
@@ -20,6 +21,8 @@ pub struct Preview {
 }
 
 impl Preview {
+    /// An empty preview with the machine at `start` (where the first move
+    /// leaves from).
     pub fn new(start: P3) -> Self {
         Preview {
             body: String::new(),

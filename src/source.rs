@@ -1,5 +1,6 @@
 //! Any toolpath input a tool accepts: toolpath JSON Lines or G-code of
 //! either dialect, told apart by the first non-blank byte (`{` is JSON).
+#![warn(missing_docs)]
 
 use crate::cli::{CliError, Input};
 use crate::formats::toolpath::ToolpathReader;
@@ -10,13 +11,18 @@ use std::io::BufRead;
 /// What the input turned out to be.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum SourceKind {
+    /// `microcam.toolpath/1` JSON Lines.
     Toolpath,
+    /// G-code text, in the dialect the reader settled on.
     Gcode(Dialect),
 }
 
 /// A stream of toolpath records with its header, from either kind of input.
 pub struct ToolpathSource {
+    /// The toolpath header: read from a JSON input; for G-code, the
+    /// dialect's feed unit and the file name as the source.
     pub header: Header,
+    /// What the input turned out to be.
     pub kind: SourceKind,
     name: String,
     inner: Inner,

@@ -13,6 +13,7 @@ use crate::model::chain::Segment;
 
 /// A parametric curve in the XY plane (z is carried from the start).
 pub trait Curve {
+    /// The point at parameter `t`, from 0 at the start to 1 at the end.
     fn point(&self, t: f64) -> P3;
     /// Parameter values where the curve may have a corner or where fitting
     /// should start a fresh piece, including both ends, increasing.
@@ -23,10 +24,15 @@ pub trait Curve {
 /// with any pair of conjugate semi-diameters, which is what an ellipse (or a
 /// circle) becomes under any affine map.
 pub struct Conic {
+    /// Centre (mm).
     pub c: P3,
+    /// The semi-diameter at angle 0 (mm).
     pub u: V3,
+    /// The conjugate semi-diameter, at angle π/2 (mm).
     pub v: V3,
+    /// Start angle (radians).
     pub t0: f64,
+    /// Signed sweep (radians); [`Curve::point`]'s `t` runs over it.
     pub sweep: f64,
 }
 
@@ -46,9 +52,14 @@ impl Curve for Conic {
 
 /// A (possibly rational) B-spline of any degree.
 pub struct Nurbs {
+    /// Polynomial degree, 1 to `ctrl.len() - 1`.
     pub degree: usize,
+    /// Non-decreasing knots, `ctrl.len() + degree + 1` of them; the curve
+    /// runs over `knots[degree]..knots[ctrl.len()]`.
     pub knots: Vec<f64>,
+    /// Control points (mm), at least two.
     pub ctrl: Vec<P3>,
+    /// One positive weight per control point (all 1: a plain B-spline).
     pub weights: Vec<f64>,
 }
 
@@ -140,6 +151,8 @@ impl Curve for Nurbs {
 /// A smooth interpolant (Catmull-Rom) through fit points, for splines that
 /// carry fit points but no control points.
 pub struct FitPoints {
+    /// The points the curve passes through, in order (mm), at least two;
+    /// they are equally spaced in the curve's parameter.
     pub pts: Vec<P3>,
 }
 
@@ -334,7 +347,7 @@ pub fn biarc(p0: P3, t0: V3, p1: P3, t1: V3) -> Option<[Segment; 2]> {
     Some([first, second])
 }
 
-/// Distance in XY from `q` to a segment.
+/// Distance in XY from `q` to a segment (infinite for a degenerate arc).
 pub fn distance(s: &Segment, q: &P3) -> f64 {
     s.distance(&P3::new(q.x, q.y, s.start().z)).unwrap_or(f64::INFINITY)
 }

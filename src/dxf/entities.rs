@@ -13,70 +13,123 @@ use std::rc::Rc;
 /// A typed drawing entity we can turn into geometry.
 #[derive(Debug, Clone, PartialEq)]
 pub enum EntityShape {
+    /// LINE (or the old 3DLINE): a straight segment in world coordinates.
     Line {
+        /// Start (groups 10/20/30).
         a: P3,
+        /// End (groups 11/21/31).
         b: P3,
     },
-    /// Angles in degrees, counter-clockwise in the OCS.
+    /// ARC: angles in degrees, counter-clockwise in the OCS.
     Arc {
+        /// Centre, in the OCS.
         c: P3,
+        /// Radius (drawing units).
         r: f64,
+        /// Start angle (degrees, group 50).
         a0: f64,
+        /// End angle (degrees, group 51); the arc runs counter-clockwise
+        /// from `a0` to `a1`, a full circle when they are equal.
         a1: f64,
+        /// Extrusion direction, which defines the OCS (group 210).
         ext: V3,
     },
+    /// CIRCLE: a full turn, counter-clockwise in the OCS.
     Circle {
+        /// Centre, in the OCS.
         c: P3,
+        /// Radius (drawing units).
         r: f64,
+        /// Extrusion direction, which defines the OCS.
         ext: V3,
     },
     /// LWPOLYLINE or 2-D POLYLINE: OCS vertices with bulges, at `elevation`.
     Poly2 {
+        /// (x, y, bulge) per vertex; the bulge (`tan(sweep / 4)`, positive
+        /// counter-clockwise) belongs to the segment to the next vertex.
         verts: Vec<(f64, f64, f64)>,
+        /// The last vertex joins the first (flag 1 of group 70).
         closed: bool,
+        /// The OCS Z of every vertex.
         elevation: f64,
+        /// Extrusion direction, which defines the OCS.
         ext: V3,
         /// Read from an LWPOLYLINE (for the summary's counts).
         lw: bool,
     },
     /// 3-D POLYLINE: world vertices, straight segments.
     Poly3 {
+        /// The vertices in order.
         verts: Vec<P3>,
+        /// The last vertex joins the first.
         closed: bool,
     },
-    /// World centre, major axis vector, minor/major ratio, parameters.
+    /// ELLIPSE (full or partial), in world coordinates:
+    /// `c + major cos t + minor sin t` with `minor = ratio · (ext × major)`.
     Ellipse {
+        /// Centre.
         c: P3,
+        /// Major semi-axis as a vector from the centre (drawing units).
         major: V3,
+        /// Minor to major axis length.
         ratio: f64,
+        /// Start parameter (radians, group 41; 0 when absent).
         t0: f64,
+        /// End parameter (radians, group 42; 2π when absent); the curve
+        /// runs counter-clockwise about `ext` from `t0` to `t1`.
         t1: f64,
+        /// Extrusion direction: the ellipse's normal.
         ext: V3,
     },
+    /// SPLINE, as the file states it: a NURBS when it has two or more
+    /// control points, else a curve through its fit points.
     Spline {
+        /// Polynomial degree (group 71, clamped to 0..=64).
         degree: usize,
+        /// Knot vector (groups 40).
         knots: Vec<f64>,
+        /// Control points, world coordinates (groups 10).
         ctrl: Vec<P3>,
+        /// Control point weights (groups 41); unit weights are used when
+        /// they are absent or unusable.
         weights: Vec<f64>,
+        /// Fit points (groups 11), used when there are no control points.
         fit: Vec<P3>,
+        /// Flag 1 of group 70. Informative only: the control points and
+        /// knots alone define the curve.
         closed: bool,
     },
+    /// POINT: kept as a point (drill marks), not as geometry to chain.
     Point {
+        /// The point, world coordinates.
         p: P3,
     },
+    /// INSERT or MINSERT: a placed (and possibly arrayed) block.
     Insert(Box<Insert>),
 }
 
+/// An INSERT (or MINSERT): block `block` placed at `p`, scaled, rotated
+/// about the OCS Z axis, and repeated `rows` × `cols` times.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Insert {
+    /// The block's name, upper-cased once the drawing is read (DXF block
+    /// names are case-insensitive).
     pub block: String,
+    /// Insertion point, in the OCS; the block's base point lands here.
     pub p: P3,
+    /// X, Y and Z scale factors (groups 41, 42, 43; negative mirrors).
     pub scale: V3,
+    /// Rotation about the OCS Z axis (degrees, counter-clockwise).
     pub rotation_deg: f64,
+    /// Array columns (group 70, at least 1).
     pub cols: u32,
+    /// Array rows (group 71, at least 1).
     pub rows: u32,
+    /// Distance between columns, in the rotated but unscaled insert frame.
     pub col_spacing: f64,
+    /// Distance between rows, in the rotated but unscaled insert frame.
     pub row_spacing: f64,
+    /// Extrusion direction, which defines the OCS.
     pub ext: V3,
 }
 
@@ -86,12 +139,15 @@ pub struct Entity {
     /// Shared by the entities of a run on one layer (one allocation per
     /// run, not per entity).
     pub layer: Rc<str>,
+    /// The geometry.
     pub shape: EntityShape,
+    /// Where its `0` tag sits, for error messages.
     pub pos: Pos,
 }
 
 /// What [`read_entity`] found.
 pub enum Read {
+    /// An entity we can place.
     Entity(Entity),
     /// A type we do not turn into geometry (TEXT, HATCH, ...), or a
     /// variant we cannot (polyface mesh): counted by name.
@@ -169,7 +225,7 @@ fn set_coord(points: &mut [P3], axis: usize, v: f64) {
     }
 }
 
-/// Read the tags of one entity of type `kind` into `s`, stopping before the
+/// Read the tags of one entity into `s`, stopping before the
 /// next `0` tag.
 fn read_tags(r: &mut Reader, s: &mut Scratch) -> Result<(), DxfError> {
     s.clear();

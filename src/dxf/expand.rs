@@ -6,15 +6,21 @@ use super::curves::{Conic, Curve, FitPoints, Nurbs, fit_biarcs};
 use super::entities::{Entity, EntityShape, Insert};
 use super::ocs::Affine;
 use super::reader::Pos;
+use crate::geometry::tol::normalize_angle;
 use crate::geometry::{P3, V3};
 use crate::model::chain::Segment;
 use std::collections::{BTreeMap, HashMap};
 use std::f64::consts::TAU;
 
-/// A block definition.
+/// A block definition: entities drawn relative to a base point, placed
+/// by INSERTs.
 #[derive(Debug, Default)]
 pub struct BlockDef {
+    /// The base point (groups 10/20/30 of BLOCK), which an INSERT puts at
+    /// its insertion point.
     pub base: P3,
+    /// The block's entities as read (their own coordinates, nested
+    /// INSERTs unexpanded).
     pub entities: Vec<Entity>,
 }
 
@@ -23,7 +29,9 @@ pub struct BlockDef {
 pub struct Sink {
     /// Segments with the index of their layer in `layers`.
     pub segments: Vec<(Segment, u32)>,
+    /// POINT entities (mm, world) with the index of their layer.
     pub points: Vec<(P3, u32)>,
+    /// Layer names in order of first use; the indices above point here.
     pub layers: Vec<String>,
     layer_ids: HashMap<String, u32>,
     /// The layer asked for last (drawings come in runs of one layer).
@@ -32,9 +40,12 @@ pub struct Sink {
     pub used: BTreeMap<&'static str, u64>,
     /// Warnings, by text, with counts.
     pub warnings: BTreeMap<String, u64>,
-    /// Splines and ellipses fitted, arcs emitted, chords a polyline needs.
+    /// Splines and ellipses fitted with biarcs.
     pub curves: u64,
+    /// Arcs and lines those fits gave.
     pub curve_pieces: u64,
+    /// Straight chords a polyline would need for the same curves within
+    /// the same tolerance (for the summary's comparison).
     pub curve_chords: u64,
     /// The drawing expanded past `max_segments` segments or expanded
     /// entities: the result is incomplete and must not be used.
@@ -52,7 +63,11 @@ pub struct Sink {
 
 /// How to expand: tolerance and layer filter.
 pub struct Expander<'a> {
+    /// The drawing's blocks by upper-cased name.
     pub blocks: &'a HashMap<String, BlockDef>,
+    /// Fitting tolerance for splines and ellipses (mm), also the distance
+    /// within which a nearly straight arc with a far-out centre becomes
+    /// its chord.
     pub arc_tol: f64,
     /// Empty: every layer.
     pub layers: &'a [String],
@@ -64,8 +79,9 @@ pub struct Expander<'a> {
 /// of the expansion); a block on its own insert stack is recursion, told
 /// apart at any depth.
 pub const MAX_NESTING: usize = 1000;
-/// A guard against block bombs (arrays of arrays of arrays...).
-/// The default guard: about 2 GB of geometry.
+/// The default bound on the segments (and expanded entities) of one
+/// drawing, a guard against block bombs (arrays of arrays of arrays...):
+/// about 2 GB of geometry.
 pub const MAX_SEGMENTS: usize = 20_000_000;
 /// Coordinates (in mm, after units, inserts and user transforms) beyond
 /// this are bad input: no machine travels a kilometre, and past this the
@@ -197,7 +213,8 @@ impl Expander<'_> {
             EntityShape::Arc { c, r, a0, a1, ext } => {
                 let t = t.then_after(&Affine::ocs(*ext));
                 let a0r = a0.to_radians();
-                let mut sweep = (a1 - a0).to_radians().rem_euclid(TAU);
+                // Counter-clockwise from a0 to a1; equal angles are a full circle.
+                let mut sweep = normalize_angle((a1 - a0).to_radians());
                 if sweep == 0.0 {
                     sweep = TAU;
                 }
@@ -239,7 +256,7 @@ impl Expander<'_> {
             } => {
                 let n = ext.try_normalize(1e-12).unwrap_or(V3::z());
                 let minor = n.cross(major) * *ratio;
-                let mut sweep = (t1 - t0).rem_euclid(TAU);
+                let mut sweep = normalize_angle(t1 - t0);
                 if sweep < 1e-12 {
                     sweep = TAU;
                 }

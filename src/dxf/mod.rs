@@ -15,6 +15,7 @@
 //! The file is read once, front to back; ENTITIES are expanded as they are
 //! read, so memory holds the block definitions and the output geometry but
 //! never the whole file. See docs/dxf.md.
+#![warn(missing_docs)]
 
 pub mod chain;
 pub mod curves;
@@ -78,12 +79,18 @@ pub enum UnitSource {
 /// The drawing as geometry, with what was counted on the way.
 #[derive(Debug)]
 pub struct Import {
+    /// The geometry in millimetres (segments, points, layers) and what
+    /// the expansion counted and warned about.
     pub sink: Sink,
     /// Entity types not turned into geometry, with counts.
     pub skipped: BTreeMap<String, u64>,
+    /// Millimetres per drawing unit, as applied.
     pub unit_mm: f64,
+    /// Where `unit_mm` came from.
     pub unit_source: UnitSource,
+    /// `$ACADVER` (such as `AC1015`), when the header states it.
     pub version: Option<String>,
+    /// The file was a binary DXF.
     pub binary: bool,
 }
 
@@ -96,7 +103,10 @@ enum Section {
     Other,
 }
 
-/// Read a whole DXF file.
+/// Read a whole DXF file (ASCII or binary, sniffed) into geometry in
+/// millimetres with every copy of [`ImportOptions::copies`] applied. Fails
+/// on a malformed or truncated file, and on a drawing that expands past
+/// [`ImportOptions::max_segments`] or beyond [`expand::MAX_COORD`].
 pub fn import(input: Box<dyn BufRead>, opts: &ImportOptions) -> Result<Import, DxfError> {
     let mut r = Reader::new(input)?;
     let binary = r.is_binary();

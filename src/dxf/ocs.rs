@@ -13,11 +13,14 @@ use nalgebra::Matrix3;
 /// `p -> m * p + t`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Affine {
+    /// The linear part (rotation, scale, mirror, shear).
     pub m: Matrix3<f64>,
+    /// The translation, added after `m`.
     pub t: V3,
 }
 
 impl Affine {
+    /// The map that leaves every point where it is.
     pub fn identity() -> Affine {
         Affine {
             m: Matrix3::identity(),
@@ -25,6 +28,7 @@ impl Affine {
         }
     }
 
+    /// A shift by `t`.
     pub fn translate(t: V3) -> Affine {
         Affine {
             m: Matrix3::identity(),
@@ -32,6 +36,8 @@ impl Affine {
         }
     }
 
+    /// A scale about the origin by `sx`, `sy`, `sz` along the axes (a
+    /// negative factor mirrors).
     pub fn scale(sx: f64, sy: f64, sz: f64) -> Affine {
         Affine {
             m: Matrix3::from_diagonal(&V3::new(sx, sy, sz)),
@@ -65,14 +71,18 @@ impl Affine {
         }
     }
 
+    /// The image of point `p`.
     pub fn apply(&self, p: &P3) -> P3 {
         P3::from(self.m * p.coords + self.t)
     }
 
+    /// The image of direction or offset `v` (no translation).
     pub fn apply_vec(&self, v: &V3) -> V3 {
         self.m * v
     }
 
+    /// True when no entry is NaN or infinite (a scale of 1e300 times 1e300
+    /// in nested inserts is not).
     pub fn is_finite(&self) -> bool {
         self.m.iter().all(|x| x.is_finite()) && self.t.iter().all(|x| x.is_finite())
     }

@@ -17,7 +17,9 @@ use thiserror::Error;
 /// files by byte offset.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Pos {
+    /// A line of an ASCII file, counted from 1.
     Line(u64),
+    /// A byte offset into a binary file, counted from 0.
     Byte(u64),
 }
 
@@ -33,13 +35,22 @@ impl fmt::Display for Pos {
 /// A DXF reading error, located.
 #[derive(Debug, Error)]
 pub enum DxfError {
+    /// The file is not valid DXF (or holds what we refuse, such as a block
+    /// bomb) at this position.
     #[error("{pos}: {msg}")]
-    Syntax { pos: Pos, msg: String },
+    Syntax {
+        /// Where the problem lies.
+        pos: Pos,
+        /// What it is, for the user.
+        msg: String,
+    },
+    /// The input could not be read.
     #[error("read error: {0}")]
     Io(#[from] std::io::Error),
 }
 
 impl DxfError {
+    /// A [`DxfError::Syntax`] at `pos`.
     pub fn at(pos: Pos, msg: impl Into<String>) -> Self {
         DxfError::Syntax { pos, msg: msg.into() }
     }
@@ -49,12 +60,19 @@ impl DxfError {
 /// types").
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Kind {
+    /// Text (also handles, and codes we do not know).
     Str,
+    /// A double: coordinates, distances, angles, scales.
     Float,
+    /// A 16-bit integer (flags, counts, colours).
     Int16,
+    /// A 32-bit integer.
     Int32,
+    /// A 64-bit integer.
     Int64,
+    /// A boolean (one byte in binary files, 0 or 1 in ASCII).
     Bool,
+    /// A binary chunk (hex text in ASCII files); its content is dropped.
     Binary,
 }
 
@@ -70,6 +88,8 @@ static KINDS: [Kind; 1072] = {
     t
 };
 
+/// The value type group code `code` carries; codes outside 0..=1071 read
+/// as text.
 #[inline]
 pub fn kind_of(code: i32) -> Kind {
     match usize::try_from(code) {
@@ -138,7 +158,9 @@ pub struct Reader {
     /// Binary: bytes consumed so far.
     count: u64,
     buf: Vec<u8>,
+    /// The current tag's group code (what [`Reader::next_tag`] returned).
     pub code: i32,
+    /// Where the current tag's group code sits, for error messages.
     pub pos: Pos,
     float: f64,
     int: i64,
@@ -161,7 +183,8 @@ enum Pending {
 }
 
 /// ASCII input: the file is read in blocks of whole lines, each tokenized
-/// on the rayon pool while the caller consumes the earlier ones in order.
+/// on a thread of its own while the caller consumes the earlier ones in
+/// order.
 struct Ascii {
     /// Bytes read but not yet in a block.
     carry: Vec<u8>,
@@ -319,6 +342,7 @@ impl Reader {
         })
     }
 
+    /// True for a binary DXF (sniffed from its sentinel), false for ASCII.
     pub fn is_binary(&self) -> bool {
         matches!(self.mode, Mode::Binary { .. })
     }
@@ -340,14 +364,21 @@ impl Reader {
         }
     }
 
+    /// The current tag's value, when its code is of [`Kind::Float`]
+    /// (otherwise the last float read).
     pub fn float(&self) -> f64 {
         self.float
     }
 
+    /// The current tag's value, when its code is an integer or boolean kind
+    /// (otherwise the last integer read).
     pub fn int(&self) -> i64 {
         self.int
     }
 
+    /// The current tag's text, when its code is of [`Kind::Str`] (lossily
+    /// decoded when not UTF-8). A [`Kind::Binary`] chunk reads as its hex
+    /// text in an ASCII file and as empty in a binary one.
     pub fn text(&self) -> &str {
         match (&self.ascii, &self.tag) {
             (Some(a), Some(t)) => a.cur.text(t),

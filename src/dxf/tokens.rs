@@ -15,10 +15,12 @@ use super::reader::{Kind, kind_of};
 /// block's first line.
 #[derive(Debug, Clone, Copy)]
 pub struct Tag {
+    /// The group code (DXF codes fit in an `i16`; binary files store them so).
     pub code: i16,
     /// The string value was not UTF-8: its lossy decoding is
     /// `TokenBlock::lossy[val]`.
     pub lossy: bool,
+    /// The group code's line, from 1 at the block's first line.
     pub line: u32,
     /// f64 bits (floats), i64 (integers) or `start | len << 32` (strings:
     /// the text, without its line end, in `TokenBlock::bytes`).
@@ -32,23 +34,44 @@ pub enum End {
     Clean,
     /// After a group code line whose value line is not in the block: the
     /// code's line and the byte offset where that line starts.
-    Dangling { line: u32, off: usize, code: i32 },
+    Dangling {
+        /// The group code's line, relative to the block.
+        line: u32,
+        /// The byte offset in the block where that line starts.
+        off: usize,
+        /// The group code.
+        code: i32,
+    },
     /// A blank line where a group code belongs, with only blank lines after
     /// it in this block: fine at the end of the file, an error before more
     /// tags.
-    Blank { line: u32 },
+    Blank {
+        /// The blank line, relative to the block.
+        line: u32,
+    },
     /// A syntax error at this line (relative to the block).
-    Error { line: u32, msg: String },
+    Error {
+        /// The offending line, relative to the block.
+        line: u32,
+        /// What is wrong there.
+        msg: String,
+    },
 }
 
 /// A tokenized block of lines.
 #[derive(Debug)]
 pub struct TokenBlock {
+    /// The block's bytes: whole lines, line ends included. String tags
+    /// point into it.
     pub bytes: Vec<u8>,
+    /// The tags in file order.
     pub tags: Vec<Tag>,
+    /// Lossy decodings of the string values that were not UTF-8, indexed
+    /// by [`Tag::val`] of a tag with [`Tag::lossy`] set.
     pub lossy: Vec<String>,
     /// Lines in the block.
     pub lines: u64,
+    /// How the block ended: cleanly, inside a tag, or at an error.
     pub end: End,
     /// No line holds anything but white space.
     pub blank_only: bool,

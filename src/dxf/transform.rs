@@ -1,4 +1,4 @@
-//! The drawing transforms of the thesis' CAD panel: move, rotate, scale,
+//! The drawing transforms of the CAD panel of Bayesteh (2013): move, rotate, scale,
 //! mirror, and linear and polar patterns, as the list of affine maps (one
 //! per copy) that [`super::ImportOptions::copies`] takes.
 //!
@@ -17,19 +17,26 @@ pub enum Mirror {
     Y,
 }
 
+/// The user's transforms of the drawing (dxf2chains flags), applied in
+/// millimetres after the drawing's units; `None` leaves a step out.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct Transforms {
+    /// `--translate`: shift (dx, dy) in mm.
     pub translate: Option<(f64, f64)>,
+    /// `--rotate`: about the origin, degrees counter-clockwise.
     pub rotate_deg: Option<f64>,
+    /// `--scale`: uniform factor about the origin.
     pub scale: Option<f64>,
+    /// `--mirror`: which axis flips.
     pub mirror: Option<Mirror>,
-    /// nx, ny, dx, dy.
+    /// `--array`: nx columns, ny rows, spaced dx, dy (mm).
     pub array: Option<(u32, u32, f64, f64)>,
-    /// n, step angle (degrees), centre x, centre y.
+    /// `--polar`: n copies, step angle (degrees), centre x, centre y (mm).
     pub polar: Option<(u32, f64, f64, f64)>,
 }
 
 impl Transforms {
+    /// True when no transform was asked for: one copy of the drawing as is.
     pub fn is_identity(&self) -> bool {
         *self == Transforms::default()
     }

@@ -4,7 +4,7 @@
 //! whole fit has continuous tangents — no corner loops, no speed changes —
 //! and far fewer blocks than a polyline at the same tolerance. Sharp corners
 //! in the input are kept as corners. docs/arcfit.md compares it with the
-//! seed's curvature matching ([`super::arcfit_seed`]).
+//! curvature matching of Bayesteh (2013) ([`super::arcfit_seed`]).
 
 use crate::geometry::Segment;
 use crate::geometry::arc::Arc3;
@@ -914,7 +914,9 @@ fn fit_chain(pts: &[P2], tol: f64, z: f64, polyline: bool, cap: f64, eps: f64) -
 /// per block; every piece leaves in the direction the previous one arrived.
 /// Several caps are tried (0: biarcs only) and the fit with the fewest
 /// blocks kept. Pieces on one circle are merged. Sharp corners in the points
-/// (see [`corners`]) are kept: the fit is tangent-continuous between them.
+/// (where the chords turn by more than 20° and by more than four times the
+/// turn at either neighbouring point) are kept: the fit is
+/// tangent-continuous between them.
 pub fn fit_points(pts: &[P2], tol: f64, z: f64, polyline: bool) -> Vec<Segment> {
     let mut clean: Vec<P2> = Vec::with_capacity(pts.len());
     for p in pts {

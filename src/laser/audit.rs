@@ -119,7 +119,9 @@ impl Audit {
 /// what they do to a block.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PmacTa {
+    /// Acceleration time in force (ms).
     pub ta_ms: f64,
+    /// S-curve time in force (ms).
     pub ts_ms: f64,
 }
 

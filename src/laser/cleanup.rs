@@ -38,7 +38,10 @@ use crate::geometry::{P2, P3, Plane};
 /// when that moves the path by at most `tol` (mm). `tol` 0 turns it off.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct CleanOptions {
+    /// The least block (mm): V·1 ms plus the writer's rounding margin.
     pub min_len: f64,
+    /// Largest deviation from the path as given (mm); 0 turns the cleanup
+    /// off.
     pub tol: f64,
 }
 
@@ -49,8 +52,9 @@ pub struct CleanStats {
     pub short: usize,
     /// Of those, how many are still there (no candidate within the tolerance).
     pub left: usize,
-    /// Pieces before and after.
+    /// Pieces before cleaning.
     pub pieces_in: usize,
+    /// Pieces after cleaning.
     pub pieces_out: usize,
     /// Largest deviation from the path as given (mm, a bound measured by
     /// sampling, see the module documentation).
@@ -58,6 +62,8 @@ pub struct CleanStats {
 }
 
 impl CleanStats {
+    /// Sum another path's figures into these (the deviation is the larger
+    /// of the two).
     pub fn add(&mut self, o: &CleanStats) {
         self.short += o.short;
         self.left += o.left;

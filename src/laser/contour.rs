@@ -1,9 +1,9 @@
 //! `pathgen contour`: chains -> offset paths -> ordered, planned moves.
 
 use super::cleanup::{CleanOptions, CleanStats, clean_path};
+use super::constant_velocity::{Note, plan_path, to_records};
 use super::offset::{Side, offset_chain, to_polyline};
 use super::order;
-use super::plan::{Note, plan_path, to_records};
 use super::setup::LaserSetup;
 use crate::geometry::Segment;
 use crate::geometry::{P2, P3, V3};
@@ -17,7 +17,9 @@ use rayon::prelude::*;
 pub enum Direction {
     /// As drawn (after offsetting).
     Keep,
+    /// Counter-clockwise seen from +Z.
     Ccw,
+    /// Clockwise seen from +Z.
     Cw,
 }
 
@@ -26,25 +28,34 @@ pub enum Direction {
 pub enum OrderMode {
     /// Input order.
     Input,
-    /// The thesis' nearest neighbour.
+    /// Nearest neighbour, as in Bayesteh (2013).
     Nearest,
     /// Nearest neighbour improved by 2-opt and Or-opt.
     Optimized,
 }
 
+/// What `pathgen contour` is asked for, beyond the machine.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ContourOptions {
+    /// Which side of each chain the beam centre runs on; inside and
+    /// outside are of the part, so a hole's sides swap.
     pub side: Side,
+    /// Offset from the chain (mm, not negative); 0 cuts on the line.
     pub distance: f64,
     /// Passes per chain, each `level_step` further along Z.
     pub levels: u32,
+    /// Z shift between passes (mm; negative goes down).
     pub level_step: f64,
     /// Copies of the whole job in X and Y, `pitch` apart.
     pub array: (u32, u32),
+    /// Distance between copies in X and Y (mm).
     pub pitch: (f64, f64),
-    /// Start closed paths at their vertex nearest this point (else where drawn).
+    /// Start closed paths at their vertex nearest this point; without it
+    /// they start at their first corner, so the seam costs no loop.
     pub start_near: Option<P2>,
+    /// Travel sense of closed paths.
     pub direction: Direction,
+    /// How chains are ordered.
     pub order: OrderMode,
     /// Where the machine starts (for ordering).
     pub origin: P2,
@@ -78,14 +89,19 @@ impl Default for ContourOptions {
 /// Something to tell the user, tied to a chain.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Warning {
+    /// The chain's id (`microcam.chains/1`).
     pub chain: u64,
+    /// What happened, one line for the user.
     pub message: String,
 }
 
 /// A planned job: moves and what the user should know.
 #[derive(Debug, Default)]
 pub struct ContourJob {
+    /// The toolpath: the ramps first, then every path's moves in cutting
+    /// order.
     pub records: Vec<Record>,
+    /// One per chain and kind of note.
     pub warnings: Vec<Warning>,
     /// What the cleanup of short pieces did (once per path, not per copy).
     pub cleanup: CleanStats,
@@ -214,11 +230,13 @@ pub fn estimated_moves(chains: &[Chain], o: &ContourOptions) -> f64 {
     per_pass * f64::from(o.levels.max(1)) * f64::from(o.array.0.max(1)) * f64::from(o.array.1.max(1))
 }
 
-/// Plan a whole contour job.
+/// Plan a whole contour job: offset, clean, orient and order every chain,
+/// then plan each path at constant velocity, for every level and array
+/// copy.
 pub fn contour(chains: &[Chain], m: &LaserSetup, o: &ContourOptions) -> ContourJob {
     let (items, plan, warnings, cleanup) = prepare(chains, m, o);
     let mut job = ContourJob {
-        records: vec![super::plan::ramps_record(m)],
+        records: vec![super::constant_velocity::ramps_record(m)],
         warnings,
         cleanup,
     };
@@ -405,7 +423,7 @@ pub fn contour_streamed(
 ) -> (Vec<Warning>, CleanStats) {
     let (items, plan, mut warnings, cleanup) = prepare(chains, m, o);
     let mut sink = sink;
-    if !sink(vec![super::plan::ramps_record(m)]) {
+    if !sink(vec![super::constant_velocity::ramps_record(m)]) {
         return (warnings, cleanup);
     }
     // About 64k moves per chunk for 100-segment chains: big enough to keep

@@ -11,17 +11,26 @@ use crate::geometry::arc::Arc3;
 use crate::geometry::{P2, P3, Plane, V2};
 use std::f64::consts::TAU;
 
+/// The six candidate shapes of a Dubins path: L a left turn, R a right
+/// turn (both of the minimum radius), S a straight.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Word {
+    /// Left, straight, left.
     Lsl,
+    /// Right, straight, right.
     Rsr,
+    /// Left, straight, right.
     Lsr,
+    /// Right, straight, left.
     Rsl,
+    /// Right, left, right (three turns, for close poses).
     Rlr,
+    /// Left, right, left (three turns, for close poses).
     Lrl,
 }
 
 impl Word {
+    /// Every word, in the order they are tried (ties go to the first).
     pub const ALL: [Word; 6] = [Word::Lsl, Word::Rsr, Word::Lsr, Word::Rsl, Word::Rlr, Word::Lrl];
 
     /// The three piece types: 'L', 'S' or 'R'.
@@ -41,12 +50,17 @@ impl Word {
 /// radius (angles in radians for turns).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Dubins {
+    /// Which shape.
     pub word: Word,
+    /// The three pieces' lengths divided by the radius (a turn's is its
+    /// angle in radians).
     pub params: [f64; 3],
+    /// The turning radius (mm).
     pub radius: f64,
 }
 
 impl Dubins {
+    /// Total length of the path (mm).
     pub fn length(&self) -> f64 {
         self.radius * (self.params[0] + self.params[1] + self.params[2])
     }

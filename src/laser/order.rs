@@ -1,4 +1,4 @@
-//! Cut order: the thesis visits chains by nearest neighbour; we start from
+//! Cut order: Bayesteh (2013) visits chains by nearest neighbour; we start from
 //! that tour and improve it with 2-opt and Or-opt moves restricted to each
 //! node's nearest neighbours (the standard neighbour-list speed-up, so a
 //! pass costs O(n·k) candidate checks instead of O(n²)).
@@ -113,7 +113,7 @@ impl Grid {
     }
 }
 
-/// The thesis' order: always go to the nearest unvisited point.
+/// The order of Bayesteh (2013): always go to the nearest unvisited point.
 pub fn nearest_neighbour(pts: &[P2], start: P2) -> Vec<usize> {
     let n = pts.len();
     if n == 0 {

@@ -4,8 +4,8 @@
 //! pattern runs at constant V with the beam switched exactly.
 
 use super::arcfit::biarc;
+use super::constant_velocity::Tagged;
 use super::dubins::connect;
-use super::plan::Tagged;
 use super::setup::LaserSetup;
 use crate::geometry::Segment;
 use crate::geometry::arc::Arc3;
@@ -149,15 +149,26 @@ pub fn archimedean_limited(
 /// `corner_radius` and the stage's V²/a, long enough for the shutter.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Zigzag {
+    /// The corner where the first cut line starts (mm).
     pub origin: P3,
+    /// The plane of the rectangle; its first two axes are the lines' axes.
     pub plane: Plane,
+    /// Cut along the plane's second axis instead of its first.
     pub along_second: bool,
+    /// Length of each cut line (mm).
     pub length: f64,
+    /// Extent across the lines (mm): `floor(width / step) + 1` lines.
     pub width: f64,
+    /// Distance between lines (mm).
     pub step: f64,
+    /// Least radius of the turnarounds (mm); the stage's V²/a wins when
+    /// larger.
     pub corner_radius: f64,
 }
 
+/// The zigzag as one tagged path: cut lines alternating in direction,
+/// joined by beam-off Dubins turnarounds (role `Loop`) that
+/// [`plan_tagged`](super::constant_velocity::plan_tagged) keeps as they are.
 pub fn zigzag(z: &Zigzag, m: &LaserSetup) -> Tagged {
     let Zigzag {
         origin,

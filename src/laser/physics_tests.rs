@@ -345,8 +345,8 @@ fn planning_is_deterministic() {
 
 #[test]
 fn patterns_obey_the_machine() {
+    use super::constant_velocity::{all_cut, plan_paths};
     use super::patterns::*;
-    use super::plan::{all_cut, plan_paths};
     use crate::geometry::Plane;
     let m = LaserSetup::default().with_accel(200.0);
     let c = P3::new(1.0, 1.0, 0.0);
@@ -359,7 +359,7 @@ fn patterns_obey_the_machine() {
         step,
         corner_radius,
     };
-    let cases: Vec<(&str, Vec<super::plan::Tagged>)> = vec![
+    let cases: Vec<(&str, Vec<super::constant_velocity::Tagged>)> = vec![
         ("helix", vec![all_cut(helix(c, 0.3, -0.01, 4, true))]),
         ("square", vec![all_cut(square_spiral(c, 0.05, 0.5, false))]),
         ("square in", vec![all_cut(square_spiral(c, 0.05, 0.5, true))]),

@@ -16,8 +16,13 @@ pub const DEFAULT_DECIMALS: u8 = 4;
 /// Why a set of machine parameters cannot be planned with.
 #[derive(Debug, Error, PartialEq)]
 pub enum SetupError {
+    /// This parameter (named) must be above zero: the feed, TA, TD, the
+    /// cut TA.
     #[error("{0} must be a positive finite number, got {1}")]
     NotPositive(&'static str, f64),
+    /// This parameter (named) may be zero but not negative: TS, the
+    /// shutter's delays and transfers, the minimum exposure, the tangency
+    /// tolerance.
     #[error("{0} must be a finite number >= 0, got {1}")]
     Negative(&'static str, f64),
 }
@@ -303,7 +308,7 @@ mod tests {
     use super::*;
 
     #[test]
-    fn defaults_follow_the_seed_shutter() {
+    fn defaults_follow_the_shutter_of_bayesteh_2013() {
         let m = LaserSetup::default();
         m.validate().unwrap();
         // 29 ms window at 2 mm/s.

@@ -7,9 +7,9 @@ use super::common::{
 use clap::Args as ClapArgs;
 use microcam::cli::CliError;
 use microcam::geometry::{P3, Plane};
+use microcam::laser::constant_velocity::{Tagged, all_cut, plan_paths};
 use microcam::laser::contour::Warning;
 use microcam::laser::patterns;
-use microcam::laser::plan::{Tagged, all_cut, plan_paths};
 use microcam::laser::setup::LaserSetup;
 
 pub(crate) const PATTERN_EXAMPLES: &str = "\

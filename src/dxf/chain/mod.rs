@@ -1,17 +1,18 @@
 //! Chain detection: from loose lines and arcs to ordered, oriented chains.
 //!
 //! Near-linear throughout, in four ideas, one file each:
-//! - [`nodes`]: end points clustered into nodes with a spatial hash (and a
+//! - `nodes.rs`: end points clustered into nodes with a spatial hash (and a
 //!   short list of the nodes just seen, which catches the shared end of
 //!   consecutive pieces without a probe);
-//! - [`repair`]: zero-length pieces, collinear overlaps (buckets of
+//! - `repair.rs`: zero-length pieces, collinear overlaps (buckets of
 //!   direction and offset), duplicates (pieces between the same two nodes,
 //!   found through the node adjacency), snapping;
-//! - [`walk`]: the graph walk from nodes of degree != 2, then cycles;
-//! - [`orient`]: nesting depth through a grid over the closed chains'
+//! - `walk.rs`: the graph walk from nodes of degree != 2, then cycles;
+//! - `orient.rs`: nesting depth through a grid over the closed chains'
 //!   boxes, and the exact point-in-chain and area tests.
 //!
-//! The thesis' method compares every pair of segments; this one never does.
+//! The chaining of Bayesteh (2013) compares every pair of segments; this
+//! one never does.
 //!
 //! Every change to the drawing is counted in [`ChainReport`] and noted on the
 //! chain it touched (`repairs`).
@@ -31,14 +32,28 @@ pub use orient::signed_area;
 /// What chaining changed, for the stderr summary.
 #[derive(Debug, Default, Clone, PartialEq)]
 pub struct ChainReport {
+    /// Pieces dropped as no longer than the tolerance (arcs also when their
+    /// radius is within it; lines also when both ends joined one node).
     pub zero_length: u64,
+    /// Pieces dropped as drawn twice: a line between the same two ends
+    /// (either way round), an arc with the same centre and midpoint, a line
+    /// lying along another.
     pub duplicates: u64,
+    /// Collinear lines that overlapped, merged into one.
     pub overlaps: u64,
+    /// Nodes where ends farther apart than round-off (1e-6 mm) but within
+    /// the tolerance were joined.
     pub gaps_closed: u64,
+    /// The largest gap closed (mm).
     pub max_gap: f64,
+    /// Closed chains reversed so that outer contours run counter-clockwise
+    /// and holes clockwise.
     pub reversed: u64,
+    /// Pieces dropped for a NaN or infinite coordinate.
     pub non_finite: u64,
+    /// Open chains in the result.
     pub open: u64,
+    /// Closed chains in the result.
     pub closed: u64,
 }
 
@@ -130,6 +145,7 @@ impl Chains {
         self.items.len() + self.points.len()
     }
 
+    /// True when the drawing gave no chain at all.
     pub fn is_empty(&self) -> bool {
         self.len() == 0
     }

@@ -44,6 +44,8 @@ fn ckey(x: i64, y: i64) -> u64 {
 }
 
 impl Nodes {
+    /// An empty set of nodes joining ends within `tol` (mm), sized for
+    /// about `points` ends.
     pub fn new(tol: f64, points: usize) -> Nodes {
         let mut grid = FxMap::default();
         grid.reserve(points / 2);

@@ -29,8 +29,13 @@ pub type Tagged = Vec<(Segment, Role)>;
 /// for a PMAC, its pace.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Piece {
+    /// The geometry (mm), in travel order; consecutive pieces join.
     pub elem: Segment,
+    /// Why the piece is there: cut, lead-in, lead-out, corner loop, link.
     pub role: Role,
+    /// The shutter state commanded for this piece. It differs from `role
+    /// == Cut` near the ends of a cut: the commands go early by the
+    /// shutter's latencies.
     pub beam: bool,
     /// `None` for look-ahead controllers, which pace themselves.
     pub pace: Option<Pace>,
@@ -50,19 +55,38 @@ pub enum Pace {
 /// Something the user should know about a planned path.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Note {
-    /// A cut shorter than the shutter's minimum exposure at V (mm).
-    ShortCut { length: f64, min: f64 },
-    /// A drawing arc tighter than V²/a: the stage cannot follow it at V
-    /// within its acceleration (radius mm, demanded acceleration mm/s²).
-    TightArc { radius: f64, demand: f64, count: usize },
+    /// A cut shorter than the shutter's minimum exposure at V.
+    ShortCut {
+        /// The cut's length (mm).
+        length: f64,
+        /// The least length the shutter can expose at V (mm).
+        min: f64,
+    },
+    /// Drawing arcs tighter than V²/a: the stage cannot follow them at V
+    /// within its acceleration. One note per path.
+    TightArc {
+        /// The tightest radius (mm).
+        radius: f64,
+        /// The acceleration it demands at V (mm/s²).
+        demand: f64,
+        /// How many arcs of the path are too tight.
+        count: usize,
+    },
     /// A corner between pieces whose turn could not be looped (the
     /// direction has no component in the loop plane).
-    UnloopedCorner { at: P3 },
+    UnloopedCorner {
+        /// The corner (mm).
+        at: P3,
+    },
     /// Shutter commands that act off the point they must (PMAC: the pieces
     /// next to the switch point are only a few ms long at V, so no block
-    /// boundary with a whole-ms TA fits exactly): how many, and the worst
-    /// (mm, at most V·1 ms).
-    SwitchOff { count: usize, worst: f64 },
+    /// boundary with a whole-ms TA fits exactly).
+    SwitchOff {
+        /// How many commands are off.
+        count: usize,
+        /// The worst distance off (mm, at most V·1 ms).
+        worst: f64,
+    },
 }
 
 impl std::fmt::Display for Note {
