@@ -289,7 +289,10 @@ mod tests {
         // Clockwise half circle from (1, 0) through (0, -1) to (-1, 0).
         let half = Segment::arc_xy(p3(1.0, 0.0), p3(-1.0, 0.0), P3::origin(), false);
         let start = travelled(&half, 0.0);
-        assert!(!start.is_arc() && start.length() == 0.0, "the start point, not a full circle");
+        assert!(
+            !start.is_arc() && start.length() == 0.0,
+            "the start point, not a full circle"
+        );
         let part = travelled(&half, 0.5);
         assert!((part.sweep().unwrap() + FRAC_PI_2).abs() < 1e-12);
         assert!((part.end() - p3(0.0, -1.0)).norm() < 1e-12);
