@@ -20,7 +20,7 @@ Examples:
   plough2d --stock 0,0,4,3 --rpm 60000 pocket.pmc            JSON summary
   plough2d --stock 0,0,4,3 --csv steps.csv --plot plot.svg --png stock.png pocket.pmc
   plough2d --stock 0,0,4,3 --method both pocket.pmc | jq .comparison
-  plough2d --write-pocket 0.5 > pocket.pmc     the documented seed-like pocket at 0.5 mm/s
+  plough2d --write-pocket 0.5 > pocket.pmc     the example pocket at 0.5 mm/s
 
 The defaults are Bayesteh 2013's run: scale factor 10, resolution 10 um,
 tool 0.794 mm with 2 teeth, minimum chip thickness 2.4 um (the material's
@@ -132,7 +132,7 @@ fn run(args: Args) -> Result<(), CliError> {
         }
         let d: Dialect = args.pocket_dialect.parse().map_err(CliError::input)?;
         let mut out = Output::new(args.output.as_deref());
-        out.write_all(Pocket::seed_like(feed).program(d).as_bytes())?;
+        out.write_all(Pocket::example(feed).program(d).as_bytes())?;
         return out.commit();
     }
     let stock = args

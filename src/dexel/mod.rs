@@ -14,6 +14,8 @@
 //! Moves are binned into tiles and the tiles cut in parallel with rayon;
 //! removal commutes, so the result does not depend on the order.
 
+#![warn(missing_docs)]
+
 pub mod sweep;
 pub mod tile;
 pub mod tool;
@@ -27,10 +29,13 @@ use tool::{LineMaterial, MoveSweep};
 /// A stock that cannot be made.
 #[derive(Debug, Error, Clone, PartialEq)]
 pub enum DexelError {
+    /// The box is empty on some axis or has a non-finite corner.
     #[error("stock box must have min < max on every axis")]
     EmptyBox,
+    /// The spacing is zero, negative or not finite.
     #[error("dexel spacing must be positive and finite")]
     BadSpacing,
+    /// One family would hold more than 4·10⁹ rays (their count).
     #[error("{0} dexels in one family is too many; use a larger spacing")]
     TooMany(u64),
 }
@@ -40,14 +45,17 @@ pub enum DexelError {
 pub struct Family {
     /// Axis the rays run along (0 = X, 1 = Y, 2 = Z).
     pub dir: usize,
-    /// The two axes across the rays, in increasing order.
+    /// The first axis across the rays (the lower-numbered of the two).
     pub p: usize,
+    /// The second axis across the rays.
     pub q: usize,
-    /// Rays across each axis.
+    /// Rays across axis `p`.
     pub np: usize,
+    /// Rays across axis `q`.
     pub nq: usize,
-    /// Spacing across each axis, mm.
+    /// Spacing across axis `p`, mm (the box's side over `np`).
     pub hp: f64,
+    /// Spacing across axis `q`, mm.
     pub hq: f64,
     p0: f64,
     q0: f64,
@@ -250,7 +258,9 @@ impl LineMaterial for TileRay<'_> {
 /// A box of stock as three dexel families.
 #[derive(Debug, Clone)]
 pub struct TriDexel {
+    /// The stock box's low corner, mm.
     pub min: P3,
+    /// The stock box's high corner, mm; above `min` on every axis.
     pub max: P3,
     /// Requested dexel spacing, mm (each axis divides its length evenly,
     /// so the actual spacing may differ by a fraction of it).
@@ -262,14 +272,21 @@ pub struct TriDexel {
 /// The Z family's tops as a height grid (cell centres).
 #[derive(Debug, Clone, PartialEq)]
 pub struct HeightGrid {
+    /// The grid's low X edge (the stock box's), mm.
     pub x0: f64,
+    /// The grid's low Y edge, mm.
     pub y0: f64,
+    /// Cell width along X, mm.
     pub dx: f64,
+    /// Cell width along Y, mm.
     pub dy: f64,
+    /// Cells along X.
     pub nx: usize,
+    /// Cells along Y.
     pub ny: usize,
     /// Heights, row-major (`j * nx + i`), at `(x0 + (i + ½)·dx, y0 + (j + ½)·dy)`.
     pub z: Vec<f64>,
+    /// The stock's bottom, mm: the height of a ray cut through.
     pub bottom: f64,
 }
 

@@ -23,15 +23,16 @@ pub struct Piece {
     pub c: P3,
     /// Unit tool axis, tip towards holder.
     pub a: V3,
-    /// Radius.
+    /// Radius, mm.
     pub r: f64,
     /// `true`: the quadratic measures distance from the axis (cylinder);
     /// `false`: distance from `c` (ball).
     pub cylinder: bool,
-    /// Clipping planes across the axis: `s0 <= a·(X - c) <= s1`.
+    /// Lower clipping plane across the axis: `s0 <= a·(X - c)`, mm.
     pub s0: f64,
+    /// Upper clipping plane: `a·(X - c) <= s1`, mm; `s1 >= s0`.
     pub s1: f64,
-    /// The move of the piece (end minus start).
+    /// The move of the piece (end minus start), mm.
     pub d: V3,
 }
 

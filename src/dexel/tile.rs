@@ -10,7 +10,9 @@ pub const TILE: usize = 32;
 
 const EMPTY: [f32; 2] = [f32::INFINITY, f32::NEG_INFINITY];
 
-/// `TILE × TILE` dexels.
+/// `TILE × TILE` parallel dexels, dexel `k = j·TILE + i` for ray (i, j)
+/// of the tile; positions along the rays in mm, as `f32` (the module
+/// documentation gives the layout).
 #[derive(Debug, Clone)]
 pub struct Tile {
     rays: Vec<[f32; 2]>,

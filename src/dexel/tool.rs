@@ -26,14 +26,19 @@ use crate::geometry::{P3, V3};
 /// One cutter location: tool tip and unit tool axis (tip towards holder).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Location {
+    /// The tool tip (the lowest point on the axis), mm.
     pub tip: P3,
+    /// Unit tool axis, pointing from the tip towards the holder.
     pub axis: V3,
 }
 
 /// The cutting part of a tool: its shape and flute length (mm).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ToolShape {
+    /// The cutter's profile (flat, ball, torus).
     pub cutter: Cutter,
+    /// Flute length, mm: the tool is cut off this far above the tip (the
+    /// shank is not simulated).
     pub length: f64,
 }
 
@@ -159,8 +164,9 @@ pub struct MoveSweep {
     pub groups: Vec<Piece>,
     /// Sub-moves per group.
     pub group: usize,
-    /// Box around everything (min, max).
+    /// Low corner of a box around everything the move sweeps, mm.
     pub lo: [f64; 3],
+    /// High corner of that box, mm.
     pub hi: [f64; 3],
     /// Largest distance from the true swept solid to the pieces', mm.
     pub shape_error_mm: f64,

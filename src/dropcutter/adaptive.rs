@@ -12,6 +12,7 @@
 //! jump, and no number of points straightens a jump).
 
 use super::DropCutter;
+use crate::geometry::line::point_segment_distance;
 use crate::geometry::{P2, P3};
 use rayon::prelude::*;
 
@@ -23,18 +24,6 @@ pub struct Adaptive {
     pub chord_tol: f64,
     /// Spans this short (XY, mm) are not split further.
     pub min_step: f64,
-}
-
-/// Distance from `p` to the segment a–b (3-D).
-fn dist_to_segment(p: &P3, a: &P3, b: &P3) -> f64 {
-    let ab = b - a;
-    let l2 = ab.norm_squared();
-    let t = if l2 > 0.0 {
-        ((p - a).dot(&ab) / l2).clamp(0.0, 1.0)
-    } else {
-        0.0
-    };
-    (p - (a + ab * t)).norm()
 }
 
 impl Adaptive {
@@ -73,9 +62,9 @@ impl Adaptive {
         }
         let mid = at(0.5);
         let probe = 0.75 * self.chord_tol;
-        let ok = dist_to_segment(&mid, &a, &b) <= probe
-            && dist_to_segment(&at(0.25), &a, &b) <= probe
-            && dist_to_segment(&at(0.75), &a, &b) <= probe;
+        let ok = point_segment_distance(&mid, &a, &b) <= probe
+            && point_segment_distance(&at(0.25), &a, &b) <= probe
+            && point_segment_distance(&at(0.75), &a, &b) <= probe;
         if ok {
             return;
         }

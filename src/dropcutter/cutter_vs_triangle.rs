@@ -93,6 +93,7 @@ impl Tri {
 /// The cutter in the form the contact formulas want.
 #[derive(Debug, Clone, Copy)]
 pub struct ContactCutter {
+    /// The cutter these figures are of.
     pub cutter: Cutter,
     /// Tool radius R.
     pub r: f64,
@@ -103,6 +104,7 @@ pub struct ContactCutter {
 }
 
 impl ContactCutter {
+    /// The figures of `cutter`.
     pub fn new(cutter: Cutter) -> ContactCutter {
         let r = cutter.radius();
         let rc = cutter.corner_radius();

@@ -37,7 +37,10 @@ pub struct FiveAxis {
 /// One 5-axis location: the tip centre and a point up the tool axis.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Location {
+    /// The tool tip (the CL point), mm.
     pub cl: P3,
+    /// The point `axis_length` up the tool axis from the tip, towards the
+    /// holder, mm (Singh 2014's second point of a 5-axis row).
     pub axis_point: P3,
 }
 

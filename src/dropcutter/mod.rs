@@ -13,6 +13,8 @@
 //! locations along the surface normal in the layout of Singh 2014's
 //! Annexure 2 ([`fiveaxis`]), and the outputs ([`output`]).
 
+#![warn(missing_docs)]
+
 pub mod adaptive;
 pub mod cutter_vs_triangle;
 pub mod fiveaxis;
@@ -31,10 +33,15 @@ use thiserror::Error;
 /// Why a drop-cutter job cannot be set up.
 #[derive(Debug, Error, Clone, PartialEq)]
 pub enum DropError {
+    /// The mesh has no triangles to drop on.
     #[error("the mesh has no triangles")]
     EmptyMesh,
+    /// A vertex of this triangle (0-based) has a NaN or infinite
+    /// coordinate.
     #[error("the mesh has a coordinate that is not finite (triangle {0})")]
     NotFinite(usize),
+    /// A job option out of range (a step, a rectangle, a point count, a
+    /// 5-axis cutter); the message names the option.
     #[error("{0}")]
     Option(String),
 }

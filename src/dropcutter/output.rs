@@ -11,7 +11,9 @@ use std::io::Write;
 /// Feeds of the generated moves (mm/s).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Feeds {
+    /// Feed along the passes, mm/s.
     pub cut: f64,
+    /// Feed of the move down from the safe Z to a pass's first point, mm/s.
     pub plunge: f64,
 }
 

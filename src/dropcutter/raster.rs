@@ -9,7 +9,9 @@ use crate::model::chain::Chain;
 /// Axis the raster lines run along.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Direction {
+    /// Lines along X, stepped over in Y.
     X,
+    /// Lines along Y, stepped over in X.
     Y,
 }
 
@@ -31,9 +33,11 @@ pub struct Raster {
     pub step_over: f64,
     /// Largest distance between points along a line (mm).
     pub step_forward: f64,
+    /// Axis the lines run along.
     pub direction: Direction,
+    /// How consecutive lines are joined.
     pub pattern: Pattern,
-    /// min x, min y, max x, max y.
+    /// The rectangle: min x, min y, max x, max y, mm.
     pub region: [f64; 4],
 }
 

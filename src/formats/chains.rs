@@ -6,6 +6,7 @@ use crate::model::chain::{Chain, ChainsHeader, Segment};
 use serde::Deserialize;
 use std::io::{BufRead, Write};
 
+/// The schema name a chains stream's header carries.
 pub const SCHEMA: &str = "microcam.chains/1";
 
 /// How far a segment's start may be from the previous segment's end (mm).
@@ -47,6 +48,8 @@ pub struct ChainsReader<R> {
 }
 
 impl<R: BufRead> ChainsReader<R> {
+    /// Read and check the header (the schema, units "mm" if given); the
+    /// chains are then read one per [`Iterator::next`].
     pub fn new(input: R) -> Result<Self, FormatError> {
         let mut lines = LineSource::new(input);
         let (text, line) = lines
@@ -68,6 +71,7 @@ impl<R: BufRead> ChainsReader<R> {
         })
     }
 
+    /// The stream's header.
     pub fn header(&self) -> &ChainsHeader {
         &self.header
     }
@@ -197,16 +201,19 @@ pub struct ChainsWriter<W: Write> {
 }
 
 impl<W: Write> ChainsWriter<W> {
+    /// A writer into `out`; write the header first.
     pub fn new(out: W) -> Self {
         ChainsWriter {
             lines: super::LineWriter::new(out),
         }
     }
 
+    /// Write the header line (schema, units, source).
     pub fn header(&mut self, h: &ChainsHeader) -> std::io::Result<()> {
         self.lines.header(SCHEMA, &[], h.source.as_deref())
     }
 
+    /// Write one chain as one line.
     pub fn chain(&mut self, c: &Chain) -> std::io::Result<()> {
         self.lines.line(|b| format_chain(b, c))
     }
@@ -217,6 +224,7 @@ impl<W: Write> ChainsWriter<W> {
         self.lines.raw(lines)
     }
 
+    /// Flush and give back the output.
     pub fn finish(self) -> std::io::Result<W> {
         self.lines.finish()
     }

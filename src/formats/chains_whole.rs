@@ -4,7 +4,6 @@
 //! parsing JSON is then the largest serial cost, so the text is cut at line
 //! boundaries into chunks that the streaming reader parses in parallel.
 //! Errors keep the line numbers of the whole stream.
-#![warn(missing_docs)]
 
 use crate::formats::FormatError;
 use crate::formats::chains::ChainsReader;

@@ -11,7 +11,6 @@
 //! lines (any line before the first location whose first word is not a
 //! number: `S.No. X Y Z`) are skipped. Every row of a file has the same
 //! layout. See docs/formats.md.
-#![warn(missing_docs)]
 
 use super::{FormatError, LineSource, push_num};
 use crate::geometry::P3;

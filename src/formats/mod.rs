@@ -7,6 +7,8 @@
 //! Writers format numbers themselves (shortest round-trip form after
 //! rounding to 1e-9 mm) so output is byte-identical for identical input.
 
+#![warn(missing_docs)]
+
 pub mod chains;
 mod chains_whole;
 pub mod cldata;
@@ -22,17 +24,28 @@ use thiserror::Error;
 /// the offending record (the header is line 1).
 #[derive(Debug, Error)]
 pub enum FormatError {
+    /// The line is not a valid record of its format (unparsable, a field
+    /// missing or out of range, a wrong schema).
     #[error("line {line}: {msg}")]
-    Invalid { line: u64, msg: String },
+    Invalid {
+        /// 1-based line number.
+        line: u64,
+        /// What is wrong, in words.
+        msg: String,
+    },
+    /// Reading or writing failed at this line.
     #[error("line {line}: {source}")]
     Io {
+        /// 1-based line number (the line being read or written).
         line: u64,
+        /// The I/O error.
         #[source]
         source: std::io::Error,
     },
 }
 
 impl FormatError {
+    /// A [`FormatError::Invalid`] at `line`.
     pub fn invalid(line: u64, msg: impl Into<String>) -> Self {
         FormatError::Invalid { line, msg: msg.into() }
     }

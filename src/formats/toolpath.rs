@@ -9,6 +9,7 @@ use crate::model::toolpath::{ArcData, FeedUnit, Header, Motion, MotionKind, Reco
 use serde::Deserialize;
 use std::io::{BufRead, Write};
 
+/// The schema name a toolpath stream's header carries.
 pub const SCHEMA: &str = "microcam.toolpath/1";
 
 #[derive(Deserialize)]
@@ -58,6 +59,8 @@ pub struct ToolpathReader<R> {
 }
 
 impl<R: BufRead> ToolpathReader<R> {
+    /// Read and check the header: the schema, units "mm" if given, and
+    /// `feed_units` ("mm/s", the default, or "mm/min").
     pub fn new(input: R) -> Result<Self, FormatError> {
         let mut lines = LineSource::new(input);
         let (text, line) = lines
@@ -87,6 +90,7 @@ impl<R: BufRead> ToolpathReader<R> {
         })
     }
 
+    /// The stream's header.
     pub fn header(&self) -> &Header {
         &self.header
     }
@@ -311,21 +315,25 @@ pub struct ToolpathWriter<W: Write> {
 }
 
 impl<W: Write> ToolpathWriter<W> {
+    /// A writer into `out`.
     pub fn new(out: W) -> Self {
         ToolpathWriter {
             lines: super::LineWriter::new(out),
         }
     }
 
+    /// Write the header line (schema, units, feed units, source).
     pub fn header(&mut self, h: &Header) -> std::io::Result<()> {
         self.lines
             .header(SCHEMA, &[("feed_units", h.feed_unit.name())], h.source.as_deref())
     }
 
+    /// Write one record as one line.
     pub fn record(&mut self, r: &Record) -> std::io::Result<()> {
         self.lines.line(|b| format_record(b, r))
     }
 
+    /// Flush and give back the output.
     pub fn finish(self) -> std::io::Result<W> {
         self.lines.finish()
     }
@@ -558,7 +566,9 @@ mod tests {
 /// committed) or writing failed.
 #[derive(Debug)]
 pub enum StreamError<E> {
+    /// The record source's own error, as it gave it.
     Source(E),
+    /// Writing the output failed.
     Io(std::io::Error),
 }
 

@@ -7,6 +7,7 @@
 use super::bbox::BBox3;
 use super::tol::positive_finite;
 use super::{P3, V3};
+use nalgebra::Point;
 
 /// A straight segment from `start` to `end`. A zero-length segment is
 /// allowed (it is a point); methods that need a direction return `None`.
@@ -131,6 +132,37 @@ impl Line3 {
     }
 }
 
+/// Distance from `p` to the segment from `a` to `b`, in any dimension
+/// (2-D for plane work, 3-D in space): the perpendicular foot's parameter
+/// is clamped to the segment, so beyond an end the distance is to that
+/// end. A zero-length segment (`a == b`) answers the distance to `a`.
+///
+/// This is the one formula every caller uses, and its rounding is part of
+/// golden outputs (arc fitting, pocket motions): the nearest point is
+/// `a + (b - a)·t`, not `b` itself at `t = 1`, unlike
+/// [`Line3::closest_point`], which returns the stored end exactly.
+///
+/// ```
+/// use microcam::geometry::line::point_segment_distance;
+/// use microcam::geometry::{P2, P3};
+/// let (a, b) = (P2::new(0.0, 0.0), P2::new(4.0, 0.0));
+/// assert_eq!(point_segment_distance(&P2::new(1.0, 3.0), &a, &b), 3.0);
+/// assert_eq!(point_segment_distance(&P2::new(7.0, 4.0), &a, &b), 5.0);
+/// assert_eq!(point_segment_distance(&P2::new(3.0, 4.0), &a, &a), 5.0);
+/// let up = P3::new(0.0, 0.0, 2.0);
+/// assert_eq!(point_segment_distance(&P3::new(1.0, 0.0, 1.0), &P3::origin(), &up), 1.0);
+/// ```
+pub fn point_segment_distance<const D: usize>(p: &Point<f64, D>, a: &Point<f64, D>, b: &Point<f64, D>) -> f64 {
+    let d = b - a;
+    let l2 = d.norm_squared();
+    let t = if l2 > 0.0 {
+        ((p - a).dot(&d) / l2).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    (p - (a + d * t)).norm()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -172,6 +204,7 @@ mod tests {
         assert_eq!(p.point_at_length(1.0), None);
         assert_eq!(p.closest_point(&P3::new(5.0, 1.0, 1.0)), (P3::new(1.0, 1.0, 1.0), 0.0));
         assert!(p.split_at(0.5).is_some());
+        assert_eq!(point_segment_distance(&P3::new(5.0, 4.0, 1.0), &p.start, &p.end), 5.0);
         let n = l([f64::NAN, 0.0, 0.0], [1.0, 0.0, 0.0]);
         assert!(n.is_degenerate(1e-9));
         assert_eq!(n.tangent(), None);
@@ -200,6 +233,21 @@ mod tests {
                 let sample = s.point_at(i as f64 / 200.0);
                 prop_assert!(best <= (sample - p).norm() + 1e-9);
             }
+        }
+
+        #[test]
+        fn point_segment_distance_agrees_with_line3(a in point(), b in point(), p in point()) {
+            // The same nearest point as Line3 (up to the rounding of an
+            // end), in 3-D and in the XY projection.
+            let d = point_segment_distance(&p, &a, &b);
+            prop_assert!((d - Line3::new(a, b).distance(&p)).abs() <= 1e-9 * (1.0 + d));
+            let flat = |q: P3| P3::new(q.x, q.y, 0.0);
+            let d2 = point_segment_distance(&p.xy(), &a.xy(), &b.xy());
+            prop_assert!((d2 - Line3::new(flat(a), flat(b)).distance(&flat(p))).abs() <= 1e-9 * (1.0 + d2));
+            // Symmetric in the ends (up to rounding), and never more than
+            // the nearer end.
+            prop_assert!((d - point_segment_distance(&p, &b, &a)).abs() <= 1e-9 * (1.0 + d));
+            prop_assert!(d <= (p - a).norm().min((p - b).norm()) + 1e-12);
         }
 
         #[test]

@@ -8,6 +8,7 @@
 
 use crate::geometry::Segment;
 use crate::geometry::arc::Arc3;
+use crate::geometry::line::point_segment_distance;
 use crate::geometry::{P2, P3, Plane, V2};
 use std::f64::consts::TAU;
 
@@ -621,17 +622,6 @@ fn trace_segment(a: P2, b: P2, spacing: f64) -> Vec<P2> {
     (0..=n).map(|k| a + (b - a) * (k as f64 / n as f64)).collect()
 }
 
-fn segment_dist(p: &P2, a: P2, b: P2) -> f64 {
-    let d = b - a;
-    let l2 = d.norm_squared();
-    let t = if l2 > 0.0 {
-        ((p - a).dot(&d) / l2).clamp(0.0, 1.0)
-    } else {
-        0.0
-    };
-    (p - (a + d * t)).norm()
-}
-
 /// Largest distance from the points to the fit (points are the truth; the
 /// curve between them is unknown).
 pub fn point_deviation(fit: &[Segment], pts: &[P2]) -> f64 {
@@ -687,7 +677,7 @@ pub fn max_deviation(fit: &[Segment], pts: &[P2], samples_per_piece: usize) -> f
             sample,
             |q| q / (n + 1),
             fit.len(),
-            |p, k| segment_dist(p, pts[k], pts[k + 1]),
+            |p, k| point_segment_distance(p, &pts[k], &pts[k + 1]),
         );
     }
     worst.max(point_deviation(fit, pts))

@@ -20,8 +20,12 @@ pub struct Family {
 /// `[along0, along1] × [across − spacing/2, across + spacing/2]`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Removed {
+    /// Where the removed piece begins along the line, mm (in the stock's
+    /// own axes: X for a line along X).
     pub along0: f64,
+    /// Where it ends along the line, mm; `along1 > along0`.
     pub along1: f64,
+    /// The line's coordinate across (its strip's centre), mm.
     pub across: f64,
 }
 
@@ -126,7 +130,9 @@ fn subtract(line: &mut Vec<(f64, f64)>, lo: f64, hi: f64, across: f64, out: &mut
 pub struct DualDexel {
     /// Stock outline: x0, y0, x1, y1, mm.
     pub bounds: [f64; 4],
+    /// Lines along X, one per row of Y (they see a cut's extent in X).
     pub x: Family,
+    /// Lines along Y, one per column of X.
     pub y: Family,
 }
 

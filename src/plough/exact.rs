@@ -10,97 +10,101 @@
 //! discs at the steps: the two differ by the cusps left between steps,
 //! at most s²/(8r) deep (0.03 µm for 10 µm steps of a 0.794 mm cutter).
 
+use crate::geometry::line::point_segment_distance;
+use crate::geometry::segment::{ArcXy, Segment};
+use crate::geometry::{Arc3, P2};
 use std::collections::HashMap;
 
-/// A path piece the cutter swept: every point within `r` of it was cut.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum Curve {
-    /// A segment from `a` to `b` (a point when equal).
-    Seg { a: (f64, f64), b: (f64, f64) },
-    /// An arc about `o` of radius `ra`, from angle `a0` counter-clockwise
-    /// through `sweep` ≥ 0 rad.
-    Arc {
-        o: (f64, f64),
-        ra: f64,
-        a0: f64,
-        sweep: f64,
-    },
+/// A path piece the cutter swept (every point within `r` of it, in XY, was
+/// cut), with what the ray tests ask of it worked out once: Z is ignored.
+#[derive(Debug, Clone, Copy)]
+struct Piece {
+    /// Start and end in XY (equal for a point: the cutter placed, not
+    /// moved).
+    start: P2,
+    end: P2,
+    /// The arc taken apart (centre, radius, start angle, signed sweep);
+    /// `None` for a line.
+    arc: Option<ArcXy>,
+    /// The piece's XY box grown by `r`: x0, y0, x1, y1.
+    reach: [f64; 4],
 }
 
-impl Curve {
-    /// Distance from `p` to the curve, mm.
-    pub fn distance(&self, p: (f64, f64)) -> f64 {
-        match *self {
-            Curve::Seg { a, b } => {
-                let (dx, dy) = (b.0 - a.0, b.1 - a.1);
-                let l2 = dx * dx + dy * dy;
-                let t = if l2 > 0.0 {
-                    (((p.0 - a.0) * dx + (p.1 - a.1) * dy) / l2).clamp(0.0, 1.0)
+impl Piece {
+    fn new(s: &Segment, r: f64) -> Piece {
+        let b = s.bbox();
+        Piece {
+            start: s.start().xy(),
+            end: s.end().xy(),
+            arc: s.to_arc_xy(),
+            reach: [b.min.x - r, b.min.y - r, b.max.x + r, b.max.y + r],
+        }
+    }
+
+    /// Distance from `p` to the piece in XY, mm.
+    fn distance(&self, p: P2) -> f64 {
+        match &self.arc {
+            None => point_segment_distance(&p, &self.start, &self.end),
+            Some(a) => {
+                let v = p - a.center;
+                if a.contains_angle(v.y.atan2(v.x)) {
+                    (v.x.hypot(v.y) - a.radius).abs()
                 } else {
-                    0.0
-                };
-                (p.0 - a.0 - t * dx).hypot(p.1 - a.1 - t * dy)
-            }
-            Curve::Arc { o, ra, a0, sweep } => {
-                let (vx, vy) = (p.0 - o.0, p.1 - o.1);
-                let ang = (vy.atan2(vx) - a0).rem_euclid(std::f64::consts::TAU);
-                if ang <= sweep {
-                    (vx.hypot(vy) - ra).abs()
-                } else {
-                    let (e0, e1) = self.ends();
-                    (p.0 - e0.0).hypot(p.1 - e0.1).min((p.0 - e1.0).hypot(p.1 - e1.1))
+                    (p - self.start).norm().min((p - self.end).norm())
                 }
             }
-        }
-    }
-
-    /// Start and end points.
-    pub fn ends(&self) -> ((f64, f64), (f64, f64)) {
-        match *self {
-            Curve::Seg { a, b } => (a, b),
-            Curve::Arc { o, ra, a0, sweep } => (
-                (o.0 + ra * a0.cos(), o.1 + ra * a0.sin()),
-                (o.0 + ra * (a0 + sweep).cos(), o.1 + ra * (a0 + sweep).sin()),
-            ),
-        }
-    }
-
-    /// Bounding box of the points within `r`: x0, y0, x1, y1.
-    pub fn bbox(&self, r: f64) -> [f64; 4] {
-        match *self {
-            Curve::Seg { a, b } => [a.0.min(b.0) - r, a.1.min(b.1) - r, a.0.max(b.0) + r, a.1.max(b.1) + r],
-            Curve::Arc { o, ra, .. } => [o.0 - ra - r, o.1 - ra - r, o.0 + ra + r, o.1 + ra + r],
         }
     }
 
     /// Ray parameters in `(0, tmax)` where the ray `c + t·(dc, ds)` may
-    /// enter or leave the set within `r` of the curve.
+    /// enter or leave the set within `r` of the piece: the circles about
+    /// its ends, the two offsets of a line, the two offset circles of an
+    /// arc and the radii through its ends.
     fn breaks(&self, c: (f64, f64), d: (f64, f64), r: f64, tmax: f64, out: &mut Vec<f64>) {
-        let (e0, e1) = self.ends();
-        circle_hits(c, d, e0, r, tmax, out);
-        circle_hits(c, d, e1, r, tmax, out);
-        match *self {
-            Curve::Seg { a, b } => {
-                let (dx, dy) = (b.0 - a.0, b.1 - a.1);
+        let (s, e) = ((self.start.x, self.start.y), (self.end.x, self.end.y));
+        circle_hits(c, d, s, r, tmax, out);
+        circle_hits(c, d, e, r, tmax, out);
+        match &self.arc {
+            None => {
+                let (dx, dy) = (e.0 - s.0, e.1 - s.1);
                 let l = dx.hypot(dy);
                 if l > 0.0 {
                     let n = (-dy / l, dx / l);
                     for sgn in [-1.0, 1.0] {
-                        let q = (a.0 + sgn * r * n.0, a.1 + sgn * r * n.1);
+                        let q = (s.0 + sgn * r * n.0, s.1 + sgn * r * n.1);
                         line_hit(c, d, q, (dx, dy), tmax, out);
                     }
                 }
             }
-            Curve::Arc { o, ra, a0, sweep } => {
-                circle_hits(c, d, o, ra + r, tmax, out);
-                if ra > r {
-                    circle_hits(c, d, o, ra - r, tmax, out);
+            Some(a) => {
+                let o = (a.center.x, a.center.y);
+                circle_hits(c, d, o, a.radius + r, tmax, out);
+                if a.radius > r {
+                    circle_hits(c, d, o, a.radius - r, tmax, out);
                 }
-                for a in [a0, a0 + sweep] {
-                    line_hit(c, d, o, (a.cos(), a.sin()), tmax, out);
+                for q in [s, e] {
+                    line_hit(c, d, o, (q.0 - o.0, q.1 - o.1), tmax, out);
                 }
             }
         }
+    }
+}
+
+/// The part of `curve` travelled by parameter `t` (0 ≤ t < 1): what the
+/// cutter has swept of the current move before the step at `t`. At `t = 0`
+/// it is the start point (a zero-length line: an arc from a point to
+/// itself would be a full circle).
+pub fn travelled(curve: &Segment, t: f64) -> Segment {
+    if let Some((first, _)) = curve.split_at(t) {
+        return first;
+    }
+    // Arc3::split_at refuses a piece under 16 nm (it would read as a full
+    // turn). A short first piece is its chord; a short rest leaves the
+    // arc's sense and turns, ending a few nm early.
+    let end = curve.point_at(t);
+    match curve {
+        Segment::Arc(a) if t > 0.5 => Segment::Arc(Arc3 { end, ..*a }),
+        _ => Segment::line(curve.start(), end),
     }
 }
 
@@ -137,7 +141,7 @@ fn line_hit(c: (f64, f64), d: (f64, f64), q: (f64, f64), u: (f64, f64), tmax: f6
 pub struct Swept {
     r: f64,
     cell: f64,
-    curves: Vec<Curve>,
+    pieces: Vec<Piece>,
     grid: HashMap<(i64, i64), Vec<usize>>,
     stamp: Vec<u32>,
     now: u32,
@@ -149,7 +153,7 @@ impl Swept {
         Swept {
             r,
             cell: 4.0 * r,
-            curves: Vec::new(),
+            pieces: Vec::new(),
             grid: HashMap::new(),
             stamp: Vec::new(),
             now: 0,
@@ -162,30 +166,31 @@ impl Swept {
         (i0..=i1).flat_map(move |i| (j0..=j1).map(move |j| (i, j)))
     }
 
-    /// Record a finished piece.
-    pub fn push(&mut self, c: Curve) {
-        let k = self.curves.len();
-        for cell in self.cells(c.bbox(self.r)).collect::<Vec<_>>() {
+    /// Record a finished move (or the point where the cutter was placed).
+    pub fn push(&mut self, s: &Segment) {
+        let piece = Piece::new(s, self.r);
+        let k = self.pieces.len();
+        for cell in self.cells(piece.reach).collect::<Vec<_>>() {
             self.grid.entry(cell).or_default().push(k);
         }
-        self.curves.push(c);
+        self.pieces.push(piece);
         self.stamp.push(0);
     }
 
     /// Pieces that may reach the disc at `c`, plus `current` (the part of
     /// the move being cut so far).
-    fn near(&mut self, c: (f64, f64), current: Option<Curve>) -> Vec<Curve> {
+    fn near(&mut self, c: (f64, f64), current: Option<&Segment>) -> Vec<Piece> {
         self.now = self.now.wrapping_add(1);
         let r = self.r;
-        let mut out: Vec<Curve> = current.into_iter().collect();
+        let mut out: Vec<Piece> = current.map(|s| Piece::new(s, r)).into_iter().collect();
         for cell in self.cells([c.0 - r, c.1 - r, c.0 + r, c.1 + r]) {
             if let Some(v) = self.grid.get(&cell) {
                 for &k in v {
                     if self.stamp[k] != self.now {
                         self.stamp[k] = self.now;
-                        let b = self.curves[k].bbox(r);
+                        let b = self.pieces[k].reach;
                         if b[0] <= c.0 + r && b[2] >= c.0 - r && b[1] <= c.1 + r && b[3] >= c.1 - r {
-                            out.push(self.curves[k]);
+                            out.push(self.pieces[k]);
                         }
                     }
                 }
@@ -199,7 +204,7 @@ impl Swept {
     pub fn chip(
         &mut self,
         c: (f64, f64),
-        current: Option<Curve>,
+        current: Option<&Segment>,
         stock: [f64; 4],
         dirs: &[(f64, f64)],
         density: &mut [f64],
@@ -226,8 +231,8 @@ impl Swept {
             br.clear();
             br.push(t0);
             br.push(t1);
-            for cv in &near {
-                cv.breaks(c, d, r, r, &mut br);
+            for piece in &near {
+                piece.breaks(c, d, r, r, &mut br);
             }
             br.retain(|&t| t >= t0 && t <= t1);
             br.sort_by(f64::total_cmp);
@@ -238,8 +243,8 @@ impl Swept {
                     continue;
                 }
                 let m = 0.5 * (u + v);
-                let p = (c.0 + m * d.0, c.1 + m * d.1);
-                if near.iter().all(|cv| cv.distance(p) > r) {
+                let p = P2::new(c.0 + m * d.0, c.1 + m * d.1);
+                if near.iter().all(|piece| piece.distance(p) > r) {
                     a += 0.5 * (v * v - u * u);
                     h += v - u;
                 }
@@ -253,24 +258,52 @@ impl Swept {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::geometry::P3;
+    use std::f64::consts::FRAC_PI_2;
+
+    fn p3(x: f64, y: f64) -> P3 {
+        P3::new(x, y, 0.0)
+    }
 
     #[test]
     fn distances_to_segments_and_arcs() {
-        let s = Curve::Seg {
-            a: (0.0, 0.0),
-            b: (2.0, 0.0),
-        };
-        assert_eq!(s.distance((1.0, 1.0)), 1.0);
-        assert_eq!(s.distance((3.0, 0.0)), 1.0);
-        let a = Curve::Arc {
-            o: (0.0, 0.0),
-            ra: 1.0,
-            a0: 0.0,
-            sweep: std::f64::consts::FRAC_PI_2,
-        };
-        assert!((a.distance((2.0, 2.0)) - (8f64.sqrt() - 1.0)).abs() < 1e-12);
-        // Below the start: nearest is the end at (1, 0).
-        assert!((a.distance((1.0, -1.0)) - 1.0).abs() < 1e-12);
+        let s = Piece::new(&Segment::line(p3(0.0, 0.0), p3(2.0, 0.0)), 0.1);
+        assert_eq!(s.distance(P2::new(1.0, 1.0)), 1.0);
+        assert_eq!(s.distance(P2::new(3.0, 0.0)), 1.0);
+        assert_eq!(s.reach, [-0.1, -0.1, 2.1, 0.1]);
+        let quarter = Segment::arc_xy(p3(1.0, 0.0), p3(0.0, 1.0), P3::origin(), true);
+        // Either sense of travel sweeps the same set.
+        for a in [Piece::new(&quarter, 0.1), Piece::new(&quarter.reversed(), 0.1)] {
+            assert!((a.distance(P2::new(2.0, 2.0)) - (8f64.sqrt() - 1.0)).abs() < 1e-12);
+            // Below the start: nearest is the start at (1, 0).
+            assert!((a.distance(P2::new(1.0, -1.0)) - 1.0).abs() < 1e-12);
+            // Left of the end: nearest is the end at (0, 1).
+            assert!((a.distance(P2::new(-2.0, 1.0)) - 2.0).abs() < 1e-12);
+            // The tight box of the quarter, not of its circle.
+            assert!((a.reach[0] + 0.1).abs() < 1e-15 && (a.reach[1] + 0.1).abs() < 1e-15);
+        }
+    }
+
+    #[test]
+    fn the_travelled_part_of_a_move() {
+        // Clockwise half circle from (1, 0) through (0, -1) to (-1, 0).
+        let half = Segment::arc_xy(p3(1.0, 0.0), p3(-1.0, 0.0), P3::origin(), false);
+        let start = travelled(&half, 0.0);
+        assert!(
+            !start.is_arc() && start.length() == 0.0,
+            "the start point, not a full circle"
+        );
+        let part = travelled(&half, 0.5);
+        assert!((part.sweep().unwrap() + FRAC_PI_2).abs() < 1e-12);
+        assert!((part.end() - p3(0.0, -1.0)).norm() < 1e-12);
+        // Pieces under 16 nm that Arc3::split_at refuses.
+        let tiny = travelled(&half, 1e-9);
+        assert!(!tiny.is_arc() && (tiny.length() - 1e-9 * std::f64::consts::PI).abs() < 1e-15);
+        let most = travelled(&half, 1.0 - 1e-9);
+        assert!(most.sweep().unwrap() < 0.0 && (most.sweep().unwrap() + std::f64::consts::PI).abs() < 1e-8);
+        let line = Segment::line(p3(0.0, 0.0), p3(4.0, 0.0));
+        assert_eq!(travelled(&line, 0.25).end(), p3(1.0, 0.0));
+        assert_eq!(travelled(&line, 0.0).length(), 0.0);
     }
 
     #[test]
@@ -280,13 +313,10 @@ mod tests {
         let mut sw = Swept::new(r);
         let (mut d, mut t) = (vec![0.0; bins.len()], vec![0.0; bins.len()]);
         let s = 0.01;
-        let cur = Curve::Seg {
-            a: (1.0, 2.0),
-            b: (2.0, 2.0),
-        };
+        let cur = Segment::line(p3(1.0, 2.0), p3(2.0, 2.0));
         sw.chip(
             (2.0 + s, 2.0),
-            Some(cur),
+            Some(&cur),
             [0.0, 0.0, 5.0, 4.0],
             &bins.dir,
             &mut d,

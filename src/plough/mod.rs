@@ -16,6 +16,8 @@
 //! end (after a rapid, or the first move) first places the cutter there:
 //! that step's chip is whatever the disc holds (a plunge).
 
+#![warn(missing_docs)]
+
 pub mod dexel;
 pub mod exact;
 pub mod output;
@@ -25,10 +27,11 @@ pub mod polar;
 #[cfg(test)]
 mod checks;
 
+use crate::geometry::segment::Segment;
 use crate::geometry::{P3, Plane};
 use crate::model::toolpath::{FeedUnit, MotionKind, Record};
 use dexel::{DualDexel, Removed};
-use exact::{Curve, Swept};
+use exact::Swept;
 use polar::Bins;
 
 /// Which computation gives the reported areas.
@@ -73,6 +76,7 @@ pub struct Params {
     pub scale: f64,
     /// Spindle speed overriding the program's S words, rpm.
     pub rpm: Option<f64>,
+    /// Which computation gives the reported areas.
     pub method: Method,
     /// Largest memory the stock and the series may take, MiB.
     pub max_memory_mib: f64,
@@ -89,20 +93,61 @@ pub const DEFAULT_MAX_STEPS: u64 = 500_000;
 /// Why a simulation cannot run.
 #[derive(Debug, thiserror::Error, PartialEq)]
 pub enum PloughError {
+    /// A parameter out of range; the message names it and what it must be.
     #[error("{0}")]
     Param(String),
+    /// The cutter is wider than the stock's shorter side.
     #[error("tool diameter {d} mm does not fit the {w} x {h} mm stock")]
-    ToolTooLarge { d: f64, w: f64, h: f64 },
+    ToolTooLarge {
+        /// Cutter diameter, mm.
+        d: f64,
+        /// Stock width (X), mm.
+        w: f64,
+        /// Stock height (Y), mm.
+        h: f64,
+    },
+    /// The stock, the bins or the series would pass the memory cap.
     #[error("{what} would need about {need_mib:.0} MiB, over the {cap_mib:.0} MiB cap (--max-memory-mib)")]
-    Memory { what: String, need_mib: f64, cap_mib: f64 },
+    Memory {
+        /// What needs the memory, with the figures that size it.
+        what: String,
+        /// Estimated need, MiB.
+        need_mib: f64,
+        /// The cap, MiB ([`Params::max_memory_mib`]).
+        cap_mib: f64,
+    },
+    /// The run would pass [`Params::max_steps`] (checked before the move
+    /// that would pass it, so no time is spent on it).
     #[error(
         "the series would pass {cap} cutter steps ({steps:.0} by the end of this move, at {step_mm:.3e} mm per step; raise --max-steps or check the feed and spindle speed)"
     )]
-    Steps { steps: f64, step_mm: f64, cap: u64 },
+    Steps {
+        /// Steps the series would hold at the end of the move.
+        steps: f64,
+        /// The move's step length, mm (feed per tooth × scale factor).
+        step_mm: f64,
+        /// The cap.
+        cap: u64,
+    },
+    /// A move the simulation cannot take, by its program line: an arc
+    /// outside XY or degenerate, a feed move without feed or spindle
+    /// speed, or the step cap passed on it.
     #[error("line {line}: {msg}")]
-    Line { line: u64, msg: String },
+    Line {
+        /// The program line of the move.
+        line: u64,
+        /// What is wrong with it.
+        msg: String,
+    },
+    /// As [`PloughError::Line`], for a record without a program line (a
+    /// toolpath file): its place among the records fed.
     #[error("record {index}: {msg}")]
-    Record { index: u64, msg: String },
+    Record {
+        /// 1-based count of the records fed, this one included.
+        index: u64,
+        /// What is wrong with it.
+        msg: String,
+    },
 }
 
 /// One cutter position and what it cut.
@@ -112,7 +157,9 @@ pub struct Step {
     pub line: Option<u64>,
     /// Feed path length from the start of the program to here, mm.
     pub path_mm: f64,
+    /// Cutter centre X, mm.
     pub x_mm: f64,
+    /// Cutter centre Y, mm.
     pub y_mm: f64,
     /// Chip area, mm².
     pub chip_mm2: f64,
@@ -126,7 +173,10 @@ pub struct Step {
 /// A move drawn on the stock picture, as points in XY, mm.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Drawn {
+    /// A feed move (drawn as cutting); false for a rapid.
     pub feed: bool,
+    /// The move's points in order: a rapid's two ends, a feed move's steps
+    /// thinned to at most about 512.
     pub points: Vec<(f64, f64)>,
 }
 
@@ -289,7 +339,7 @@ impl Plough {
         let from = self.pos;
         self.pos = m.to;
         let (a, b) = ((from.x, from.y), (m.to.x, m.to.y));
-        let arc = match &m.kind {
+        let curve = match &m.kind {
             MotionKind::Rapid => {
                 self.placed = None;
                 self.drawn.push(Drawn {
@@ -298,7 +348,7 @@ impl Plough {
                 });
                 return Ok(());
             }
-            MotionKind::Line => None,
+            MotionKind::Line => Segment::line(from, m.to),
             MotionKind::Arc(d) => {
                 if d.plane != Plane::Xy {
                     return Err(self.err(m.block, "arcs outside the XY plane (G18/G19) are not supported".into()));
@@ -306,7 +356,7 @@ impl Plough {
                 let arc = d
                     .arc(from, m.to)
                     .ok_or_else(|| self.err(m.block, "degenerate arc".into()))?;
-                Some(arc)
+                Segment::Arc(arc)
             }
         };
         let feed = m
@@ -323,28 +373,11 @@ impl Plough {
         // f [mm/s] / (n [rev/s] × N [teeth]), stepped at f_t × SF.
         let per_tooth = feed * self.unit_mm_s / (rpm / 60.0 * self.p.teeth as f64);
         let step = per_tooth * self.p.scale;
-        // The move as a curve in XY, and its XY length.
-        let curve = match &arc {
-            None => Curve::Seg { a, b },
-            Some(arc) => {
-                let sw = arc.sweep();
-                let o = (arc.center.x, arc.center.y);
-                let (a0, sweep) = if sw >= 0.0 {
-                    (arc.start_angle(), sw)
-                } else {
-                    (arc.start_angle() + sw, -sw)
-                };
-                Curve::Arc {
-                    o,
-                    ra: arc.radius(),
-                    a0,
-                    sweep,
-                }
-            }
-        };
-        let len = match &arc {
-            None => (b.0 - a.0).hypot(b.1 - a.1),
-            Some(arc) => arc.radius() * arc.sweep().abs(),
+        // The length in XY, Z being ignored here (Segment::length would add
+        // a helix's rise and average the start and end radii).
+        let len = match &curve {
+            Segment::Line(_) => (b.0 - a.0).hypot(b.1 - a.1),
+            Segment::Arc(arc) => arc.radius() * arc.sweep().abs(),
         };
         let n = if len > 1e-12 {
             (len / step - 1e-9).ceil().max(1.0)
@@ -373,49 +406,24 @@ impl Plough {
         // Points of the move for the picture.
         let mut pts = Vec::with_capacity(n.min(512) + 2);
         if self.placed != Some(a) {
-            self.cut_at(a, Some(Curve::Seg { a, b: a }), m.block, true);
+            self.cut_at(a, None, m.block);
         }
         pts.push(a);
-        let at = |t: f64| -> (f64, f64) {
-            match &arc {
-                None => (a.0 + (b.0 - a.0) * t, a.1 + (b.1 - a.1) * t),
-                Some(arc) => {
-                    let p = arc.point_at(t);
-                    (p.x, p.y)
-                }
-            }
-        };
-        let partial = |t: f64| -> Curve {
-            match curve {
-                Curve::Seg { a, .. } => Curve::Seg { a, b: at(t) },
-                Curve::Arc { o, ra, a0, sweep } => {
-                    let cw = matches!(&arc, Some(x) if x.sweep() < 0.0);
-                    if cw {
-                        // Travel runs from a0 + sweep downwards.
-                        Curve::Arc {
-                            o,
-                            ra,
-                            a0: a0 + sweep * (1.0 - t),
-                            sweep: sweep * t,
-                        }
-                    } else {
-                        Curve::Arc {
-                            o,
-                            ra,
-                            a0,
-                            sweep: sweep * t,
-                        }
-                    }
-                }
-            }
-        };
         let draw_every = n.div_ceil(512).max(1);
         for k in 1..=n {
-            let t = k as f64 / n as f64;
-            let c = if k == n { b } else { at(t) };
+            let c = if k == n {
+                b
+            } else {
+                let p = curve.point_at(k as f64 / n as f64);
+                (p.x, p.y)
+            };
             self.path_mm += len / n as f64;
-            let done = partial((k - 1) as f64 / n as f64);
-            self.cut_at(c, Some(done), m.block, false);
+            // Only the exact reference asks what the move swept so far.
+            let done = self
+                .swept
+                .is_some()
+                .then(|| exact::travelled(&curve, (k - 1) as f64 / n as f64));
+            self.cut_at(c, done.as_ref(), m.block);
             if k % draw_every == 0 || k == n {
                 pts.push(c);
             }
@@ -424,7 +432,7 @@ impl Plough {
             pts.push(b);
         }
         if let Some(sw) = self.swept.as_mut() {
-            sw.push(if n == 0 { Curve::Seg { a, b: a } } else { curve });
+            sw.push(&if n == 0 { Segment::line(from, from) } else { curve });
         }
         self.drawn.push(Drawn {
             feed: true,
@@ -435,8 +443,10 @@ impl Plough {
     }
 
     /// One step: the cutter at `c`; `done` is what the current move swept
-    /// before it (for the exact reference).
-    fn cut_at(&mut self, c: (f64, f64), done: Option<Curve>, line: Option<u64>, placing: bool) {
+    /// before it (for the exact reference), `None` when the cutter is
+    /// placed (a plunge: nothing of this move is cut yet) or when there is
+    /// no exact reference.
+    fn cut_at(&mut self, c: (f64, f64), done: Option<&Segment>, line: Option<u64>) {
         let (r, h_min, dth) = (self.r, self.p.h_min_mm, self.bins.dtheta);
         let mut dex = None;
         if let Some(stock) = self.stock.as_mut() {
@@ -465,9 +475,8 @@ impl Plough {
         }
         let mut ex = None;
         if let Some(sw) = self.swept.as_mut() {
-            let current = if placing { None } else { done };
             let stock = self.p.stock_mm;
-            sw.chip(c, current, stock, &self.bins.dir, &mut self.comb, &mut self.thick);
+            sw.chip(c, done, stock, &self.bins.dir, &mut self.comb, &mut self.thick);
             let th = &self.thick;
             ex = Some(polar::split(&self.comb, |k| th[k], h_min, dth));
         }

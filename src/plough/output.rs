@@ -51,11 +51,15 @@ pub fn write_csv<W: Write>(w: &mut W, steps: &[Step], method: Method) -> io::Res
 /// Dexel against exact, over a run with `Method::Both`.
 #[derive(Debug, Clone, Serialize, PartialEq)]
 pub struct Comparison {
+    /// The exact reference's total chip area, µm².
     pub exact_chip_area_um2: f64,
+    /// The exact reference's total ploughing area, µm².
     pub exact_plough_area_um2: f64,
+    /// Exact ploughing area over exact chip area.
     pub exact_plough_fraction: f64,
     /// |dexel − exact| / exact over the run's totals.
     pub chip_area_rel_diff: f64,
+    /// The same for the ploughing area.
     pub plough_area_rel_diff: f64,
     /// Mean over steps of |dexel − exact| chip area, relative to the mean
     /// exact chip area of a step.
@@ -65,32 +69,51 @@ pub struct Comparison {
 /// The run's totals (`microcam.plough2d/1`).
 #[derive(Debug, Clone, Serialize, PartialEq)]
 pub struct PloughSummary {
+    /// `microcam.plough2d/1`.
     pub schema: &'static str,
+    /// Where the program came from (its toolpath header's `source`), when
+    /// known.
     pub source: Option<String>,
+    /// [`Method::name`] of the run.
     pub method: &'static str,
+    /// Stock outline x0, y0, x1, y1, mm.
     pub stock_mm: [f64; 4],
+    /// Dexel spacing R, µm.
     pub resolution_um: f64,
+    /// Cutter diameter D, mm.
     pub tool_diameter_mm: f64,
+    /// Cutter teeth N.
     pub teeth: u32,
+    /// Scale factor SF on the feed per tooth.
     pub scale_factor: f64,
+    /// Minimum chip thickness (scaled model), µm.
     pub min_chip_thickness_um: f64,
+    /// Ploughing accuracy T_p, µm.
     pub accuracy_um: f64,
+    /// Cutter steps, placings included.
     pub steps: usize,
     /// Steps that cut something.
     pub cutting_steps: usize,
+    /// Feed path length at the last step, mm (XY).
     pub path_length_mm: f64,
+    /// Total chip area, µm²: the dexel's, or the exact reference's for
+    /// `Method::Exact`.
     pub chip_area_um2: f64,
+    /// Total ploughing area, µm², from the same method.
     pub plough_area_um2: f64,
     /// Total ploughing area over total chip area.
     pub plough_fraction_of_total: f64,
     /// Mean over cutting steps of each step's ploughing fraction.
     pub mean_plough_fraction: f64,
+    /// Largest chip area of one step, µm².
     pub max_chip_area_um2: f64,
     /// Stock area left at the end (dexel), mm².
     pub stock_left_mm2: Option<f64>,
     /// Memory the dexel stock holds at the end: lines and intervals.
     pub dexel_lines: Option<usize>,
+    /// Material intervals stored over all dexel lines at the end.
     pub dexel_intervals: Option<usize>,
+    /// Dexel against exact, for `Method::Both`.
     pub comparison: Option<Comparison>,
 }
 

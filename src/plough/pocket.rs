@@ -1,5 +1,5 @@
-//! A seed-like pocket program, made here for the documented example, the
-//! tests and the benchmark: a rectangular pocket cleared like a CAM
+//! An example pocket program, made here for the documentation, the tests
+//! and the benchmark (the thesis's own programs are not available): a rectangular pocket cleared like a CAM
 //! pocketing cycle (Bayesteh 2013 §5.3 machined five such pockets with a
 //! 0.794 mm two-flute end mill). The cutter plunges on the pocket's long
 //! centre line, cuts a full-immersion slot along it, then widens it in
@@ -17,21 +17,24 @@ use crate::model::toolpath::{ArcData, FeedUnit, Motion, MotionKind, Record};
 pub struct Pocket {
     /// Pocket centre, mm.
     pub center: (f64, f64),
-    /// Pocket width (X) and height (Y), mm; width ≥ height.
+    /// Pocket width (X), mm; at least the height.
     pub width: f64,
+    /// Pocket height (Y), mm.
     pub height: f64,
+    /// Cutter diameter, mm.
     pub tool_diameter: f64,
     /// Distance between loops, mm.
     pub step_over: f64,
     /// Feed, mm/s.
     pub feed_mm_s: f64,
+    /// Spindle speed written into the program (S), rpm.
     pub rpm: f64,
 }
 
 impl Pocket {
-    /// The documented example: a 3 × 2 mm pocket centred in a 4 × 3 mm
+    /// The example in the documentation: a 3 × 2 mm pocket centred in a 4 × 3 mm
     /// stock, 0.794 mm cutter, 0.3 mm step-over, 60,000 rpm.
-    pub fn seed_like(feed_mm_s: f64) -> Pocket {
+    pub fn example(feed_mm_s: f64) -> Pocket {
         Pocket {
             center: (2.0, 1.5),
             width: 3.0,
@@ -43,8 +46,8 @@ impl Pocket {
         }
     }
 
-    /// The stock the documented example cuts the pocket in: x0, y0, x1, y1.
-    pub const SEED_STOCK: [f64; 4] = [0.0, 0.0, 4.0, 3.0];
+    /// The stock the example pocket is cut in: x0, y0, x1, y1, mm.
+    pub const EXAMPLE_STOCK: [f64; 4] = [0.0, 0.0, 4.0, 3.0];
 
     /// The toolpath (feeds in mm/s).
     pub fn records(&self) -> Vec<Record> {

@@ -39,7 +39,9 @@ const RINGS: usize = 8;
 /// The surface seen through a cutter.
 #[derive(Debug, Clone)]
 pub struct Contact<'a> {
+    /// The pocket's bottom.
     pub surface: &'a Surface,
+    /// The cutter resting on it (tip heights are of its tip, in mm).
     pub cutter: Cutter,
     /// Largest dip (mm) of a straight move below the touching height.
     pub gouge_tol: f64,

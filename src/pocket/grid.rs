@@ -12,6 +12,7 @@
 //! machined).
 
 use crate::geometry::P2;
+use crate::geometry::line::point_segment_distance;
 use cavalier_contours::polyline::{PlineSource, PlineSourceMut, PlineVertex, Polyline};
 use std::collections::HashMap;
 
@@ -21,6 +22,8 @@ const CHORD_TOL: f64 = 1e-4;
 /// The tool-centre region as polygons (counter-clockwise, lines only).
 #[derive(Debug, Clone, Default)]
 pub struct Region {
+    /// Closed polygons (last vertex joins the first), counter-clockwise,
+    /// mm; a point is in the region by non-zero winding over all of them.
     pub loops: Vec<Vec<P2>>,
 }
 
@@ -116,15 +119,7 @@ impl Region {
         let mut best = f64::INFINITY;
         for l in &self.loops {
             for i in 0..l.len() {
-                let (a, b) = (l[i], l[(i + 1) % l.len()]);
-                let d = b - a;
-                let l2 = d.norm_squared();
-                let t = if l2 > 0.0 {
-                    ((p - a).dot(&d) / l2).clamp(0.0, 1.0)
-                } else {
-                    0.0
-                };
-                best = best.min((p - (a + d * t)).norm());
+                best = best.min(point_segment_distance(&p, &l[i], &l[(i + 1) % l.len()]));
             }
         }
         best
@@ -170,7 +165,9 @@ pub type CellIx = (i64, i64);
 /// The grid: pitch, origin, and the cells of the region.
 #[derive(Debug, Clone)]
 pub struct Grid {
+    /// Cell pitch along X, mm.
     pub dx: f64,
+    /// Cell pitch along Y, mm.
     pub dy: f64,
     /// Lower-left corner of cell (0, 0).
     pub origin: P2,

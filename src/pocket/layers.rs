@@ -27,17 +27,23 @@ use crate::model::toolpath::{ArcData, Motion, MotionKind, Record, Role};
 /// Feeds (mm/s) and heights (mm) of the job.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Feeds {
+    /// Feed of the roughing layers, mm/s.
     pub rough: f64,
+    /// Feed of the final (finishing) layer, mm/s.
     pub finish: f64,
+    /// Feed of the move down from clearance to a pass's start, mm/s.
     pub plunge: f64,
-    /// Clearance height for links.
+    /// Clearance height for links, mm; above the pocket's top.
     pub safe_z: f64,
 }
 
-/// Records with the pass kind of each (None for links at clearance).
+/// The pocket's toolpath, with the pass kind of each record.
 #[derive(Debug, Clone, Default)]
 pub struct Program {
+    /// The moves, in order (all `Record::Move`).
     pub records: Vec<Record>,
+    /// The pass each record belongs to, index for index with `records`;
+    /// `None` for links at clearance (retract, travel, plunge).
     pub kinds: Vec<Option<PassKind>>,
     /// Blocks of the final layer's main path.
     pub final_main_blocks: usize,
@@ -153,16 +159,21 @@ fn polyline_elems(pts: &[P3]) -> Vec<Segment> {
 
 /// What the layers are made of.
 pub struct LayerPlan<'a> {
+    /// The cutter on the bottom surface (for fits and gouge checks).
     pub contact: &'a Contact<'a>,
+    /// The tool-centre region (for feed links).
     pub region: &'a Region,
     /// Floors of the roughing layers, highest first; the final layer follows.
     pub floors: Vec<f64>,
+    /// Feeds and clearance height.
     pub feeds: Feeds,
     /// Passes cut in every layer, in order.
     pub every_layer: Vec<Pass>,
     /// Passes cut only in the final layer, after the others.
     pub final_only: Vec<Pass>,
+    /// How the final layer's main passes are written.
     pub motion: MotionMode,
+    /// Tolerances of those fits.
     pub fit: FitOptions,
     /// Sampling step (mm) of the gouge checks on curves.
     pub step: f64,
@@ -170,7 +181,8 @@ pub struct LayerPlan<'a> {
     pub feed_links: bool,
 }
 
-/// Assemble the program.
+/// The program of `plan`: layer by layer, every pass clamped to the
+/// layer's floor, each reached by a link, the job ending at clearance.
 pub fn build(plan: &LayerPlan) -> Program {
     let mut prog = Program::default();
     let f = &plan.feeds;

@@ -14,6 +14,8 @@
 //! - [`report`]: figures of a job.
 //! - [`svg`]: a preview coloured by pass kind.
 
+#![warn(missing_docs)]
+
 pub mod contact;
 pub mod grid;
 pub mod layers;
@@ -42,14 +44,26 @@ use thiserror::Error;
 /// Why a pocket cannot be made.
 #[derive(Debug, Error, Clone, PartialEq)]
 pub enum PocketError {
+    /// A spec value out of range or an unreadable surface; the message
+    /// says which and why.
     #[error("{0}")]
     Input(String),
+    /// The grid pitch leaves material between cell centres.
     #[error(
         "grid pitch {pitch} mm is above D/sqrt(2) = {limit} mm: the cutter would not cover a whole cell from its centre and material would be left between grid centres (use --force to accept)"
     )]
-    PitchTooLarge { pitch: f64, limit: f64 },
+    PitchTooLarge {
+        /// The larger of the two pitches, mm.
+        pitch: f64,
+        /// D/√2 for the cutter, mm.
+        limit: f64,
+    },
+    /// The boundary offset inward by the tool radius is empty; the
+    /// cutter's diameter, mm.
     #[error("the cutter (diameter {0} mm) does not fit in the pocket: no tool-centre region")]
     NoRegion(f64),
+    /// The cycle-time simulation refused the program (the machine's
+    /// limits, a move it cannot time).
     #[error("{0}")]
     Time(String),
 }
@@ -73,38 +87,61 @@ pub enum Layers {
     Floors(Vec<f64>),
 }
 
-/// Everything a pocket needs.
+/// Everything a pocket needs: the outline, the bottom, the cutter, the
+/// grid and the cutting parameters (mm, mm/s).
 #[derive(Debug, Clone)]
 pub struct PocketSpec {
     /// Closed boundary (any orientation), lines and arcs.
     pub boundary: Polyline<f64>,
+    /// The pocket's bottom.
     pub surface: Surface,
+    /// The end mill: its radius offsets the boundary into the tool-centre
+    /// region, its profile sets the touching heights.
     pub cutter: Cutter,
+    /// Height of the stock's top, mm: [`Layers::Count`] divides the depth
+    /// from here down to the deepest touching height, and the clearance
+    /// height must be above it.
     pub top_z: f64,
+    /// Grid pitch along X, mm; at most D/√2 (with the other pitch) unless
+    /// `force`.
     pub dx: f64,
+    /// Grid pitch along Y, mm.
     pub dy: f64,
     /// Lower-left corner of the grid (default: the boundary's).
     pub origin: Option<P2>,
+    /// How the layers are chosen.
     pub layers: Layers,
+    /// Feeds (mm/s) and the clearance height.
     pub feeds: Feeds,
+    /// How the final layer's main path is written.
     pub motion: MotionMode,
+    /// Tolerances of the final-layer fits.
     pub fit: FitOptions,
+    /// Largest dip below the touching height a straight move or curve may
+    /// make between checked points, mm.
     pub gouge_tol: f64,
+    /// Grid navigation or contour-parallel offsets.
     pub strategy: Strategy,
     /// Offset strategy: distance between loops (mm).
     pub stepover: f64,
     /// Accept a pitch above D/√2.
     pub force: bool,
+    /// The machine whose controller model times the program.
     pub machine: Machine,
 }
 
 /// A planned pocket.
 #[derive(Debug, Clone)]
 pub struct PocketJob {
+    /// The toolpath, with the pass kind of each record.
     pub program: Program,
+    /// The tool-centre region.
     pub region: Region,
+    /// The grid cells in the region (computed for either strategy).
     pub grid: Grid,
+    /// The grid navigation (empty for the offset strategy).
     pub nav: Navigation,
+    /// Figures for the report.
     pub figures: Figures,
 }
 
@@ -190,7 +227,9 @@ fn validate(s: &PocketSpec) -> Result<(), PocketError> {
     Ok(())
 }
 
-/// Plan the pocket.
+/// Plan the pocket: check the spec, make the tool-centre region, the grid
+/// and the passes of the strategy, the layers' program, and the report's
+/// figures (the cycle time under the spec's machine).
 pub fn plan(s: &PocketSpec) -> Result<PocketJob, PocketError> {
     validate(s)?;
     let contact = Contact::new(&s.surface, s.cutter, s.gouge_tol);

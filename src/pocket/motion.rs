@@ -26,14 +26,19 @@
 
 use super::contact::Contact;
 use crate::geometry::Segment;
+use crate::geometry::line::point_segment_distance;
 use crate::geometry::{Arc3, Line3, P2, P3, Plane};
 use crate::laser::arcfit;
 
 /// How the final layer's main path moves.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum MotionMode {
+    /// One straight move per cell (the polyline of the touching points).
     Lines,
+    /// Arcs through three cell points in the run's vertical plane, lines
+    /// where no arc fits (§4.2).
     ArcLine,
+    /// Cubic Beziers written as biarcs, lines where no cubic fits (§4.3).
     BezierLine,
 }
 
@@ -189,7 +194,7 @@ fn bezier_span(span: &[P3], plane: Plane, o: &FitOptions) -> Option<Vec<Segment>
         let q = plane.project(p);
         let d = samples
             .windows(2)
-            .map(|w| seg_dist(&q, &w[0], &w[1]))
+            .map(|w| point_segment_distance(&q, &w[0], &w[1]))
             .fold(f64::INFINITY, f64::min);
         if d > 0.5 * o.tol {
             return None;
@@ -247,17 +252,6 @@ pub fn bezier_controls(span: &[P3], plane: Plane) -> Option<([P2; 4], f64)> {
     let c1 = (r1 * w2[2] - r2 * w1[2]) / det;
     let c2 = (r2 * w1[1] - r1 * w2[1]) / det;
     Some(([q[0], P2::from(c1), P2::from(c2), q[n - 1]], fixed))
-}
-
-fn seg_dist(p: &P2, a: &P2, b: &P2) -> f64 {
-    let d = b - a;
-    let l2 = d.norm_squared();
-    let t = if l2 > 0.0 {
-        ((p - a).dot(&d) / l2).clamp(0.0, 1.0)
-    } else {
-        0.0
-    };
-    (p - (a + d * t)).norm()
 }
 
 /// Largest distance of the run's points from the fitted elements.

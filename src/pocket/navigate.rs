@@ -29,6 +29,9 @@ const DIRS: [(i64, i64); 4] = [(1, 0), (0, 1), (-1, 0), (0, -1)];
 /// the neighbour pairs it joined.
 #[derive(Debug, Clone, Default)]
 pub struct Navigation {
+    /// The walks in the order they were made; each is a chain of cell ids
+    /// (indices into [`Grid::cells`]), neighbour to neighbour, with the
+    /// walks back over cut cells included.
     pub walks: Vec<Vec<usize>>,
     /// Joined neighbour pairs (smaller id first).
     pub joined: BTreeSet<(usize, usize)>,

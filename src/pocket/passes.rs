@@ -17,9 +17,13 @@ use crate::geometry::{P2, P3};
 /// What a pass is for; previews colour by it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub enum PassKind {
+    /// The main path: the navigation reversed, over every cell.
     Main,
+    /// Along the tool-centre offset of the boundary.
     Wall,
+    /// Clean-up between X neighbours the navigation did not join.
     XZigzag,
+    /// Clean-up between Y neighbours the navigation did not join.
     YZigzag,
     /// A contour-parallel loop of the offset strategy.
     Offset,
@@ -44,6 +48,7 @@ impl PassKind {
 /// One pass at full depth.
 #[derive(Debug, Clone)]
 pub struct Pass {
+    /// What the pass is for.
     pub kind: PassKind,
     /// Touching points, gouge-safe as a polyline.
     pub pts: Vec<P3>,

@@ -71,24 +71,49 @@ pub fn lengths(records: &[Record]) -> (f64, f64) {
 /// Figures of one job, for the JSON report.
 #[derive(Debug, Clone, Default)]
 pub struct Figures {
+    /// "grid" or "offset".
     pub strategy: String,
+    /// The cutter as `shape:diameter` (e.g. `ball:1`, `torus:2:0.5`).
     pub cutter: String,
+    /// Grid cells whose centres lie in the tool-centre region.
     pub cells: usize,
+    /// Layers, the final (finishing) one included.
     pub layers: usize,
+    /// Floors of the roughing layers, highest first, mm.
     pub floors_mm: Vec<f64>,
+    /// (pass kind name, passes of that kind), in [`PassKind`] order.
+    ///
+    /// [`PassKind`]: super::passes::PassKind
     pub passes: Vec<(String, usize)>,
+    /// Length of the feed moves, mm (3-D).
     pub feed_length_mm: f64,
+    /// Length of the rapid moves, mm (3-D).
     pub rapid_length_mm: f64,
+    /// Predicted cycle time under the machine's controller model, s.
     pub cycle_time_s: f64,
+    /// The machine profile's name.
     pub machine: String,
+    /// Records (moves) in the program.
     pub blocks: usize,
+    /// Moves of the final layer's main path in the chosen motion.
     pub final_main_blocks: usize,
     /// (mode, blocks, largest cell-point deviation mm) per final-layer motion.
     pub motion_blocks: Vec<(String, usize, f64)>,
+    /// The chosen final-layer motion ([`MotionMode::name`]).
+    ///
+    /// [`MotionMode::name`]: super::motion::MotionMode::name
     pub motion: String,
+    /// The fitting tolerance, mm.
     pub tolerance_mm: f64,
+    /// Largest scallop height between neighbouring grid points (thesis
+    /// Fig. 35), mm; for the offset strategy, between flat loops a
+    /// stepover apart.
     pub scallop_fig35_mm: f64,
+    /// Largest CL/CC surface error R(1 − cos θ) between neighbouring grid
+    /// points (thesis Fig. 35), mm; 0 for the offset strategy.
     pub surface_error_fig35_mm: f64,
+    /// Largest surface-point error of a Bezier step through grid points
+    /// (thesis Fig. 20), mm.
     pub surface_point_error_fig20_mm: f64,
 }
 

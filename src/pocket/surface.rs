@@ -23,7 +23,9 @@ pub enum Interp {
 /// z = Σ B_i(u) B_j(v) z\[j\]\[i\] (row j runs along X at v = j/3).
 #[derive(Debug, Clone, PartialEq)]
 pub struct BezierPatch {
+    /// The rectangle's X range x0 < x1, mm.
     pub x: [f64; 2],
+    /// The rectangle's Y range y0 < y1, mm.
     pub y: [f64; 2],
     /// Control heights, `z[j][i]`: row `j` (Y index), column `i` (X index).
     pub z: [[f64; 4]; 4],
@@ -32,10 +34,13 @@ pub struct BezierPatch {
 /// Measured heights on a regular grid.
 #[derive(Debug, Clone, PartialEq)]
 pub struct GridSurface {
+    /// The grid's X values, increasing, mm (at least two).
     pub xs: Vec<f64>,
+    /// The grid's Y values, increasing, mm (at least two).
     pub ys: Vec<f64>,
     /// Row-major heights, `z[j * xs.len() + i]`.
     pub z: Vec<f64>,
+    /// How heights between the points are found.
     pub interp: Interp,
 }
 
@@ -44,7 +49,9 @@ pub struct GridSurface {
 pub enum Surface {
     /// A flat floor at this height.
     Flat(f64),
+    /// A designed bottom: a bicubic Bezier patch.
     Bezier(BezierPatch),
+    /// A measured bottom: heights on a regular grid.
     Grid(GridSurface),
 }
 
