@@ -268,7 +268,7 @@ fn fit_interval(
         let err = (1..SAMPLES)
             .map(|k| {
                 let q = xy(curve.point(t0 + (t1 - t0) * k as f64 / SAMPLES as f64), z);
-                pieces.iter().map(|s| distance(s, &q)).fold(f64::INFINITY, f64::min)
+                pieces.iter().map(|s| s.distance_xy(&q)).fold(f64::INFINITY, f64::min)
             })
             .fold(0.0, f64::max);
         if err <= tol {
@@ -296,7 +296,7 @@ fn count_chords(curve: &dyn Curve, t0: f64, t1: f64, tol: f64, depth: u32, steps
     let b = curve.point(t1);
     let line = Segment::line(xy(a, 0.0), xy(b, 0.0));
     let err = (1..SAMPLES)
-        .map(|k| distance(&line, &xy(curve.point(t0 + (t1 - t0) * k as f64 / SAMPLES as f64), 0.0)))
+        .map(|k| line.distance_xy(&xy(curve.point(t0 + (t1 - t0) * k as f64 / SAMPLES as f64), 0.0)))
         .fold(0.0, f64::max);
     if err <= tol || depth >= MAX_DEPTH {
         return 1;
@@ -347,11 +347,6 @@ pub fn biarc(p0: P3, t0: V3, p1: P3, t1: V3) -> Option<[Segment; 2]> {
     Some([first, second])
 }
 
-/// Distance in XY from `q` to a segment (infinite for a degenerate arc).
-pub fn distance(s: &Segment, q: &P3) -> f64 {
-    s.distance(&P3::new(q.x, q.y, s.start().z)).unwrap_or(f64::INFINITY)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -361,7 +356,7 @@ mod tests {
         (0..=4000)
             .map(|i| {
                 let q = curve.point(i as f64 / 4000.0);
-                segs.iter().map(|s| distance(s, &q)).fold(f64::INFINITY, f64::min)
+                segs.iter().map(|s| s.distance_xy(&q)).fold(f64::INFINITY, f64::min)
             })
             .fold(0.0, f64::max)
     }

@@ -405,6 +405,23 @@ impl Segment {
         }
     }
 
+    /// Distance in XY from `p` to the segment: `p` is taken at the
+    /// segment's start height, so a point is matched to a drawing in the
+    /// plane whatever its Z. `f64::INFINITY` where
+    /// [`distance`](Self::distance) has no answer (a segment read from a
+    /// file may want [`checked`](Self::checked) first).
+    ///
+    /// ```
+    /// use microcam::geometry::segment::Segment;
+    /// use microcam::geometry::P3;
+    /// let s = Segment::line(P3::new(0.0, 0.0, 5.0), P3::new(4.0, 0.0, 5.0));
+    /// assert_eq!(s.distance_xy(&P3::new(1.0, 3.0, -2.0)), 3.0);
+    /// ```
+    pub fn distance_xy(&self, p: &P3) -> f64 {
+        self.distance(&P3::new(p.x, p.y, self.start().z))
+            .unwrap_or(f64::INFINITY)
+    }
+
     /// The segment shifted by `d`.
     pub fn translated(&self, d: V3) -> Segment {
         match self {

@@ -111,16 +111,7 @@ pub fn dist_to_elem(p: &P2, e: &Segment) -> f64 {
 
 fn dist_to_polyline(p: &P2, pts: &[P2]) -> f64 {
     pts.windows(2)
-        .map(|w| {
-            let d = w[1] - w[0];
-            let l2 = d.norm_squared();
-            let t = if l2 > 0.0 {
-                ((p - w[0]).dot(&d) / l2).clamp(0.0, 1.0)
-            } else {
-                0.0
-            };
-            (p - (w[0] + d * t)).norm()
-        })
+        .map(|w| point_segment_distance(p, &w[0], &w[1]))
         .fold(f64::INFINITY, f64::min)
 }
 
@@ -497,8 +488,7 @@ const BRUTE: usize = 1 << 14;
 enum Probe {
     Line {
         a: P2,
-        d: V2,
-        l2: f64,
+        b: P2,
     },
     Arc {
         c: P2,
@@ -519,14 +509,10 @@ enum Probe {
 impl Probe {
     fn new(e: &Segment) -> Probe {
         match e {
-            Segment::Line(l) => {
-                let (a, b) = (l.start.xy(), l.end.xy());
-                Probe::Line {
-                    a,
-                    d: b - a,
-                    l2: (b - a).norm_squared(),
-                }
-            }
+            Segment::Line(l) => Probe::Line {
+                a: l.start.xy(),
+                b: l.end.xy(),
+            },
             Segment::Arc(x) if x.plane == Plane::Xy && x.rise() == 0.0 && x.extra_turns == 0 => {
                 let (c, s, e) = (x.center.xy(), x.start.xy(), x.end.xy());
                 let sweep = x.sweep();
@@ -550,14 +536,7 @@ impl Probe {
 
     fn dist(&self, p: &P2) -> f64 {
         match self {
-            Probe::Line { a, d, l2 } => {
-                let t = if *l2 > 0.0 {
-                    ((p - a).dot(d) / l2).clamp(0.0, 1.0)
-                } else {
-                    0.0
-                };
-                (p - (a + d * t)).norm()
-            }
+            Probe::Line { a, b } => point_segment_distance(p, a, b),
             Probe::Arc {
                 c,
                 s,

@@ -434,14 +434,6 @@ fn segment_length(s: &Segment) -> f64 {
     s.checked().map_or(0.0, |s| s.length())
 }
 
-/// Distance in XY from `p` to a segment (chains are planar drawings; the
-/// path may run at any depth below them).
-fn segment_distance(s: &Segment, p: &P3) -> f64 {
-    s.checked()
-        .and_then(|s| s.distance(&P3::new(p.x, p.y, s.start().z)))
-        .unwrap_or(f64::INFINITY)
-}
-
 /// Match each cut to the drawing chain most of its probe points lie on
 /// (within `tol` mm in XY), and total the exposure per chain. Chains no cut
 /// matched are wholly unexposed. Returns the chain index per cut and the
@@ -463,7 +455,7 @@ pub fn match_chains(cuts: &[Cut], chains: &[Chain], tol: f64) -> (Vec<Option<usi
             let mut best = (f64::INFINITY, usize::MAX);
             for (i, c) in chains.iter().enumerate() {
                 for s in &c.segments {
-                    let d = segment_distance(s, p);
+                    let d = s.checked().map_or(f64::INFINITY, |s| s.distance_xy(p));
                     if d < best.0 {
                         best = (d, i);
                     }
