@@ -348,6 +348,23 @@ impl IsoInterpreter {
             }
             self.tool_selected = Some(t);
         }
+        // G43/G43.2 H: the length offset of any tool in the table, loaded
+        // or not (H0 is the empty spindle's, zero). It does not move the
+        // tool tip, but LinuxCNC refuses a tool its table lacks.
+        if let Some(h) = b.word(b'H') {
+            if (h - h.round()).abs() > 1e-4 {
+                return Err(err(format!("H{h}: a tool number must be a whole number")));
+            }
+            let n = h.round();
+            let missing = n < 0.0
+                || self
+                    .tool_table
+                    .as_ref()
+                    .is_some_and(|table| n != 0.0 && (n > 1e9 || table.get(n as u32).is_none()));
+            if missing {
+                return Err(err(format!("H{n}: tool {n} is not in the tool table")));
+            }
+        }
         if b.has_m(60) {
             if self.comp.side.is_some() {
                 return Err(err(
