@@ -143,6 +143,9 @@ pub struct IsoInterpreter {
 }
 
 impl IsoInterpreter {
+    /// An interpreter in LinuxCNC's start-up state (G17 G21 G90 G94,
+    /// G54, no offsets, no tool in the spindle, no motion mode), at
+    /// `opts.start`, with the tool table and subroutine path of `opts`.
     pub fn new(opts: &ReadOptions) -> Self {
         IsoInterpreter {
             pos: opts.start,
