@@ -337,7 +337,9 @@ impl IsoInterpreter {
         let Some(block) = self.nurbs.take() else {
             return Err(err("G5.3 without G5.2 first (no NURBS block is open)".into()));
         };
-        if [b'X', b'Y', b'Z', b'A', b'B', b'C'].iter().any(|&l| b.word(l).is_some())
+        if [b'X', b'Y', b'Z', b'A', b'B', b'C']
+            .iter()
+            .any(|&l| b.word(l).is_some())
             || b.polar.iter().any(Option::is_some)
         {
             return Err(err("G5.3 takes no axis words: it only closes the NURBS block".into()));

@@ -27,7 +27,12 @@ fn knot_vector_is_linuxcncs() {
 fn curve_points_match_a_hand_computed_b_spline() {
     // Order 3 on knots 0 0 0 1 2 2 2: on [0, 1) the basis is (1-u)²,
     // u(1-u) + u(2-u)/2 and u²/2, so at u = 0.5: 0.25, 0.625, 0.125.
-    let mut pts = [cp(0.0, 0.0, 1.0), cp(1.0, 2.0, 1.0), cp(3.0, 2.0, 1.0), cp(4.0, 0.0, 1.0)];
+    let mut pts = [
+        cp(0.0, 0.0, 1.0),
+        cp(1.0, 2.0, 1.0),
+        cp(3.0, 2.0, 1.0),
+        cp(4.0, 0.0, 1.0),
+    ];
     let knots = knot_vector(3, 3);
     let at = |pts: &[ControlPoint], u: f64| curve_point(u, 3, pts, &knots);
     assert!((at(&pts, 0.5) - P2::new(1.0, 1.5)).norm() < 1e-12);
@@ -47,8 +52,16 @@ fn nmix(i: usize, k: usize, u: f64, kv: &[f64]) -> f64 {
         return if (kv[i]..=kv[i + 1]).contains(&u) { 1.0 } else { 0.0 };
     }
     let (a, b) = (kv[i + k - 1] - kv[i], kv[i + k] - kv[i + 1]);
-    let left = if a == 0.0 { 0.0 } else { (u - kv[i]) * nmix(i, k - 1, u, kv) / a };
-    let right = if b == 0.0 { 0.0 } else { (kv[i + k] - u) * nmix(i + 1, k - 1, u, kv) / b };
+    let left = if a == 0.0 {
+        0.0
+    } else {
+        (u - kv[i]) * nmix(i, k - 1, u, kv) / a
+    };
+    let right = if b == 0.0 {
+        0.0
+    } else {
+        (kv[i + k] - u) * nmix(i + 1, k - 1, u, kv) / b
+    };
     left + right
 }
 
@@ -77,7 +90,10 @@ fn curve_points_match_linuxcncs_recursion_on_and_between_knots() {
             let u = umax * step as f64 / (4 * count) as f64;
             let basis: Vec<f64> = (0..count).map(|i| nmix(i, k, u, &knots)).collect();
             let den: f64 = basis.iter().zip(&pts).map(|(b, p)| b * p.w).sum();
-            let want = pts.iter().zip(&basis).fold(V2::zeros(), |acc, (p, b)| acc + p.p.coords * (b * p.w / den));
+            let want = pts
+                .iter()
+                .zip(&basis)
+                .fold(V2::zeros(), |acc, (p, b)| acc + p.p.coords * (b * p.w / den));
             worst = worst.max((curve_point(u, k, &pts, &knots).coords - want).norm());
         }
     }
@@ -152,7 +168,13 @@ fn the_block_reads_as_linuxcnc_reads_it() {
     assert_eq!(curve.len(), 8 * 5, "4 (n + 1) steps of two moves, n + 1 = 5");
     assert!((curve.last().unwrap().to - P3::new(5.0, 5.0, 0.0)).norm() < 1e-12);
     // The fourth step ends at u = 4/20 · 3, on the hand-computed curve.
-    let pts = [cp(0.0, 0.0, 1.0), cp(0.0, 1.0, 1.0), cp(2.0, 2.0, 1.0), cp(2.0, 0.0, 1.0), cp(0.0, 0.0, 2.0)];
+    let pts = [
+        cp(0.0, 0.0, 1.0),
+        cp(0.0, 1.0, 1.0),
+        cp(2.0, 2.0, 1.0),
+        cp(2.0, 0.0, 1.0),
+        cp(0.0, 0.0, 2.0),
+    ];
     let want = curve_point(0.6, 3, &pts, &knot_vector(4, 3));
     assert!((curve[7].to - P3::new(want.x + 5.0, want.y + 5.0, 0.0)).norm() < 1e-12);
     // P without X and Y on the first line weighs the start point; L above
@@ -186,7 +208,11 @@ fn nurbs_errors_name_the_line() {
         assert!(e.to_string().contains(needle), "{text}: {e}");
     }
     // Z, A and polar words on a control point, an order beyond the cap.
-    for text in ["F10\nG5.2 X1 Y1 Z1 P1\n", "F10\nG5.2 @1 ^2 P1\n", "F10\nG5.2 X1 Y1 P1 L21\n"] {
+    for text in [
+        "F10\nG5.2 X1 Y1 Z1 P1\n",
+        "F10\nG5.2 @1 ^2 P1\n",
+        "F10\nG5.2 X1 Y1 P1 L21\n",
+    ] {
         assert_eq!(read(text).unwrap_err().line(), 2, "{text}");
     }
 }
