@@ -182,19 +182,29 @@ def rs274_cmd(rs274: str, tool_table: str, program: str, out: str) -> list[str]:
 
 
 def run_rs274(program: str, rs274: str | None = None, timeout: float = 120.0,
-              workdir: str | None = None) -> Rs274Run:
-    """Run rs274 on `program` in a scratch directory, stdin from /dev/null."""
+              workdir: str | None = None, spline_ends: bool = False) -> Rs274Run:
+    """Run rs274 on `program` in a scratch directory, stdin from /dev/null.
+    With `spline_ends`, on a copy that also prints where each spline ends
+    (spline_probe_copy)."""
+    probe = None
     import time
 
     rs274 = rs274 or ensure_rs274()
     program = os.path.abspath(program)
     with tempfile.TemporaryDirectory(prefix="rs274-", dir=workdir) as tmp:
+        if spline_ends:
+            probe = os.path.join(tmp, "spline-probe-" + os.path.basename(program))
+            try:
+                if not spline_probe_copy(program, probe):
+                    probe = None
+            except OSError:
+                probe = None
         tbl = write_tool_table(os.path.join(tmp, "tools.tbl"))
         out = os.path.join(tmp, "canon.txt")
         t0 = time.monotonic()
         try:
             r = subprocess.run(
-                rs274_cmd(rs274, tbl, program, out),
+                rs274_cmd(rs274, tbl, probe or program, out),
                 cwd=tmp,
                 stdin=subprocess.DEVNULL,
                 capture_output=True,
@@ -212,7 +222,12 @@ def run_rs274(program: str, rs274: str | None = None, timeout: float = 120.0,
             with open(out, errors="replace") as f:
                 canon = f.read()
     msgs = [l.strip() for l in text.splitlines() if l.strip() and l.strip() != "executing"]
-    return Rs274Run(status, canon, msgs, secs)
+    run = Rs274Run(status, canon, msgs, secs)
+    if probe and not run.ok:
+        # The copy lives elsewhere (a subroutine file beside the program is
+        # not found from there, say): judge the program by itself.
+        return run_rs274(program, rs274, timeout, workdir)
+    return run
 
 
 # --------------------------------------------------------------------------
@@ -228,6 +243,36 @@ PLANES = {
 }
 # Index of (first, second, normal) axes in (x, y, z) for each plane.
 PLANE_AXES = {"xy": (0, 1, 2), "xz": (2, 0, 1), "yz": (1, 2, 0)}
+
+# The message spline_probe_copy() has rs274 print after each spline line.
+SPLINE_END_TAG = "rs274-diff spline end"
+
+# A G5, G5.1 or G5.3 word (not G54.., G5.2 opens a NURBS block, G5.3 cuts it).
+_SPLINE_END = re.compile(r"G\s*0*5\s*(?:\.\s*[13]\s*)?(?![0-9.])", re.I)
+_COMMENT = re.compile(r"\([^)]*\)|;.*")
+
+
+def spline_probe_copy(program: str, out_path: str) -> bool:
+    """Write a copy of `program` to `out_path` with a line
+    `(DEBUG,rs274-diff spline end #5420 #5421)` after every line holding a
+    G5, G5.1 or G5.3 word, so that rs274, which prints a spline as
+    `NURBS_FEED(n, ...)` with no point, also prints where it ends (its
+    current X and Y, program frame and units). rs274 prints no line
+    numbers, so the added lines change nothing else it prints. Returns
+    False (and writes nothing) when the program has no such line."""
+    with open(program, errors="replace") as f:
+        lines = f.read().split("\n")
+    out, found = [], False
+    for line in lines:
+        out.append(line)
+        if _SPLINE_END.search(_COMMENT.sub("", line)):
+            out.append(f"(DEBUG,{SPLINE_END_TAG} #5420 #5421)")
+            found = True
+    if found:
+        with open(out_path, "w") as f:
+            f.write("\n".join(out))
+    return found
+
 
 # Calls that move the machine in ways our toolpath model has no record for;
 # seeing one means the program uses something we do not support.
@@ -249,6 +294,11 @@ class Motion:
     plane: str | None = None
     rotation: int = 0  # +n ccw, -n cw
     abc: tuple[float, float, float] = (0.0, 0.0, 0.0)  # rotary axes, degrees (program frame)
+    # NURBS_FEED: how many control points rs274 printed, and whether `to`
+    # is known (rs274 prints no point of the curve: only a SPLINE_END_TAG
+    # message after it tells where it ends, see spline_probe_copy).
+    npoints: int | None = None
+    to_known: bool = True
 
     @property
     def ccw(self) -> bool:
@@ -352,6 +402,18 @@ def parse_canon(text: str, frame: str = "machine") -> Canon:
                                     abc=tuple(v[6:9]) if len(v) >= 9 else (0.0, 0.0, 0.0)))
             c.units_seen.add(units)
             pos = to
+        elif name == "NURBS_FEED":
+            # "NURBS_FEED(7, ...)": the control point count, no point.
+            v = _nums(args)
+            c.motions.append(Motion(name, place(pos), units, counter, nword,
+                                    npoints=int(v[0]) if v else None, to_known=False))
+        elif name == "MESSAGE" and SPLINE_END_TAG in args:
+            # Where the spline just cut ends (#5420 #5421, program frame).
+            v = _nums(args.split(SPLINE_END_TAG, 1)[1])
+            last = c.motions[-1] if c.motions else None
+            if len(v) >= 2 and last is not None and last.kind == "NURBS_FEED" and not last.to_known:
+                pos = [v[0], v[1], pos[2]]
+                last.to, last.to_known = place(pos), True
         elif name in EXOTIC_MOTION:
             v = _nums(args)
             to = tuple(v[:3]) if len(v) >= 3 else tuple(pos)

@@ -62,9 +62,11 @@ enum Kind {
 /// Compensation state carried from block to block.
 #[derive(Debug, Clone)]
 pub(super) struct CompState {
+    /// The side compensated (G41 left, G42 right); `None` when off.
     pub side: Option<Side>,
     /// Tool radius, mm.
     pub radius: f64,
+    /// The plane compensation works in, fixed from G41/G42 to G40.
     pub plane: Plane,
     /// No compensated move yet since G41/G42.
     pub first: bool,

@@ -16,52 +16,89 @@ pub const NUM_PARAMS: usize = 5603;
 /// (the messages are LinuxCNC's where it has one).
 #[derive(Debug, Clone, PartialEq, Error)]
 pub enum ExprError {
+    /// A named parameter read before any assignment in its scope (the
+    /// name, lower-cased).
     #[error("named parameter #<{0}> is used before it is set")]
     Unset(String),
+    /// Something other than a number, parameter or expression where a
+    /// value belongs (the text found there).
     #[error("expected a number at '{0}'")]
     ExpectedNumber(String),
+    /// Digits and signs that do not make a number (the text).
     #[error("bad number '{0}'")]
     BadNumber(String),
+    /// A literal with more digits than any real program writes; refused
+    /// before parsing so hostile input stays cheap. `shown` is its start.
     #[error("number '{shown}...' ({digits} digits) is too large")]
-    TooLong { shown: String, digits: usize },
+    TooLong {
+        /// The literal's first characters.
+        shown: String,
+        /// How many digits it has.
+        digits: usize,
+    },
+    /// An operator produced infinity from finite operands.
     #[error("calculation result is not finite (overflow)")]
     Overflow,
+    /// `[ ]` nesting deeper than the reader's stack limit (64).
     #[error("expression nested too deeply")]
     TooDeep,
+    /// `##..#1` indirection deeper than the stack limit.
     #[error("parameter reference nested too deeply")]
     RefTooDeep,
+    /// A parameter reference that does not start with `#`.
     #[error("expected '#'")]
     ExpectedHash,
+    /// `#<name` without its `>`.
     #[error("named parameter without closing '>'")]
     UnclosedName,
+    /// `#<>`: a name with no characters.
     #[error("empty parameter name '#<>'")]
     EmptyName,
+    /// A numbered parameter outside `#1`..`#5602` or not a whole number.
     #[error("parameter number {0} out of range 1..{max}", max = NUM_PARAMS - 1)]
     ParamOutOfRange(f64),
+    /// A function name not followed by its `[` argument.
     #[error("expected '['")]
     ExpectedOpen,
+    /// An expression that ends before its closing `]`.
     #[error("missing ']' in expression")]
     MissingClose,
+    /// Letters inside an expression that name no operator or function.
     #[error("unknown function or word at '{0}'")]
     UnknownWord(String),
+    /// `EXISTS` applied to something other than a named parameter.
     #[error("EXISTS needs [#<name>]")]
     ExistsForm,
+    /// `EXISTS[#<name>` without its closing `]`.
     #[error("missing ']' after EXISTS")]
     ExistsClose,
+    /// `ATAN` not written as `ATAN[y]/[x]` (it takes two arguments).
     #[error("ATAN needs the form ATAN[y]/[x]")]
     AtanForm,
+    /// The natural logarithm of zero or a negative number.
     #[error("LN of {0}: not positive")]
     LnNotPositive(f64),
+    /// A function word the reader recognised but cannot evaluate.
     #[error("unknown function")]
     UnknownFunction,
+    /// `/` with a zero divisor.
     #[error("division by zero")]
     DivisionByZero,
+    /// `MOD` with a zero divisor.
     #[error("MOD by zero")]
     ModByZero,
+    /// A result that is NaN or infinite for another reason than overflow.
     #[error("expression result is not finite")]
     NotFinite,
+    /// A function applied outside its domain (`ASIN[2]`, `SQRT[-1]`):
+    /// `f` is its name, `a` the argument.
     #[error("{f} of {a}: out of its domain")]
-    Domain { f: &'static str, a: f64 },
+    Domain {
+        /// The function's name.
+        f: &'static str,
+        /// The argument it was given.
+        a: f64,
+    },
 }
 
 /// The parameter store of an interpreter.
@@ -88,10 +125,14 @@ impl Default for Params {
     }
 }
 
-/// A pending parameter assignment (applied after the whole line is read).
+/// Which parameter a `#` reference names: the target of an assignment
+/// (applied after the whole line is read) or a value to look up.
 #[derive(Debug, Clone, PartialEq)]
 pub enum ParamRef {
+    /// `#n`, 1 ..= 5602 (checked when the reference is read).
     Num(usize),
+    /// `#<name>`, upper-cased as the normalised line is; a leading `_`
+    /// makes it global.
     Named(Vec<u8>),
 }
 
@@ -103,6 +144,8 @@ impl Params {
         }
     }
 
+    /// The value of a parameter: numbered ones start at 0, a named one
+    /// must have been set in its scope ([`ExprError::Unset`] otherwise).
     pub fn get(&self, r: &ParamRef) -> Result<f64, ExprError> {
         match r {
             ParamRef::Num(n) => Ok(self.numbered[*n]),
@@ -114,6 +157,8 @@ impl Params {
         }
     }
 
+    /// Assign a parameter; a named one goes to the current call's scope,
+    /// or the global one when it starts with `_`.
     pub fn set(&mut self, r: &ParamRef, v: f64) {
         match r {
             ParamRef::Num(n) => self.numbered[*n] = v,
@@ -127,6 +172,8 @@ impl Params {
         }
     }
 
+    /// RS274's `EXISTS[#<name>]`: whether `name` (upper-cased, without
+    /// `#< >`) is set in the scope it would be read from.
     pub fn exists(&self, name: &[u8]) -> bool {
         self.scope(name).contains_key(name)
     }
@@ -144,9 +191,12 @@ impl Params {
     }
 }
 
-/// A cursor over a normalised line.
+/// A cursor over a normalised line (no blanks or comments, upper case),
+/// advanced by the readers of values below.
 pub struct Cursor<'a> {
+    /// The whole normalised line.
     pub s: &'a [u8],
+    /// Index of the next unread byte of `s`.
     pub pos: usize,
 }
 
@@ -154,14 +204,17 @@ pub struct Cursor<'a> {
 const MAX_DEPTH: u32 = 64;
 
 impl<'a> Cursor<'a> {
+    /// A cursor at the start of `s`.
     pub fn new(s: &'a [u8]) -> Self {
         Cursor { s, pos: 0 }
     }
 
+    /// The next byte, without consuming it; `None` at the end.
     pub fn peek(&self) -> Option<u8> {
         self.s.get(self.pos).copied()
     }
 
+    /// True when every byte has been read.
     pub fn at_end(&self) -> bool {
         self.pos >= self.s.len()
     }

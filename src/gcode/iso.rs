@@ -12,7 +12,8 @@
 //! a structure's lines are held in memory from its opening line to its
 //! closing line, then run; straight-line code streams through untouched.
 //!
-//! Cutter compensation (`comp.rs`), canned cycles (`cycles.rs`), rotary
+//! G5.2/G5.3 NURBS blocks (`nurbs.rs`), cutter compensation (`comp.rs`),
+//! canned cycles (`cycles.rs`), rotary
 //! axes A/B/C and the G93/G94/G95 feed modes are interpreted as LinuxCNC's
 //! `rs274` does. What it cannot honour (lathe cycles, probing, threading)
 //! is an error naming the line.
@@ -21,7 +22,7 @@
 //! are beside it: `words.rs` (normalising, splitting and checking a
 //! block), `flow.rs` (O-word control flow and subroutines), `moves.rs`
 //! (motion, targets, feeds, offsets, homing), `arcs.rs`, `splines.rs`,
-//! `comp.rs`, `cycles.rs`; tests in `iso_tests.rs`.
+//! `nurbs.rs`, `comp.rs`, `cycles.rs`; tests in `iso_tests.rs`.
 
 #[path = "arcs.rs"]
 mod arcs;
@@ -33,6 +34,8 @@ mod cycles;
 mod flow;
 #[path = "moves.rs"]
 mod moves;
+#[path = "nurbs.rs"]
+mod nurbs;
 #[path = "splines.rs"]
 pub(crate) mod splines;
 #[path = "words.rs"]
@@ -69,6 +72,8 @@ enum MotionMode {
     Cycle(u16),
     /// G5 (50) or G5.1 (51).
     Spline(u16),
+    /// G5.2: the lines add control points to an open NURBS block.
+    Nurbs,
 }
 
 /// How F is read (G93, G94, G95).
@@ -133,9 +138,14 @@ pub struct IsoInterpreter {
     feed_mode: FeedMode,
     /// P and Q of the last G5, for a following G5 without I and J.
     spline_pq: Option<(f64, f64)>,
+    /// The G5.2 NURBS block being read, until its G5.3.
+    nurbs: Option<nurbs::NurbsBlock>,
 }
 
 impl IsoInterpreter {
+    /// An interpreter in LinuxCNC's start-up state (G17 G21 G90 G94,
+    /// G54, no offsets, no tool in the spindle, no motion mode), at
+    /// `opts.start`, with the tool table and subroutine path of `opts`.
     pub fn new(opts: &ReadOptions) -> Self {
         IsoInterpreter {
             pos: opts.start,
@@ -171,6 +181,7 @@ impl IsoInterpreter {
             abc_step: 0.0,
             feed_mode: FeedMode::PerMinute,
             spline_pq: None,
+            nurbs: None,
         }
     }
 
@@ -198,7 +209,6 @@ impl IsoInterpreter {
                 382..=385 => Some("probing (G38.x)"),
                 760 => Some("the lathe threading cycle (G76)"),
                 700..=722 => Some("the lathe turning cycles (G70-G72)"),
-                52 | 53 => Some("NURBS blocks (G5.2, G5.3)"),
                 171 | 181 | 191 => Some("the planes G17.1-G19.1"),
                 70 | 80 => Some("lathe diameter/radius modes (G7/G8)"),
                 960 => Some("constant surface speed (G96)"),
@@ -218,6 +228,7 @@ impl IsoInterpreter {
             )));
         }
         self.check_words(b).map_err(|m| err(m.to_string()))?;
+        self.nurbs_guard(b, lineno)?;
         if b.other_g
             && (b.word(b'A').is_some() || b.word(b'B').is_some() || b.word(b'C').is_some())
             && [100u16, 280, 300, 520, 920].iter().any(|&c| b.has_g(c))
@@ -297,6 +308,7 @@ impl IsoInterpreter {
                 30 => self.motion = Some(MotionMode::Ccw),
                 800 => self.motion = None,
                 50 | 51 => self.motion = Some(MotionMode::Spline(code)),
+                52 => self.motion = Some(MotionMode::Nurbs),
                 c if cycles::is_cycle(c) => self.motion = Some(MotionMode::Cycle(c)),
                 _ => {}
             }
@@ -338,6 +350,23 @@ impl IsoInterpreter {
                 return Err(err(format!("tool T{t} is not in the tool table")));
             }
             self.tool_selected = Some(t);
+        }
+        // G43/G43.2 H: the length offset of any tool in the table, loaded
+        // or not (H0 is the empty spindle's, zero). It does not move the
+        // tool tip, but LinuxCNC refuses a tool its table lacks.
+        if let Some(h) = b.word(b'H') {
+            if (h - h.round()).abs() > 1e-4 {
+                return Err(err(format!("H{h}: a tool number must be a whole number")));
+            }
+            let n = h.round();
+            let missing = n < 0.0
+                || self
+                    .tool_table
+                    .as_ref()
+                    .is_some_and(|table| n != 0.0 && (n > 1e9 || table.get(n as u32).is_none()));
+            if missing {
+                return Err(err(format!("H{n}: tool {n} is not in the tool table")));
+            }
         }
         if b.has_m(60) {
             if self.comp.side.is_some() {
@@ -468,6 +497,11 @@ impl IsoInterpreter {
         {
             self.g92 = s;
         }
+        // G5.3 is in LinuxCNC's group 0: it closes the block (cutting the
+        // curve) before a G5.2 on the same line could open another.
+        if b.has_g(53) {
+            self.nurbs_g53(b, lineno, out)?;
+        }
         Ok(axes_used)
     }
 }
@@ -536,6 +570,16 @@ impl LineInterpreter for IsoInterpreter {
 
     fn finish(&mut self, lineno: u64, out: &mut VecDeque<Record>) -> Result<(), GcodeError> {
         self.comp.dequeue(out);
+        if let Some(block) = &self.nurbs {
+            // LinuxCNC would drop the block's control points unseen.
+            return Err(GcodeError::at(
+                lineno,
+                format!(
+                    "program ends inside the G5.2 NURBS block opened on line {} (no G5.3)",
+                    block.opened
+                ),
+            ));
+        }
         match &self.capture {
             Some(cap) if !self.ended => Err(GcodeError::at(
                 lineno,

@@ -297,3 +297,42 @@ fn the_badge_sample_reads_in_every_plane() {
         .count();
     assert_eq!(arcs, 8, "{arcs} arcs");
 }
+
+#[test]
+fn the_spindle_starts_empty_as_in_linuxcnc() {
+    // LinuxCNC starts with tool 0 (no tool) in the spindle: G43 before any
+    // M6 takes its zero offset, M6 without a T loads tool 0, and moves carry
+    // no tool number until a real tool is loaded; T0 M6 empties it again.
+    let table = crate::gcode::tooltable::ToolTable::parse("T1 P1 D3\nT2 P2 Z10 D6\n", false).unwrap();
+    let opts = ReadOptions {
+        dialect: Some(Dialect::Iso),
+        tool_table: Some(std::sync::Arc::new(table)),
+        ..Default::default()
+    };
+    let read_t = |text: &str| read_str(text, &opts).map(|(_, r)| r);
+    let tools = |text: &str| -> Vec<Option<u32>> {
+        read_t(text)
+            .unwrap()
+            .iter()
+            .filter_map(Record::motion)
+            .map(|m| m.tool.number)
+            .collect()
+    };
+    assert_eq!(
+        tools("G43\nG0 X1\nM6\nG0 X2\nG43 H2\nG0 X3\nT2 M6\nG0 X4\nT0 M6\nG0 X5\nM61 Q1\nG0 X6\n"),
+        [None, None, None, Some(2), None, Some(1)]
+    );
+    // H names any tool of the table, loaded or not; rs274 refuses others
+    // ("Requested tool 5 not found in the tool table") and a fraction.
+    for (text, needle) in [
+        ("G0 X1\nG43 H5\n", "not in the tool table"),
+        ("G0 X1\nG43.2 H-1\n", "not in the tool table"),
+        ("G0 X1\nG43 H1.5\n", "whole number"),
+    ] {
+        let e = read_t(text).unwrap_err();
+        assert_eq!(e.line(), 2, "{text}: {e}");
+        assert!(e.to_string().contains(needle), "{text}: {e}");
+    }
+    // Without a table nothing is known of the tools: any H >= 0 passes.
+    assert!(read("G43 H5\nG0 X1\n").is_ok());
+}

@@ -52,6 +52,11 @@ impl IsoInterpreter {
                 Some(MotionMode::Spline(code)) if has_axes => {
                     self.spline(b, code, lineno, out)?;
                 }
+                // An explicit G5.2 runs without axis words too (`G5.2 P2 L4`
+                // weighs the start point, `G5.2` after G5.3 reopens).
+                Some(MotionMode::Nurbs) if has_axes || b.has_g(52) => {
+                    self.nurbs_g52(b, lineno)?;
+                }
                 Some(m @ (MotionMode::Cw | MotionMode::Ccw)) if has_axes || (explicit_motion && arc_words) => {
                     self.arc(b, m == MotionMode::Ccw, lineno, out)?;
                 }

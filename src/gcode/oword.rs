@@ -4,20 +4,35 @@
 /// The keyword of an O-word line.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum OKeyword {
+    /// `sub`: opens a subroutine definition (its body is stored, not run).
     Sub,
+    /// `endsub`: closes a definition; reached in a call, it returns.
     EndSub,
+    /// `call [args]`: runs a subroutine with #1.. set from the arguments.
     Call,
+    /// `do`: opens a loop whose condition is on its closing `while`.
     Do,
+    /// `while [cond]`: opens a loop, or closes a `do` loop.
     While,
+    /// `endwhile`: closes a `while` loop.
     EndWhile,
+    /// `if [cond]`: opens a conditional.
     If,
+    /// `elseif [cond]`: a further branch of an `if`.
     ElseIf,
+    /// `else`: the last branch of an `if`.
     Else,
+    /// `endif`: closes a conditional.
     EndIf,
+    /// `break`: leaves the innermost loop with this label.
     Break,
+    /// `continue`: starts the next pass of the loop with this label.
     Continue,
+    /// `repeat [count]`: opens a loop run a given number of times.
     Repeat,
+    /// `endrepeat`: closes a `repeat` loop.
     EndRepeat,
+    /// `return [value]`: leaves the subroutine, setting `#<_value>`.
     Return,
 }
 
@@ -28,7 +43,9 @@ pub enum OKeyword {
 pub struct OLine {
     /// `100` for `O100`, `NAME` for `O<name>` (upper-cased like the line).
     pub label: Vec<u8>,
+    /// What the line does.
     pub keyword: OKeyword,
+    /// Byte offset, in the normalised line, just past the keyword.
     pub rest: usize,
 }
 
@@ -54,14 +71,19 @@ const KEYWORDS: [(&[u8], OKeyword); 15] = [
 /// Why an O-word line could not be read.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 pub enum OWordError {
+    /// The line does not start with `O` (after any `N` word).
     #[error("not an O-word line")]
     NotOWord,
+    /// `O<name` without its `>`.
     #[error("O-word name without closing '>'")]
     UnclosedName,
+    /// `O<>`: a name with no characters.
     #[error("empty O-word name 'O<>'")]
     EmptyName,
+    /// `O` followed by neither digits nor `<name>`.
     #[error("O word needs a number or <name>")]
     NoLabel,
+    /// The label is followed by no keyword RS274 knows (the text found).
     #[error("unknown O-word keyword at '{0}'")]
     UnknownKeyword(String),
 }

@@ -38,6 +38,7 @@ pub struct ToolTable {
 pub struct ToolTableError {
     /// 1-based line.
     pub line: usize,
+    /// What is wrong with it.
     pub msg: String,
 }
 
@@ -132,7 +133,9 @@ impl ToolTable {
 /// diameter and corner radius (mm).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct CamTool {
+    /// The T number the comment names.
     pub number: u32,
+    /// Cutter diameter (`D=`), mm.
     pub diameter_mm: f64,
     /// Corner radius: 0 for a flat end mill, half the diameter for a ball.
     pub corner_mm: f64,

@@ -74,7 +74,7 @@ pub(super) fn g_group(code: u16) -> Option<u8> {
         | 10
         | 20
         | 30
-        | 50..=53
+        | 50..=52
         | 330
         | 331
         | 382..=385
@@ -85,7 +85,8 @@ pub(super) fn g_group(code: u16) -> Option<u8> {
         | 740
         | 760
         | 800..=890 => 1,
-        40 | 100 | 280 | 281 | 300 | 301 | 520 | 530 | 920..=923 => 0,
+        // G5.3 is non-modal in LinuxCNC (group 0), G5.2 a motion.
+        40 | 53 | 100 | 280 | 281 | 300 | 301 | 520 | 530 | 920..=923 => 0,
         170 | 171 | 180 | 181 | 190 | 191 => 2,
         900 | 910 => 3,
         901 | 911 => 4,
@@ -303,6 +304,7 @@ impl IsoInterpreter {
                     MotionMode::Cw => 20,
                     MotionMode::Ccw => 30,
                     MotionMode::Cycle(c) | MotionMode::Spline(c) => c,
+                    MotionMode::Nurbs => 52,
                 }),
                 _ => None,
             });

@@ -101,6 +101,7 @@ pub struct WriteOptions {
     /// ISO words that switch the beam on / off (default `M3` / `M5`). An
     /// empty string writes nothing (a control without beam switching).
     pub beam_on: String,
+    /// The word that switches the beam off (see `beam_on`).
     pub beam_off: String,
     /// PMAC line-counter variable (default `P400`); `None` disables it.
     /// Ignored for ISO, which has N numbers instead.
@@ -208,14 +209,18 @@ impl WriteOptions {
 /// Why a record could not be written.
 #[derive(Debug, Error)]
 pub enum WriteError {
+    /// The output could not be written.
     #[error("writing G-code: {0}")]
     Io(#[from] io::Error),
     /// A record (1-based count; 0 = the options) that has no G-code form:
     /// NaN, out of range, a broken arc, a bad variable name.
     #[error("toolpath record {record}{}: {msg}", source_block(.block))]
     Invalid {
+        /// 1-based count of the record in the input; 0 for the options.
         record: u64,
+        /// The source line the record came from, when it has one.
         block: Option<u64>,
+        /// Why it cannot be written.
         msg: String,
     },
 }

@@ -285,6 +285,12 @@ pub struct PmacInterpreter {
 }
 
 impl PmacInterpreter {
+    /// An interpreter at `opts.start` in the controller's power-on modes
+    /// (ABS, LINEAR, incremental arc centres, XY plane), reading the program
+    /// `opts.pmac_program` of a download file (the first one when `None`),
+    /// with `opts.shutter_var` as the shutter and `opts.line_counter_var`
+    /// as the block counter. A variable name that cannot be parsed is
+    /// reported by the first line read.
     pub fn new(opts: &ReadOptions) -> Self {
         let shutter = Var::parse(&opts.shutter_var);
         let counter = Var::parse(&opts.line_counter_var);
