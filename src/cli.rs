@@ -402,7 +402,7 @@ fn release(outputs: Vec<Staged>) -> Result<(), CliError> {
 /// The Rust runtime reopens a closed descriptor 1 on /dev/null before
 /// `main` (so no file the tool opens lands there), after which a closed
 /// stdout cannot be told from a redirection to /dev/null. So a constructor
-/// ([`stdout_at_start`], run from `.init_array` before the runtime starts)
+/// (`stdout_at_start`, run from `.init_array` before the runtime starts)
 /// looks first and remembers. Output that would go there has nowhere to go.
 pub fn stdout_closed() -> bool {
     #[cfg(target_os = "linux")]

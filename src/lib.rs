@@ -22,9 +22,13 @@
 //! - [`verify`]: CL data in, machined part compared with the design.
 //! - [`mesh`]: triangle meshes (STL, OBJ) and queries on them.
 //! - [`probe`]: rotating-wire probe scanning and measurement.
-//! - [`slice`]: planar sections of meshes at Z levels as closed, nested chains.
+//! - [`slice`](mod@slice): planar sections of meshes at Z levels as closed, nested chains.
 //! - [`corpus`]: where the shared test corpus lies, for tests and benchmarks.
 //! - [`cli`]: conventions shared by every binary.
+
+// Every public item is documented; a new one without a doc comment is a
+// warning, and an error in `make lint` (part of `make test`).
+#![warn(missing_docs)]
 
 pub mod cli;
 pub mod corpus;

@@ -884,9 +884,7 @@ mod tests {
 
     /// Distance from `q` to the segment a-b.
     fn seg_dist(q: P2, a: P2, b: P2) -> f64 {
-        let ab = b - a;
-        let t = ((q - a).dot(&ab) / ab.norm_squared()).clamp(0.0, 1.0);
-        (a + ab * t - q).norm()
+        crate::geometry::line::point_segment_distance(&q, &a, &b)
     }
 
     proptest! {

@@ -31,13 +31,7 @@ const MAX_DEPTH: u32 = 20;
 
 /// Distance from `p` to the segment `a`-`b`.
 fn seg_dist(p: P2, a: P2, b: P2) -> f64 {
-    let ab = b - a;
-    let l2 = ab.norm_squared();
-    if l2 == 0.0 {
-        return (p - a).norm();
-    }
-    let t = ((p - a).dot(&ab) / l2).clamp(0.0, 1.0);
-    (p - (a + ab * t)).norm()
+    crate::geometry::line::point_segment_distance(&p, &a, &b)
 }
 
 /// End points of the lines standing for the cubic Bézier `c` (the start
