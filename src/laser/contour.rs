@@ -116,8 +116,9 @@ fn reverse_path(path: &mut [Segment]) {
     }
 }
 
-/// Rotate a closed path to start at its vertex nearest `q`.
-fn start_near(path: &mut [Segment], q: &P2) {
+/// Rotate a closed path to start at its vertex nearest `q` (the lowest
+/// index among equally near ones).
+pub(crate) fn start_near(path: &mut [Segment], q: &P2) {
     let best = (0..path.len()).min_by(|&a, &b| {
         let da = (path[a].start().xy() - q).norm();
         let db = (path[b].start().xy() - q).norm();

@@ -10,7 +10,7 @@
 
 use super::contact::Contact;
 use super::grid::{Region, ccw, polygonize};
-use super::passes::{Pass, PassKind, lift};
+use super::passes::{Pass, PassKind, closed_loop_from_nearest, lift};
 use crate::geometry::P2;
 use cavalier_contours::polyline::{PlineSource, Polyline};
 
@@ -39,22 +39,8 @@ pub fn offset_passes(c: &Contact, boundary: &Polyline<f64>, stepover: f64, pitch
     let mut out = Vec::new();
     let mut near: Option<P2> = None;
     for l in rings {
-        let k0 = match near {
-            Some(q) => (0..l.len())
-                .min_by(|&a, &b| (l[a] - q).norm().total_cmp(&(l[b] - q).norm()))
-                .unwrap_or(0),
-            None => 0,
-        };
-        let mut xy = Vec::new();
-        for s in 0..l.len() {
-            let (a, b) = (l[(k0 + s) % l.len()], l[(k0 + s + 1) % l.len()]);
-            let n = (((b - a).norm() / pitch).ceil() as usize).max(1);
-            for t in 0..n {
-                xy.push(a + (b - a) * (t as f64 / n as f64));
-            }
-        }
-        xy.push(l[k0]);
-        near = Some(l[k0]);
+        let (xy, start) = closed_loop_from_nearest(&l, near, pitch);
+        near = Some(start);
         out.push(Pass {
             kind: PassKind::Offset,
             pts: lift(c, &xy),

@@ -106,6 +106,30 @@ pub fn main_passes(c: &Contact, grid: &Grid, nav: &Navigation) -> Vec<Pass> {
         .collect()
 }
 
+/// A closed loop of vertices walked once round from its vertex nearest
+/// `near` (the first vertex without one; the lowest index among equally
+/// near ones), each edge cut into pieces of at most `pitch` so a pass laid
+/// on the surface follows it, and closed by its start again. Returns the
+/// points and the start vertex.
+pub fn closed_loop_from_nearest(l: &[P2], near: Option<P2>, pitch: f64) -> (Vec<P2>, P2) {
+    let k0 = match near {
+        Some(q) => (0..l.len())
+            .min_by(|&a, &b| (l[a] - q).norm().total_cmp(&(l[b] - q).norm()))
+            .unwrap_or(0),
+        None => 0,
+    };
+    let mut xy = Vec::new();
+    for s in 0..l.len() {
+        let (a, b) = (l[(k0 + s) % l.len()], l[(k0 + s + 1) % l.len()]);
+        let n = (((b - a).norm() / pitch).ceil() as usize).max(1);
+        for t in 0..n {
+            xy.push(a + (b - a) * (t as f64 / n as f64));
+        }
+    }
+    xy.push(l[k0]);
+    (xy, l[k0])
+}
+
 /// The wall pass around each loop of the region, starting at the vertex
 /// nearest `near` (the thesis starts the wall where the main path ends),
 /// densified to the grid pitch so the height follows the surface.
@@ -117,18 +141,7 @@ pub fn wall_passes(c: &Contact, region: &Region, near: P2, pitch: f64) -> Vec<Pa
         .into_iter()
         .filter(|l| l.len() >= 3)
         .map(|l| {
-            let k0 = (0..l.len())
-                .min_by(|&a, &b| (l[a] - near).norm().total_cmp(&(l[b] - near).norm()))
-                .unwrap_or(0);
-            let mut xy = Vec::new();
-            for s in 0..l.len() {
-                let (a, b) = (l[(k0 + s) % l.len()], l[(k0 + s + 1) % l.len()]);
-                let n = (((b - a).norm() / pitch).ceil() as usize).max(1);
-                for t in 0..n {
-                    xy.push(a + (b - a) * (t as f64 / n as f64));
-                }
-            }
-            xy.push(l[k0]);
+            let (xy, _) = closed_loop_from_nearest(l, Some(near), pitch);
             Pass {
                 kind: PassKind::Wall,
                 pts: lift(c, &xy),

@@ -122,16 +122,10 @@ pub(super) fn rings_at(r: &Region, d: f64, f: &Fix) -> Vec<Vec<Segment>> {
         .collect()
 }
 
-/// Rotate a closed ring to start at its vertex nearest `q`.
+/// Rotate a closed ring to start at its vertex nearest `q` (the contour
+/// planner's rule, so filled rings and contours start alike).
 pub(super) fn start_near(path: &mut [Segment], q: P2) {
-    let best = (0..path.len()).min_by(|&a, &b| {
-        let da = (path[a].start().xy() - q).norm();
-        let db = (path[b].start().xy() - q).norm();
-        da.total_cmp(&db).then(a.cmp(&b))
-    });
-    if let Some(k) = best {
-        path.rotate_left(k);
-    }
+    crate::laser::contour::start_near(path, &q);
 }
 
 /// Offset passes: rings at the beam radius, then one stepover further in
