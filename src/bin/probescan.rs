@@ -8,7 +8,7 @@ use microcam::geometry::{P2, V2};
 use microcam::probe::job::{self, Measure, ProbeJob};
 use microcam::probe::noise::NoiseModel;
 use microcam::probe::part::Part;
-use microcam::probe::program::{self, Dialect, Machine};
+use microcam::probe::program::{self, ControllerSettings, Dialect};
 use microcam::probe::scan::{ScanParams, Stop};
 use microcam::probe::tip::Probe;
 use microcam::probe::{report, svg};
@@ -327,9 +327,9 @@ fn run(a: Args) -> Result<(), CliError> {
             DialectArg::Pmac => Dialect::Pmac,
             DialectArg::Iso => Dialect::Iso,
         };
-        let machine = Machine {
+        let machine = ControllerSettings {
             counts_per_mm: a.counts_per_mm,
-            ..Machine::default()
+            ..ControllerSettings::default()
         };
         put(p, program::write(d, &probe, &job.params, &machine))?;
     }

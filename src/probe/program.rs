@@ -33,16 +33,16 @@ pub enum Dialect {
 
 /// Controller settings the program needs besides the scan.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Machine {
+pub struct ControllerSettings {
     /// Encoder counts per mm of the X and Y motors (PMAC only).
     pub counts_per_mm: f64,
     /// PMAC motion program number.
     pub prog: u32,
 }
 
-impl Default for Machine {
+impl Default for ControllerSettings {
     fn default() -> Self {
-        Machine {
+        ControllerSettings {
             counts_per_mm: 5000.0,
             prog: 50,
         }
@@ -411,7 +411,7 @@ impl Writer {
 }
 
 /// The probing program for `params` with `probe` in dialect `d`.
-pub fn write(d: Dialect, probe: &Probe, params: &ScanParams, machine: &Machine) -> String {
+pub fn write(d: Dialect, probe: &Probe, params: &ScanParams, machine: &ControllerSettings) -> String {
     let mut w = Writer {
         d,
         out: String::new(),
