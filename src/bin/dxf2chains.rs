@@ -100,7 +100,7 @@ fn transforms(a: &Args) -> Result<Transforms, String> {
         ..Default::default()
     };
     if let Some(s) = &a.translate {
-        let v = parse_numbers(s, 2, "--translate")?;
+        let v = parse_numbers(s, 2, "--translate").map_err(|e| e.to_string())?;
         t.translate = Some((v[0], v[1]));
     }
     if let Some(s) = a.scale
@@ -119,12 +119,17 @@ fn transforms(a: &Args) -> Result<Transforms, String> {
         _ => None,
     };
     if let Some(s) = &a.array {
-        let v = parse_numbers(s, 4, "--array")?;
-        t.array = Some((count(v[0], "--array")?, count(v[1], "--array")?, v[2], v[3]));
+        let v = parse_numbers(s, 4, "--array").map_err(|e| e.to_string())?;
+        t.array = Some((
+            count(v[0], "--array").map_err(|e| e.to_string())?,
+            count(v[1], "--array").map_err(|e| e.to_string())?,
+            v[2],
+            v[3],
+        ));
     }
     if let Some(s) = &a.polar {
-        let v = parse_numbers(s, 4, "--polar")?;
-        t.polar = Some((count(v[0], "--polar")?, v[1], v[2], v[3]));
+        let v = parse_numbers(s, 4, "--polar").map_err(|e| e.to_string())?;
+        t.polar = Some((count(v[0], "--polar").map_err(|e| e.to_string())?, v[1], v[2], v[3]));
     }
     Ok(t)
 }

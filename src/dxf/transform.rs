@@ -82,32 +82,68 @@ impl Transforms {
     }
 }
 
+/// A transform flag's value that cannot be used; the message names the
+/// flag.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum TransformArgError {
+    /// A comma-separated item is not a number.
+    #[error("{flag}: '{item}' is not a number")]
+    NotANumber {
+        /// The flag, e.g. `--array`.
+        flag: String,
+        /// The item as given.
+        item: String,
+    },
+    /// Not exactly the expected count of finite numbers.
+    #[error("{flag}: expected {want} finite numbers separated by commas, got '{text}'")]
+    Arity {
+        /// The flag.
+        flag: String,
+        /// How many numbers it takes.
+        want: usize,
+        /// The value as given.
+        text: String,
+    },
+    /// A copy count that is not a whole number from 1 to 10,000.
+    #[error("{flag}: copy counts must be whole numbers from 1 to 10000, got {got}")]
+    Count {
+        /// The flag.
+        flag: String,
+        /// The number given.
+        got: f64,
+    },
+}
+
 /// Parse `a,b,...` into exactly `n` finite numbers.
-pub fn parse_numbers(s: &str, n: usize, what: &str) -> Result<Vec<f64>, String> {
+pub fn parse_numbers(s: &str, n: usize, what: &str) -> Result<Vec<f64>, TransformArgError> {
     let v: Vec<f64> = s
         .split(',')
         .map(|t| {
-            t.trim()
-                .parse::<f64>()
-                .map_err(|_| format!("{what}: '{t}' is not a number"))
+            t.trim().parse::<f64>().map_err(|_| TransformArgError::NotANumber {
+                flag: what.to_string(),
+                item: t.to_string(),
+            })
         })
         .collect::<Result<_, _>>()?;
     if v.len() != n || v.iter().any(|x| !x.is_finite()) {
-        return Err(format!(
-            "{what}: expected {n} finite numbers separated by commas, got '{s}'"
-        ));
+        return Err(TransformArgError::Arity {
+            flag: what.to_string(),
+            want: n,
+            text: s.to_string(),
+        });
     }
     Ok(v)
 }
 
 /// A copy count from the command line: a whole number from 1 to 10,000.
-pub fn count(x: f64, what: &str) -> Result<u32, String> {
+pub fn count(x: f64, what: &str) -> Result<u32, TransformArgError> {
     if x.fract() == 0.0 && (1.0..=10_000.0).contains(&x) {
         Ok(x as u32)
     } else {
-        Err(format!(
-            "{what}: copy counts must be whole numbers from 1 to 10000, got {x}"
-        ))
+        Err(TransformArgError::Count {
+            flag: what.to_string(),
+            got: x,
+        })
     }
 }
 

@@ -108,7 +108,8 @@ impl<R: BufRead> ToolpathReader<R> {
         };
         let w: WireRecord = parse_json(text, line)?;
         let rec = decode(w, line, self.pos)?;
-        rec.check_numbers().map_err(|m| FormatError::invalid(line, m))?;
+        rec.check_numbers()
+            .map_err(|m| FormatError::invalid(line, m.to_string()))?;
         if let Record::Move(m) = &rec {
             self.pos = Some(m.to);
         }

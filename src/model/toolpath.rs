@@ -348,6 +348,38 @@ pub enum Record {
     },
 }
 
+/// A number of a record that no tool may compute with or print (see
+/// [`Record::check_numbers`]).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum BadNumber {
+    /// NaN or infinite.
+    #[error("{what} is not a finite number ({value})")]
+    NotFinite {
+        /// Which number ("feed", "end point", a variable's name...).
+        what: String,
+        /// The value.
+        value: f64,
+    },
+    /// A coordinate beyond [`MAX_COORD_MM`].
+    #[error("{what} {axis} = {value:e} mm is beyond what a machine can mean (|value| <= {MAX_COORD_MM:e} mm)")]
+    Coordinate {
+        /// Which point ("end point", "arc centre").
+        what: &'static str,
+        /// "X", "Y" or "Z".
+        axis: &'static str,
+        /// The value, mm.
+        value: f64,
+    },
+    /// A rotary axis position beyond [`MAX_COORD_MM`] degrees.
+    #[error("rotary axis {axis} = {value:e} degrees is beyond what a machine can mean")]
+    Rotary {
+        /// "A", "B" or "C".
+        axis: &'static str,
+        /// The value, degrees.
+        value: f64,
+    },
+}
+
 impl Record {
     /// The motion, if this record is a move.
     pub fn motion(&self) -> Option<&Motion> {
@@ -361,21 +393,22 @@ impl Record {
     /// coordinates (end point, arc centre) lie within [`MAX_COORD_MM`];
     /// the error says which number. Readers call this on every record, so
     /// no tool computes with, or prints, an overflowed value.
-    pub fn check_numbers(&self) -> Result<(), String> {
-        fn num(v: f64, what: &str) -> Result<(), String> {
+    pub fn check_numbers(&self) -> Result<(), BadNumber> {
+        fn num(v: f64, what: &str) -> Result<(), BadNumber> {
             if v.is_finite() {
                 Ok(())
             } else {
-                Err(format!("{what} is not a finite number ({v})"))
+                Err(BadNumber::NotFinite {
+                    what: what.to_string(),
+                    value: v,
+                })
             }
         }
-        fn point(p: &P3, what: &str) -> Result<(), String> {
+        fn point(p: &P3, what: &'static str) -> Result<(), BadNumber> {
             for (v, axis) in [(p.x, "X"), (p.y, "Y"), (p.z, "Z")] {
                 num(v, what)?;
                 if v.abs() > MAX_COORD_MM {
-                    return Err(format!(
-                        "{what} {axis} = {v:e} mm is beyond what a machine can mean (|value| <= {MAX_COORD_MM:e} mm)"
-                    ));
+                    return Err(BadNumber::Coordinate { what, axis, value: v });
                 }
             }
             Ok(())
@@ -393,9 +426,7 @@ impl Record {
                     for (v, axis) in abc.iter().zip(["A", "B", "C"]) {
                         num(*v, "rotary axis")?;
                         if v.abs() > MAX_COORD_MM {
-                            return Err(format!(
-                                "rotary axis {axis} = {v:e} degrees is beyond what a machine can mean"
-                            ));
+                            return Err(BadNumber::Rotary { axis, value: *v });
                         }
                     }
                 }

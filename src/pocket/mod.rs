@@ -306,7 +306,8 @@ pub fn plan(s: &PocketSpec) -> Result<PocketJob, PocketError> {
     }
     fig.passes = counts.into_iter().map(|(k, n)| (k.name().to_string(), n)).collect();
     estimates(&mut fig, &contact, &grid, &every, s);
-    fig.measure(&program, &s.machine).map_err(PocketError::Time)?;
+    fig.measure(&program, &s.machine)
+        .map_err(|e| PocketError::Time(e.to_string()))?;
     Ok(PocketJob {
         program,
         region,

@@ -11,7 +11,7 @@ use crate::geometry::P3;
 use crate::machine::Machine;
 use crate::model::toolpath::{FeedUnit, Header, MotionKind, Record};
 use crate::sim::beam::CommandTiming;
-use crate::sim::report::Simulator;
+use crate::sim::report::{SimError, Simulator};
 
 /// Thesis Fig. 35 between two neighbours `g` apart whose heights differ
 /// by `dz`, for a cutter of radius `r`: (surface error, scallop height).
@@ -32,7 +32,7 @@ pub fn fig20(unit: f64, dz: f64) -> f64 {
 
 /// Cycle time (s) of the records under `machine`'s controller model,
 /// starting where the first move goes.
-pub fn cycle_time_s(records: &[Record], machine: &Machine) -> Result<f64, String> {
+pub fn cycle_time_s(records: &[Record], machine: &Machine) -> Result<f64, SimError> {
     let start = records
         .iter()
         .find_map(|r| r.motion().map(|m| m.to))
@@ -43,9 +43,9 @@ pub fn cycle_time_s(records: &[Record], machine: &Machine) -> Result<f64, String
     };
     let mut sim: Simulator<std::io::Sink> = Simulator::new(&header, machine.clone(), CommandTiming::Sync, start, None);
     for r in records {
-        sim.add(r).map_err(|e| e.to_string())?;
+        sim.add(r)?;
     }
-    let (rep, _) = sim.finish().map_err(|e| e.to_string())?;
+    let (rep, _) = sim.finish()?;
     Ok(rep.time.cycle_time_s)
 }
 
@@ -126,7 +126,7 @@ fn push_f(b: &mut String, k: &str, v: f64) {
 
 impl Figures {
     /// Fill lengths, block count and cycle time from the program.
-    pub fn measure(&mut self, prog: &Program, machine: &Machine) -> Result<(), String> {
+    pub fn measure(&mut self, prog: &Program, machine: &Machine) -> Result<(), SimError> {
         (self.feed_length_mm, self.rapid_length_mm) = lengths(&prog.records);
         self.blocks = prog.records.len();
         self.final_main_blocks = prog.final_main_blocks;
