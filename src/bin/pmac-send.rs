@@ -238,7 +238,8 @@ fn run(args: Args) -> Result<(), CliError> {
     let moves = job.moves();
     let mut state = if args.resume {
         let s = State::load(&args.state).map_err(|e| CliError::input(e.to_string()))?;
-        s.check_resume(&hash, mode, &args.state).map_err(CliError::input)?;
+        s.check_resume(&hash, mode, &args.state)
+            .map_err(|e| CliError::input(e.to_string()))?;
         s
     } else {
         State::new(hash, mode, moves.len() as u64)

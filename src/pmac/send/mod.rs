@@ -211,6 +211,48 @@ impl SendSummary {
     }
 }
 
+/// Why the safety stop after a failure could not be confirmed: the
+/// operator must look at the machine before anything else runs.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum SafeStopError {
+    /// The controller did not report the program stopped and the shutter
+    /// closed before the stop deadline (`last`: its last answer, or why
+    /// it could not be asked).
+    #[error("could not confirm the shutter closed within {deadline:?}: {last}")]
+    Unconfirmed {
+        /// How long the stop was tried.
+        deadline: Duration,
+        /// The last reply or failure seen.
+        last: String,
+    },
+    /// The stop was confirmed but where the job stopped could not be saved.
+    #[error("shutter closed, but {0}")]
+    StateNotSaved(String),
+    /// Saving the state after the stop failed (the stop itself reported
+    /// no error).
+    #[error("{0}")]
+    StateSave(String),
+}
+
+/// Why a saved state may not resume this job.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum ResumeRefused {
+    /// The program given is not the one the state was written for.
+    #[error("{state} belongs to another program (input changed): refusing to resume")]
+    OtherProgram {
+        /// The state file.
+        state: String,
+    },
+    /// The state was written by a session in another upload mode.
+    #[error("{state} was written in {mode} mode")]
+    OtherMode {
+        /// The state file.
+        state: String,
+        /// The mode it was written in.
+        mode: &'static str,
+    },
+}
+
 /// A failed session: the error, what the safety stop did, and the state.
 #[derive(Debug)]
 pub struct Failure {
@@ -218,7 +260,7 @@ pub struct Failure {
     pub error: SendError,
     /// Whether the safety stop confirmed the shutter closed and the
     /// program aborted (the error says why not).
-    pub safe_stop: Result<(), String>,
+    pub safe_stop: Result<(), SafeStopError>,
     /// The state as saved after the stop.
     pub state: State,
     /// What the session did before it stopped.

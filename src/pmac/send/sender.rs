@@ -2,7 +2,8 @@
 //! stop safely on any fault.
 
 use super::{
-    Failure, Mode, POSITION_TOL_MM, Reading, SendError, SendOptions, SendSummary, State, locate, open_program,
+    Failure, Mode, POSITION_TOL_MM, Reading, SafeStopError, SendError, SendOptions, SendSummary, State, locate,
+    open_program,
 };
 use crate::geometry::P3;
 use crate::pmac::client::{Client, ClientError};
@@ -166,7 +167,7 @@ impl<'a> Sender<'a> {
                     summary: self.summary.clone(),
                 };
                 if let Err(e) = state.save(&self.opts.state_path) {
-                    failure.safe_stop = failure.safe_stop.and(Err(e.to_string()));
+                    failure.safe_stop = failure.safe_stop.and(Err(SafeStopError::StateSave(e.to_string())));
                 }
                 failure.state = state.clone();
                 Err(Box::new(failure))
@@ -176,7 +177,7 @@ impl<'a> Sender<'a> {
 
     /// Stop safely, then take from the controller where the job stopped
     /// (when its counters are this job's) and save it in the state.
-    pub fn recover(&mut self, state: &mut State, link_failed: bool) -> Result<(), String> {
+    pub fn recover(&mut self, state: &mut State, link_failed: bool) -> Result<(), SafeStopError> {
         let reading = self.secure(link_failed)?;
         if reading.session == state.session as f64
             && let Ok(c) = counter_value(&fmt_reading(reading.counter), self.n_moves())
@@ -191,14 +192,14 @@ impl<'a> Sender<'a> {
         }
         state
             .save(&self.opts.state_path)
-            .map_err(|e| format!("shutter closed, but {e}"))
+            .map_err(|e| SafeStopError::StateNotSaved(e.to_string()))
     }
 
     /// Close the shutter, abort, flush queued synchronous assignments, and
     /// keep at it, reconnecting, until the controller confirms the program
     /// is not running and the shutter is closed, or the stop deadline
     /// passes. Each reply may take [`SendOptions::stop_timeout`].
-    fn secure(&mut self, link_failed: bool) -> Result<Reading, String> {
+    fn secure(&mut self, link_failed: bool) -> Result<Reading, SafeStopError> {
         let deadline = Instant::now() + self.opts.stop_deadline;
         let sh = self.opts.names.shutter.clone();
         let stop_line = format!("CLOSE {sh}=0 &1A &1 MFLUSH {sh}=0");
@@ -236,10 +237,10 @@ impl<'a> Sender<'a> {
                 }
             }
             if Instant::now() >= deadline {
-                return Err(format!(
-                    "could not confirm the shutter closed within {:?}: {last}",
-                    self.opts.stop_deadline
-                ));
+                return Err(SafeStopError::Unconfirmed {
+                    deadline: self.opts.stop_deadline,
+                    last,
+                });
             }
             let _ = writeln!(
                 self.progress,

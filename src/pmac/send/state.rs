@@ -1,6 +1,6 @@
 //! The resume state, and where in the job a stopped stage is.
 
-use super::{Mode, SendError};
+use super::{Mode, ResumeRefused, SendError};
 use crate::geometry::P3;
 use crate::pmac::upload_plan::MoveGeom;
 use serde::{Deserialize, Serialize};
@@ -63,15 +63,17 @@ impl State {
     /// Whether this saved state may resume the job whose text hashes to
     /// `input_hash` in `mode`; the error says why not (`path` names the
     /// state file).
-    pub fn check_resume(&self, input_hash: &str, mode: Mode, path: &Path) -> Result<(), String> {
+    pub fn check_resume(&self, input_hash: &str, mode: Mode, path: &Path) -> Result<(), ResumeRefused> {
         if self.input_hash != input_hash {
-            return Err(format!(
-                "{} belongs to another program (input changed): refusing to resume",
-                path.display()
-            ));
+            return Err(ResumeRefused::OtherProgram {
+                state: path.display().to_string(),
+            });
         }
         if self.mode != mode {
-            return Err(format!("{} was written in {} mode", path.display(), self.mode.name()));
+            return Err(ResumeRefused::OtherMode {
+                state: path.display().to_string(),
+                mode: self.mode.name(),
+            });
         }
         Ok(())
     }

@@ -60,11 +60,13 @@ fn resume_is_refused_for_another_input_or_mode() {
     assert!(
         s.check_resume("abd", Mode::Split, p)
             .unwrap_err()
+            .to_string()
             .contains("another program")
     );
     assert!(
         s.check_resume("abc", Mode::Rotary, p)
             .unwrap_err()
+            .to_string()
             .contains("split mode")
     );
     let mut done = s.clone();
