@@ -15,6 +15,7 @@
 
 use microcam::formats::chains::ChainsReader;
 use microcam::geometry::P2;
+use microcam::geometry::line::point_segment_distance;
 use microcam::laser::arcfit;
 use microcam::laser::arcfit::{Grid, elem_box};
 use microcam::laser::arcfit_seed::{SeedParams, fit_curvature_matching_with};
@@ -34,17 +35,6 @@ fn read_fit(path: &str) -> Result<Vec<Segment>, String> {
         }
     }
     Ok(out)
-}
-
-fn seg_dist(p: &P2, a: &P2, b: &P2) -> f64 {
-    let d = b - a;
-    let l2 = d.norm_squared();
-    let t = if l2 > 0.0 {
-        ((p - a).dot(&d) / l2).clamp(0.0, 1.0)
-    } else {
-        0.0
-    };
-    (p - (a + d * t)).norm()
 }
 
 struct Measure {
@@ -78,7 +68,7 @@ fn measure(fit: &[Segment], pts: &[P2], polyline: bool) -> Measure {
     for e in fit.iter().filter(|_| polyline) {
         for k in 0..=per {
             let q = e.point_at_length(e.length() * k as f64 / per as f64).xy();
-            let d = pg.nearest(&q, |i| seg_dist(&q, &pts[i], &pts[i + 1]));
+            let d = pg.nearest(&q, |i| point_segment_distance(&q, &pts[i], &pts[i + 1]));
             polyline_dev = polyline_dev.max(d);
         }
     }

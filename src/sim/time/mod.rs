@@ -340,20 +340,7 @@ impl TimeModel {
         } else {
             2.0 * (theta / a).sqrt()
         };
-        let t = match &mut self.inner {
-            Inner::Pmac(p) => {
-                p.stop(&mut self.out);
-                let t = p.t;
-                p.t += time;
-                t
-            }
-            Inner::Lookahead(l) => {
-                l.stop(&mut self.out);
-                let t = l.t;
-                l.t += time;
-                t
-            }
-        };
+        let t = self.stop_then_hold(time);
         let mut pieces = [Piece::default(); MAX_PIECES];
         pieces[0].dt = time;
         self.out.push_back(Event::Block(TimedBlock {
@@ -369,22 +356,28 @@ impl TimeModel {
         }));
     }
 
-    /// A dwell: motion stops, then waits.
-    pub fn push_dwell(&mut self, seconds: f64, line: Option<u64>) {
-        let t = match &mut self.inner {
+    /// Bring motion to a stop (flushing what the controller model holds),
+    /// then let `seconds` pass on its clock; returns when they began. A
+    /// dwell and a rotary-only move are timed alone this way.
+    fn stop_then_hold(&mut self, seconds: f64) -> f64 {
+        let clock = match &mut self.inner {
             Inner::Pmac(p) => {
                 p.stop(&mut self.out);
-                let t = p.t;
-                p.t += seconds;
-                t
+                &mut p.t
             }
             Inner::Lookahead(l) => {
                 l.stop(&mut self.out);
-                let t = l.t;
-                l.t += seconds;
-                t
+                &mut l.t
             }
         };
+        let t = *clock;
+        *clock += seconds;
+        t
+    }
+
+    /// A dwell: motion stops, then waits.
+    pub fn push_dwell(&mut self, seconds: f64, line: Option<u64>) {
+        let t = self.stop_then_hold(seconds);
         self.out.push_back(Event::Dwell {
             t_start_s: t,
             seconds,
