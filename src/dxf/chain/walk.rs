@@ -2,10 +2,9 @@
 //! from the nodes of degree other than two first, then the cycles; each
 //! chain's pieces snapped onto its nodes and its repairs gathered.
 
-use super::nodes::{Clusters, cluster};
+use super::nodes::Nodes;
 use super::repair::{adjacency, merge_collinear, remove_duplicates, snap, zero_length};
 use super::{ChainReport, Chains, Item, Notes, REPORT_GAP, Work, fmt_num};
-use crate::geometry::P3;
 
 /// Chain the pieces of one layer (`w`, whose first piece is number `base`
 /// of the drawing) into `out`.
@@ -24,22 +23,14 @@ pub(super) fn chain_layer(
     merge_collinear(w, &mut notes, tol, report);
 
     // 2. End points to nodes.
-    let points: Vec<P3> = w
-        .iter()
-        .filter(|x| x.alive)
-        .flat_map(|x| [x.seg.start(), x.seg.end()])
-        .collect();
-    let Clusters { node, reps, gaps } = cluster(&points, tol);
-    drop(points);
+    let mut nodes = Nodes::new(tol, 2 * w.len());
     let mut ends: Vec<(u32, u32)> = vec![(u32::MAX, u32::MAX); w.len()];
-    let mut k = 0;
     for (i, x) in w.iter().enumerate() {
         if x.alive {
-            ends[i] = (node[k], node[k + 1]);
-            k += 2;
+            ends[i] = (nodes.node_of(&x.seg.start()), nodes.node_of(&x.seg.end()));
         }
     }
-    drop(node);
+    let (reps, gaps) = nodes.finish();
     let n_nodes = reps.len();
 
     // 3. Duplicates between the same pair of nodes.
