@@ -1,30 +1,44 @@
 //! Swept pieces prepared for one family of axis-parallel rays.
 //!
-//! A dexel family's rays all run along one coordinate axis, so in
-//! [`Piece::interval`] everything but the ray's origin is the same for
-//! every ray of the family: the projected ray direction and move, the
-//! polygon's edge directions and corners' determinants, and the fixed
-//! vector of each quadratic the candidates solve. [`AxisPiece`] computes
-//! those once per piece and family and evaluates the rest with the same
-//! expressions in the same order, so its intervals equal the general
-//! routine's bit for bit; a box around the swept piece across the rays
-//! (grown past the routine's tolerances) turns away rays that cannot meet
-//! it before any candidate is computed.
+//! A dexel family's rays all run along one coordinate axis, so in the
+//! problem [`Piece::interval`] solves (the extremes of `t` over the convex
+//! set of `(t, u)` inside an ellipse and four half-planes) everything but
+//! the ray's origin is the same for every ray of the family: the projected
+//! ray direction and move, the half-planes' slopes, and the fixed vector of
+//! each quadratic the candidates solve. [`AxisPiece`] computes those once
+//! per piece and family, and looks at fewer candidates: the ellipse's own
+//! extremes first, and only when an extreme lies outside some half-plane
+//! the segments of those half-planes' edges inside the ellipse, clipped by
+//! the others (in a convex problem whose unconstrained optimum breaks some
+//! constraints, the optimum lies on one of those). The corners and edge
+//! crossings it finds are the general routine's candidates, so the
+//! intervals agree to rounding. A box around the swept piece across the
+//! rays turns away rays that cannot meet it before anything is computed.
 
 use super::sweep::{EPS, Lin, Piece};
 use super::tool::{LineMaterial, MoveSweep};
 use crate::geometry::{P3, V3};
 
-/// How one polygon edge is followed across the ellipse (fixed per piece
-/// and family: it depends only on the edge's slope).
+/// One polygon edge (the line where a constraint is 0), followed across
+/// the ellipse; fixed per piece and family.
 #[derive(Debug, Clone, Copy)]
-enum Edge {
-    /// The edge has no direction (a constraint on nothing): skipped.
-    Skip,
-    /// `u = -alpha/gamma + m·t`; roots of `|a - c·u0 + t·q|² = r²`.
-    AlongT { m: f64, q: V3, qq: f64 },
-    /// `t = -alpha/beta + m·u`; roots of `|a + b·t0 + u·q|² = r²`.
-    AlongU { m: f64, q: V3, qq: f64 },
+struct Edge {
+    /// The constraint constrains nothing (all coefficients 0).
+    skip: bool,
+    /// `true`: `u = u0 + m·t` with `u0 = alpha·lead` (parameter `t`);
+    /// `false`: `t = t0 + m·u` with `t0 = alpha·lead` (parameter `u`).
+    along_t: bool,
+    /// `-1/gamma` (along t) or `-1/beta` (along u).
+    lead: f64,
+    m: f64,
+    /// The quadratic's fixed vector along the edge and its square.
+    q: V3,
+    qq: f64,
+    /// Each other constraint along the edge: `alpha_j + (beta_j or
+    /// gamma_j)·x0 + slope_j·x >= 0`; `inv_slope_j` 0 where the edge is
+    /// parallel to constraint j.
+    slope: [f64; 4],
+    inv_slope: [f64; 4],
 }
 
 /// A [`Piece`] prepared for rays along one coordinate axis.
@@ -44,14 +58,20 @@ pub struct AxisPiece {
     se: f64,
     sd: f64,
     cc: f64,
-    /// `b·c / cc`, and the ellipse-extreme quadratic's fixed vector
-    /// `b - c·k_b` with its square (`qq < 1e-24`: no roots).
+    /// `1/cc` and `b·c / cc`, and the ellipse-extreme quadratic's fixed
+    /// vector `b - c·k_b` with its square; `ellipse`: the ellipse has
+    /// extremes in t (`cc` and that square above 1e-24).
+    inv_cc: f64,
     k_b: f64,
     ell_q: V3,
     ell_qq: f64,
-    /// Determinants of the corner pairs (0 when the pair is skipped).
-    det: [[f64; 4]; 4],
+    ellipse: bool,
+    /// Constant coefficients of the four constraints.
+    beta: [f64; 4],
+    gamma: [f64; 4],
     edges: [Edge; 4],
+    /// Bit k set: edge k is not skipped.
+    live: u8,
 }
 
 /// `roots(p, q, r2)` of the sweep module with `q·q` given.
@@ -93,28 +113,47 @@ impl AxisPiece {
         };
         // The constant parts of the four constraints (alphas vary).
         let lins = lins(piece, 0.0, se, sd);
-        let mut det = [[0.0; 4]; 4];
-        for i in 0..4 {
-            for j in i + 1..4 {
-                let (li, lj) = (lins[i], lins[j]);
-                let d = li.beta * lj.gamma - lj.beta * li.gamma;
-                det[i][j] = if d.abs() < 1e-15 { 0.0 } else { d };
-            }
-        }
-        let edges = lins.map(|l| {
-            if l.gamma.abs() >= l.beta.abs() {
-                if l.gamma == 0.0 {
-                    return Edge::Skip;
-                }
+        let beta = lins.map(|l| l.beta);
+        let gamma = lins.map(|l| l.gamma);
+        let edges: [Edge; 4] = std::array::from_fn(|k| {
+            let l = lins[k];
+            let along_t = l.gamma.abs() >= l.beta.abs();
+            let (lead, m, q) = if along_t {
                 let m = -l.beta / l.gamma;
-                let q = b - c * m;
-                Edge::AlongT { m, q, qq: q.dot(&q) }
+                (-1.0 / l.gamma, m, b - c * m)
             } else {
                 let m = -l.gamma / l.beta;
-                let q = b * m - c;
-                Edge::AlongU { m, q, qq: q.dot(&q) }
+                (-1.0 / l.beta, m, b * m - c)
+            };
+            let mut slope = [0.0; 4];
+            let mut inv_slope = [0.0; 4];
+            for j in 0..4 {
+                // Constraint j along the edge; parallel when its slope is
+                // rounding of its parts (0 and 1, the two clipping planes,
+                // are parallel exactly).
+                let (x, y) = if along_t {
+                    (beta[j], gamma[j] * m)
+                } else {
+                    (gamma[j], beta[j] * m)
+                };
+                slope[j] = x + y;
+                if j != k && slope[j].abs() > 1e-12 * (x.abs() + y.abs()) {
+                    inv_slope[j] = 1.0 / slope[j];
+                }
+            }
+            Edge {
+                skip: l.gamma == 0.0 && l.beta == 0.0,
+                along_t,
+                lead,
+                m,
+                q,
+                qq: q.dot(&q),
+                slope,
+                inv_slope,
             }
         });
+        let live = (0..4).filter(|&k| !edges[k].skip).fold(0u8, |acc, k| acc | 1 << k);
+        let ell_qq = ell_q.dot(&ell_q);
         // A point within sqrt(EPS·(1 + r²)) of the radius, or EPS of a
         // clipping plane, passes the routine's checks; grow well past.
         let margin = (EPS * (1.0 + r2)).sqrt() + 1e-6;
@@ -130,11 +169,15 @@ impl AxisPiece {
             se,
             sd,
             cc,
+            inv_cc: if cc > 1e-24 { 1.0 / cc } else { 0.0 },
             k_b,
             ell_q,
-            ell_qq: ell_q.dot(&ell_q),
-            det,
+            ell_qq,
+            ellipse: cc > 1e-24 && ell_qq >= 1e-24,
+            beta,
+            gamma,
             edges,
+            live,
         }
     }
 
@@ -146,7 +189,7 @@ impl AxisPiece {
     }
 
     /// [`Piece::interval`] of the ray through `(op, oq)` across the
-    /// family (coordinate 0 along it), bit for bit.
+    /// family (coordinate 0 along it), to rounding.
     pub fn interval(&self, op: f64, oq: f64) -> Option<(f64, f64)> {
         if !self.may_meet(op, oq) {
             return None;
@@ -159,70 +202,80 @@ impl AxisPiece {
         let a = pc.project(w);
         let (b, c, r2) = (self.b, self.c, self.r2);
         let s = pc.a.dot(&w);
-        let lins = lins(pc, s, self.se, self.sd);
-        let q_ok = |t: f64, u: f64| {
-            let v = a + b * t - c * u;
-            v.dot(&v) <= r2 + EPS * (1.0 + r2)
+        let alpha = [s - pc.s0, pc.s1 - s, 0.0, 1.0];
+        let (beta, gamma) = (&self.beta, &self.gamma);
+        // Constraints broken at (t, u), as bits.
+        let broken = |t: f64, u: f64| {
+            (0..4).fold(0u8, |acc, k| {
+                acc | (((alpha[k] + beta[k] * t + gamma[k] * u) < -EPS) as u8) << k
+            })
         };
-        let lin_ok =
-            |t: f64, u: f64, skip: usize| lins.iter().enumerate().all(|(k, l)| k == skip || l.at(t, u) >= -EPS);
         let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
         let mut take = |t: f64| {
             lo = lo.min(t);
             hi = hi.max(t);
         };
-        // The ellipse's extremes in t.
-        if self.cc > 1e-24 {
-            let k_a = a.dot(&c) / self.cc;
-            if let Some((t0, t1)) = roots_q(a - c * k_a, &self.ell_q, self.ell_qq, r2) {
-                for t in [t0, t1] {
-                    let u = k_a + self.k_b * t;
-                    if lin_ok(t, u, usize::MAX) {
-                        take(t);
-                    }
-                }
-            }
-        }
-        // Corners of the polygon.
-        for i in 0..4 {
-            for j in i + 1..4 {
-                let det = self.det[i][j];
-                if det == 0.0 {
-                    continue;
-                }
-                let (li, lj) = (lins[i], lins[j]);
-                let t = (-li.alpha * lj.gamma + lj.alpha * li.gamma) / det;
-                let u = (-li.beta * lj.alpha + lj.beta * li.alpha) / det;
-                if q_ok(t, u) && lin_ok(t, u, usize::MAX) {
+        let todo = if self.ellipse {
+            // The ellipse's extremes in t; none: the ellipse is empty.
+            let k_a = a.dot(&c) * self.inv_cc;
+            let (t0, t1) = roots_q(a - c * k_a, &self.ell_q, self.ell_qq, r2)?;
+            let mut todo = 0;
+            for t in [t0, t1] {
+                let br = broken(t, k_a + self.k_b * t);
+                if br == 0 {
                     take(t);
                 }
+                todo |= br;
             }
-        }
-        // Edges across the ellipse.
-        for (k, (l, edge)) in lins.iter().zip(&self.edges).enumerate() {
-            match *edge {
-                Edge::Skip => {}
-                Edge::AlongT { m, q, qq } => {
-                    let u0 = -l.alpha / l.gamma;
-                    if let Some((t0, t1)) = roots_q(a - c * u0, &q, qq, r2) {
-                        for t in [t0, t1] {
-                            if lin_ok(t, u0 + m * t, k) {
-                                take(t);
-                            }
-                        }
-                    }
+            todo
+        } else {
+            self.live
+        };
+        for (k, e) in self.edges.iter().enumerate() {
+            if todo & (1 << k) == 0 || e.skip {
+                continue;
+            }
+            // The edge inside the ellipse, as a range of its parameter x.
+            let x_at = alpha[k] * e.lead;
+            let p = if e.along_t { a - c * x_at } else { a + b * x_at };
+            let (mut x0, mut x1) = if e.qq < 1e-24 {
+                // The quadratic does not change along the edge.
+                if p.dot(&p) > r2 + EPS * (1.0 + r2) {
+                    continue;
                 }
-                Edge::AlongU { m, q, qq } => {
-                    let t0 = -l.alpha / l.beta;
-                    if let Some((u0, u1)) = roots_q(a + b * t0, &q, qq, r2) {
-                        for u in [u0, u1] {
-                            let t = t0 + m * u;
-                            if lin_ok(t, u, k) {
-                                take(t);
-                            }
-                        }
-                    }
+                (f64::NEG_INFINITY, f64::INFINITY)
+            } else {
+                match roots_q(p, &e.q, e.qq, r2) {
+                    Some(r) => r,
+                    None => continue,
                 }
+            };
+            // Clipped by the other constraints.
+            for j in 0..4 {
+                if j == k {
+                    continue;
+                }
+                let cj = alpha[j] + if e.along_t { gamma[j] } else { beta[j] } * x_at;
+                let inv = e.inv_slope[j];
+                if inv == 0.0 {
+                    if cj < -EPS {
+                        x1 = f64::NEG_INFINITY;
+                    }
+                } else if e.slope[j] > 0.0 {
+                    x0 = x0.max(-cj * inv);
+                } else {
+                    x1 = x1.min(-cj * inv);
+                }
+            }
+            if !(x0 <= x1 && x0.is_finite() && x1.is_finite()) {
+                continue;
+            }
+            if e.along_t {
+                take(x0);
+                take(x1);
+            } else {
+                take(x_at + e.m * x0);
+                take(x_at + e.m * x1);
             }
         }
         (lo <= hi).then_some((lo, hi))
@@ -357,11 +410,25 @@ mod tests {
         }
     }
 
+    /// Whether two intervals agree to rounding: both `None`, or both
+    /// present with ends within 1e-12 (relative above 1 mm); a ray that
+    /// only grazes the piece (an interval under 1e-6 long, or a touch the
+    /// general routine's feasibility tolerance admits) may be present in
+    /// one and absent in the other.
+    fn agree(got: Option<(f64, f64)>, want: Option<(f64, f64)>) -> bool {
+        let close = |x: f64, y: f64| (x - y).abs() <= 1e-12 * (1.0 + x.abs().max(y.abs()));
+        match (got, want) {
+            (Some(g), Some(w)) => close(g.0, w.0) && close(g.1, w.1),
+            (None, None) => true,
+            (Some(i), None) | (None, Some(i)) => i.1 - i.0 < 1e-6,
+        }
+    }
+
     #[test]
-    fn axis_interval_equals_the_general_routine_bit_for_bit() {
+    fn axis_interval_equals_the_general_routine() {
         let mut g = Rng(0x9e37_79b9_7f4a_7c15);
-        let mut met = 0;
-        for _ in 0..400 {
+        let (mut met, mut grazed) = (0, 0);
+        for _ in 0..2000 {
             let pc = random_piece(&mut g);
             for dir in 0..3 {
                 let ap = AxisPiece::new(&pc, dir);
@@ -374,16 +441,70 @@ mod tests {
                     o[ap.q] = oq;
                     let want = pc.interval(&o, &e);
                     let got = ap.interval(op, oq);
-                    assert_eq!(
-                        got.map(|(a, b)| (a.to_bits(), b.to_bits())),
-                        want.map(|(a, b)| (a.to_bits(), b.to_bits())),
-                        "{pc:?} dir {dir} at {op}, {oq}"
-                    );
+                    assert!(agree(got, want), "{pc:?} dir {dir} at {op}, {oq}: {got:?} vs {want:?}");
                     met += want.is_some() as usize;
+                    grazed += (got.is_some() != want.is_some()) as usize;
                 }
             }
         }
-        // The rays are not all misses (the comparison would be vacuous).
-        assert!(met > 2_000, "{met}");
+        // The rays are not all misses (the comparison would be vacuous),
+        // and grazing rays are rare.
+        assert!(met > 20_000 && grazed < 10, "{met} {grazed}");
+    }
+
+    /// Brute force: the piece stamped at 301 points of the move, each
+    /// stamp's interval on the line sampled every 0.004 mm.
+    fn sampled(p: &Piece, o: &P3, e: &V3) -> Option<(f64, f64)> {
+        let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+        for k in 0..=300 {
+            let c = p.c + p.d * (k as f64 / 300.0);
+            for i in 0..=4000 {
+                let t = -8.0 + 16.0 * i as f64 / 4000.0;
+                let w = o + e * t - c;
+                let s = p.a.dot(&w);
+                let dist = if p.cylinder { (w - p.a * s).norm() } else { w.norm() };
+                if dist <= p.r && s >= p.s0 && s <= p.s1 {
+                    lo = lo.min(t);
+                    hi = hi.max(t);
+                }
+            }
+        }
+        (lo <= hi).then_some((lo, hi))
+    }
+
+    #[test]
+    fn axis_interval_matches_sampling_on_random_pieces() {
+        let mut g = Rng(0x2545_f491_4f6c_dd1d);
+        let mut met = 0;
+        for _ in 0..40 {
+            let pc = random_piece(&mut g);
+            let dir = (g.f(0.0, 3.0) as usize).min(2);
+            let ap = AxisPiece::new(&pc, dir);
+            let mut e = V3::zeros();
+            e[dir] = 1.0;
+            for _ in 0..3 {
+                let (op, oq) = (g.f(-3.0, 3.0), g.f(-3.0, 3.0));
+                let mut o = P3::origin();
+                o[ap.p] = op;
+                o[ap.q] = oq;
+                let got = ap.interval(op, oq);
+                let want = sampled(&pc, &o, &e);
+                // The sampler's steps (a move of up to ~5 mm in 300
+                // stamps, t every 0.004 mm) bound its error.
+                match (got, want) {
+                    (Some(g), Some(w)) => {
+                        met += 1;
+                        assert!(
+                            (g.0 - w.0).abs() < 0.03 && (g.1 - w.1).abs() < 0.03,
+                            "{pc:?} {o:?}: {g:?} {w:?}"
+                        )
+                    }
+                    (None, None) => {}
+                    (Some(g), None) => assert!(g.1 - g.0 < 0.03, "{pc:?} {o:?}: {g:?}"),
+                    (None, Some(w)) => panic!("{pc:?} {o:?}: missed {w:?}"),
+                }
+            }
+        }
+        assert!(met > 20, "{met}");
     }
 }
