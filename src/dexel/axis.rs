@@ -34,6 +34,7 @@ struct Edge {
     /// The quadratic's fixed vector along the edge and its square.
     q: V3,
     qq: f64,
+    inv_qq: f64,
     /// Each other constraint along the edge: `alpha_j + (beta_j or
     /// gamma_j)·x0 + slope_j·x >= 0`; `inv_slope_j` 0 where the edge is
     /// parallel to constraint j.
@@ -45,9 +46,6 @@ struct Edge {
 #[derive(Debug, Clone, Copy)]
 pub struct AxisPiece {
     piece: Piece,
-    /// The two coordinates across the rays.
-    p: usize,
-    q: usize,
     /// Box of the swept piece across the rays, grown past the tolerance
     /// of the routine's feasibility checks: `[p_lo, p_hi, q_lo, q_hi]`.
     across: [f64; 4],
@@ -55,9 +53,6 @@ pub struct AxisPiece {
     b: V3,
     c: V3,
     r2: f64,
-    se: f64,
-    sd: f64,
-    cc: f64,
     /// `1/cc` and `b·c / cc`, and the ellipse-extreme quadratic's fixed
     /// vector `b - c·k_b` with its square; `ellipse`: the ellipse has
     /// extremes in t (`cc` and that square above 1e-24).
@@ -65,7 +60,20 @@ pub struct AxisPiece {
     k_b: f64,
     ell_q: V3,
     ell_qq: f64,
+    inv_ell_qq: f64,
     ellipse: bool,
+    /// The projected offset from the centre to the ray's origin
+    /// (`a0 + op·ap + oq·aq`), its component along the axis
+    /// (`s_0 + op·s_p + oq·s_q`) and its product with `c`.
+    a0: V3,
+    ap: V3,
+    aq: V3,
+    s_0: f64,
+    s_p: f64,
+    s_q: f64,
+    ac0: f64,
+    ac_p: f64,
+    ac_q: f64,
     /// Constant coefficients of the four constraints.
     beta: [f64; 4],
     gamma: [f64; 4],
@@ -74,29 +82,23 @@ pub struct AxisPiece {
     live: u8,
 }
 
-/// `roots(p, q, r2)` of the sweep module with `q·q` given.
+/// Real roots of `|p + x·q|² = r2` with `q·q` (at least 1e-24) and its
+/// reciprocal given.
 #[inline]
-fn roots_q(p: V3, q: &V3, qq: f64, r2: f64) -> Option<(f64, f64)> {
-    if qq < 1e-24 {
-        return None;
-    }
+fn roots_q(p: V3, q: &V3, qq: f64, inv_qq: f64, r2: f64) -> Option<(f64, f64)> {
     let pq = p.dot(q);
     let disc = pq * pq - qq * (p.dot(&p) - r2);
     if disc < 0.0 {
         return None;
     }
     let s = disc.sqrt();
-    Some(((-pq - s) / qq, (-pq + s) / qq))
+    Some(((-pq - s) * inv_qq, (-pq + s) * inv_qq))
 }
 
 impl AxisPiece {
     /// `piece` prepared for rays along axis `dir` (0 = X, 1 = Y, 2 = Z).
     pub fn new(piece: &Piece, dir: usize) -> AxisPiece {
-        let (p, q) = match dir {
-            0 => (1, 2),
-            1 => (0, 2),
-            _ => (0, 1),
-        };
+        let (p, q) = across(dir);
         let mut e = V3::zeros();
         e[dir] = 1.0;
         let b = piece.project(e);
@@ -148,32 +150,43 @@ impl AxisPiece {
                 m,
                 q,
                 qq: q.dot(&q),
+                inv_qq: 1.0 / q.dot(&q),
                 slope,
                 inv_slope,
             }
         });
         let live = (0..4).filter(|&k| !edges[k].skip).fold(0u8, |acc, k| acc | 1 << k);
         let ell_qq = ell_q.dot(&ell_q);
+        let (mut ep, mut eq) = (V3::zeros(), V3::zeros());
+        ep[p] = 1.0;
+        eq[q] = 1.0;
+        let w0 = P3::origin() - piece.c;
+        let (a0, ap, aq) = (piece.project(w0), piece.project(ep), piece.project(eq));
         // A point within sqrt(EPS·(1 + r²)) of the radius, or EPS of a
         // clipping plane, passes the routine's checks; grow well past.
         let margin = (EPS * (1.0 + r2)).sqrt() + 1e-6;
         let (lo, hi) = piece.bbox();
         AxisPiece {
             piece: *piece,
-            p,
-            q,
             across: [lo[p] - margin, hi[p] + margin, lo[q] - margin, hi[q] + margin],
             b,
             c,
             r2,
-            se,
-            sd,
-            cc,
             inv_cc: if cc > 1e-24 { 1.0 / cc } else { 0.0 },
             k_b,
             ell_q,
             ell_qq,
+            inv_ell_qq: 1.0 / ell_qq,
             ellipse: cc > 1e-24 && ell_qq >= 1e-24,
+            a0,
+            ap,
+            aq,
+            s_0: piece.a.dot(&w0),
+            s_p: piece.a.dot(&ep),
+            s_q: piece.a.dot(&eq),
+            ac0: a0.dot(&c),
+            ac_p: ap.dot(&c),
+            ac_q: aq.dot(&c),
             beta,
             gamma,
             edges,
@@ -195,13 +208,10 @@ impl AxisPiece {
             return None;
         }
         let pc = &self.piece;
-        let mut o = P3::origin();
-        o[self.p] = op;
-        o[self.q] = oq;
-        let w = o - pc.c;
-        let a = pc.project(w);
+        // Everything below is affine in the origin across the rays.
+        let a = self.a0 + self.ap * op + self.aq * oq;
         let (b, c, r2) = (self.b, self.c, self.r2);
-        let s = pc.a.dot(&w);
+        let s = self.s_0 + self.s_p * op + self.s_q * oq;
         let alpha = [s - pc.s0, pc.s1 - s, 0.0, 1.0];
         let (beta, gamma) = (&self.beta, &self.gamma);
         // Constraints broken at (t, u), as bits.
@@ -217,8 +227,8 @@ impl AxisPiece {
         };
         let todo = if self.ellipse {
             // The ellipse's extremes in t; none: the ellipse is empty.
-            let k_a = a.dot(&c) * self.inv_cc;
-            let (t0, t1) = roots_q(a - c * k_a, &self.ell_q, self.ell_qq, r2)?;
+            let k_a = (self.ac0 + self.ac_p * op + self.ac_q * oq) * self.inv_cc;
+            let (t0, t1) = roots_q(a - c * k_a, &self.ell_q, self.ell_qq, self.inv_ell_qq, r2)?;
             let mut todo = 0;
             for t in [t0, t1] {
                 let br = broken(t, k_a + self.k_b * t);
@@ -245,7 +255,7 @@ impl AxisPiece {
                 }
                 (f64::NEG_INFINITY, f64::INFINITY)
             } else {
-                match roots_q(p, &e.q, e.qq, r2) {
+                match roots_q(p, &e.q, e.qq, e.inv_qq, r2) {
                     Some(r) => r,
                     None => continue,
                 }
@@ -279,6 +289,16 @@ impl AxisPiece {
             }
         }
         (lo <= hi).then_some((lo, hi))
+    }
+}
+
+/// The two coordinates across rays along axis `dir` (as the families
+/// lay them out).
+fn across(dir: usize) -> (usize, usize) {
+    match dir {
+        0 => (1, 2),
+        1 => (0, 2),
+        _ => (0, 1),
     }
 }
 
@@ -437,8 +457,8 @@ mod tests {
                 for _ in 0..50 {
                     let (op, oq) = (g.f(-5.0, 5.0), g.f(-5.0, 5.0));
                     let mut o = P3::origin();
-                    o[ap.p] = op;
-                    o[ap.q] = oq;
+                    o[across(dir).0] = op;
+                    o[across(dir).1] = oq;
                     let want = pc.interval(&o, &e);
                     let got = ap.interval(op, oq);
                     assert!(agree(got, want), "{pc:?} dir {dir} at {op}, {oq}: {got:?} vs {want:?}");
@@ -485,8 +505,8 @@ mod tests {
             for _ in 0..3 {
                 let (op, oq) = (g.f(-3.0, 3.0), g.f(-3.0, 3.0));
                 let mut o = P3::origin();
-                o[ap.p] = op;
-                o[ap.q] = oq;
+                o[across(dir).0] = op;
+                o[across(dir).1] = oq;
                 let got = ap.interval(op, oq);
                 let want = sampled(&pc, &o, &e);
                 // The sampler's steps (a move of up to ~5 mm in 300
