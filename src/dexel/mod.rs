@@ -10,7 +10,9 @@
 //! stock's full interval without storage.
 //!
 //! Removal is exact per move: each dexel loses the interval where its ray
-//! meets the swept volume ([`sweep`]), not a series of stamped tools.
+//! meets the swept volume ([`sweep`], solved with each family's fixed ray
+//! direction worked in beforehand by [`axis`]), not a series of stamped
+//! tools.
 //! Moves are binned into tiles and the tiles cut in parallel with rayon;
 //! removal commutes, so the result does not depend on the order.
 
