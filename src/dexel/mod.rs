@@ -10,17 +10,21 @@
 //! stock's full interval without storage.
 //!
 //! Removal is exact per move: each dexel loses the interval where its ray
-//! meets the swept volume ([`sweep`]), not a series of stamped tools.
+//! meets the swept volume ([`sweep`], solved with each family's fixed ray
+//! direction worked in beforehand by [`axis`]), not a series of stamped
+//! tools.
 //! Moves are binned into tiles and the tiles cut in parallel with rayon;
 //! removal commutes, so the result does not depend on the order.
 
 #![warn(missing_docs)]
 
+pub mod axis;
 pub mod sweep;
 pub mod tile;
 pub mod tool;
 
-use crate::geometry::{P3, V3};
+use crate::geometry::P3;
+use axis::AxisMove;
 use rayon::prelude::*;
 use thiserror::Error;
 use tile::{TILE, Tile};
@@ -167,6 +171,8 @@ impl Family {
         }
         // Progress in (tile, move) pairs: the unit of work below.
         crate::progress::add_total(bins.iter().map(|b| b.len() as u64).sum());
+        // Every move's pieces prepared for this family's ray direction.
+        let prepared: Vec<AxisMove> = sweeps.par_iter().map(|s| AxisMove::new(s, self.dir)).collect();
         let mut tiles = std::mem::take(&mut self.tiles);
         let fam = &*self;
         let (lo, hi) = (self.lo as f32, self.hi as f32);
@@ -177,7 +183,7 @@ impl Family {
             .filter(|(_, (_, b))| !b.is_empty())
             .map(|(t, (slot, bin))| {
                 let tile = slot.get_or_insert_with(|| Box::new(Tile::full(lo, hi)));
-                let st = fam.cut_tile(t, tile, bin, sweeps);
+                let st = fam.cut_tile(t, tile, bin, sweeps, &prepared);
                 crate::progress::advance(bin.len() as u64);
                 st
             })
@@ -186,14 +192,19 @@ impl Family {
         stats
     }
 
-    fn cut_tile(&self, t: usize, tile: &mut Tile, bin: &[u32], sweeps: &[MoveSweep]) -> CutStats {
+    fn cut_tile(
+        &self,
+        t: usize,
+        tile: &mut Tile,
+        bin: &[u32],
+        sweeps: &[MoveSweep],
+        prepared: &[AxisMove],
+    ) -> CutStats {
         let (ti, tj) = (t % self.tp, t / self.tp);
-        let mut e = V3::zeros();
-        e[self.dir] = 1.0;
         let mut st = CutStats::default();
         let mut scratch = Vec::new();
         for &k in bin {
-            let s = &sweeps[k as usize];
+            let (s, sp) = (&sweeps[k as usize], &prepared[k as usize]);
             let (i0, i1) = Self::range(self.p0, self.hp, self.np, s.lo[self.p], s.hi[self.p]);
             let (j0, j1) = Self::range(self.q0, self.hq, self.nq, s.lo[self.q], s.hi[self.q]);
             let (i0, i1) = (i0.max(ti * TILE), i1.min((ti + 1) * TILE));
@@ -201,13 +212,10 @@ impl Family {
             for j in j0..j1 {
                 for i in i0..i1 {
                     let (pp, qq) = self.ray_pos(i, j);
-                    let mut o = P3::origin();
-                    o[self.p] = pp;
-                    o[self.q] = qq;
                     st.ray_tests += 1;
                     let kk = (j % TILE) * TILE + i % TILE;
                     let mut m = TileRay { tile, k: kk };
-                    st.fine_tests += s.remove_from(&o, &e, &mut m, &mut scratch);
+                    st.fine_tests += sp.remove_from(pp, qq, &mut m, &mut scratch);
                 }
             }
         }
@@ -377,6 +385,7 @@ impl TriDexel {
 mod tests {
     use super::*;
     use crate::cutter::Cutter;
+    use crate::geometry::V3;
     use tool::{Location, ToolShape};
 
     #[test]

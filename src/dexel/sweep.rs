@@ -37,26 +37,26 @@ pub struct Piece {
 }
 
 /// Tolerance of the feasibility checks, mm (or mm² for the quadratic).
-const EPS: f64 = 1e-9;
+pub(super) const EPS: f64 = 1e-9;
 
 /// One linear constraint `alpha + beta·t + gamma·u >= 0`.
 #[derive(Debug, Clone, Copy)]
-struct Lin {
-    alpha: f64,
-    beta: f64,
-    gamma: f64,
+pub(super) struct Lin {
+    pub(super) alpha: f64,
+    pub(super) beta: f64,
+    pub(super) gamma: f64,
 }
 
 impl Lin {
     #[inline]
-    fn at(&self, t: f64, u: f64) -> f64 {
+    pub(super) fn at(&self, t: f64, u: f64) -> f64 {
         self.alpha + self.beta * t + self.gamma * u
     }
 }
 
 /// Real roots of `|p + x·q|² = r2`, if any.
 #[inline]
-fn roots(p: V3, q: V3, r2: f64) -> Option<(f64, f64)> {
+pub(super) fn roots(p: V3, q: V3, r2: f64) -> Option<(f64, f64)> {
     let qq = q.dot(&q);
     if qq < 1e-24 {
         return None;
@@ -73,7 +73,7 @@ fn roots(p: V3, q: V3, r2: f64) -> Option<(f64, f64)> {
 impl Piece {
     /// The projection that measures the quadratic's distance.
     #[inline]
-    fn project(&self, v: V3) -> V3 {
+    pub(super) fn project(&self, v: V3) -> V3 {
         if self.cylinder { v - self.a * self.a.dot(&v) } else { v }
     }
 

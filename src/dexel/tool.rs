@@ -290,47 +290,75 @@ impl MoveSweep {
     /// inside its group's, which held no material: the result is the same
     /// as removing every sub-move.
     pub fn remove_from<M: LineMaterial>(&self, o: &P3, e: &V3, m: &mut M, scratch: &mut Vec<(f64, f64, u32)>) -> u64 {
-        let Some((t0, t1)) = self.hull(o, e) else { return 0 };
-        if !m.has(t0, t1) {
-            return 0;
-        }
-        if self.coarse.is_none() {
-            m.remove(t0, t1);
-            return 0;
-        }
-        let per = self.fine.len() / self.substeps;
-        let gper = per;
-        let mut tests = 0u64;
-        scratch.clear();
-        for (g, pcs) in self.groups.chunks(gper).enumerate() {
-            tests += 1;
-            if let Some((a, b)) = hull_of(pcs, o, e) {
-                scratch.push((a, b, g as u32));
-            }
-        }
-        // Lowest start first, then highest end, then the rest in order.
-        let lo = (0..scratch.len()).min_by(|&i, &j| scratch[i].0.total_cmp(&scratch[j].0));
-        let hi = (0..scratch.len()).max_by(|&i, &j| scratch[i].1.total_cmp(&scratch[j].1));
-        let order = lo
-            .into_iter()
-            .chain(hi.filter(|&h| Some(h) != lo))
-            .chain((0..scratch.len()).filter(|&k| Some(k) != lo && Some(k) != hi));
-        for k in order {
-            let (a, b, g) = scratch[k];
-            if !m.has(a, b) {
-                continue;
-            }
-            let k0 = g as usize * self.group;
-            let k1 = (k0 + self.group).min(self.substeps);
-            for sub in self.fine[k0 * per..k1 * per].chunks(per) {
-                tests += 1;
-                if let Some((a, b)) = hull_of(sub, o, e) {
-                    m.remove(a, b);
-                }
-            }
-        }
-        tests
+        remove_in_groups(
+            self.coarse.as_deref(),
+            &self.fine,
+            &self.groups,
+            self.substeps,
+            self.group,
+            |pcs: &[Piece]| hull_of(pcs, o, e),
+            m,
+            scratch,
+        )
     }
+}
+
+/// [`MoveSweep::remove_from`] over any form of the pieces: `hull` gives
+/// the interval a run of pieces removes from the line. Shared with the
+/// pieces prepared for one ray family ([`super::axis::AxisMove`]), so both
+/// make the same tests in the same order.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn remove_in_groups<P, M: LineMaterial>(
+    coarse: Option<&[P]>,
+    fine: &[P],
+    groups: &[P],
+    substeps: usize,
+    group: usize,
+    hull: impl Fn(&[P]) -> Option<(f64, f64)>,
+    m: &mut M,
+    scratch: &mut Vec<(f64, f64, u32)>,
+) -> u64 {
+    let Some((t0, t1)) = hull(coarse.unwrap_or(fine)) else {
+        return 0;
+    };
+    if !m.has(t0, t1) {
+        return 0;
+    }
+    if coarse.is_none() {
+        m.remove(t0, t1);
+        return 0;
+    }
+    let per = fine.len() / substeps;
+    let mut tests = 0u64;
+    scratch.clear();
+    for (g, pcs) in groups.chunks(per).enumerate() {
+        tests += 1;
+        if let Some((a, b)) = hull(pcs) {
+            scratch.push((a, b, g as u32));
+        }
+    }
+    // Lowest start first, then highest end, then the rest in order.
+    let lo = (0..scratch.len()).min_by(|&i, &j| scratch[i].0.total_cmp(&scratch[j].0));
+    let hi = (0..scratch.len()).max_by(|&i, &j| scratch[i].1.total_cmp(&scratch[j].1));
+    let order = lo
+        .into_iter()
+        .chain(hi.filter(|&h| Some(h) != lo))
+        .chain((0..scratch.len()).filter(|&k| Some(k) != lo && Some(k) != hi));
+    for k in order {
+        let (a, b, g) = scratch[k];
+        if !m.has(a, b) {
+            continue;
+        }
+        let k0 = g as usize * group;
+        let k1 = (k0 + group).min(substeps);
+        for sub in fine[k0 * per..k1 * per].chunks(per) {
+            tests += 1;
+            if let Some((a, b)) = hull(sub) {
+                m.remove(a, b);
+            }
+        }
+    }
+    tests
 }
 
 /// Smallest interval holding every piece's interval on the line.
