@@ -42,7 +42,56 @@ pub enum MachineError {
     Json(String, serde_json::Error),
     /// A figure is out of range or the sections do not fit together.
     #[error("{0}: {1}")]
-    Invalid(String, String),
+    Invalid(String, ProfileProblem),
+}
+
+/// What is wrong with a profile that parsed: the figure by its key in the
+/// profile's JSON, and its value.
+#[derive(Debug, Error, Clone, PartialEq)]
+pub enum ProfileProblem {
+    /// `schema` is not this version's.
+    #[error("unknown schema '{0}' (expected '{SCHEMA}')")]
+    UnknownSchema(String),
+    /// A speed or acceleration that must be above zero.
+    #[error("'{key}' must be a positive number, got {value}")]
+    NotPositive {
+        /// The figure's key (`rotary.` or `shutter.` in front for those sections).
+        key: &'static str,
+        /// Its value.
+        value: f64,
+    },
+    /// A time, rate or deviation that must not be negative.
+    #[error("'{key}' must be a number >= 0, got {value}")]
+    Negative {
+        /// The figure's key.
+        key: &'static str,
+        /// Its value.
+        value: f64,
+    },
+    /// The spindle's speeds are not `0 < min <= max`.
+    #[error("'spindle' speeds {min}..{max} rpm are not a positive range")]
+    SpindleRange {
+        /// `spindle.min_rpm`.
+        min: f64,
+        /// `spindle.max_rpm`.
+        max: f64,
+    },
+    /// `lookahead_blocks` is 0.
+    #[error("'lookahead_blocks' must be at least 1")]
+    NoLookahead,
+    /// An axis's limits are not `min <= max`.
+    #[error("axis {axis} limits {lo}..{hi} are not a range")]
+    LimitsNotRange {
+        /// `X`, `Y` or `Z`.
+        axis: char,
+        /// The low limit, mm.
+        lo: f64,
+        /// The high limit, mm.
+        hi: f64,
+    },
+    /// One of `limits_min_mm` and `limits_max_mm` without the other.
+    #[error("'limits_min_mm' and 'limits_max_mm' go together")]
+    LimitsUnpaired,
 }
 
 /// The controller's motion model.
@@ -218,7 +267,7 @@ impl Machine {
     /// Parse and check a profile; `name` is used in messages.
     pub fn from_json(text: &str, name: &str) -> Result<Machine, MachineError> {
         let m: Machine = serde_json::from_str(text).map_err(|e| MachineError::Json(name.into(), e))?;
-        m.check().map_err(|msg| MachineError::Invalid(name.into(), msg))?;
+        m.check().map_err(|p| MachineError::Invalid(name.into(), p))?;
         Ok(m)
     }
 
@@ -292,12 +341,12 @@ impl Machine {
             self.limits_max_mm = Some([l[1], l[3], l[5]]);
         }
         self.check()
-            .map_err(|msg| MachineError::Invalid(format!("machine '{}'", self.name), msg))
+            .map_err(|p| MachineError::Invalid(format!("machine '{}'", self.name), p))
     }
 
-    fn check(&self) -> Result<(), String> {
+    fn check(&self) -> Result<(), ProfileProblem> {
         if self.schema != SCHEMA {
-            return Err(format!("unknown schema '{}' (expected '{SCHEMA}')", self.schema));
+            return Err(ProfileProblem::UnknownSchema(self.schema.clone()));
         }
         let positive = [
             ("max_feed_mm_s", self.max_feed_mm_s),
@@ -307,7 +356,7 @@ impl Machine {
         ];
         for (k, v) in positive {
             if !(v.is_finite() && v > 0.0) {
-                return Err(format!("'{k}' must be a positive number, got {v}"));
+                return Err(ProfileProblem::NotPositive { key: k, value: v });
             }
         }
         let mut non_negative = vec![
@@ -323,7 +372,7 @@ impl Machine {
                 ("rotary.accel_deg_s2", r.accel_deg_s2),
             ] {
                 if !(v.is_finite() && v > 0.0) {
-                    return Err(format!("'{k}' must be a positive number, got {v}"));
+                    return Err(ProfileProblem::NotPositive { key: k, value: v });
                 }
             }
         }
@@ -339,34 +388,33 @@ impl Machine {
         if let Some(sp) = &self.spindle
             && !(sp.min_rpm.is_finite() && sp.max_rpm.is_finite() && 0.0 < sp.min_rpm && sp.min_rpm <= sp.max_rpm)
         {
-            return Err(format!(
-                "'spindle' speeds {}..{} rpm are not a positive range",
-                sp.min_rpm, sp.max_rpm
-            ));
+            return Err(ProfileProblem::SpindleRange {
+                min: sp.min_rpm,
+                max: sp.max_rpm,
+            });
         }
         for (k, v) in non_negative {
             if !(v.is_finite() && v >= 0.0) {
-                return Err(format!("'{k}' must be a number >= 0, got {v}"));
+                return Err(ProfileProblem::Negative { key: k, value: v });
             }
         }
         if self.lookahead_blocks == 0 {
-            return Err("'lookahead_blocks' must be at least 1".into());
+            return Err(ProfileProblem::NoLookahead);
         }
         match (self.limits_min_mm, self.limits_max_mm) {
             (None, None) => {}
             (Some(lo), Some(hi)) => {
                 for i in 0..3 {
                     if !(lo[i].is_finite() && hi[i].is_finite() && lo[i] <= hi[i]) {
-                        return Err(format!(
-                            "axis {} limits {}..{} are not a range",
-                            "XYZ".as_bytes()[i] as char,
-                            lo[i],
-                            hi[i]
-                        ));
+                        return Err(ProfileProblem::LimitsNotRange {
+                            axis: "XYZ".as_bytes()[i] as char,
+                            lo: lo[i],
+                            hi: hi[i],
+                        });
                     }
                 }
             }
-            _ => return Err("'limits_min_mm' and 'limits_max_mm' go together".into()),
+            _ => return Err(ProfileProblem::LimitsUnpaired),
         }
         Ok(())
     }
@@ -413,5 +461,21 @@ mod tests {
             ..Default::default()
         };
         assert!(m.apply(&o).unwrap_err().to_string().contains("axis Y"));
+        // The problem is a value a caller can match, not only a message.
+        let text = BUILTIN[0].1.replace("\"max_feed_mm_s\": 50", "\"max_feed_mm_s\": -1");
+        match Machine::from_json(&text, "x.json") {
+            Err(MachineError::Invalid(name, ProfileProblem::NotPositive { key, value })) => {
+                assert_eq!((name.as_str(), key, value), ("x.json", "max_feed_mm_s", -1.0));
+            }
+            other => panic!("{other:?}"),
+        }
+        let o = Overrides {
+            lookahead_blocks: Some(0),
+            ..Default::default()
+        };
+        assert!(matches!(
+            Machine::builtin("lookahead").apply(&o),
+            Err(MachineError::Invalid(_, ProfileProblem::NoLookahead))
+        ));
     }
 }
