@@ -146,25 +146,42 @@ struct Prep {
 
 /// The lattice and the shear in the test's axis order.
 struct Frame {
-    base: [f64; 3],
-    eu: [f64; 3],
+    /// `base + eu * us[i]` per component.
+    col: [Vec<f64>; 3],
     ev: [f64; 3],
     s: [f64; 3],
 }
+
+/// Strips across the projection the triangles are grouped in (see
+/// `row_order`).
+const STRIPS: f64 = 64.0;
 
 /// Rays per band of rows one task rasterises into (its depth buffer stays
 /// in the core's cache).
 const BAND_RAYS: usize = 8192;
 
 impl ParallelRays {
-    /// The triangles in order along the projection's second axis, so
-    /// that those of one band of lattice rows are read together.
+    /// The triangles by strips along the projection's second axis, so
+    /// that those of one band of lattice rows are read together, and
+    /// nearest first within a strip.
     fn row_order(&self) -> &[(u32, [P3; 3])] {
         self.order.get_or_init(|| {
-            let key = |t: &[P3; 3]| t.iter().map(|p| p.coords.dot(&self.e2)).fold(f64::INFINITY, f64::min);
-            let mut k: Vec<(f64, u32)> = self.tris.iter().enumerate().map(|(i, t)| (key(t), i as u32)).collect();
-            k.par_sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
-            k.into_iter().map(|(_, i)| (i, self.tris[i as usize])).collect()
+            let min = |t: &[P3; 3], d: &V3| t.iter().map(|p| p.coords.dot(d)).fold(f64::INFINITY, f64::min);
+            let across: Vec<f64> = self.tris.iter().map(|t| min(t, &self.e2)).collect();
+            let lo = across.iter().copied().fold(f64::INFINITY, f64::min);
+            let hi = across.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+            let inv = if hi > lo { STRIPS / (hi - lo) } else { 0.0 };
+            // Strip across, then nearest first along the direction (the
+            // front surface fills the depth buffer first and the faces
+            // behind fail its test alike, a branch the core predicts).
+            let mut k: Vec<(u32, f64, u32)> = across
+                .iter()
+                .zip(&self.tris)
+                .enumerate()
+                .map(|(i, (&a, t))| ((((a - lo) * inv) as u32).min(STRIPS as u32), min(t, &self.dir), i as u32))
+                .collect();
+            k.par_sort_unstable_by(|a, b| a.0.cmp(&b.0).then(a.1.total_cmp(&b.1)).then(a.2.cmp(&b.2)));
+            k.into_iter().map(|(_, _, i)| (i, self.tris[i as usize])).collect()
         })
     }
 
@@ -176,8 +193,20 @@ impl ParallelRays {
     /// bands of rows). A lattice whose axes do not span a plane across the
     /// direction, or non-finite coordinates, go one ray at a time.
     pub fn first_hits_lattice(&self, l: &Lattice) -> Vec<Option<Hit>> {
+        self.lattice(l)
+    }
+
+    /// Only the `t` of [`ParallelRays::first_hits_lattice`]'s hits (the
+    /// same bits), `f64::INFINITY` where a ray misses: a fifth of the
+    /// memory per ray, for callers that want depths alone (the
+    /// verification tool's design surface).
+    pub fn first_depths_lattice(&self, l: &Lattice) -> Vec<f64> {
+        self.lattice(l)
+    }
+
+    fn lattice<S: Slot>(&self, l: &Lattice) -> Vec<S> {
         let (nu, nv) = (l.us.len(), l.vs.len());
-        let mut out = vec![None; nu * nv];
+        let mut out = vec![S::EMPTY; nu * nv];
         let Some(sh) = self.shear else {
             return out;
         };
@@ -195,7 +224,7 @@ impl ParallelRays {
             out.par_iter_mut()
                 .with_min_len(1024)
                 .enumerate()
-                .for_each(|(k, h)| *h = self.first_hit(&l.origin(k % nu, k / nu)));
+                .for_each(|(k, h)| *h = S::from_hit(self.first_hit(&l.origin(k % nu, k / nu))));
             return out;
         }
         let (au, av) = (Axis::new(l.us), Axis::new(l.vs));
@@ -227,7 +256,9 @@ impl ParallelRays {
                 // opposites and the third zero, so det is exactly 0.
                 return None;
             }
-            let len = |a: [f64; 2], b: [f64; 2]| ((b[0] - a[0]).powi(2) + (b[1] - a[1]).powi(2)).sqrt();
+            // Edge lengths in the 1-norm: at least the length, at most
+            // sqrt 2 times it (no square roots; the bounds below allow it).
+            let len = |a: [f64; 2], b: [f64; 2]| (b[0] - a[0]).abs() + (b[1] - a[1]).abs();
             let ls = [len(q[0], q[1]), len(q[1], q[2]), len(q[2], q[0])];
             let lmax = ls[0].max(ls[1]).max(ls[2]);
             let lmin = ls[0].min(ls[1]).min(ls[2]);
@@ -242,7 +273,8 @@ impl ParallelRays {
                 if a_u == 0.0 {
                     [c, a_v, 0.0]
                 } else {
-                    [c / a_u, -a_v / a_u, a_u.signum()]
+                    let inv = 1.0 / a_u;
+                    [c * inv, -a_v * inv, a_u.signum()]
                 }
             };
             let good = det2.abs() >= 1e-6 * lmax * lmax && lmin > 0.0;
@@ -251,7 +283,7 @@ impl ParallelRays {
                 // times the corners' distance from the ray (<= 2 lmax
                 // here): a point that far outside an edge of length l is
                 // inside by rounding at most.
-                let pad = base_pad + 32.0 * eps * r * lmax / lmin;
+                let pad = base_pad + 46.0 * eps * r * lmax / lmin;
                 let sg = det2.signum();
                 for k in 0..3 {
                     let (a, b) = (q[k], q[(k + 1) % 3]);
@@ -324,13 +356,16 @@ impl ParallelRays {
         }
 
         let identity = au.pos.is_none() && av.pos.is_none();
-        let mut sorted_out = if identity { Vec::new() } else { vec![None; nus * nvs] };
-        let res: &mut [Option<Hit>] = if identity { &mut out } else { &mut sorted_out };
+        let mut sorted_out = if identity { Vec::new() } else { vec![S::EMPTY; nus * nvs] };
+        let res: &mut [S] = if identity { &mut out } else { &mut sorted_out };
         let (us, vs) = (&au.vals[..], &av.vals[..]);
         let perm = |v: &V3| [v[kx], v[ky], v[kz]];
+        let (base, eu) = (perm(&l.base.coords), perm(&l.eu));
+        // `base + eu * u` of every column, per component (the first two
+        // operations of Lattice::origin).
+        let col = |k: usize| us.iter().map(|&u| base[k] + eu[k] * u).collect::<Vec<f64>>();
         let lp = Frame {
-            base: perm(&l.base.coords),
-            eu: perm(&l.eu),
+            col: [col(0), col(1), col(2)],
             ev: perm(&l.ev),
             s,
         };
@@ -363,7 +398,7 @@ impl ParallelRays {
                     }
                     let row = (j - jb0) * nus;
                     let (a, b) = (row + i0, row + i1);
-                    lattice_row(p, &lp, v, &us[i0..i1], &mut tb[a..b], &mut chunk[a..b]);
+                    lattice_row(p, &lp, v, i0..i1, &mut tb[a..b], &mut chunk[a..b]);
                 }
             }
         });
@@ -381,7 +416,7 @@ impl ParallelRays {
             for j in 0..nv {
                 for i in 0..nu {
                     if !(l.us[i].is_finite() && l.vs[j].is_finite()) {
-                        out[j * nu + i] = self.first_hit(&l.origin(i, j));
+                        out[j * nu + i] = S::from_hit(self.first_hit(&l.origin(i, j)));
                     }
                 }
             }
@@ -396,16 +431,14 @@ impl ParallelRays {
 /// buffer `tb` and the hits `out` kept where the hit is nearer, or as near
 /// and of a lower triangle index.
 #[inline]
-fn lattice_row(p: &Prep, f: &Frame, v: f64, us: &[f64], tb: &mut [f64], out: &mut [Option<Hit>]) {
+fn lattice_row<S: Slot>(p: &Prep, f: &Frame, v: f64, cols: std::ops::Range<usize>, tb: &mut [f64], out: &mut [S]) {
     let [a, b, c] = &p.p;
     let s = f.s;
-    for ((&u, best), slot) in us.iter().zip(tb.iter_mut()).zip(out.iter_mut()) {
+    let r = [f.ev[0] * v, f.ev[1] * v, f.ev[2] * v];
+    let (c0, c1, c2) = (&f.col[0][cols.clone()], &f.col[1][cols.clone()], &f.col[2][cols]);
+    for ((((&o0, &o1), &o2), best), slot) in c0.iter().zip(c1).zip(c2).zip(tb.iter_mut()).zip(out.iter_mut()) {
         // `base + eu * u + ev * v`, per component, as Lattice::origin.
-        let o = [
-            f.base[0] + f.eu[0] * u + f.ev[0] * v,
-            f.base[1] + f.eu[1] * u + f.ev[1] * v,
-            f.base[2] + f.eu[2] * u + f.ev[2] * v,
-        ];
+        let o = [o0 + r[0], o1 + r[1], o2 + r[2]];
         let ta = [a[0] - o[0], a[1] - o[1], a[2] - o[2]];
         let tb_ = [b[0] - o[0], b[1] - o[1], b[2] - o[2]];
         let tc = [c[0] - o[0], c[1] - o[1], c[2] - o[2]];
@@ -418,11 +451,35 @@ fn lattice_row(p: &Prep, f: &Frame, v: f64, us: &[f64], tb: &mut [f64], out: &mu
         let outside = (eu < 0.0 || ev < 0.0 || ew < 0.0) & (eu > 0.0 || ev > 0.0 || ew > 0.0);
         let det = eu + ev + ew;
         let t = (eu * ta[2] + ev * tb_[2] + ew * tc[2]) * s[2] / det;
-        if !outside & (det != 0.0) & (t >= 0.0) & (t <= *best)
-            && (t < *best || slot.is_none_or(|h| p.id < h.triangle))
-        {
+        if !outside & (det != 0.0) & (t >= 0.0) & (t <= *best) {
+            slot.offer(best, t, p, det, ev, ew);
+        }
+    }
+}
+
+/// What the lattice query keeps per ray.
+trait Slot: Copy + Send + Sync {
+    /// A ray with no hit yet.
+    const EMPTY: Self;
+    /// The answer of a one-ray query.
+    fn from_hit(h: Option<Hit>) -> Self;
+    /// A hit of triangle `p` at `t <= best` (`best` the depth buffer's
+    /// value): kept if nearer, or as near and of a lower triangle index.
+    fn offer(&mut self, best: &mut f64, t: f64, p: &Prep, det: f64, ev: f64, ew: f64);
+}
+
+impl Slot for Option<Hit> {
+    const EMPTY: Self = None;
+
+    fn from_hit(h: Option<Hit>) -> Self {
+        h
+    }
+
+    #[inline(always)]
+    fn offer(&mut self, best: &mut f64, t: f64, p: &Prep, det: f64, ev: f64, ew: f64) {
+        if t < *best || self.is_none_or(|h| p.id < h.triangle) {
             *best = t;
-            *slot = Some(Hit {
+            *self = Some(Hit {
                 t,
                 triangle: p.id,
                 u: ev / det,
@@ -430,6 +487,21 @@ fn lattice_row(p: &Prep, f: &Frame, v: f64, us: &[f64], tb: &mut [f64], out: &mu
                 front: p.front,
             });
         }
+    }
+}
+
+impl Slot for f64 {
+    const EMPTY: Self = f64::INFINITY;
+
+    fn from_hit(h: Option<Hit>) -> Self {
+        h.map_or(f64::INFINITY, |h| h.t)
+    }
+
+    #[inline(always)]
+    fn offer(&mut self, best: &mut f64, t: f64, _: &Prep, _: f64, _: f64, _: f64) {
+        // Of equal t the triangle does not matter here.
+        *best = t;
+        *self = t;
     }
 }
 

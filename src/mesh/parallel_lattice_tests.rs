@@ -12,6 +12,11 @@ fn check(m: &Mesh, dir: V3, l: &Lattice) -> usize {
     let pr = ParallelRays::new(m, dir);
     let got = pr.first_hits_lattice(l);
     assert_eq!(got.len(), l.len());
+    let depths = pr.first_depths_lattice(l);
+    assert_eq!(depths.len(), l.len());
+    for (h, t) in got.iter().zip(&depths) {
+        assert_eq!(h.map_or(f64::INFINITY, |h| h.t).to_bits(), t.to_bits());
+    }
     let mut hits = 0;
     for j in 0..l.vs.len() {
         for i in 0..l.us.len() {
