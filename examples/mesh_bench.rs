@@ -225,8 +225,21 @@ fn lattice_bench(
         best_n = best_n.min(t.elapsed().as_secs_f64());
         assert!(h == first);
     }
+    // Depths only (what stlverify asks for): the same t, bit for bit.
+    let (mut dbest1, mut dcpu1, mut dbest_n) = (f64::INFINITY, f64::INFINITY, f64::INFINITY);
+    for _ in 0..repeat {
+        let (c, t) = (cpu_s(), Instant::now());
+        let d = pool1.install(|| pr.first_depths_lattice(&l));
+        dbest1 = dbest1.min(t.elapsed().as_secs_f64());
+        dcpu1 = dcpu1.min(cpu_s() - c);
+        let t = Instant::now();
+        let dn = pr.first_depths_lattice(&l);
+        dbest_n = dbest_n.min(t.elapsed().as_secs_f64());
+        assert!(d == dn);
+        assert!(d.iter().zip(&first).all(|(d, h)| d.to_bits() == h.map_or(f64::INFINITY, |h| h.t).to_bits()));
+    }
     let same = want.iter().zip(&first).filter(|(a, b)| a == b).count();
     format!(
-        "\"lattice_same_as_bvh\":{same},\"lattice_first_s\":{first_s:.6},\"lattice_first_cpu_s\":{first_cpu_s:.6},\"lattice_1thread_s\":{best1:.6},\"lattice_1thread_cpu_s\":{cpu1:.6},\"lattice_par_s\":{best_n:.6},"
+        "\"lattice_same_as_bvh\":{same},\"lattice_first_s\":{first_s:.6},\"lattice_first_cpu_s\":{first_cpu_s:.6},\"lattice_1thread_s\":{best1:.6},\"lattice_1thread_cpu_s\":{cpu1:.6},\"lattice_par_s\":{best_n:.6},\"depths_1thread_s\":{dbest1:.6},\"depths_1thread_cpu_s\":{dcpu1:.6},\"depths_par_s\":{dbest_n:.6},"
     )
 }

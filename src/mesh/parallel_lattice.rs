@@ -158,7 +158,7 @@ const STRIPS: f64 = 64.0;
 
 /// Rays per band of rows one task rasterises into (its depth buffer stays
 /// in the core's cache).
-const BAND_RAYS: usize = 8192;
+const BAND_RAYS: usize = 32768;
 
 impl ParallelRays {
     /// The triangles by strips along the projection's second axis, so
