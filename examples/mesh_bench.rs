@@ -189,7 +189,7 @@ fn lattice_bench(
         return String::new();
     };
     let nu = origins.iter().take_while(|o| o.y == o0.y).count();
-    if origins.len() % nu != 0 {
+    if !origins.len().is_multiple_of(nu) {
         return String::new();
     }
     let us: Vec<f64> = origins[..nu].iter().map(|o| o.x).collect();
@@ -201,10 +201,7 @@ fn lattice_bench(
         us: &us,
         vs: &vs,
     };
-    let is_lattice = origins
-        .iter()
-        .enumerate()
-        .all(|(k, o)| *o == l.origin(k % nu, k / nu));
+    let is_lattice = origins.iter().enumerate().all(|(k, o)| *o == l.origin(k % nu, k / nu));
     if !is_lattice {
         return String::new();
     }
@@ -236,7 +233,11 @@ fn lattice_bench(
         let dn = pr.first_depths_lattice(&l);
         dbest_n = dbest_n.min(t.elapsed().as_secs_f64());
         assert!(d == dn);
-        assert!(d.iter().zip(&first).all(|(d, h)| d.to_bits() == h.map_or(f64::INFINITY, |h| h.t).to_bits()));
+        assert!(
+            d.iter()
+                .zip(&first)
+                .all(|(d, h)| d.to_bits() == h.map_or(f64::INFINITY, |h| h.t).to_bits())
+        );
     }
     let same = want.iter().zip(&first).filter(|(a, b)| a == b).count();
     format!(

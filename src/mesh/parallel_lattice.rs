@@ -85,8 +85,16 @@ impl<'a> Axis<'a> {
             (Cow::Owned(idx.iter().map(|&i| v[i as usize]).collect()), Some(idx))
         };
         let n = vals.len();
-        let (lo, span) = if n > 0 { (vals[0], vals[n - 1] - vals[0]) } else { (0.0, 0.0) };
-        let inv_step = if n > 1 && span > 0.0 { (n - 1) as f64 / span } else { 0.0 };
+        let (lo, span) = if n > 0 {
+            (vals[0], vals[n - 1] - vals[0])
+        } else {
+            (0.0, 0.0)
+        };
+        let inv_step = if n > 1 && span > 0.0 {
+            (n - 1) as f64 / span
+        } else {
+            0.0
+        };
         Axis {
             vals,
             pos,
@@ -178,7 +186,13 @@ impl ParallelRays {
                 .iter()
                 .zip(&self.tris)
                 .enumerate()
-                .map(|(i, (&a, t))| ((((a - lo) * inv) as u32).min(STRIPS as u32), min(t, &self.dir), i as u32))
+                .map(|(i, (&a, t))| {
+                    (
+                        (((a - lo) * inv) as u32).min(STRIPS as u32),
+                        min(t, &self.dir),
+                        i as u32,
+                    )
+                })
                 .collect();
             k.par_sort_unstable_by(|a, b| a.0.cmp(&b.0).then(a.1.total_cmp(&b.1)).then(a.2.cmp(&b.2)));
             k.into_iter().map(|(_, _, i)| (i, self.tris[i as usize])).collect()
@@ -218,9 +232,15 @@ impl ParallelRays {
         let xp = |v: &V3| [v[kx] - s[0] * v[kz], v[ky] - s[1] * v[kz]];
         let (ju, jv) = (xp(&l.eu), xp(&l.ev));
         let det_j = ju[0] * jv[1] - jv[0] * ju[1];
-        let finite = l.base.coords.iter().chain(l.eu.iter()).chain(l.ev.iter()).all(|x| x.is_finite());
+        let finite = l
+            .base
+            .coords
+            .iter()
+            .chain(l.eu.iter())
+            .chain(l.ev.iter())
+            .all(|x| x.is_finite());
         let nj = ju[0].hypot(ju[1]) * jv[0].hypot(jv[1]);
-        if !finite || !det_j.is_finite() || !(det_j.abs() > 1e-9 * nj) {
+        if !finite || !det_j.is_finite() || !nj.is_finite() || det_j.abs() <= 1e-9 * nj {
             out.par_iter_mut()
                 .with_min_len(1024)
                 .enumerate()
@@ -293,7 +313,11 @@ impl ParallelRays {
                 // A sharp corner's padded apex moves out by pad / sin(angle / 2).
                 let row_pad = pad * (1.0 + 2.0 * lmax * lmax / det2.abs()) * mv;
                 let vs = q.map(|c| to_uv(c)[1]);
-                (3, vs[0].min(vs[1]).min(vs[2]) - row_pad, vs[0].max(vs[1]).max(vs[2]) + row_pad)
+                (
+                    3,
+                    vs[0].min(vs[1]).min(vs[2]) - row_pad,
+                    vs[0].max(vs[1]).max(vs[2]) + row_pad,
+                )
             } else {
                 // Too thin for its edges to bound it: its padded box.
                 let lo = [
@@ -310,7 +334,11 @@ impl ParallelRays {
                 hp[3] = to_hp([0.0, -1.0], -lo[1]);
                 let vs = [[lo[0], lo[1]], [hi[0], lo[1]], [lo[0], hi[1]], [hi[0], hi[1]]].map(|c| to_uv(c)[1]);
                 let e = base_pad * mv;
-                (4, vs.iter().copied().fold(f64::INFINITY, f64::min) - e, vs.iter().copied().fold(f64::NEG_INFINITY, f64::max) + e)
+                (
+                    4,
+                    vs.iter().copied().fold(f64::INFINITY, f64::min) - e,
+                    vs.iter().copied().fold(f64::NEG_INFINITY, f64::max) + e,
+                )
             };
             let (j0, j1) = (av.first_ge(vlo), av.first_gt(vhi));
             if j0 >= j1 {
@@ -356,7 +384,11 @@ impl ParallelRays {
         }
 
         let identity = au.pos.is_none() && av.pos.is_none();
-        let mut sorted_out = if identity { Vec::new() } else { vec![S::EMPTY; nus * nvs] };
+        let mut sorted_out = if identity {
+            Vec::new()
+        } else {
+            vec![S::EMPTY; nus * nvs]
+        };
         let res: &mut [S] = if identity { &mut out } else { &mut sorted_out };
         let (us, vs) = (&au.vals[..], &av.vals[..]);
         let perm = |v: &V3| [v[kx], v[ky], v[kz]];
@@ -377,8 +409,8 @@ impl ParallelRays {
                 let Some(p) = &preps[pi as usize] else {
                     continue;
                 };
-                for j in (p.j0 as usize).max(jb0)..(p.j1 as usize).min(jb1) {
-                    let v = vs[j];
+                let (r0, r1) = ((p.j0 as usize).max(jb0), (p.j1 as usize).min(jb1));
+                for (j, &v) in vs.iter().enumerate().take(r1).skip(r0) {
                     let (mut lo, mut hi) = (f64::NEG_INFINITY, f64::INFINITY);
                     for h in &p.hp[..p.n_hp as usize] {
                         if h[2] > 0.0 {
@@ -389,7 +421,8 @@ impl ParallelRays {
                             lo = f64::INFINITY;
                         }
                     }
-                    if !(lo <= hi) {
+                    // (min and max pass over a NaN bound: never NaN here.)
+                    if lo > hi {
                         continue;
                     }
                     let (i0, i1) = (au.first_ge(lo), au.first_gt(hi));

@@ -89,7 +89,10 @@ fn vertical_lattice_through_vertices_and_edges_of_a_closed_mesh() {
     let hits = check(&m, -V3::z(), &down);
     // Watertight: every ray over the block (closed x and y ranges) hits.
     let over = |v: &f64| (0.0..=n as f64 * h).contains(v);
-    assert_eq!(hits, xs.iter().filter(|v| over(v)).count() * ys.iter().filter(|v| over(v)).count());
+    assert_eq!(
+        hits,
+        xs.iter().filter(|v| over(v)).count() * ys.iter().filter(|v| over(v)).count()
+    );
     let pr = ParallelRays::new(&m, -V3::z());
     let got = pr.first_hits_lattice(&down);
     for (j, y) in ys.iter().enumerate() {
@@ -223,8 +226,15 @@ fn degenerate_triangles_and_unusual_lattices() {
     };
     assert!(ParallelRays::new(&Mesh::default(), -V3::z()).first_hits_lattice(&l)[0].is_none());
     assert!(ParallelRays::new(&cube, V3::zeros()).first_hits_lattice(&l)[0].is_none());
-    assert_eq!(ParallelRays::new(&cube, -V3::z()).first_hits_lattice(&l)[0].unwrap().t, 1.0);
-    assert!(ParallelRays::new(&cube, -V3::z()).first_hits_lattice(&Lattice { us: &[], ..l }).is_empty());
+    assert_eq!(
+        ParallelRays::new(&cube, -V3::z()).first_hits_lattice(&l)[0].unwrap().t,
+        1.0
+    );
+    assert!(
+        ParallelRays::new(&cube, -V3::z())
+            .first_hits_lattice(&Lattice { us: &[], ..l })
+            .is_empty()
+    );
 }
 
 proptest! {

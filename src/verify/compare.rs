@@ -69,7 +69,7 @@ impl Design {
         self.rays
             .first_depths_lattice(&l)
             .into_iter()
-            .map(|t| (t != f64::INFINITY).then(|| z0 - t))
+            .map(|t| (t != f64::INFINITY).then_some(z0 - t))
             .collect()
     }
 }
@@ -213,7 +213,11 @@ mod tests {
         for (j, &y) in ys.iter().enumerate() {
             for (i, &x) in xs.iter().enumerate() {
                 let want = d.top_at(x, y);
-                assert_eq!(tops[j * xs.len() + i].map(f64::to_bits), want.map(f64::to_bits), "({x}, {y})");
+                assert_eq!(
+                    tops[j * xs.len() + i].map(f64::to_bits),
+                    want.map(f64::to_bits),
+                    "({x}, {y})"
+                );
                 hits += want.is_some() as usize;
             }
         }
