@@ -14,22 +14,19 @@ use std::time::Instant;
 
 use microcam::geometry::{P3, V3};
 use microcam::mesh::bvh::{Bvh, Ray};
-use microcam::mesh::parallel::ParallelRays;
+use microcam::mesh::parallel::{Lattice, ParallelRays};
 use microcam::mesh::{ReadOptions, read_path};
 
-/// CPU seconds (user + system) this process has used, from /proc (Linux;
-/// 0 elsewhere). On a shared machine the wall time includes waiting for a
-/// core; CPU time does not.
+/// CPU seconds (user + system) this process has used, to the nanosecond
+/// (CLOCK_PROCESS_CPUTIME_ID). On a shared machine the wall time includes
+/// waiting for a core; CPU time does not.
 fn cpu_s() -> f64 {
-    let Ok(stat) = std::fs::read_to_string("/proc/self/stat") else {
+    let mut ts = libc::timespec { tv_sec: 0, tv_nsec: 0 };
+    // SAFETY: clock_gettime writes one timespec, which `ts` is.
+    if unsafe { libc::clock_gettime(libc::CLOCK_PROCESS_CPUTIME_ID, &mut ts) } != 0 {
         return 0.0;
-    };
-    // Fields after the command name (which may hold spaces) end with ')'.
-    let rest = stat.rsplit(')').next().unwrap_or("");
-    let f: Vec<&str> = rest.split_whitespace().collect();
-    let tick = |i: usize| f.get(i).and_then(|v| v.parse::<f64>().ok()).unwrap_or(0.0);
-    // utime and stime are fields 14 and 15 of the whole line: 11 and 12 here.
-    (tick(11) + tick(12)) / 100.0
+    }
+    ts.tv_sec as f64 + ts.tv_nsec as f64 * 1e-9
 }
 
 fn main() {
@@ -112,7 +109,7 @@ fn main() {
         .map(|g| grid_bench(&m.mesh, &bvh, g, repeat))
         .unwrap_or_default();
     println!(
-        "{{\"weld_s\":{weld_s:.6},\"weld_cpu_s\":{weld_cpu_s:.3},\"welded_vertices\":{},\"read_cpu_s\":{read_cpu_s:.3},\"build_cpu_s\":{build_cpu_s:.3},{grid}\"triangles\":{},\"nodes\":{},\"read_s\":{read_s:.6},\"build_s\":{build_s:.6},\"read_build_cpu_s\":{read_build_cpu_s:.3},\"first_hit_1thread_cpu_s\":{rays_cpu_s:.3},\"batch_1thread_s\":{batch1:.6},\"batch_1thread_cpu_s\":{batch1_cpu_s:.3},\"rays\":{},\"hit\":{n_hit},\"first_hit_1thread_s\":{best1:.6},\"first_hit_par_s\":{best_n:.6},\"threads\":{},\"all_hits\":{n_all},\"all_hits_1thread_s\":{all_s:.6}}}",
+        "{{\"weld_s\":{weld_s:.6},\"weld_cpu_s\":{weld_cpu_s:.6},\"welded_vertices\":{},\"read_cpu_s\":{read_cpu_s:.6},\"build_cpu_s\":{build_cpu_s:.6},{grid}\"triangles\":{},\"nodes\":{},\"read_s\":{read_s:.6},\"build_s\":{build_s:.6},\"read_build_cpu_s\":{read_build_cpu_s:.6},\"first_hit_1thread_cpu_s\":{rays_cpu_s:.6},\"batch_1thread_s\":{batch1:.6},\"batch_1thread_cpu_s\":{batch1_cpu_s:.6},\"rays\":{},\"hit\":{n_hit},\"first_hit_1thread_s\":{best1:.6},\"first_hit_par_s\":{best_n:.6},\"threads\":{},\"all_hits\":{n_all},\"all_hits_1thread_s\":{all_s:.6}}}",
         welded.vertices.len(),
         m.mesh.triangles.len(),
         bvh.node_count(),
@@ -143,6 +140,8 @@ fn grid_bench(mesh: &microcam::mesh::Mesh, bvh: &Bvh, path: &str, repeat: usize)
     let origins: Vec<P3> = rays.iter().map(|r| r.origin).collect();
     let (c0, t0) = (cpu_s(), Instant::now());
     let pr = ParallelRays::new(mesh, dir);
+    // The cell grid is built on first use: build it here, in the timing.
+    let _ = pr.cells();
     let (pr_build_s, pr_build_cpu_s) = (t0.elapsed().as_secs_f64(), cpu_s() - c0);
     let time = |f: &dyn Fn() -> Vec<Option<microcam::mesh::bvh::Hit>>| {
         let mut best = f64::INFINITY;
@@ -162,16 +161,86 @@ fn grid_bench(mesh: &microcam::mesh::Mesh, bvh: &Bvh, path: &str, repeat: usize)
     let (bvhn, _, _) = time(&|| bvh.first_hits(&rays));
     let same = hb.iter().zip(&hp).filter(|(a, b)| a == b).count();
     assert_eq!(hp, hpn);
+    let lattice = lattice_bench(&pr, &origins, &hb, repeat);
     let out: Vec<u8> = hp
         .iter()
         .flat_map(|h| h.map_or(f64::NAN, |h| h.t).to_le_bytes())
         .collect();
     std::fs::write(format!("{path}.hits"), out).expect("write hits");
     format!(
-        "\"grid_rays\":{},\"grid_hit\":{},\"grid_same_as_bvh\":{same},\"grid_bvh_1thread_s\":{bvh1:.6},\"grid_bvh_1thread_cpu_s\":{bvh1_cpu:.3},\"grid_bvh_par_s\":{bvhn:.6},\"grid_pr_build_s\":{pr_build_s:.6},\"grid_pr_build_cpu_s\":{pr_build_cpu_s:.3},\"grid_pr_cells\":{},\"grid_pr_refs\":{},\"grid_pr_1thread_s\":{pr1:.6},\"grid_pr_1thread_cpu_s\":{pr1_cpu:.3},\"grid_pr_par_s\":{prn:.6},",
+        "{lattice}\"grid_rays\":{},\"grid_hit\":{},\"grid_same_as_bvh\":{same},\"grid_bvh_1thread_s\":{bvh1:.6},\"grid_bvh_1thread_cpu_s\":{bvh1_cpu:.6},\"grid_bvh_par_s\":{bvhn:.6},\"grid_pr_build_s\":{pr_build_s:.6},\"grid_pr_build_cpu_s\":{pr_build_cpu_s:.6},\"grid_pr_cells\":{},\"grid_pr_refs\":{},\"grid_pr_1thread_s\":{pr1:.6},\"grid_pr_1thread_cpu_s\":{pr1_cpu:.6},\"grid_pr_par_s\":{prn:.6},",
         rays.len(),
         hp.iter().filter(|h| h.is_some()).count(),
         pr.cells(),
         pr.references()
+    )
+}
+
+/// The grid rays as a lattice (`first_hits_lattice`) when they are one:
+/// origins `(x_i, y_j, z)` row by row. JSON fields (trailing comma), or
+/// nothing when the rays are not such a lattice.
+fn lattice_bench(
+    pr: &ParallelRays,
+    origins: &[P3],
+    want: &[Option<microcam::mesh::bvh::Hit>],
+    repeat: usize,
+) -> String {
+    let Some(o0) = origins.first() else {
+        return String::new();
+    };
+    let nu = origins.iter().take_while(|o| o.y == o0.y).count();
+    if !origins.len().is_multiple_of(nu) {
+        return String::new();
+    }
+    let us: Vec<f64> = origins[..nu].iter().map(|o| o.x).collect();
+    let vs: Vec<f64> = origins.iter().step_by(nu).map(|o| o.y).collect();
+    let l = Lattice {
+        base: P3::new(0.0, 0.0, o0.z),
+        eu: V3::x(),
+        ev: V3::y(),
+        us: &us,
+        vs: &vs,
+    };
+    let is_lattice = origins.iter().enumerate().all(|(k, o)| *o == l.origin(k % nu, k / nu));
+    if !is_lattice {
+        return String::new();
+    }
+    let pool1 = rayon::ThreadPoolBuilder::new().num_threads(1).build().expect("pool");
+    // The first call also sorts the triangles by depth (kept for later calls).
+    let (c0, t0) = (cpu_s(), Instant::now());
+    let first = pool1.install(|| pr.first_hits_lattice(&l));
+    let (first_s, first_cpu_s) = (t0.elapsed().as_secs_f64(), cpu_s() - c0);
+    let (mut best1, mut cpu1, mut best_n) = (f64::INFINITY, f64::INFINITY, f64::INFINITY);
+    for _ in 0..repeat {
+        let (c, t) = (cpu_s(), Instant::now());
+        let h = pool1.install(|| pr.first_hits_lattice(&l));
+        best1 = best1.min(t.elapsed().as_secs_f64());
+        cpu1 = cpu1.min(cpu_s() - c);
+        assert!(h == first);
+        let t = Instant::now();
+        let h = pr.first_hits_lattice(&l);
+        best_n = best_n.min(t.elapsed().as_secs_f64());
+        assert!(h == first);
+    }
+    // Depths only (what stlverify asks for): the same t, bit for bit.
+    let (mut dbest1, mut dcpu1, mut dbest_n) = (f64::INFINITY, f64::INFINITY, f64::INFINITY);
+    for _ in 0..repeat {
+        let (c, t) = (cpu_s(), Instant::now());
+        let d = pool1.install(|| pr.first_depths_lattice(&l));
+        dbest1 = dbest1.min(t.elapsed().as_secs_f64());
+        dcpu1 = dcpu1.min(cpu_s() - c);
+        let t = Instant::now();
+        let dn = pr.first_depths_lattice(&l);
+        dbest_n = dbest_n.min(t.elapsed().as_secs_f64());
+        assert!(d == dn);
+        assert!(
+            d.iter()
+                .zip(&first)
+                .all(|(d, h)| d.to_bits() == h.map_or(f64::INFINITY, |h| h.t).to_bits())
+        );
+    }
+    let same = want.iter().zip(&first).filter(|(a, b)| a == b).count();
+    format!(
+        "\"lattice_same_as_bvh\":{same},\"lattice_first_s\":{first_s:.6},\"lattice_first_cpu_s\":{first_cpu_s:.6},\"lattice_1thread_s\":{best1:.6},\"lattice_1thread_cpu_s\":{cpu1:.6},\"lattice_par_s\":{best_n:.6},\"depths_1thread_s\":{dbest1:.6},\"depths_1thread_cpu_s\":{dcpu1:.6},\"depths_par_s\":{dbest_n:.6},"
     )
 }

@@ -15,6 +15,8 @@
 //! same tie rule: of equal `t`, the lowest triangle index), so a caller may
 //! use either; `tests` checks that they agree bit for bit.
 
+use std::sync::OnceLock;
+
 use rayon::prelude::*;
 
 use super::Mesh;
@@ -33,23 +35,41 @@ struct Item {
 }
 
 /// A 2-D grid over the projection of a mesh along one direction, for
-/// first-hit queries of rays in that direction.
+/// first-hit queries of rays in that direction, one at a time
+/// ([`ParallelRays::first_hit`]) or from the points of a lattice
+/// ([`ParallelRays::first_hits_lattice`], which rasterises the triangles
+/// instead and never builds the grid).
 #[derive(Debug, Clone)]
 pub struct ParallelRays {
     dir: V3,
     shear: Option<Shear>,
     e1: V3,
     e2: V3,
+    /// The mesh's triangles as corners, in mesh order.
+    tris: Vec<[P3; 3]>,
+    /// Largest corner coordinate (absolute), the scale of rounding.
+    scale: f64,
+    /// `dir · dir`.
+    dd: f64,
+    /// Margin on the early stop, far above the rounding of `t`.
+    slack: f64,
+    /// The per-ray index, built on first use (lattice queries need none).
+    cells: OnceLock<Cells>,
+    /// The triangles (index, corners) in order along `e2`, the
+    /// projection's second axis (for lattices: the triangles of a band of
+    /// lattice rows lie together), built on first use.
+    order: OnceLock<Vec<(u32, [P3; 3])>>,
+}
+
+/// The 2-D grid of cells, each listing its triangles.
+#[derive(Debug, Clone)]
+struct Cells {
     lo: [f64; 2],
     inv_cell: f64,
     nx: usize,
     ny: usize,
     start: Vec<u32>,
     items: Vec<Item>,
-    /// `dir · dir`.
-    dd: f64,
-    /// Margin on the early stop, far above the rounding of `t`.
-    slack: f64,
 }
 
 /// Cells per triangle of the mesh (about two triangle references per cell
@@ -76,32 +96,47 @@ impl ParallelRays {
                 ]
             })
             .collect();
-        let mut out = ParallelRays {
+        let scale = tris
+            .iter()
+            .flat_map(|t| t.iter())
+            .map(|p| p.coords.amax())
+            .fold(0.0f64, f64::max);
+        ParallelRays {
             dir,
             shear,
             e1,
             e2,
+            tris,
+            scale,
+            dd: dir.norm_squared(),
+            slack: 1e-9 * scale * dir.norm() * 4.0 + 1e-300,
+            cells: OnceLock::new(),
+            order: OnceLock::new(),
+        }
+    }
+
+    /// The cell grid, built on first use.
+    fn cells_index(&self) -> &Cells {
+        self.cells.get_or_init(|| self.build_cells())
+    }
+
+    fn build_cells(&self) -> Cells {
+        let (e1, e2, dir) = (self.e1, self.e2, self.dir);
+        let tris = &self.tris;
+        let mut out = Cells {
             lo: [0.0; 2],
             inv_cell: 0.0,
             nx: 0,
             ny: 0,
             start: vec![0],
             items: Vec::new(),
-            dd: dir.norm_squared(),
-            slack: 0.0,
         };
-        if tris.is_empty() || shear.is_none() {
+        if tris.is_empty() || self.shear.is_none() {
             return out;
         }
         // Projected boxes, padded so rounding in the projection never
         // leaves a triangle out of a cell a ray in it could hit.
-        let scale = tris
-            .iter()
-            .flat_map(|t| t.iter())
-            .map(|p| p.coords.amax())
-            .fold(0.0f64, f64::max);
-        let pad = 1e-9 * scale + 1e-300;
-        out.slack = 1e-9 * scale * dir.norm() * 4.0 + 1e-300;
+        let pad = 1e-9 * self.scale + 1e-300;
         let boxes: Vec<[f64; 4]> = tris
             .par_iter()
             .with_min_len(4096)
@@ -201,14 +236,16 @@ impl ParallelRays {
         self.dir
     }
 
-    /// Triangle references over all cells (for benchmarks and docs).
+    /// Triangle references over all cells (for benchmarks and docs;
+    /// builds the cell grid).
     pub fn references(&self) -> usize {
-        self.items.len()
+        self.cells_index().items.len()
     }
 
-    /// Number of cells.
+    /// Number of cells (builds the cell grid).
     pub fn cells(&self) -> usize {
-        self.nx * self.ny
+        let c = self.cells_index();
+        c.nx * c.ny
     }
 
     /// The first hit of the ray `origin + t * dir`, `t >= 0`: the same
@@ -216,13 +253,14 @@ impl ParallelRays {
     #[inline]
     pub fn first_hit(&self, origin: &P3) -> Option<Hit> {
         let sh = self.shear.as_ref()?;
-        let fx = (origin.coords.dot(&self.e1) - self.lo[0]) * self.inv_cell;
-        let fy = (origin.coords.dot(&self.e2) - self.lo[1]) * self.inv_cell;
-        if !(fx >= 0.0 && fy >= 0.0 && fx < self.nx as f64 && fy < self.ny as f64) {
+        let g = self.cells_index();
+        let fx = (origin.coords.dot(&self.e1) - g.lo[0]) * g.inv_cell;
+        let fy = (origin.coords.dot(&self.e2) - g.lo[1]) * g.inv_cell;
+        if !(fx >= 0.0 && fy >= 0.0 && fx < g.nx as f64 && fy < g.ny as f64) {
             return None;
         }
-        let c = fy as usize * self.nx + fx as usize;
-        let items = &self.items[self.start[c] as usize..self.start[c + 1] as usize];
+        let c = fy as usize * g.nx + fx as usize;
+        let items = &g.items[g.start[c] as usize..g.start[c + 1] as usize];
         let ray = Ray::new(*origin, self.dir);
         let od = origin.coords.dot(&self.dir);
         let mut best: Option<Hit> = None;
@@ -269,6 +307,10 @@ fn basis(d: &V3) -> (V3, V3) {
         }
     }
 }
+
+#[path = "parallel_lattice.rs"]
+mod lattice;
+pub use lattice::Lattice;
 
 #[cfg(test)]
 #[path = "parallel_tests.rs"]

@@ -21,10 +21,11 @@ pub(crate) enum Edges {
 /// the other two are swapped when it is negative to keep the winding.
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct Shear {
-    kx: usize,
-    ky: usize,
-    kz: usize,
-    s: [f64; 3],
+    pub(crate) kx: usize,
+    pub(crate) ky: usize,
+    pub(crate) kz: usize,
+    /// `dir[kx] / dir[kz]`, `dir[ky] / dir[kz]`, `1 / dir[kz]`.
+    pub(crate) s: [f64; 3],
 }
 
 impl Shear {

@@ -5,7 +5,7 @@
 
 use super::Simulation;
 use crate::geometry::{P3, V3};
-use crate::mesh::parallel::ParallelRays;
+use crate::mesh::parallel::{Lattice, ParallelRays};
 use rayon::prelude::*;
 
 /// One comparison point.
@@ -29,9 +29,10 @@ impl Sample {
     }
 }
 
-/// The design mesh ready for vertical rays (a 2-D grid over its plan view:
-/// the same hits as the BVH, several times faster for rays in one
-/// direction, docs/mesh.md).
+/// The design mesh ready for vertical rays: the same hits as the BVH, a
+/// grid of rays at a time by rasterising the design onto it
+/// ([`ParallelRays::first_depths_lattice`]), single rays through a 2-D
+/// grid over the plan view (docs/mesh.md).
 pub struct Design {
     rays: ParallelRays,
     top: f64,
@@ -52,6 +53,25 @@ impl Design {
         let z0 = self.top + 1.0;
         self.rays.first_hit(&P3::new(x, y, z0)).map(|h| z0 - h.t)
     }
+
+    /// [`Design::top_at`] at every `(xs[i], ys[j])`, in the order
+    /// `j * xs.len() + i`, bit for bit the same values (the rays'
+    /// origins are the same points).
+    pub fn tops(&self, xs: &[f64], ys: &[f64]) -> Vec<Option<f64>> {
+        let z0 = self.top + 1.0;
+        let l = Lattice {
+            base: P3::new(0.0, 0.0, z0),
+            eu: V3::x(),
+            ev: V3::y(),
+            us: xs,
+            vs: ys,
+        };
+        self.rays
+            .first_depths_lattice(&l)
+            .into_iter()
+            .map(|t| (t != f64::INFINITY).then_some(z0 - t))
+            .collect()
+    }
 }
 
 /// Points `x0, x0 + step, ...` up to `x1` (inclusive within rounding).
@@ -62,13 +82,18 @@ pub fn steps(x0: f64, x1: f64, step: f64) -> Vec<f64> {
 
 /// Sample every point of the grid (row by row, y outer, x inner).
 pub fn sample(sim: &Simulation, design: &Design, xs: &[f64], ys: &[f64]) -> Vec<Sample> {
-    let pts: Vec<(f64, f64)> = ys.iter().flat_map(|&y| xs.iter().map(move |&x| (x, y))).collect();
-    pts.par_iter()
-        .map(|&(x, y)| Sample {
-            x,
-            y,
-            design_z: design.top_at(x, y),
-            machined_z: sim.top_at(x, y).unwrap_or(f64::NAN),
+    let tops = design.tops(xs, ys);
+    let nx = xs.len().max(1);
+    tops.par_iter()
+        .enumerate()
+        .map(|(k, &design_z)| {
+            let (x, y) = (xs[k % nx], ys[k / nx]);
+            Sample {
+                x,
+                y,
+                design_z,
+                machined_z: sim.top_at(x, y).unwrap_or(f64::NAN),
+            }
         })
         .collect()
 }
@@ -176,6 +201,28 @@ pub fn points_csv(samples: &[Sample]) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn design_tops_on_a_grid_are_its_single_rays() {
+        let m = crate::mesh::solids::sphere(P3::new(1.0, 0.5, -2.0), 2.0, 40, 20);
+        let d = Design::new(&m);
+        let xs = steps(-1.5, 3.5, 0.05);
+        let ys = steps(-2.0, 3.0, 0.07);
+        let tops = d.tops(&xs, &ys);
+        let mut hits = 0;
+        for (j, &y) in ys.iter().enumerate() {
+            for (i, &x) in xs.iter().enumerate() {
+                let want = d.top_at(x, y);
+                assert_eq!(
+                    tops[j * xs.len() + i].map(f64::to_bits),
+                    want.map(f64::to_bits),
+                    "({x}, {y})"
+                );
+                hits += want.is_some() as usize;
+            }
+        }
+        assert!(hits > 1000 && hits < tops.len(), "{hits}");
+    }
 
     #[test]
     fn stats_classify_and_measure() {
