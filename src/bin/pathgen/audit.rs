@@ -1,11 +1,12 @@
 //! `pathgen audit`: a laser toolpath checked against the machine.
 
-use super::common::{MachineArgs, positive};
+use super::common::{MachineArgs, meter, positive};
 use clap::Args as ClapArgs;
 use microcam::cli::{self, CliError};
 use microcam::gcode::ReadOptions;
 use microcam::geometry::P3;
 use microcam::model::toolpath::{FeedUnit, Record};
+use microcam::progress;
 use microcam::source::ToolpathSource;
 use std::path::PathBuf;
 
@@ -19,6 +20,9 @@ pub(crate) struct AuditArgs {
     precision: f64,
     #[command(flatten)]
     machine: MachineArgs,
+    /// No progress bar on stderr (warnings and errors still appear).
+    #[arg(short, long)]
+    quiet: bool,
 }
 
 pub(crate) fn audit_cmd(a: AuditArgs) -> Result<(), CliError> {
@@ -28,7 +32,11 @@ pub(crate) fn audit_cmd(a: AuditArgs) -> Result<(), CliError> {
     let source = ToolpathSource::open(input, &ReadOptions::default())?;
     let unit = source.header.feed_unit;
     let mut records = Vec::new();
+    // Reading is most of an audit; a stream of unknown length: the display
+    // counts records.
+    let meter = meter("audit: records", 0, a.quiet);
     for r in source {
+        progress::advance(1);
         let mut r = r?;
         // Audit in mm/s whatever the program's feed unit.
         if let Record::Move(mv) = &mut r {
@@ -37,6 +45,7 @@ pub(crate) fn audit_cmd(a: AuditArgs) -> Result<(), CliError> {
         records.push(r);
     }
     let au = microcam::laser::audit::audit(&records, &m, P3::origin());
+    meter.finish();
     println!("{}", au.report_json(&m, a.precision));
     let ok = au.passes(&m, a.precision);
     if ok {
