@@ -29,12 +29,12 @@ pub(crate) fn audit_cmd(a: AuditArgs) -> Result<(), CliError> {
     let m = a.machine.machine(None)?;
     positive("precision", a.precision)?;
     let input = cli::open_input(a.file.as_deref())?;
-    let source = ToolpathSource::open(input, &ReadOptions::default())?;
-    let unit = source.header.feed_unit;
-    let mut records = Vec::new();
     // Reading is most of an audit; a stream of unknown length: the display
     // counts records.
     let meter = meter("audit: records", 0, a.quiet);
+    let source = ToolpathSource::open(input, &ReadOptions::default())?;
+    let unit = source.header.feed_unit;
+    let mut records = Vec::new();
     for r in source {
         progress::advance(1);
         let mut r = r?;

@@ -34,12 +34,13 @@ pub(crate) fn emit(a: EmitArgs) -> Result<(), CliError> {
         ..Default::default()
     };
     let input = cli::open_input(a.file.as_deref())?;
+    // A stream of unknown length (from its first bytes on): the display
+    // counts records.
+    let meter = meter("emit: records", 0, a.quiet);
     let source = ToolpathSource::open(input, &read)?;
     let name = source.name().to_string();
     let feed_unit = source.header.feed_unit;
     let mut out = Output::new(a.output.as_deref());
-    // A stream of unknown length: the display counts records.
-    let meter = meter("emit: records", 0, a.quiet);
     let written = write_gcode(
         source.inspect(|_| progress::advance(1)),
         feed_unit,
