@@ -10,6 +10,19 @@ use microcam::progress;
 use microcam::source::ToolpathSource;
 use std::path::PathBuf;
 
+pub(crate) const AUDIT_EXAMPLES: &str = "\
+Examples:
+  pathgen contour part.chains | pathgen audit                toolpath straight from the planner
+  pathgen audit --machine laser-stage part.pmc               a PMAC program (4 decimals)
+  pathgen audit --precision 1e-9 part.jsonl | jq .ok
+
+Input: microcam.toolpath/1 or G-code of either dialect ('-' or no FILE:
+stdin), checked against --machine and the stage flags: feed moves at V,
+acceleration within the stage's, no corner at speed, no beam-on rapid,
+shutter switch points and exposure. The JSON report (microcam.pathgen-audit/1)
+goes to stdout. Exit status: 0 within the limits, 1 a limit broken (the
+report says which) or a failure, 2 bad usage or bad input.";
+
 #[derive(ClapArgs)]
 pub(crate) struct AuditArgs {
     /// Toolpath or G-code to check ('-' for stdin).
