@@ -25,6 +25,8 @@ static DONE: AtomicU64 = AtomicU64::new(0);
 static TOTAL: AtomicU64 = AtomicU64::new(0);
 /// What the job is doing now, when it has named its stage (see [`stage`]).
 static STAGE: Mutex<Option<&'static str>> = Mutex::new(None);
+/// The bar a meter draws now, if any (for [`note`]).
+static SHOWN: Mutex<Option<ProgressBar>> = Mutex::new(None);
 
 /// Start counting a new job of `total` units (0 when not known yet).
 pub fn begin(total: u64) {
@@ -50,6 +52,23 @@ fn snapshot() -> (Option<&'static str>, u64, u64) {
     let st = STAGE.lock().unwrap_or_else(|e| e.into_inner());
     let (done, total) = counts();
     (*st, done, total)
+}
+
+/// The work done is `done` units (a job that learns its progress as a
+/// position, such as a controller's line counter, not as increments).
+pub fn set(done: u64) {
+    DONE.store(done, Ordering::Relaxed);
+}
+
+/// Write `line` on stderr without breaking a bar being drawn: the bar is
+/// hidden for the write and drawn again below the line. For a tool that
+/// logs as it works (pmac-send); others print after their meter finishes.
+pub fn note(line: &str) {
+    let bar = SHOWN.lock().unwrap_or_else(|e| e.into_inner()).clone();
+    match bar {
+        Some(b) => b.suspend(|| eprintln!("{line}")),
+        None => eprintln!("{line}"),
+    }
 }
 
 /// More work found (a job whose size is learnt as it goes).
@@ -191,15 +210,18 @@ fn run(tool: &'static str, what: &'static str, terminal: bool, stop: &AtomicBool
         bar.set_draw_target(ProgressDrawTarget::stderr());
         bar
     };
+    let show = |bar: Option<&ProgressBar>| *SHOWN.lock().unwrap_or_else(|e| e.into_inner()) = bar.cloned();
     let (stage, done, total) = snapshot();
     let mut shown = (stage.unwrap_or(what), total > 0);
     let mut bar = fresh(shown.0, done, total);
+    show(Some(&bar));
     loop {
         let (stage, done, total) = snapshot();
         let now = (stage.unwrap_or(what), total > 0);
         if now != shown {
             bar.finish_and_clear();
             bar = fresh(now.0, done, total);
+            show(Some(&bar));
             shown = now;
         }
         if total > 0 {
@@ -210,6 +232,7 @@ fn run(tool: &'static str, what: &'static str, terminal: bool, stop: &AtomicBool
             break;
         }
     }
+    show(None);
     bar.finish_and_clear();
 }
 

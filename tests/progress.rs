@@ -51,6 +51,7 @@ fn every_long_job_tool_has_quiet() {
         &["stlverify"],
         &["feedopt"],
         &["dxf2chains"],
+        &["pmac-send"],
         &["pathgen", "slice"],
         &["pathgen", "dropcutter"],
         &["pathgen", "contour"],
