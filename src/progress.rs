@@ -1,11 +1,13 @@
 //! Progress of the one long job a tool process runs, and the bar that shows it.
 //!
-//! The engines (removal, verification, drop-cutter, ploughing, slicing)
-//! know how much work they have and how much is done, but must not know
-//! about terminals. So they only advance two process-wide counters —
-//! relaxed atomic adds, cheap enough for every move or row, safe from rayon's
-//! threads — and a tool that wants a bar starts a [`Meter`], a thread that
-//! reads the counters ten times a second and draws them with `indicatif`.
+//! The engines (removal, verification, drop-cutter, ploughing, slicing, the
+//! feed schedule's simulation, contour and fill planning, the pocket's
+//! touching heights) know how much work they have and how much is done, but
+//! must not know about terminals. So they only advance two process-wide
+//! counters — relaxed atomic adds, cheap enough for every move or row, safe
+//! from rayon's threads — and a tool that wants a bar starts a [`Meter`], a
+//! thread that reads the counters ten times a second and draws them with
+//! `indicatif`.
 //!
 //! Unix manners: the bar goes to stderr, appears only for work that lasts
 //! over about a second, only when stderr is a terminal (never in a pipeline
@@ -14,18 +16,59 @@
 
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use std::io::IsTerminal;
-use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 static DONE: AtomicU64 = AtomicU64::new(0);
 static TOTAL: AtomicU64 = AtomicU64::new(0);
+/// What the job is doing now, when it has named its stage (see [`stage`]).
+static STAGE: Mutex<Option<&'static str>> = Mutex::new(None);
+/// The bar a meter draws now, if any (for [`note`]).
+static SHOWN: Mutex<Option<ProgressBar>> = Mutex::new(None);
 
 /// Start counting a new job of `total` units (0 when not known yet).
 pub fn begin(total: u64) {
     DONE.store(0, Ordering::Relaxed);
     TOTAL.store(total, Ordering::Relaxed);
+}
+
+/// A job of several stages starts the next one: the counters restart at
+/// `total` units (0 when not known) and a meter shows `what` in place of
+/// what it was started with. For a job whose stages count different things
+/// (chains offset, then paths planned), so no bar mixes units.
+pub fn stage(what: &'static str, total: u64) {
+    // Under the lock, so a meter never shows one stage's name with the
+    // other's counts (see `snapshot`).
+    let mut st = STAGE.lock().unwrap_or_else(|e| e.into_inner());
+    begin(total);
+    *st = Some(what);
+}
+
+/// The stage named last since the meter started (if any) and the counters,
+/// read together.
+fn snapshot() -> (Option<&'static str>, u64, u64) {
+    let st = STAGE.lock().unwrap_or_else(|e| e.into_inner());
+    let (done, total) = counts();
+    (*st, done, total)
+}
+
+/// The work done is `done` units (a job that learns its progress as a
+/// position, such as a controller's line counter, not as increments).
+pub fn set(done: u64) {
+    DONE.store(done, Ordering::Relaxed);
+}
+
+/// Write `line` on stderr without breaking a bar being drawn: the bar is
+/// hidden for the write and drawn again below the line. For a tool that
+/// logs as it works (pmac-send); others print after their meter finishes.
+pub fn note(line: &str) {
+    let bar = SHOWN.lock().unwrap_or_else(|e| e.into_inner()).clone();
+    match bar {
+        Some(b) => b.suspend(|| eprintln!("{line}")),
+        None => eprintln!("{line}"),
+    }
 }
 
 /// More work found (a job whose size is learnt as it goes).
@@ -82,7 +125,11 @@ impl Meter {
     /// Show `tool: what` with the counters' progress (see [`Show`]). The
     /// counters are reset to `total` units (0 when not known yet).
     pub fn start(tool: &'static str, what: &'static str, total: u64, show: Show) -> Meter {
-        begin(total);
+        {
+            let mut st = STAGE.lock().unwrap_or_else(|e| e.into_inner());
+            begin(total);
+            *st = None;
+        }
         let stop = Arc::new(AtomicBool::new(false));
         let terminal = std::io::stderr().is_terminal();
         let thread = match show {
@@ -130,34 +177,52 @@ fn wait(d: Duration, stop: &AtomicBool) -> bool {
     !stop.load(Ordering::Relaxed)
 }
 
-fn run(tool: &str, what: &str, terminal: bool, stop: &AtomicBool) {
+fn run(tool: &'static str, what: &'static str, terminal: bool, stop: &AtomicBool) {
     let started = Instant::now();
     if !wait(DELAY, stop) {
         return;
     }
     if !terminal {
         loop {
-            let (done, total) = counts();
+            let (stage, done, total) = snapshot();
+            let what = stage.unwrap_or(what);
             eprintln!("{}", plain_line(tool, what, done, total, started.elapsed()));
             if !wait(PLAIN_EVERY, stop) {
                 return;
             }
         }
     }
-    let bar = ProgressBar::with_draw_target(None, ProgressDrawTarget::stderr());
     let style =
         |template: &str| ProgressStyle::with_template(template).unwrap_or_else(|_| ProgressStyle::default_bar());
-    let known = style("{prefix}: {msg} [{bar:32}] {percent:>3}% {human_pos}/{human_len} ({elapsed}, eta {eta})")
+    let known = style("{prefix}: {msg} [{wide_bar}] {percent:>3}% {human_pos}/{human_len} ({elapsed}, eta {eta})")
         .progress_chars("=> ");
     let unknown = style("{prefix}: {msg} {spinner} {human_pos} ({elapsed})");
-    bar.set_prefix(tool.to_string());
-    bar.set_message(what.to_string());
-    let mut has_length = None;
+    // A new stage (another name, or a total where there was none) gets a
+    // new bar, built hidden and shown whole: setting name, style and counts
+    // one by one on a visible bar draws frames that mix two stages.
+    let fresh = |msg: &'static str, done: u64, total: u64| {
+        let bar = ProgressBar::with_draw_target((total > 0).then_some(total), ProgressDrawTarget::hidden())
+            .with_style(if total > 0 { known.clone() } else { unknown.clone() })
+            .with_prefix(tool.to_string())
+            .with_message(msg)
+            .with_position(done)
+            .with_elapsed(started.elapsed());
+        bar.set_draw_target(ProgressDrawTarget::stderr());
+        bar
+    };
+    let show = |bar: Option<&ProgressBar>| *SHOWN.lock().unwrap_or_else(|e| e.into_inner()) = bar.cloned();
+    let (stage, done, total) = snapshot();
+    let mut shown = (stage.unwrap_or(what), total > 0);
+    let mut bar = fresh(shown.0, done, total);
+    show(Some(&bar));
     loop {
-        let (done, total) = counts();
-        if has_length != Some(total > 0) {
-            has_length = Some(total > 0);
-            bar.set_style(if total > 0 { known.clone() } else { unknown.clone() });
+        let (stage, done, total) = snapshot();
+        let now = (stage.unwrap_or(what), total > 0);
+        if now != shown {
+            bar.finish_and_clear();
+            bar = fresh(now.0, done, total);
+            show(Some(&bar));
+            shown = now;
         }
         if total > 0 {
             bar.set_length(total);
@@ -167,6 +232,7 @@ fn run(tool: &str, what: &str, terminal: bool, stop: &AtomicBool) {
             break;
         }
     }
+    show(None);
     bar.finish_and_clear();
 }
 

@@ -145,3 +145,48 @@ fn no_command_lists_a_retired_name_and_old_spellings_still_parse() {
         );
     }
 }
+
+#[test]
+fn every_command_teaches_with_examples_that_use_its_own_flags() {
+    // An example is copied into a shell as it stands: a flag the command
+    // does not take (a renamed one, say) would fail at once.
+    let mut known = std::collections::BTreeMap::new();
+    let mut texts = Vec::new();
+    for cmd in commands() {
+        let text = help(&cmd);
+        known.insert(cmd.join(" "), help_flags(&text));
+        texts.push((cmd.join(" "), text));
+    }
+    for (name, text) in &texts {
+        let examples = text
+            .split_once("Examples:")
+            .unwrap_or_else(|| panic!("{name}: no examples in --help:\n{text}"))
+            .1
+            .replace("\\\n", " ");
+        let mut checked = 0;
+        for part in examples.lines().flat_map(|l| l.split('|')) {
+            let words: Vec<&str> = part.split_whitespace().collect();
+            let Some(tool) = words.first().filter(|w| common::BINARIES.contains(w)) else {
+                continue;
+            };
+            let key = match words.get(1) {
+                Some(sub) if *tool == "pathgen" && known.contains_key(&format!("pathgen {sub}")) => {
+                    format!("pathgen {sub}")
+                }
+                _ => tool.to_string(),
+            };
+            let flags = &known[&key];
+            for w in &words {
+                let Some(flag) = w.strip_prefix("--") else { continue };
+                let flag = flag.split('=').next().unwrap_or(flag);
+                assert!(
+                    flag.is_empty() || flags.iter().any(|f| f == flag),
+                    "{name}: an example gives `{key}` --{flag}, which it does not take: {}",
+                    part.trim()
+                );
+                checked += 1;
+            }
+        }
+        assert!(checked > 0 || name == "pmac-emu", "{name}: no example flag checked");
+    }
+}

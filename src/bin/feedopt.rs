@@ -9,6 +9,7 @@ use microcam::feedopt::{self, FeedoptError, Mode, Options, Target, report};
 use microcam::gcode::{Dialect, ReadOptions};
 use microcam::geometry::P3;
 use microcam::machine::{Machine, Overrides};
+use microcam::progress::{Meter, Show};
 use std::io::Write;
 use std::path::PathBuf;
 
@@ -154,6 +155,9 @@ struct Args {
     /// Machine position when the program starts, mm: X,Y,Z.
     #[arg(long, default_value = "0,0,0", allow_hyphen_values = true)]
     start: String,
+    /// No progress bar on stderr (notes, warnings and errors still appear).
+    #[arg(short, long)]
+    quiet: bool,
 }
 fn main() -> std::process::ExitCode {
     let args = microcam::cli::parse::<Args>();
@@ -217,10 +221,15 @@ fn run(a: Args) -> Result<(), CliError> {
     let mut input = cli::open_input(a.file.as_deref())?;
     let name = input.name.clone();
     let text = cli::read_to_string(&mut input)?;
+    // The simulation at f_min-per-tooth steps is most of the run: minutes
+    // on a long 3-D program at a fine cell. The library counts the moves.
+    let meter = Meter::start("feedopt", "simulating moves", 0, Show::from_flags(a.quiet, false));
     let out = feedopt::optimise(&text, &opts).map_err(|e| match e {
         FeedoptError::Options(m) => CliError::input(m),
         e => CliError::in_file(&name, e),
-    })?;
+    });
+    meter.finish();
+    let out = out?;
     // Everything is computed: now write, each file whole or not at all.
     let mut files = Vec::new();
     let mut prog = Output::new(a.output.as_deref());

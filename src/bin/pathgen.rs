@@ -70,9 +70,11 @@ enum Command {
     #[command(after_help = PATTERN_EXAMPLES)]
     Cone(Box<ConeArgs>),
     /// Fit tangent-continuous arcs (biarcs) to points or a polyline.
+    #[command(after_help = ARCFIT_EXAMPLES)]
     Arcfit(Box<ArcfitArgs>),
     /// Check a laser toolpath against the machine: speed, acceleration,
     /// shutter timing; prints a JSON report, exit 1 when a limit is broken.
+    #[command(after_help = AUDIT_EXAMPLES)]
     Audit(Box<AuditArgs>),
     /// Sections of an STL/OBJ model at Z levels, as closed nested chains.
     #[command(after_help = slice::SLICE_EXAMPLES)]

@@ -9,6 +9,7 @@ use microcam::pmac::send::{
     is_stale_plan_file, split_budget,
 };
 use microcam::pmac::upload_plan::{Names, UploadPlan};
+use microcam::progress::{self, Meter, Show};
 use std::io::Write;
 use std::net::ToSocketAddrs;
 use std::path::{Path, PathBuf};
@@ -130,6 +131,32 @@ struct Args {
     /// Variable holding the job's session number.
     #[arg(long, default_value = "P402")]
     session_var: String,
+    /// No progress bar on stderr (the log lines, warnings and errors still
+    /// appear).
+    #[arg(short, long)]
+    quiet: bool,
+}
+
+/// Lines the sender logs, passed to stderr through `progress::note`, so a
+/// bar drawn on the terminal stays whole below them.
+struct Notes(Vec<u8>);
+
+impl Write for Notes {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        self.0.extend_from_slice(buf);
+        while let Some(i) = self.0.iter().position(|&b| b == b'\n') {
+            let line: Vec<u8> = self.0.drain(..=i).collect();
+            progress::note(&String::from_utf8_lossy(&line[..i]));
+        }
+        Ok(buf.len())
+    }
+
+    fn flush(&mut self) -> std::io::Result<()> {
+        if !self.0.is_empty() {
+            progress::note(&String::from_utf8_lossy(&std::mem::take(&mut self.0)));
+        }
+        Ok(())
+    }
 }
 
 /// Check the numeric flags and the host before anything else: bad usage is
@@ -269,8 +296,8 @@ fn run(args: Args) -> Result<(), CliError> {
         state_path: args.state.clone(),
         upload_only: args.upload_only,
     };
-    let mut stderr = std::io::stderr();
-    let mut sender = Sender::new(client, &host, opts, stop, &mut stderr, moves);
+    let mut notes = Notes(Vec::new());
+    let mut sender = Sender::new(client, &host, opts, stop, &mut notes, moves);
     if args.resume {
         // The controller's word first: after a hard kill of an earlier
         // session it may have run on past what the state file says.
@@ -327,7 +354,18 @@ fn run(args: Args) -> Result<(), CliError> {
             ""
         }
     );
-    match sender.run(&chunks, &mut state) {
+    // On a terminal, a bar of the moves the controller confirms executed
+    // (its line counter), below the log lines.
+    let meter = Meter::start(
+        "pmac-send",
+        "moves executed",
+        state.moves,
+        Show::from_flags(args.quiet, false),
+    );
+    progress::set(state.next_move.saturating_sub(1));
+    let ran = sender.run(&chunks, &mut state);
+    meter.finish();
+    match ran {
         Ok(summary) => {
             println!("{}", summary.to_json(true));
             Ok(())

@@ -311,6 +311,8 @@ pub fn optimise(input: &str, o: &Options) -> Result<Outcome, FeedoptError> {
             });
         }
     }
+    // Progress (a tool's bar): one unit per move simulated.
+    crate::progress::add_total(recs.iter().filter(|r| matches!(r, Record::Move(_))).count() as u64);
     for r in &recs {
         match r {
             Record::Spindle { rpm: s, .. } if o.rpm.is_none() => rpm = Some(*s),
@@ -373,6 +375,7 @@ pub fn optimise(input: &str, o: &Options) -> Result<Outcome, FeedoptError> {
                     length_mm,
                     step_mm: step.filter(|s| *s > 0.0),
                 });
+                crate::progress::advance(1);
                 moves.push(info);
             }
             _ => {}

@@ -324,11 +324,17 @@ fn prepare(
     m: &LaserSetup,
     o: &ContourOptions,
 ) -> (Vec<Item>, Vec<(usize, V3)>, Vec<Warning>, CleanStats) {
+    // Progress (a tool's bar) in three stages: offsets, order, planning.
+    crate::progress::stage("offsetting chains", chains.len() as u64);
     let nest = nesting(chains);
     let per_chain: Vec<(Vec<Vec<Segment>>, CleanStats, Option<Warning>)> = chains
         .par_iter()
         .zip(&nest)
-        .map(|(c, &(_, depth))| chain_paths(c, depth, m, o))
+        .map(|(c, &(_, depth))| {
+            let r = chain_paths(c, depth, m, o);
+            crate::progress::advance(1);
+            r
+        })
         .collect();
     let mut warnings = Vec::new();
     let mut items: Vec<Item> = Vec::new();
@@ -345,6 +351,7 @@ fn prepare(
             });
         }
     }
+    crate::progress::stage("ordering cuts (rounds)", 0);
     let sequence = order_items(&items, o);
     // Whole job per array cell (serpentine so cells link short), each
     // level of every chain inside it.
@@ -358,6 +365,7 @@ fn prepare(
             }
         }
     }
+    crate::progress::stage("planning paths", plan.len() as u64);
     (items, plan, warnings, cleanup)
 }
 
@@ -385,6 +393,7 @@ fn plan_in_chunks(
                 (recs, notes)
             })
             .collect();
+        crate::progress::advance(part.len() as u64);
         let mut recs = Vec::with_capacity(planned.iter().map(|p| p.0.len()).sum());
         for ((r, notes), &(it, _)) in planned.into_iter().zip(part) {
             recs.extend(r);

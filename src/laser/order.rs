@@ -155,6 +155,9 @@ pub fn improved(pts: &[P2], start: P2) -> Vec<usize> {
     let mut pos = vec![0usize; n + 1];
     let d = |a: usize, b: usize| dist(&p[a], &p[b]);
     for _round in 0..50 {
+        // Progress (a tool's spinner): rounds, up to 50, fewer when no
+        // move gains.
+        crate::progress::advance(1);
         let mut improved_any = false;
         // 2-opt: replace edges (t[i],t[i+1]) and (t[j],t[j+1]) by
         // (t[i],t[j]) and (t[i+1],t[j+1]); the path end counts as a free edge.

@@ -243,6 +243,9 @@ pub fn plan(s: &PocketSpec) -> Result<PocketJob, PocketError> {
     let (nav, every, final_only) = match s.strategy {
         Strategy::Grid => {
             let nav = navigate::navigate(&grid, &region);
+            // Progress (a tool's spinner): each stage counts the touching
+            // heights it computes (see Contact::tip_z).
+            crate::progress::stage("main passes: touching heights", 0);
             let main = passes::main_passes(&contact, &grid, &nav);
             let end = main
                 .last()
@@ -250,16 +253,21 @@ pub fn plan(s: &PocketSpec) -> Result<PocketJob, PocketError> {
                 .map(|p| P2::new(p.x, p.y))
                 .unwrap_or(origin);
             let mut every = main;
+            crate::progress::stage("wall passes: touching heights", 0);
             every.extend(passes::wall_passes(&contact, &region, end, pitch));
+            crate::progress::stage("zigzag passes: touching heights", 0);
             let mut fin = passes::zigzag_passes(&contact, &grid, &region, &nav, true);
             fin.extend(passes::zigzag_passes(&contact, &grid, &region, &nav, false));
             (nav, every, fin)
         }
-        Strategy::Offset => (
-            Navigation::default(),
-            offset::offset_passes(&contact, &s.boundary, s.stepover, pitch),
-            Vec::new(),
-        ),
+        Strategy::Offset => {
+            crate::progress::stage("offset passes: touching heights", 0);
+            (
+                Navigation::default(),
+                offset::offset_passes(&contact, &s.boundary, s.stepover, pitch),
+                Vec::new(),
+            )
+        }
     };
     let deepest = every
         .iter()
@@ -285,6 +293,7 @@ pub fn plan(s: &PocketSpec) -> Result<PocketJob, PocketError> {
         step: 0.125 * pitch,
         feed_links: s.strategy == Strategy::Offset,
     };
+    crate::progress::stage("layers: touching heights", 0);
     let program = layers::build(&lp);
     let mut fig = Figures {
         strategy: match s.strategy {
@@ -305,6 +314,7 @@ pub fn plan(s: &PocketSpec) -> Result<PocketJob, PocketError> {
         *counts.entry(p.kind).or_default() += 1;
     }
     fig.passes = counts.into_iter().map(|(k, n)| (k.name().to_string(), n)).collect();
+    crate::progress::stage("estimates: touching heights", 0);
     estimates(&mut fig, &contact, &grid, &every, s);
     fig.measure(&program, &s.machine)
         .map_err(|e| PocketError::Time(e.to_string()))?;

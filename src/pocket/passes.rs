@@ -13,6 +13,7 @@ use super::contact::Contact;
 use super::grid::{Grid, Region};
 use super::navigate::{Navigation, neighbour};
 use crate::geometry::{P2, P3};
+use rayon::prelude::*;
 
 /// What a pass is for; previews colour by it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
@@ -64,13 +65,24 @@ pub fn touch(c: &Contact, p: P2) -> P3 {
 
 /// A polyline through `xy` at touching height, split for gouge safety.
 pub fn lift(c: &Contact, xy: &[P2]) -> Vec<P3> {
-    let mut out = Vec::with_capacity(xy.len());
-    let Some(first) = xy.first() else { return out };
-    out.push(touch(c, *first));
-    for p in &xy[1..] {
-        let a = *out.last().expect("first pushed");
-        c.safe_line(a, touch(c, *p), &mut out);
-    }
+    // Each piece starts where the one before ended (safe_line ends on its
+    // target), so the touches and then the pieces are independent: both run
+    // on every core, in order, the same points as one after the other.
+    let touched: Vec<P3> = xy.par_iter().map(|p| touch(c, *p)).collect();
+    let Some(first) = touched.first() else {
+        return Vec::new();
+    };
+    let pieces: Vec<Vec<P3>> = touched
+        .par_windows(2)
+        .map(|w| {
+            let mut piece = Vec::new();
+            c.safe_line(w[0], w[1], &mut piece);
+            piece
+        })
+        .collect();
+    let mut out = Vec::with_capacity(1 + pieces.iter().map(Vec::len).sum::<usize>());
+    out.push(*first);
+    out.extend(pieces.into_iter().flatten());
     out
 }
 

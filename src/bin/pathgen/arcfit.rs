@@ -8,6 +8,20 @@ use microcam::laser::arcfit;
 use microcam::model::chain::{Chain, ChainsHeader, Segment};
 use std::path::PathBuf;
 
+pub(crate) const ARCFIT_EXAMPLES: &str = "\
+Examples:
+  pathgen arcfit --arc-tol 0.0005 curve.xy > curve.chains    points of a smooth curve to biarcs
+  pathgen arcfit --polyline --report outline.xy              blocks and deviations only (JSON)
+  pathgen arcfit curve.xy | pathgen contour --gcode pmac > curve.pmc
+
+Input: one 'x y' (or 'x,y') per line, '#' comments; '-' or no FILE reads
+stdin. By default only the points must lie within --arc-tol of the arcs
+(samples of a curve); --polyline keeps the arcs within --arc-tol of the
+polyline both ways. Output is one open microcam.chains/1 chain of arcs and
+lines, or with --report a microcam.arcfit-report/1 line. Exit status: 0 ok
+(a warning when the fit misses the tolerance), 1 failure, 2 bad usage or
+bad input.";
+
 #[derive(ClapArgs)]
 pub(crate) struct ArcfitArgs {
     /// Points, one 'x y' (or 'x,y') per line, '#' comments; '-' for stdin.

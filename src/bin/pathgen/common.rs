@@ -10,6 +10,7 @@ use microcam::laser::contour::Warning;
 use microcam::laser::setup::{DEFAULT_DECIMALS, LaserSetup};
 use microcam::machine::{Controller, Machine, pmac};
 use microcam::model::toolpath::{FeedUnit, Header, Record};
+use microcam::progress::{self, Meter, Show};
 use std::path::PathBuf;
 
 pub(crate) fn parse_triple_f64(s: &str) -> Result<(f64, f64, f64), String> {
@@ -181,6 +182,9 @@ pub(crate) struct GenOutput {
     /// Refuse (exit 2) a job estimated to make more moves than this.
     #[arg(long, default_value_t = DEFAULT_MAX_MOVES, value_name = "N")]
     pub(crate) max_moves: u64,
+    /// No progress bar on stderr (warnings and errors still appear).
+    #[arg(short, long)]
+    pub(crate) quiet: bool,
 }
 
 /// Default of `--max-moves`: 10 million moves, about 1 GB of toolpath text.
@@ -203,6 +207,11 @@ impl GenOutput {
         Ok(())
     }
 
+    /// The job's progress display (see [`meter`]).
+    pub(crate) fn meter(&self, what: &'static str, total: u64) -> Meter {
+        meter(what, total, self.quiet)
+    }
+
     pub(crate) fn too_big(&self, what: &str, moves: f64, how: &str) -> CliError {
         CliError::input(format!(
             "{what}: {how} makes about {moves:.3e} moves, more than --max-moves {}; ask for less, or raise \
@@ -210,6 +219,13 @@ impl GenOutput {
             self.max_moves
         ))
     }
+}
+
+/// A progress display of pathgen's job on stderr (`microcam::progress`):
+/// a bar on a terminal for work over about a second, nothing in a pipeline
+/// log, nothing with `--quiet`. `what` names the unit counted.
+pub(crate) fn meter(what: &'static str, total: u64, quiet: bool) -> Meter {
+    Meter::start("pathgen", what, total, Show::from_flags(quiet, false))
 }
 
 pub(crate) fn parse_pair_f64(s: &str) -> Result<(f64, f64), String> {
@@ -351,8 +367,8 @@ pub(crate) fn warn_all(warnings: &[Warning]) {
     }
 }
 
-/// Write generated records as a toolpath or, with `--gcode`, as G-code
-/// through the same writer as `emit`; the SVG preview goes beside.
+/// Note on stderr the `short` of `total` feed moves a Turbo PMAC would
+/// stretch to its least TA (shorter than 1 ms at V).
 pub(crate) fn short_note(short: usize, total: usize, m: &LaserSetup) {
     if short > 0 {
         eprintln!(
@@ -364,23 +380,36 @@ pub(crate) fn short_note(short: usize, total: usize, m: &LaserSetup) {
 }
 
 /// Write generated records as a toolpath or, with `--gcode`, as G-code
-/// through the same writer as `emit`; the SVG preview goes beside.
+/// through the same writer as `emit`; the SVG preview goes beside. Returns
+/// the feed moves a Turbo PMAC would stretch, (stretched, all), for
+/// [`short_note`], which the caller prints after its other notes (and
+/// after its progress display has cleared).
+///
+/// With `count`, each record written advances the progress counters by one
+/// (for a caller whose meter counts moves written; a caller whose meter
+/// counts planning work passes false).
 pub(crate) fn write_generated(
     records: &[Record],
     o: &GenOutput,
     source: Option<String>,
     m: &LaserSetup,
-) -> Result<(), CliError> {
-    let (short, total) = microcam::laser::audit::stretched_blocks(records, m, P3::origin());
-    short_note(short, total, m);
+    count: bool,
+) -> Result<(usize, usize), CliError> {
+    let stretched = microcam::laser::audit::stretched_blocks(records, m, P3::origin());
     if let Some(path) = &o.svg {
         let mut svg = Output::new(Some(path));
         microcam::laser::svg::write_svg(&mut svg, records, m).map_err(CliError::from)?;
         svg.commit()?;
     }
     let mut out = Output::new(o.output.as_deref());
-    write_records(records.iter().cloned(), o, source, &mut out)?;
-    out.commit()
+    let counted = records.iter().cloned().inspect(|_| {
+        if count {
+            progress::advance(1);
+        }
+    });
+    write_records(counted, o, source, &mut out)?;
+    out.commit()?;
+    Ok(stretched)
 }
 
 /// The one place generated records become output bytes.

@@ -123,18 +123,26 @@ pub(crate) fn contour_cmd(a: ContourArgs) -> Result<(), CliError> {
     )?;
     warn_travel(&chains, &a.machine.machine);
     let t1 = std::time::Instant::now();
+    // The library names its stages (offsets, order, planning) and counts
+    // each.
+    let meter = a.out.meter("contour", 0);
     if a.out.svg.is_some() {
         // The preview needs the whole job.
         let job = contour(&chains, &m, &o);
+        meter.finish();
         warn_all(&job.warnings);
         cleanup_note(&job.cleanup, &m, &o);
-        return write_generated(&job.records, &a.out, source, &m);
+        let (short, total) = write_generated(&job.records, &a.out, source, &m, false)?;
+        short_note(short, total, &m);
+        return Ok(());
     }
     let mut warnings = Vec::new();
     let mut cleanup = Default::default();
-    let (short, total) = write_streamed_counting_short(&a.out, source, &m, |sink| {
+    let written = write_streamed_counting_short(&a.out, source, &m, |sink| {
         (warnings, cleanup) = contour_streamed(&chains, &m, &o, sink);
-    })?;
+    });
+    meter.finish();
+    let (short, total) = written?;
     warn_all(&warnings);
     cleanup_note(&cleanup, &m, &o);
     short_note(short, total, &m);

@@ -1,9 +1,10 @@
 //! `pathgen emit`: a toolpath or G-code program written as G-code.
 
-use super::common::{WriterArgs, write_gcode, write_options};
+use super::common::{WriterArgs, meter, write_gcode, write_options};
 use clap::Args as ClapArgs;
 use microcam::cli::{self, CliError, Output};
 use microcam::gcode::{Dialect, ReadOptions};
+use microcam::progress;
 use microcam::source::ToolpathSource;
 use std::path::PathBuf;
 
@@ -19,6 +20,9 @@ pub(crate) struct EmitArgs {
     /// Write output here instead of stdout.
     #[arg(short, long)]
     output: Option<PathBuf>,
+    /// No progress bar on stderr (warnings and errors still appear).
+    #[arg(short, long)]
+    quiet: bool,
 }
 
 pub(crate) fn emit(a: EmitArgs) -> Result<(), CliError> {
@@ -30,10 +34,21 @@ pub(crate) fn emit(a: EmitArgs) -> Result<(), CliError> {
         ..Default::default()
     };
     let input = cli::open_input(a.file.as_deref())?;
+    // A stream of unknown length (from its first bytes on): the display
+    // counts records.
+    let meter = meter("emit: records", 0, a.quiet);
     let source = ToolpathSource::open(input, &read)?;
     let name = source.name().to_string();
     let feed_unit = source.header.feed_unit;
     let mut out = Output::new(a.output.as_deref());
-    write_gcode(source, feed_unit, opts, &name, &mut out)?;
+    let written = write_gcode(
+        source.inspect(|_| progress::advance(1)),
+        feed_unit,
+        opts,
+        &name,
+        &mut out,
+    );
+    meter.finish();
+    written?;
     out.commit()
 }

@@ -80,19 +80,27 @@ pub fn run(a: FillArgs) -> Result<(), CliError> {
     let (header, chains) = read_chains(input.reader).map_err(|e| CliError::in_file(&name, e))?;
     let source = header.source.or(Some(name.clone()));
     let prepared = prepare(&chains, &o).map_err(|e| CliError::input(format!("{name}: {e}")))?;
+    // The library advances each region's share of the job's estimate as
+    // the region is planned.
+    let meter = a.out.meter("fill: moves (estimated)", prepared.estimate.moves);
     if a.out.svg.is_some() {
         let mut records = Vec::new();
         let warnings = plan_prepared(&prepared, &m, &o, |r| {
             records.extend(r);
             true
         });
+        meter.finish();
         warn_all(&warnings);
-        return write_generated(&records, &a.out, source, &m);
+        let (short, total) = write_generated(&records, &a.out, source, &m, false)?;
+        short_note(short, total, &m);
+        return Ok(());
     }
     let mut warnings = Vec::new();
-    let (short, total) = write_streamed_counting_short(&a.out, source, &m, |sink| {
+    let written = write_streamed_counting_short(&a.out, source, &m, |sink| {
         warnings = plan_prepared(&prepared, &m, &o, sink);
-    })?;
+    });
+    meter.finish();
+    let (short, total) = written?;
     warn_all(&warnings);
     short_note(short, total, &m);
     Ok(())

@@ -2,7 +2,7 @@
 
 use super::common::{
     GenOutput, MAX_WARNINGS, MachineArgs, at_least_one, finite, non_negative, parse_pair_f64, parse_triple_f64,
-    positive, write_generated,
+    positive, short_note, write_generated,
 };
 use clap::Args as ClapArgs;
 use microcam::cli::CliError;
@@ -11,6 +11,7 @@ use microcam::laser::constant_velocity::{Tagged, all_cut, plan_paths};
 use microcam::laser::contour::Warning;
 use microcam::laser::patterns;
 use microcam::laser::setup::LaserSetup;
+use microcam::progress;
 
 pub(crate) const PATTERN_EXAMPLES: &str = "\
 Examples:
@@ -157,10 +158,10 @@ pub(crate) struct ConeArgs {
 }
 
 pub(crate) fn finish_pattern(paths: Vec<Tagged>, m: &LaserSetup, out: &GenOutput, what: &str) -> Result<(), CliError> {
+    // A spinner while the paths are planned, then a bar of moves written.
+    let meter = out.meter("moves written", 0);
     let (records, notes) = plan_paths(&paths, m, None);
-    if records.is_empty() {
-        eprintln!("pathgen: warning: {what}: nothing to cut with these sizes");
-    }
+    progress::add_total(records.len() as u64);
     let mut seen = std::collections::BTreeSet::new();
     let warnings: Vec<Warning> = notes
         .iter()
@@ -168,10 +169,17 @@ pub(crate) fn finish_pattern(paths: Vec<Tagged>, m: &LaserSetup, out: &GenOutput
         .filter(|s| seen.insert(s.clone()))
         .map(|message| Warning { chain: 0, message })
         .collect();
+    let written = write_generated(&records, out, Some(what.to_string()), m, true);
+    meter.finish();
+    if records.is_empty() {
+        eprintln!("pathgen: warning: {what}: nothing to cut with these sizes");
+    }
     for w in warnings.iter().take(MAX_WARNINGS) {
         eprintln!("pathgen: warning: {what}: {}", w.message);
     }
-    write_generated(&records, out, Some(what.to_string()), m)
+    let (short, total) = written?;
+    short_note(short, total, m);
+    Ok(())
 }
 
 pub(crate) fn helix_cmd(a: HelixArgs) -> Result<(), CliError> {

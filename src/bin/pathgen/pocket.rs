@@ -291,10 +291,16 @@ pub fn run(a: PocketArgs) -> Result<(), CliError> {
         force: a.force,
         machine,
     };
+    // The cutter's touching heights on a freeform bottom are the work
+    // (seconds to minutes at a fine grid); how many a job needs is not known
+    // ahead, so the display counts them, stage by stage, without a total.
+    let meter = a.out.meter("pocket", 0);
     let job = plan(&spec).map_err(|e| match e {
         microcam::pocket::PocketError::Time(m) => CliError::failure(m),
         e => CliError::input(e.to_string()),
-    })?;
+    });
+    meter.finish();
+    let job = job?;
     if let Some(path) = &a.out.svg {
         let only = a.svg_pass.map(|k| match k {
             SvgPass::Main => PassKind::Main,

@@ -237,6 +237,9 @@ pub fn plan_prepared(
                 (recs, notes, paths.is_empty(), dropped)
             })
             .collect();
+        // Progress (a tool's bar): each region's share of the job's
+        // estimate, so the units add up to `p.estimate.moves`.
+        crate::progress::advance(regions::estimate(chunk, o).moves);
         let mut recs = Vec::with_capacity(planned.iter().map(|p| p.0.len()).sum());
         for ((rs, notes, empty, dropped), r) in planned.into_iter().zip(chunk) {
             recs.extend(rs);

@@ -126,6 +126,8 @@ impl<'a> Sender<'a> {
     /// have executed.
     fn progress_to(&mut self, state: &mut State, c: f64) -> Result<(), SendError> {
         if c.fract() == 0.0 && state.advance_to(&self.moves, c as u64 + 1, None) {
+            // Progress (the tool's bar): moves confirmed executed.
+            crate::progress::set(c as u64);
             self.summary.final_counter = c as u64;
             self.save(state)?;
         }
