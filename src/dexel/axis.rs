@@ -15,7 +15,7 @@
 //! intervals agree to rounding. A box around the swept piece across the
 //! rays turns away rays that cannot meet it before anything is computed.
 
-use super::sweep::{EPS, Lin, Piece};
+use super::sweep::{EPS, Piece};
 use super::tool::{LineMaterial, MoveSweep};
 use crate::geometry::{P3, V3};
 
@@ -114,7 +114,7 @@ impl AxisPiece {
             (0.0, V3::zeros())
         };
         // The constant parts of the four constraints (alphas vary).
-        let lins = lins(piece, 0.0, se, sd);
+        let lins = piece.constraints(0.0, se, sd);
         let beta = lins.map(|l| l.beta);
         let gamma = lins.map(|l| l.gamma);
         let edges: [Edge; 4] = std::array::from_fn(|k| {
@@ -300,34 +300,6 @@ fn across(dir: usize) -> (usize, usize) {
         1 => (0, 2),
         _ => (0, 1),
     }
-}
-
-/// The four linear constraints of [`Piece::interval`] for a ray whose
-/// origin is `s` along the axis from the piece's centre.
-#[inline]
-fn lins(p: &Piece, s: f64, se: f64, sd: f64) -> [Lin; 4] {
-    [
-        Lin {
-            alpha: s - p.s0,
-            beta: se,
-            gamma: -sd,
-        },
-        Lin {
-            alpha: p.s1 - s,
-            beta: -se,
-            gamma: sd,
-        },
-        Lin {
-            alpha: 0.0,
-            beta: 0.0,
-            gamma: 1.0,
-        },
-        Lin {
-            alpha: 1.0,
-            beta: 0.0,
-            gamma: -1.0,
-        },
-    ]
 }
 
 /// A [`MoveSweep`] prepared for one family of axis-parallel rays.

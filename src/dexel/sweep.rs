@@ -77,18 +77,13 @@ impl Piece {
         if self.cylinder { v - self.a * self.a.dot(&v) } else { v }
     }
 
-    /// The interval of `t` where the line `o + t·e` is inside the swept
-    /// piece, or `None` when it misses.
-    pub fn interval(&self, o: &P3, e: &V3) -> Option<(f64, f64)> {
-        let w = o - self.c;
-        let a = self.project(w);
-        let b = self.project(*e);
-        let c = self.project(self.d);
-        let r2 = self.r * self.r;
-        let s = self.a.dot(&w);
-        let se = self.a.dot(e);
-        let sd = self.a.dot(&self.d);
-        let lins = [
+    /// The four linear constraints `alpha + beta·t + gamma·u >= 0` for a
+    /// line whose origin is `s` along the axis from `c`, `se` the line's
+    /// direction and `sd` the move along the axis: the two clipping planes
+    /// and `0 <= u <= 1`.
+    #[inline]
+    pub(super) fn constraints(&self, s: f64, se: f64, sd: f64) -> [Lin; 4] {
+        [
             Lin {
                 alpha: s - self.s0,
                 beta: se,
@@ -109,7 +104,21 @@ impl Piece {
                 beta: 0.0,
                 gamma: -1.0,
             },
-        ];
+        ]
+    }
+
+    /// The interval of `t` where the line `o + t·e` is inside the swept
+    /// piece, or `None` when it misses.
+    pub fn interval(&self, o: &P3, e: &V3) -> Option<(f64, f64)> {
+        let w = o - self.c;
+        let a = self.project(w);
+        let b = self.project(*e);
+        let c = self.project(self.d);
+        let r2 = self.r * self.r;
+        let s = self.a.dot(&w);
+        let se = self.a.dot(e);
+        let sd = self.a.dot(&self.d);
+        let lins = self.constraints(s, se, sd);
         let q_ok = |t: f64, u: f64| {
             let v = a + b * t - c * u;
             v.dot(&v) <= r2 + EPS * (1.0 + r2)
