@@ -267,19 +267,29 @@ impl ToolState {
 }
 
 impl Motion {
-    /// A motion read from G-code line `block`: no role or chain, which only
-    /// generated toolpaths carry.
-    pub fn from_block(kind: MotionKind, to: P3, feed: Option<f64>, beam: bool, block: u64) -> Motion {
+    /// A bare move: beam off, and no shutter switch, role, chain, source
+    /// line or tool state.
+    pub fn bare(kind: MotionKind, to: P3, feed: Option<f64>) -> Motion {
         Motion {
             kind,
             to,
             feed,
-            beam,
+            beam: false,
             beam_switch: None,
             role: None,
             chain: None,
-            block: Some(block),
+            block: None,
             tool: ToolState::default(),
+        }
+    }
+
+    /// A motion read from G-code line `block`: no role or chain, which only
+    /// generated toolpaths carry.
+    pub fn from_block(kind: MotionKind, to: P3, feed: Option<f64>, beam: bool, block: u64) -> Motion {
+        Motion {
+            beam,
+            block: Some(block),
+            ..Motion::bare(kind, to, feed)
         }
     }
 }

@@ -6,17 +6,7 @@ use super::*;
 use crate::model::toolpath::{ArcData, Motion};
 
 fn mv(kind: MotionKind, x: f64, y: f64, feed: Option<f64>) -> Record {
-    Record::Move(Motion {
-        kind,
-        to: P3::new(x, y, 0.0),
-        feed,
-        beam: false,
-        beam_switch: None,
-        role: None,
-        chain: None,
-        block: None,
-        tool: Default::default(),
-    })
+    Record::Move(Motion::bare(kind, P3::new(x, y, 0.0), feed))
 }
 
 fn params(stock: [f64; 4], res: f64, method: Method) -> Params {

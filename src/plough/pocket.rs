@@ -62,17 +62,7 @@ impl Pocket {
             block: None,
         }];
         let mv = |kind: MotionKind, x: f64, y: f64, z: f64, feed: Option<f64>| {
-            Record::Move(Motion {
-                kind,
-                to: P3::new(x, y, z),
-                feed,
-                beam: false,
-                beam_switch: None,
-                role: None,
-                chain: None,
-                block: None,
-                tool: Default::default(),
-            })
+            Record::Move(Motion::bare(kind, P3::new(x, y, z), feed))
         };
         let ccw = |ox: f64, oy: f64| {
             MotionKind::Arc(ArcData {

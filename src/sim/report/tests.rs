@@ -60,17 +60,7 @@ fn bad_programs_name_their_line() {
         P3::origin(),
         None,
     );
-    let rec = Record::Move(Motion {
-        kind: MotionKind::Line,
-        to: P3::new(1.0, 0.0, 0.0),
-        feed: Some(0.0),
-        beam: false,
-        beam_switch: None,
-        role: None,
-        chain: None,
-        block: None,
-        tool: Default::default(),
-    });
+    let rec = Record::Move(Motion::bare(MotionKind::Line, P3::new(1.0, 0.0, 0.0), Some(0.0)));
     let e = s.add(&rec).unwrap_err().to_string();
     assert_eq!(e, "record 1: feed move with feed 0");
 }
