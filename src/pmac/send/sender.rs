@@ -359,8 +359,7 @@ impl<'a> Sender<'a> {
         remaining: f64,
         state: &mut State,
     ) -> Result<(f64, u64), SendError> {
-        let mut last: Option<(bool, bool, f64, u64)> = None;
-        let mut changed = Instant::now();
+        let mut watch = StallWatch::new(self.opts.stall);
         let q = format!("&1?? {} {}", self.opts.names.counter, self.opts.names.done);
         loop {
             self.check_stop()?;
@@ -371,13 +370,7 @@ impl<'a> Sender<'a> {
             let (running, inpos) = parse_status(st).ok_or_else(|| SendError::BadReply(st.clone()))?;
             let counter = counter_value(cnt, self.n_moves())?;
             let done = count(done)?;
-            let s = (running, inpos, counter, done);
-            if Some(s) != last {
-                last = Some(s);
-                changed = Instant::now();
-            } else if changed.elapsed() > self.opts.stall {
-                return Err(SendError::Stalled(self.opts.stall, counter as u64));
-            }
+            watch.see((running, inpos, counter, done), counter)?;
             self.progress_to(state, counter)?;
             let span = (chunk.last_counter + 1).saturating_sub(chunk.first_counter).max(1) as f64;
             let frac = ((counter - (chunk.first_counter - 1) as f64) / span).clamp(0.0, 1.0);
@@ -442,8 +435,7 @@ impl<'a> Sender<'a> {
             .flat_map(|u| u.0.iter().map(|l| crate::pmac::protocol::line_words(l)))
             .collect();
         let mut started = false;
-        let mut last: Option<(bool, bool, f64, usize)> = None;
-        let mut changed = Instant::now();
+        let mut watch = StallWatch::new(self.opts.stall);
         let n = chunks.len();
         loop {
             self.check_stop()?;
@@ -487,13 +479,7 @@ impl<'a> Sender<'a> {
                     "rotary: {sent_units}/{n} chunks sent, {queued} lines queued, {var} = {counter} of {final_counter}"
                 )
             });
-            let s = (running, inpos, counter, queued);
-            if Some(s) != last {
-                last = Some(s);
-                changed = Instant::now();
-            } else if changed.elapsed() > self.opts.stall {
-                return Err(SendError::Stalled(self.opts.stall, counter as u64));
-            }
+            watch.see((running, inpos, counter, queued as u64), counter)?;
             if !running {
                 // A rotary program runs (suspended when dry) until Q or A:
                 // not running means it was stopped.
@@ -546,4 +532,58 @@ fn parse_check(v: &[String]) -> Option<(bool, f64, Reading)> {
         num(&v[6])? / scale(&v[9])?,
     );
     Some((running, shutter, Reading { counter, session, pos }))
+}
+
+/// What a polling loop last saw of the controller (running, in position,
+/// line counter, and the loop's own progress figure) and since when: the
+/// same state for longer than the stall time is a stall.
+struct StallWatch {
+    stall: Duration,
+    last: Option<(bool, bool, f64, u64)>,
+    changed: Instant,
+}
+
+impl StallWatch {
+    fn new(stall: Duration) -> StallWatch {
+        StallWatch {
+            stall,
+            last: None,
+            changed: Instant::now(),
+        }
+    }
+
+    /// Record one poll's state; an error once it has not changed for
+    /// longer than the stall time (`counter` is reported with it).
+    fn see(&mut self, state: (bool, bool, f64, u64), counter: f64) -> Result<(), SendError> {
+        if Some(state) != self.last {
+            self.last = Some(state);
+            self.changed = Instant::now();
+            Ok(())
+        } else if self.changed.elapsed() > self.stall {
+            Err(SendError::Stalled(self.stall, counter as u64))
+        } else {
+            Ok(())
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_state_unchanged_past_the_stall_time_is_a_stall_and_any_change_resets_it() {
+        let mut w = StallWatch::new(Duration::from_millis(30));
+        let s = (true, false, 3.0, 7);
+        w.see(s, 3.0).unwrap();
+        std::thread::sleep(Duration::from_millis(40));
+        // Moving on (the counter advanced) is never a stall.
+        w.see((true, false, 4.0, 7), 4.0).unwrap();
+        w.see((true, false, 4.0, 7), 4.0).unwrap();
+        std::thread::sleep(Duration::from_millis(40));
+        match w.see((true, false, 4.0, 7), 4.0) {
+            Err(SendError::Stalled(d, 4)) => assert_eq!(d, Duration::from_millis(30)),
+            other => panic!("{other:?}"),
+        }
+    }
 }
