@@ -9,6 +9,11 @@ fuzz_target!(|data: &[u8]| {
     for dialect in [None, Some(Dialect::Iso), Some(Dialect::Pmac)] {
         let opts = ReadOptions {
             dialect,
+            // A loop whose condition never changes is stopped by this
+            // bound; at the default (1,000,000 iterations, seconds of
+            // work) every mutation of such a loop is a libFuzzer timeout
+            // and ends the run. 10,000 runs the same code, bound included.
+            max_loop_iterations: 10_000,
             ..ReadOptions::default()
         };
         let _ = read_str(&text, &opts);

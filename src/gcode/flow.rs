@@ -21,9 +21,6 @@ pub(super) enum Flow {
     Continue(Vec<u8>),
 }
 
-/// Most loop iterations a program may run, so a loop that never ends is an
-/// error rather than a hang.
-pub(super) const MAX_ITERATIONS: u64 = 1_000_000;
 /// Deepest subroutine nesting (LinuxCNC allows 10 levels of call).
 pub(super) const MAX_CALL_DEPTH: u32 = 64;
 
@@ -91,10 +88,13 @@ impl IsoInterpreter {
 
     pub(super) fn count_iteration(&mut self, lineno: u64) -> Result<(), GcodeError> {
         self.iterations += 1;
-        if self.iterations > MAX_ITERATIONS {
+        if self.iterations > self.max_iterations {
             return Err(GcodeError::at(
                 lineno,
-                format!("more than {MAX_ITERATIONS} loop iterations: is this loop endless?"),
+                format!(
+                    "more than {} loop iterations: is this loop endless?",
+                    self.max_iterations
+                ),
             ));
         }
         Ok(())

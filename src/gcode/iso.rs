@@ -119,6 +119,8 @@ pub struct IsoInterpreter {
     capture: Option<Capture>,
     /// Loop iterations run so far, to stop runaway loops.
     iterations: u64,
+    /// The bound on `iterations` (`ReadOptions::max_loop_iterations`).
+    max_iterations: u64,
     /// Canned-cycle settings carried from block to block.
     cycle: cycles::CycleState,
     /// Cutter radius compensation state and held-back moves.
@@ -170,6 +172,7 @@ impl IsoInterpreter {
             subs: HashMap::new(),
             capture: None,
             iterations: 0,
+            max_iterations: opts.max_loop_iterations,
             cycle: cycles::CycleState::new(),
             comp: comp::CompState::new(),
             tool_table: opts.tool_table.clone(),

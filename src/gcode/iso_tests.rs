@@ -336,3 +336,20 @@ fn the_spindle_starts_empty_as_in_linuxcnc() {
     // Without a table nothing is known of the tools: any H >= 0 passes.
     assert!(read("G43 H5\nG0 X1\n").is_ok());
 }
+
+#[test]
+fn the_loop_bound_is_the_callers_to_set() {
+    // 5 iterations of a loop that moves each time: fine under a bound of
+    // 5, an error naming the `while` line under a bound of 4.
+    let text = "#1=0\no1 while [#1 LT 5]\nG1 X[#1] F10\n#1=[#1+1]\no1 endwhile\n";
+    let opts = |n| ReadOptions {
+        dialect: Some(Dialect::Iso),
+        max_loop_iterations: n,
+        ..ReadOptions::default()
+    };
+    let (_, records) = read_str(text, &opts(5)).unwrap();
+    assert_eq!(records.iter().filter(|r| matches!(r, Record::Move(_))).count(), 5);
+    let e = read_str(text, &opts(4)).unwrap_err();
+    assert!(e.to_string().contains("more than 4 loop iterations"), "{e}");
+    assert_eq!(ReadOptions::default().max_loop_iterations, 1_000_000);
+}

@@ -143,6 +143,13 @@ pub struct ReadOptions {
     /// Where a reader leaves remarks on input it accepted without acting
     /// on it (PMAC on-line commands, skipped PLC buffers).
     pub notes: Notes,
+    /// Most loop iterations an ISO program may run (`while`, `do`,
+    /// `repeat`, all loops together) before reading stops with an error
+    /// naming the line: a loop whose condition never changes is a
+    /// mistake, not a program. The default, 1,000,000, is far past any
+    /// real part program; a caller that reads untrusted text under a
+    /// time budget (the fuzz targets) sets it lower.
+    pub max_loop_iterations: u64,
 }
 
 /// Remarks a reader makes on text it accepted but did not act on, each
@@ -200,9 +207,13 @@ impl Default for ReadOptions {
             source_path: None,
             pmac_program: None,
             notes: Notes::default(),
+            max_loop_iterations: DEFAULT_MAX_LOOP_ITERATIONS,
         }
     }
 }
+
+/// [`ReadOptions::max_loop_iterations`] unless a caller sets it.
+pub const DEFAULT_MAX_LOOP_ITERATIONS: u64 = 1_000_000;
 
 /// A dialect's interpreter, fed one source line at a time.
 pub trait LineInterpreter {
