@@ -588,3 +588,5 @@ impl LineInterpreter for PmacInterpreter {
 
 #[cfg(test)]
 mod tests;
+#[cfg(test)]
+mod tests_download;
