@@ -81,7 +81,42 @@ impl State {
     /// Read a state file.
     pub fn load(path: &Path) -> Result<State, SendError> {
         let text = std::fs::read_to_string(path).map_err(|e| SendError::State(format!("{}: {e}", path.display())))?;
-        serde_json::from_str(&text).map_err(|e| SendError::State(format!("{}: {e}", path.display())))
+        State::from_json(&text, &path.display().to_string())
+    }
+
+    /// Parse a state file's text (`name` for messages) and check that it
+    /// describes a place in a job: layout version 2, `1 <= next_move <=
+    /// moves + 1`, a finite `resume_at` only on a move of the job, a
+    /// session number. The file is ours, but it may have been cut short,
+    /// edited or swapped; resuming from a state that says less than it
+    /// seems would skip or repeat cuts, so it is refused with the reason.
+    pub fn from_json(text: &str, name: &str) -> Result<State, SendError> {
+        let s: State = serde_json::from_str(text).map_err(|e| SendError::State(format!("{name}: {e}")))?;
+        let bad = |why: String| Err(SendError::State(format!("{name}: {why}; not resuming from it")));
+        if s.version != 2 {
+            return bad(format!("layout version {} (this pmac-send writes 2)", s.version));
+        }
+        if s.next_move == 0 || s.next_move > s.moves.saturating_add(1) {
+            return bad(format!(
+                "next move {} is outside the job's {} moves",
+                s.next_move, s.moves
+            ));
+        }
+        if let Some(a) = s.resume_at {
+            if !a.iter().all(|v| v.is_finite()) {
+                return bad("resume point is not finite".into());
+            }
+            if s.next_move > s.moves {
+                return bad("a resume point on a finished job".into());
+            }
+        }
+        if s.session == 0 {
+            return bad("session number 0 (sessions count from 1)".into());
+        }
+        if s.budget == Some(0) {
+            return bad("word budget 0".into());
+        }
+        Ok(s)
     }
 
     /// Write the state file whole (a temporary file renamed over it), so a

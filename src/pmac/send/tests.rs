@@ -76,3 +76,74 @@ fn resume_is_refused_for_another_input_or_mode() {
     assert_eq!(v["final_counter"], 5);
     assert_eq!(v["mode"], "split");
 }
+
+#[test]
+fn a_state_file_that_names_no_place_in_its_job_is_refused() {
+    let mut good = State::new("abc".into(), Mode::Rotary, 5);
+    good.next_move = 3;
+    good.resume_at = Some([1.0, 2.0, 0.0]);
+    good.budget = Some(900);
+    let text = serde_json::to_string(&good).unwrap();
+    assert_eq!(State::from_json(&text, "st.json").unwrap(), good);
+    let finished = State {
+        next_move: 6,
+        resume_at: None,
+        ..good.clone()
+    };
+    assert!(State::from_json(&serde_json::to_string(&finished).unwrap(), "st.json").is_ok());
+    let cases: [(&str, State); 6] = [
+        (
+            "layout version 1",
+            State {
+                version: 1,
+                ..good.clone()
+            },
+        ),
+        (
+            "next move 0",
+            State {
+                next_move: 0,
+                ..good.clone()
+            },
+        ),
+        (
+            "next move 7",
+            State {
+                next_move: 7,
+                ..good.clone()
+            },
+        ),
+        (
+            "finished job",
+            State {
+                next_move: 6,
+                ..good.clone()
+            },
+        ),
+        (
+            "session number 0",
+            State {
+                session: 0,
+                ..good.clone()
+            },
+        ),
+        (
+            "word budget 0",
+            State {
+                budget: Some(0),
+                ..good.clone()
+            },
+        ),
+    ];
+    for (why, s) in cases {
+        let e = State::from_json(&serde_json::to_string(&s).unwrap(), "st.json").unwrap_err();
+        let m = e.to_string();
+        assert!(m.contains("st.json") && m.contains(why), "{why}: {m}");
+    }
+    // Cut short, and a resume point of 1e999 (out of range for a double:
+    // refused as a number or as a point that is not finite).
+    assert!(State::from_json(&text[..text.len() / 2], "st.json").is_err());
+    let inf = text.replace("[1.0,2.0,0.0]", "[1e999,2.0,0.0]");
+    assert_ne!(inf, text);
+    assert!(State::from_json(&inf, "st.json").is_err());
+}
