@@ -141,13 +141,7 @@ impl Arc3 {
         if t == 1.0 {
             return self.end;
         }
-        let c = self.c2();
-        let (r0, r1) = (self.radius(), self.end_radius());
-        let r = r0 + (r1 - r0) * t;
-        let a = self.start_angle() + self.sweep() * t;
-        let q = c + V2::new(a.cos(), a.sin()) * r;
-        self.plane
-            .lift(&q, self.plane.normal_coord(&self.start) + self.rise() * t)
+        ArcFrame::new(self).point_at(t)
     }
 
     /// The point `s` mm along the arc from its start; `None` for an arc of
@@ -176,34 +170,15 @@ impl Arc3 {
         if positive_finite(n) { Some(d / n) } else { None }
     }
 
-    /// For an in-plane direction angle `phi`, the parameters of the first
-    /// and the last time the arc passes that direction, if it does.
-    fn passes(&self, phi: f64) -> Option<(f64, f64)> {
-        let sw = self.sweep().abs();
-        if !positive_finite(sw) {
-            return None;
-        }
-        let a0 = self.start_angle();
-        let first = if self.ccw {
-            normalize_angle(phi - a0)
-        } else {
-            normalize_angle(a0 - phi)
-        };
-        if first.is_nan() || first > sw {
-            return None;
-        }
-        let last = first + ((sw - first) / TAU).floor() * TAU;
-        Some((first / sw, (last / sw).min(1.0)))
-    }
-
     /// The exact axis-aligned box: both ends plus every axis extreme
     /// (0°, 90°, 180°, 270° in the plane) the sweep passes.
     pub fn bbox(&self) -> BBox3 {
         let mut b = BBox3::from_points(&[self.start, self.end]);
+        let f = ArcFrame::new(self);
         for k in 0..4 {
-            if let Some((t0, t1)) = self.passes(k as f64 * FRAC_PI_2) {
-                b.extend(&self.point_at(t0));
-                b.extend(&self.point_at(t1));
+            if let Some((t0, t1)) = f.passes(k as f64 * FRAC_PI_2) {
+                b.extend(&f.point_at(t0));
+                b.extend(&f.point_at(t1));
             }
         }
         b
@@ -215,22 +190,7 @@ impl Arc3 {
     /// projects onto the centre every point is equally near and the start is
     /// answered.
     pub fn closest_point(&self, p: &P3) -> Option<(P3, f64)> {
-        let finite = [p, &self.center, &self.start, &self.end].into_iter().all(finite_p3);
-        if self.is_helical(EPS_LEN) || !finite {
-            return None;
-        }
-        let q = self.plane.project(p);
-        let c = self.c2();
-        let mut candidates = vec![0.0, 1.0];
-        let v = q - c;
-        if let Some((t0, t1)) = self.passes(v.y.atan2(v.x)).filter(|_| v.norm() > 0.0) {
-            candidates.push(t0);
-            candidates.push(t1);
-        }
-        candidates
-            .into_iter()
-            .map(|t| (self.point_at(t), t))
-            .min_by(|a, b| (a.0 - p).norm().total_cmp(&(b.0 - p).norm()))
+        ArcFrame::new(self).closest_point(p)
     }
 
     /// Distance from `p` to a planar arc; `None` where `closest_point` is.
@@ -323,6 +283,107 @@ impl Arc3 {
         let mid_center = self.plane.lift(&c, self.plane.normal_coord(&m));
         let second = Self::with_abs_sweep(mid_center, m, self.end, self.ccw, self.plane, sw * (1.0 - t))?;
         Some((first, second))
+    }
+}
+
+/// An arc's angles, radii and heights computed once, for a caller that
+/// asks one arc many questions (sampling it, or measuring many points
+/// against it): each [`Arc3::point_at`] or [`Arc3::closest_point`] works
+/// them out again (three to eight `atan2` per query). The answers are
+/// `Arc3`'s own, bit for bit: those methods are built on this.
+#[derive(Debug, Clone, Copy)]
+pub struct ArcFrame {
+    arc: Arc3,
+    /// Centre in the plane.
+    c: P2,
+    /// Radius at the start and at the end (blended over the sweep).
+    r0: f64,
+    r1: f64,
+    /// Start angle and signed sweep, radians.
+    a0: f64,
+    sweep: f64,
+    /// Normal coordinate of the start, and the rise to the end.
+    h0: f64,
+    rise: f64,
+    /// Planar with finite corners: `closest_point` has an answer.
+    measurable: bool,
+}
+
+impl ArcFrame {
+    /// The frame of `arc`.
+    pub fn new(arc: &Arc3) -> ArcFrame {
+        let measurable = [&arc.center, &arc.start, &arc.end].into_iter().all(finite_p3) && !arc.is_helical(EPS_LEN);
+        ArcFrame {
+            arc: *arc,
+            c: arc.c2(),
+            r0: arc.radius(),
+            r1: arc.end_radius(),
+            a0: arc.start_angle(),
+            sweep: arc.sweep(),
+            h0: arc.plane.normal_coord(&arc.start),
+            rise: arc.rise(),
+            measurable,
+        }
+    }
+
+    /// [`Arc3::point_at`].
+    pub fn point_at(&self, t: f64) -> P3 {
+        if t == 0.0 {
+            return self.arc.start;
+        }
+        if t == 1.0 {
+            return self.arc.end;
+        }
+        let r = self.r0 + (self.r1 - self.r0) * t;
+        let a = self.a0 + self.sweep * t;
+        let q = self.c + V2::new(a.cos(), a.sin()) * r;
+        self.arc.plane.lift(&q, self.h0 + self.rise * t)
+    }
+
+    /// For an in-plane direction angle `phi`, the parameters of the first
+    /// and the last time the arc passes that direction, if it does.
+    fn passes(&self, phi: f64) -> Option<(f64, f64)> {
+        let sw = self.sweep.abs();
+        if !positive_finite(sw) {
+            return None;
+        }
+        let first = if self.arc.ccw {
+            normalize_angle(phi - self.a0)
+        } else {
+            normalize_angle(self.a0 - phi)
+        };
+        if first.is_nan() || first > sw {
+            return None;
+        }
+        let last = first + ((sw - first) / TAU).floor() * TAU;
+        Some((first / sw, (last / sw).min(1.0)))
+    }
+
+    /// [`Arc3::closest_point`].
+    pub fn closest_point(&self, p: &P3) -> Option<(P3, f64)> {
+        if !self.measurable || !finite_p3(p) {
+            return None;
+        }
+        let q = self.arc.plane.project(p);
+        let v = q - self.c;
+        // The ends, then where the arc passes the point's direction: the
+        // first of equally near candidates wins.
+        let mut best = (self.arc.start, 0.0);
+        let mut d = (best.0 - p).norm();
+        let mut offer = |t: f64| {
+            let c = self.point_at(t);
+            let dc = (c - p).norm();
+            if dc.total_cmp(&d).is_lt() {
+                best = (c, t);
+                d = dc;
+            }
+        };
+        offer(1.0);
+        if let Some((t0, t1)) = self.passes(v.y.atan2(v.x)).filter(|_| v.norm() > 0.0) {
+            offer(t0);
+            offer(t1);
+        }
+        Some(best)
     }
 }
 

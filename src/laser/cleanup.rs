@@ -32,6 +32,7 @@
 
 use super::arcfit::{arc_from_tangent, biarc, dist_to_elem};
 use crate::geometry::Segment;
+use crate::geometry::arc::ArcFrame;
 use crate::geometry::{P2, P3, Plane};
 
 /// What the cleanup does: pieces shorter than `min_len` (mm) are removed
@@ -107,19 +108,70 @@ fn retarget_start(e: &Segment, p: P3) -> Segment {
     retarget_end(&e.reversed(), p).reversed()
 }
 
-fn samples(es: &[Segment]) -> impl Iterator<Item = P2> + '_ {
+fn samples(es: &[Probe]) -> impl Iterator<Item = P2> + '_ {
     es.iter().flat_map(|e| {
-        let len = e.length();
+        let len = e.len;
         (0..=SAMPLES).map(move |k| e.point_at_length(len * k as f64 / SAMPLES as f64).xy())
     })
+}
+
+/// A piece ready to be sampled and measured against: its length and, for
+/// an arc, its angles, worked out once (they are asked for at every one
+/// of a few hundred samples per candidate). The same numbers as
+/// `Segment::point_at_length` and `dist_to_elem`, bit for bit.
+struct Probe {
+    e: Segment,
+    len: f64,
+    arc: Option<ArcFrame>,
+}
+
+impl Probe {
+    fn new(e: &Segment) -> Probe {
+        Probe {
+            e: *e,
+            len: e.length(),
+            arc: match e {
+                Segment::Arc(a) => Some(ArcFrame::new(a)),
+                Segment::Line(_) => None,
+            },
+        }
+    }
+
+    /// `Segment::point_at_length`.
+    fn point_at_length(&self, s: f64) -> P3 {
+        let t = if self.len > 0.0 {
+            (s / self.len).clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
+        match &self.arc {
+            Some(f) => f.point_at(t),
+            None => self.e.point_at(t),
+        }
+    }
+
+    /// `dist_to_elem`.
+    fn distance(&self, p: &P2) -> f64 {
+        match (&self.e, &self.arc) {
+            (Segment::Arc(_), Some(f)) => {
+                let q = P3::new(p.x, p.y, self.e.start().z);
+                f.closest_point(&q).map_or(f64::INFINITY, |(c, _)| (c - q).norm())
+            }
+            _ => dist_to_elem(p, &self.e),
+        }
+    }
 }
 
 /// Hausdorff distance (sampled) between two runs of pieces with the same
 /// ends.
 fn deviation(old: &[Segment], new: &[Segment]) -> f64 {
-    let near = |p: P2, to: &[Segment]| to.iter().map(|e| dist_to_elem(&p, e)).fold(f64::INFINITY, f64::min);
-    let a = samples(old).map(|p| near(p, new)).fold(0.0, f64::max);
-    let b = samples(new).map(|p| near(p, old)).fold(0.0, f64::max);
+    let (old, new): (Vec<Probe>, Vec<Probe>) = (
+        old.iter().map(Probe::new).collect(),
+        new.iter().map(Probe::new).collect(),
+    );
+    let near = |p: P2, to: &[Probe]| to.iter().map(|e| e.distance(&p)).fold(f64::INFINITY, f64::min);
+    let a = samples(&old).map(|p| near(p, &new)).fold(0.0, f64::max);
+    let b = samples(&new).map(|p| near(p, &old)).fold(0.0, f64::max);
     a.max(b)
 }
 
