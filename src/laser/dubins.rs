@@ -67,31 +67,81 @@ impl Dubins {
 }
 
 fn m2pi(a: f64) -> f64 {
-    a.rem_euclid(TAU)
+    // Already in range: `rem_euclid` would return it unchanged, after a
+    // software `fmod` (a tenth of a corner loop's search).
+    if (0.0..TAU).contains(&a) { a } else { a.rem_euclid(TAU) }
+}
+
+/// The start and goal headings `a`, `b` in the goal frame with the sines
+/// and cosines every word's closed form uses: worked out once per path,
+/// not once per word (a corner loop's search asks for thousands of paths).
+#[derive(Debug, Clone, Copy)]
+struct Headings {
+    a: f64,
+    b: f64,
+    sa: f64,
+    ca: f64,
+    sb: f64,
+    cb: f64,
+    /// cos(a - b).
+    cab: f64,
+}
+
+impl Headings {
+    fn new(a: f64, b: f64) -> Headings {
+        Headings {
+            a,
+            b,
+            sa: a.sin(),
+            ca: a.cos(),
+            sb: b.sin(),
+            cb: b.cos(),
+            cab: (a - b).cos(),
+        }
+    }
 }
 
 /// Piece lengths (normalised) of one word, `None` when the word has no
 /// solution. Standard closed forms in the frame where the goal lies on +x
 /// at distance `d` (in radii), `a`/`b` the start/goal headings in that frame.
-fn word_params(w: Word, d: f64, a: f64, b: f64) -> Option<[f64; 3]> {
-    let (sa, ca, sb, cb) = (a.sin(), a.cos(), b.sin(), b.cos());
-    let cab = (a - b).cos();
+/// Also `None` when the word's middle piece alone, times `r`, is at least
+/// `limit`: its length `r (t + p + q)` cannot be below that (the pieces are
+/// not negative, and rounding keeps the order), so the caller, which keeps
+/// only paths shorter than `limit`, loses nothing and skips the angles.
+fn word_params(w: Word, d: f64, h: &Headings, r: f64, limit: f64) -> Option<[f64; 3]> {
+    let Headings {
+        a,
+        b,
+        sa,
+        ca,
+        sb,
+        cb,
+        cab,
+    } = *h;
     match w {
         Word::Lsl => {
             let p2 = 2.0 + d * d - 2.0 * cab + 2.0 * d * (sa - sb);
             if p2 < 0.0 {
                 return None;
             }
+            let p = p2.sqrt();
+            if r * p >= limit {
+                return None;
+            }
             let t1 = (cb - ca).atan2(d + sa - sb);
-            Some([m2pi(-a + t1), p2.sqrt(), m2pi(b - t1)])
+            Some([m2pi(-a + t1), p, m2pi(b - t1)])
         }
         Word::Rsr => {
             let p2 = 2.0 + d * d - 2.0 * cab + 2.0 * d * (sb - sa);
             if p2 < 0.0 {
                 return None;
             }
+            let p = p2.sqrt();
+            if r * p >= limit {
+                return None;
+            }
             let t1 = (ca - cb).atan2(d - sa + sb);
-            Some([m2pi(a - t1), p2.sqrt(), m2pi(-b + t1)])
+            Some([m2pi(a - t1), p, m2pi(-b + t1)])
         }
         Word::Lsr => {
             let p2 = -2.0 + d * d + 2.0 * cab + 2.0 * d * (sa + sb);
@@ -99,6 +149,9 @@ fn word_params(w: Word, d: f64, a: f64, b: f64) -> Option<[f64; 3]> {
                 return None;
             }
             let p = p2.sqrt();
+            if r * p >= limit {
+                return None;
+            }
             let t2 = (-ca - cb).atan2(d + sa + sb) - (-2.0f64).atan2(p);
             Some([m2pi(-a + t2), p, m2pi(-m2pi(b) + t2)])
         }
@@ -108,6 +161,9 @@ fn word_params(w: Word, d: f64, a: f64, b: f64) -> Option<[f64; 3]> {
                 return None;
             }
             let p = p2.sqrt();
+            if r * p >= limit {
+                return None;
+            }
             let t2 = (ca + cb).atan2(d - sa - sb) - 2.0f64.atan2(p);
             Some([m2pi(a - t2), p, m2pi(b - t2)])
         }
@@ -117,6 +173,9 @@ fn word_params(w: Word, d: f64, a: f64, b: f64) -> Option<[f64; 3]> {
                 return None;
             }
             let p = m2pi(TAU - tmp.acos());
+            if r * p >= limit {
+                return None;
+            }
             let t = m2pi(a - (ca - cb).atan2(d - sa + sb) + p / 2.0);
             Some([t, p, m2pi(a - b - t + p)])
         }
@@ -126,6 +185,9 @@ fn word_params(w: Word, d: f64, a: f64, b: f64) -> Option<[f64; 3]> {
                 return None;
             }
             let p = m2pi(TAU - tmp.acos());
+            if r * p >= limit {
+                return None;
+            }
             let t = m2pi(-a - (ca - cb).atan2(d + sa - sb) + p / 2.0);
             Some([t, p, m2pi(m2pi(b) - a - t + p)])
         }
@@ -149,9 +211,12 @@ pub fn shortest_where(p0: P2, h0: f64, p1: P2, h1: f64, r: f64, accept: impl Fn(
     let theta = if d > 1e-12 { m2pi(v.y.atan2(v.x)) } else { 0.0 };
     let a = m2pi(h0 - theta);
     let b = m2pi(h1 - theta);
+    let h = Headings::new(a, b);
     let mut best: Option<Dubins> = None;
     for w in Word::ALL {
-        if let Some(params) = word_params(w, d, a, b) {
+        // Only a path shorter than the best by 1e-12 replaces it.
+        let limit = best.map_or(f64::INFINITY, |b| b.length() - 1e-12);
+        if let Some(params) = word_params(w, d, &h, r, limit) {
             let cand = Dubins {
                 word: w,
                 params,
