@@ -22,13 +22,12 @@ use crate::geometry::{P3, V3};
 /// lines tobj never reaches that code; the face words' `/vt/vn` parts are
 /// then ignored.
 fn without_texcoords_and_normals(bytes: &[u8]) -> std::borrow::Cow<'_, [u8]> {
-    let is_attr = |line: &[u8]| {
-        let t = line.trim_ascii_start();
-        t.len() >= 2
-            && t[0] == b'v'
-            && (t[1] == b't' || t[1] == b'n')
-            && t.get(2).is_none_or(|c| c.is_ascii_whitespace())
-    };
+    // The keyword as tobj finds it: the first word of the line split at
+    // Unicode white space (so `vt` followed by a vertical tab or a
+    // no-break space counts too: the fuzzer found the first). A line that
+    // is not UTF-8 makes tobj refuse the file anyway.
+    let is_attr =
+        |line: &[u8]| std::str::from_utf8(line).is_ok_and(|s| matches!(s.split_whitespace().next(), Some("vt" | "vn")));
     if !bytes.split(|&c| c == b'\n').any(is_attr) {
         return std::borrow::Cow::Borrowed(bytes);
     }
@@ -293,6 +292,14 @@ mod tests {
         let r = read_obj(obj).unwrap();
         assert_eq!(r.mesh.triangles.len(), 1);
         assert_eq!(r.mesh.vertices.len(), 3);
+        // `vt` and `vn` followed by any white space tobj splits at.
+        for sep in ["\u{b}", "\u{c}", "\u{a0}", "\u{2003}", "\t"] {
+            let obj = format!(
+                "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt{sep}1 1\nvn{sep}0 0 1\nf 1/9223372036854775807/1 2/1/-9223372036854775807 3/7/9\n"
+            );
+            let m = read_obj(obj.as_bytes()).unwrap_or_else(|e| panic!("{sep:?}: {e}"));
+            assert_eq!(m.mesh.triangles.len(), 1, "{sep:?}");
+        }
         // Line numbers in errors still count the blanked lines.
         let e = read_obj(b"vt 0 0\nvn 0 0 1\nv 0 0 0\nv 1 0 0\nv 0 1 x\nf 1 2 3\n")
             .unwrap_err()
