@@ -109,19 +109,27 @@ impl Curve for Nurbs {
         let u = lo + s.clamp(0.0, 1.0) * (hi - lo);
         let p = self.degree;
         let n = self.ctrl.len();
-        // The knot span holding u (the last non-empty one at the end).
-        let mut k = p;
-        while k + 1 < n && self.knots[k + 1] <= u {
-            k += 1;
+        // The knot span holding u (the last non-empty one at the end): the
+        // last k in p..n with knots[k] <= u. The knots are sorted and u is
+        // at least knots[p], so that is one less than the count of knots
+        // up to u among the first n (a binary search: flattening asks for
+        // thousands of points, and a long spline has thousands of knots).
+        let k = self.knots[..n].partition_point(|&x| x <= u).max(p + 1) - 1;
+        // de Boor in homogeneous coordinates, on the stack for the degrees
+        // drawings use.
+        let mut stack = [(V3::zeros(), 0.0); 16];
+        let mut heap = Vec::new();
+        let d: &mut [(V3, f64)] = if p < stack.len() {
+            &mut stack[..=p]
+        } else {
+            heap.resize(p + 1, (V3::zeros(), 0.0));
+            &mut heap
+        };
+        for (j, dj) in d.iter_mut().enumerate() {
+            let i = k + j - p;
+            let w = self.weights[i];
+            *dj = (self.ctrl[i].coords * w, w);
         }
-        // de Boor in homogeneous coordinates.
-        let mut d: Vec<(V3, f64)> = (0..=p)
-            .map(|j| {
-                let i = k + j - p;
-                let w = self.weights[i];
-                (self.ctrl[i].coords * w, w)
-            })
-            .collect();
         for r in 1..=p {
             for j in (r..=p).rev() {
                 let i = k + j - p;
