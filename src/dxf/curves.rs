@@ -115,21 +115,14 @@ impl Curve for Nurbs {
         // up to u among the first n (a binary search: flattening asks for
         // thousands of points, and a long spline has thousands of knots).
         let k = self.knots[..n].partition_point(|&x| x <= u).max(p + 1) - 1;
-        // de Boor in homogeneous coordinates, on the stack for the degrees
-        // drawings use.
-        let mut stack = [(V3::zeros(), 0.0); 16];
-        let mut heap = Vec::new();
-        let d: &mut [(V3, f64)] = if p < stack.len() {
-            &mut stack[..=p]
-        } else {
-            heap.resize(p + 1, (V3::zeros(), 0.0));
-            &mut heap
-        };
-        for (j, dj) in d.iter_mut().enumerate() {
-            let i = k + j - p;
-            let w = self.weights[i];
-            *dj = (self.ctrl[i].coords * w, w);
-        }
+        // de Boor in homogeneous coordinates.
+        let mut d: Vec<(V3, f64)> = (0..=p)
+            .map(|j| {
+                let i = k + j - p;
+                let w = self.weights[i];
+                (self.ctrl[i].coords * w, w)
+            })
+            .collect();
         for r in 1..=p {
             for j in (r..=p).rev() {
                 let i = k + j - p;

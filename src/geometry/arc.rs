@@ -195,7 +195,7 @@ impl Arc3 {
 
     /// Distance from `p` to a planar arc; `None` where `closest_point` is.
     pub fn distance(&self, p: &P3) -> Option<f64> {
-        self.closest_point(p).map(|(q, _)| (q - p).norm())
+        ArcFrame::new(self).distance(p)
     }
 
     /// The same arc travelled the other way: ends swapped, sense flipped,
@@ -357,6 +357,11 @@ impl ArcFrame {
         }
         let last = first + ((sw - first) / TAU).floor() * TAU;
         Some((first / sw, (last / sw).min(1.0)))
+    }
+
+    /// [`Arc3::distance`].
+    pub fn distance(&self, p: &P3) -> Option<f64> {
+        self.closest_point(p).map(|(q, _)| (q - p).norm())
     }
 
     /// [`Arc3::closest_point`].

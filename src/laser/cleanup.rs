@@ -152,12 +152,11 @@ impl Probe {
 
     /// `dist_to_elem`.
     fn distance(&self, p: &P2) -> f64 {
-        match (&self.e, &self.arc) {
-            (Segment::Arc(_), Some(f)) => {
-                let q = P3::new(p.x, p.y, self.e.start().z);
-                f.closest_point(&q).map_or(f64::INFINITY, |(c, _)| (c - q).norm())
-            }
-            _ => dist_to_elem(p, &self.e),
+        match &self.arc {
+            Some(f) => f
+                .distance(&P3::new(p.x, p.y, self.e.start().z))
+                .unwrap_or(f64::INFINITY),
+            None => dist_to_elem(p, &self.e),
         }
     }
 }
