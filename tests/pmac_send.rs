@@ -395,7 +395,11 @@ fn send_hit(e: &Emu, extra: &[&str], hit: Hit) -> Outcome {
 /// whether the job was stopped at all.
 fn scenario(cfg: Config, faults: Faults, scale: f64, mode: &[&str], hit: Hit) -> bool {
     // Only a reset makes the controller forget its counters.
-    let allow = if faults.reset_at.is_some() { 3.0 } else { 0.0 };
+    let allow = if faults.reset_at.is_some() || faults.reset_mid_run_from.is_some() {
+        3.0
+    } else {
+        0.0
+    };
     let e = emu(cfg, faults, scale);
     let o = send_hit(&e, mode, hit);
     let killed = matches!(hit, Hit::Signal("-KILL", _));
@@ -494,7 +498,7 @@ fn matrix(mode: &[&str], cfg: Config) {
             "reset",
             cfg.clone(),
             Faults {
-                reset_at: Some(at),
+                reset_mid_run_from: Some(at),
                 ..Faults::default()
             },
             Hit::None,
@@ -526,6 +530,20 @@ fn matrix(mode: &[&str], cfg: Config) {
     for (name, cfg, faults, hit) in cases {
         eprintln!("{mode:?} {name}");
         assert!(scenario(cfg, faults, 30.0, mode, hit), "{name} did not stop the job");
+    }
+}
+
+/// A reset at a fixed request lands wherever the client then is: mid-run,
+/// or between runs while the next chunk downloads (which loses nothing).
+/// Either way the job ends with every move cut once.
+#[test]
+fn reset_at_any_request_is_safe() {
+    for at in [7, 45, 130] {
+        let faults = Faults {
+            reset_at: Some(at),
+            ..Faults::default()
+        };
+        scenario(small(), faults, 30.0, &split_args(), Hit::None);
     }
 }
 

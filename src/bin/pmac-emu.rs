@@ -73,9 +73,14 @@ struct Args {
     /// Fault: answer ERR006 to the Nth program line stored (once).
     #[arg(long, value_name = "N")]
     err006_at_line: Option<u64>,
-    /// Fault: reset the controller ($$$) at request N (once).
+    /// Fault: reset the controller ($$$) at request N (once), whatever it
+    /// is doing then.
     #[arg(long, value_name = "N")]
     reset_at: Option<u64>,
+    /// Fault: reset the controller ($$$) once, at the first request from
+    /// the Nth on at which a motion program is running (a reset mid-run).
+    #[arg(long, value_name = "N")]
+    reset_mid_run_from: Option<u64>,
     /// Exit after this many real seconds (default: run until killed).
     #[arg(long)]
     duration: Option<f64>,
@@ -133,6 +138,7 @@ fn run(args: Args) -> Result<(), CliError> {
         delay: Duration::from_millis(args.delay_ms),
         delay_from: args.delay_from,
         reset_at: args.reset_at,
+        reset_mid_run_from: args.reset_mid_run_from,
         delay_count: args.delay_count,
         lie_at: args.lie_at,
     };

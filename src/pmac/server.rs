@@ -30,8 +30,15 @@ pub struct Faults {
     pub delay_from: u64,
     /// ... for this many requests (None: all).
     pub delay_count: Option<u64>,
-    /// Reset the controller (`$$$`) on the Nth request, once.
+    /// Reset the controller (`$$$`) on the Nth request, once, whatever it
+    /// is doing then.
     pub reset_at: Option<u64>,
+    /// Reset the controller (`$$$`) once, on the first request from the
+    /// Nth on at which a motion program is running: a reset mid-run
+    /// whatever the client's pace. (`reset_at` alone may land while the
+    /// client downloads between runs, which loses nothing and stops
+    /// nothing, so a test of the mid-run reset could not rely on it.)
+    pub reset_mid_run_from: Option<u64>,
     /// Lie once, in the first reply with a number from request N on: every
     /// number in it becomes 99999 (a counter past any job's end), as a
     /// broken proxy might.
@@ -54,6 +61,7 @@ struct Shared {
     requests: AtomicU64,
     stop: Arc<AtomicBool>,
     lied: AtomicBool,
+    reset_mid_run_done: AtomicBool,
 }
 
 impl Server {
@@ -70,6 +78,7 @@ impl Server {
             requests: AtomicU64::new(0),
             stop: stop.clone(),
             lied: AtomicBool::new(false),
+            reset_mid_run_done: AtomicBool::new(false),
         });
         let accept = std::thread::spawn(move || {
             for conn in listener.incoming() {
@@ -144,6 +153,16 @@ fn count(sh: &Shared) -> bool {
     let n = sh.requests.fetch_add(1, Ordering::SeqCst) + 1;
     if sh.faults.reset_at == Some(n) {
         lock(&sh.ctl).reset();
+    }
+    if sh.faults.reset_mid_run_from.is_some_and(|k| n >= k) && !sh.reset_mid_run_done.load(Ordering::SeqCst) {
+        let mut ctl = lock(&sh.ctl);
+        // Bring the run up to now first: a program that ended since the
+        // last request must not count as running.
+        ctl.advance();
+        if ctl.running() {
+            ctl.reset();
+            sh.reset_mid_run_done.store(true, Ordering::SeqCst);
+        }
     }
     if !sh.faults.delay.is_zero()
         && n >= sh.faults.delay_from
