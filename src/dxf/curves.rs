@@ -191,15 +191,14 @@ pub struct FitStats {
     /// Lines a polyline would need at the same tolerance.
     pub chords: u64,
     /// The work bound ([`MAX_STEPS`]) was reached: the rest of the curve
-    /// was drawn with chords (or the chord count is a lower bound).
+    /// was drawn with chords.
     pub truncated: bool,
 }
 
 const SAMPLES: usize = 16;
 const MAX_DEPTH: u32 = 30;
-/// Intervals tried per curve, for the fit and for the chord count each:
-/// whatever the curve and the tolerance, fitting one curve is bounded work
-/// (about 5 million curve evaluations).
+/// Intervals tried per curve: whatever the curve and the tolerance,
+/// fitting one curve is bounded work (about 5 million curve evaluations).
 pub const MAX_STEPS: u64 = 1 << 18;
 
 /// Fit `curve` with biarcs within `tol`, appending segments (all at the
@@ -208,18 +207,37 @@ pub fn fit_biarcs(curve: &dyn Curve, tol: f64, out: &mut Vec<Segment>) -> FitSta
     let tol = tol.max(1e-9);
     let z = curve.point(0.0).z;
     let before = out.len();
-    let mut chords = 0u64;
     let mut fit_steps = MAX_STEPS;
-    let mut chord_steps = MAX_STEPS;
     for w in curve.breaks().windows(2) {
         fit_interval(curve, w[0], w[1], tol, z, 0, &mut fit_steps, out);
-        chords += count_chords(curve, w[0], w[1], tol, 0, &mut chord_steps);
     }
+    let pieces = &out[before..];
     FitStats {
-        pieces: (out.len() - before) as u64,
-        chords,
-        truncated: fit_steps == 0 || chord_steps == 0,
+        pieces: pieces.len() as u64,
+        chords: pieces.iter().map(|s| chords_for(s, tol)).sum(),
+        truncated: fit_steps == 0,
     }
+}
+
+/// Lines a polyline needs to follow `piece` within `tol`: one for a line,
+/// for an arc of radius r the fewest equal chords whose sagitta
+/// r·(1 − cos(φ/2)) stays within `tol`. The fitted pieces lie within `tol`
+/// of the curve, so their chord count is the polyline's at the same
+/// tolerance, found in one pass over the pieces. (Counting by bisecting
+/// the curve itself cost four times the fit: chords converge as h², arcs
+/// as h³, so the bisection went far deeper than the fit.)
+fn chords_for(piece: &Segment, tol: f64) -> u64 {
+    let (Some(r), Some(sweep)) = (piece.radius(), piece.sweep()) else {
+        return 1;
+    };
+    if !(r.is_finite() && sweep.is_finite() && r > 0.0) {
+        return 1;
+    }
+    // From tol = 2r on one chord spans the whole circle.
+    let step = 2.0 * (1.0 - tol / r).max(-1.0).acos();
+    // A chord per step, bounded: a near-zero step (a huge radius against a
+    // tiny tolerance) must not turn into an absurd count.
+    (sweep.abs() / step).ceil().clamp(1.0, 1e12) as u64
 }
 
 fn xy(p: P3, z: f64) -> P3 {
@@ -286,24 +304,6 @@ fn fit_interval(
     let tm = 0.5 * (t0 + t1);
     fit_interval(curve, t0, tm, tol, z, depth + 1, steps, out);
     fit_interval(curve, tm, t1, tol, z, depth + 1, steps, out);
-}
-
-fn count_chords(curve: &dyn Curve, t0: f64, t1: f64, tol: f64, depth: u32, steps: &mut u64) -> u64 {
-    if *steps == 0 {
-        return 1;
-    }
-    *steps -= 1;
-    let a = curve.point(t0);
-    let b = curve.point(t1);
-    let line = Segment::line(xy(a, 0.0), xy(b, 0.0));
-    let err = (1..SAMPLES)
-        .map(|k| line.distance_xy(&xy(curve.point(t0 + (t1 - t0) * k as f64 / SAMPLES as f64), 0.0)))
-        .fold(0.0, f64::max);
-    if err <= tol || depth >= MAX_DEPTH {
-        return 1;
-    }
-    let tm = 0.5 * (t0 + t1);
-    count_chords(curve, t0, tm, tol, depth + 1, steps) + count_chords(curve, tm, t1, tol, depth + 1, steps)
 }
 
 /// The arc from `a`, leaving along unit tangent `t`, to `b` (a line when
@@ -387,6 +387,33 @@ mod tests {
         for w in out.windows(2) {
             assert!((w[0].end() - w[1].start()).norm() < 1e-12);
         }
+    }
+
+    #[test]
+    fn chord_count_is_the_fewest_within_tolerance() {
+        let sagitta = |r: f64, sweep: f64, n: u64| r * (1.0 - (sweep / n as f64 / 2.0).cos());
+        for (r, sweep, tol) in [
+            (5.0f64, 1.0f64, 0.001),
+            (0.3, -2.5, 1e-4),
+            (100.0, 0.01, 1e-6),
+            (2.0, 3.0, 0.5),
+        ] {
+            let c = P3::new(1.0, 1.0, 0.0);
+            let a = c + V3::new(r, 0.0, 0.0);
+            let b = c + V3::new(r * sweep.cos(), r * sweep.sin(), 0.0);
+            let arc = Segment::arc_xy(a, b, c, sweep > 0.0);
+            let n = chords_for(&arc, tol);
+            assert!(
+                sagitta(r, sweep.abs(), n) <= tol * (1.0 + 1e-9),
+                "{r} {sweep} {tol}: {n}"
+            );
+            assert!(n == 1 || sagitta(r, sweep.abs(), n - 1) > tol, "{r} {sweep} {tol}: {n}");
+        }
+        // A line is one chord, and so is an arc within tolerance of its chord.
+        let line = Segment::line(P3::origin(), P3::new(3.0, 4.0, 0.0));
+        assert_eq!(chords_for(&line, 1e-6), 1);
+        let flat = Segment::arc_xy(P3::new(1.0, 0.0, 0.0), P3::new(0.0, 1.0, 0.0), P3::origin(), true);
+        assert_eq!(chords_for(&flat, 2.0), 1);
     }
 
     #[test]
