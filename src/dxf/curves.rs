@@ -8,6 +8,7 @@
 //! §6.1.4). The deviation is measured by sampling each piece's interval of
 //! the curve densely and taking the distance to the fitted arcs.
 
+use crate::geometry::arc::ArcFrame;
 use crate::geometry::{P3, V3};
 use crate::model::chain::Segment;
 
@@ -284,10 +285,18 @@ fn fit_interval(
     if let (Some(d0), Some(d1)) = tangents(curve, t0, t1)
         && let Some(pieces) = biarc(p0, d0, p1, d1)
     {
+        // Each arc's frame once, not once per sample (its angles cost two
+        // atan2): the same distances as `Segment::distance_xy`, whose arcs
+        // go through the same frame (the samples are at the pieces' z).
+        let frames = pieces.each_ref().map(|s| s.arc().map(ArcFrame::new));
+        let dist = |k: usize, q: &P3| match &frames[k] {
+            Some(f) => f.distance(q).unwrap_or(f64::INFINITY),
+            None => pieces[k].distance_xy(q),
+        };
         let err = (1..SAMPLES)
             .map(|k| {
                 let q = xy(curve.point(t0 + (t1 - t0) * k as f64 / SAMPLES as f64), z);
-                pieces.iter().map(|s| s.distance_xy(&q)).fold(f64::INFINITY, f64::min)
+                f64::INFINITY.min(dist(0, &q)).min(dist(1, &q))
             })
             .fold(0.0, f64::max);
         if err <= tol {
