@@ -227,7 +227,8 @@ pub fn fit_biarcs(curve: &dyn Curve, tol: f64, out: &mut Vec<Segment>) -> FitSta
     let before = out.len();
     let mut fit_steps = MAX_STEPS;
     for w in curve.breaks().windows(2) {
-        fit_interval(curve, w[0], w[1], tol, z, 0, &mut fit_steps, out);
+        let ends = [(w[0], curve.point(w[0])), (w[1], curve.point(w[1]))];
+        fit_interval(curve, ends, tol, z, 0, &mut fit_steps, out);
     }
     let pieces = &out[before..];
     FitStats {
@@ -266,32 +267,34 @@ fn unit_xy(v: V3) -> Option<V3> {
     V3::new(v.x, v.y, 0.0).try_normalize(1e-300)
 }
 
-fn tangents(curve: &dyn Curve, t0: f64, t1: f64) -> (Option<V3>, Option<V3>) {
+/// Unit tangents at the ends of `[t0, t1]`, given the curve's points
+/// there (`c0`, `c1`: each is evaluated once for the whole fit).
+fn tangents(curve: &dyn Curve, (t0, c0): (f64, P3), (t1, c1): (f64, P3)) -> (Option<V3>, Option<V3>) {
     // Second-order one-sided differences: the tangent error is O(h^2), so a
     // circle given as a spline fits with arcs on the circle itself.
     let h = (t1 - t0) * 1e-4;
-    let d = |t: f64, h: f64| {
-        let p0 = curve.point(t).coords;
+    let d = |t: f64, p0: P3, h: f64| {
+        let p0 = p0.coords;
         let p1 = curve.point(t + h).coords;
         let p2 = curve.point(t + 2.0 * h).coords;
         (p1 * 4.0 - p0 * 3.0 - p2) * h.signum()
     };
-    (unit_xy(d(t0, h)), unit_xy(d(t1, -h)))
+    (unit_xy(d(t0, c0, h)), unit_xy(d(t1, c1, -h)))
 }
 
-#[allow(clippy::too_many_arguments)]
+/// Fit `[t0, t1]` (given with the curve's points there) with one biarc
+/// within `tol`, or halve it.
 fn fit_interval(
     curve: &dyn Curve,
-    t0: f64,
-    t1: f64,
+    [(t0, c0), (t1, c1)]: [(f64, P3); 2],
     tol: f64,
     z: f64,
     depth: u32,
     steps: &mut u64,
     out: &mut Vec<Segment>,
 ) {
-    let p0 = xy(curve.point(t0), z);
-    let p1 = xy(curve.point(t1), z);
+    let p0 = xy(c0, z);
+    let p1 = xy(c1, z);
     if *steps == 0 {
         if p0 != p1 {
             out.push(Segment::line(p0, p1));
@@ -299,7 +302,7 @@ fn fit_interval(
         return;
     }
     *steps -= 1;
-    if let (Some(d0), Some(d1)) = tangents(curve, t0, t1)
+    if let (Some(d0), Some(d1)) = tangents(curve, (t0, c0), (t1, c1))
         && let Some(pieces) = biarc(p0, d0, p1, d1)
     {
         // Each arc's frame once, not once per sample (its angles cost two
@@ -327,9 +330,11 @@ fn fit_interval(
         }
         return;
     }
+    // The halves share the middle point: evaluated once.
     let tm = 0.5 * (t0 + t1);
-    fit_interval(curve, t0, tm, tol, z, depth + 1, steps, out);
-    fit_interval(curve, tm, t1, tol, z, depth + 1, steps, out);
+    let m = (tm, curve.point(tm));
+    fit_interval(curve, [(t0, c0), m], tol, z, depth + 1, steps, out);
+    fit_interval(curve, [m, (t1, c1)], tol, z, depth + 1, steps, out);
 }
 
 /// The arc from `a`, leaving along unit tangent `t`, to `b` (a line when
