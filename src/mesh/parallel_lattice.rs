@@ -122,7 +122,10 @@ impl<'a> Axis<'a> {
         let v = &self.vals[..];
         let n = v.len();
         let g = (x - self.lo) * self.inv_step;
-        let mut k = if g > 0.0 { (g as usize).min(n) } else { 0 };
+        // The cast saturates (below 0 and NaN to 0): no branch, and a u32's
+        // saturation is cheaper than a usize's (an axis has fewer than
+        // 2^32 coordinates).
+        let mut k = (g as u32 as usize).min(n);
         for _ in 0..4 {
             if k > 0 && !below(v[k - 1]) {
                 k -= 1;
@@ -355,17 +358,29 @@ impl ParallelRays {
                 front: (b - a).cross(&(c - a)).dot(&dir) < 0.0,
             })
         };
-        let preps: Vec<Option<Prep>> = self.row_order().par_iter().with_min_len(2048).map(prep).collect();
-
         // Bands of rows; each triangle listed in every band it reaches, in
         // depth order.
         let threads = rayon::current_num_threads().max(1);
         let br = (BAND_RAYS / nus.max(1)).clamp(1, nvs.div_ceil(4 * threads).max(1));
         let nb = nvs.div_ceil(br);
+        // Each triangle's bands beside it, so that the serial listing below
+        // reads a few bytes a triangle, not the whole prepared triangle.
+        let (preps, bands): (Vec<Option<Prep>>, Vec<(u32, u32)>) = self
+            .row_order()
+            .par_iter()
+            .with_min_len(2048)
+            .map(|t| {
+                let p = prep(t);
+                let b = p.as_ref().map_or((0, 0), |p| {
+                    ((p.j0 as usize / br) as u32, ((p.j1 as usize - 1) / br + 1) as u32)
+                });
+                (p, b)
+            })
+            .unzip();
         let mut start = vec![0u32; nb + 1];
-        for p in preps.iter().flatten() {
-            for b in p.j0 as usize / br..=(p.j1 as usize - 1) / br {
-                start[b + 1] += 1;
+        for &(b0, b1) in &bands {
+            for b in b0..b1 {
+                start[b as usize + 1] += 1;
             }
         }
         for b in 0..nb {
@@ -373,11 +388,8 @@ impl ParallelRays {
         }
         let mut fill = start.clone();
         let mut refs = vec![0u32; start[nb] as usize];
-        for (k, p) in preps.iter().enumerate() {
-            let Some(p) = p else {
-                continue;
-            };
-            for b in p.j0 as usize / br..=(p.j1 as usize - 1) / br {
+        for (k, &(b0, b1)) in bands.iter().enumerate() {
+            for b in b0 as usize..b1 as usize {
                 refs[fill[b] as usize] = k as u32;
                 fill[b] += 1;
             }
@@ -404,7 +416,12 @@ impl ParallelRays {
         res.par_chunks_mut(br * nus).enumerate().for_each(|(b, chunk)| {
             let jb0 = b * br;
             let jb1 = jb0 + chunk.len() / nus;
-            let mut tb = vec![f64::INFINITY; chunk.len()];
+            // The depth buffer, unless the slots are depths themselves.
+            let mut tb = if S::IS_DEPTH {
+                Vec::new()
+            } else {
+                vec![f64::INFINITY; chunk.len()]
+            };
             for &pi in &refs[start[b] as usize..start[b + 1] as usize] {
                 let Some(p) = &preps[pi as usize] else {
                     continue;
@@ -431,7 +448,13 @@ impl ParallelRays {
                     }
                     let row = (j - jb0) * nus;
                     let (a, b) = (row + i0, row + i1);
-                    lattice_row(p, &lp, v, i0..i1, &mut tb[a..b], &mut chunk[a..b]);
+                    if let Some(depths) = S::as_depths(&mut chunk[a..b]) {
+                        if !row_hidden(p, &lp, v, i0..i1, depths) {
+                            lattice_row_depths(p, &lp, v, i0..i1, depths);
+                        }
+                    } else if !row_hidden(p, &lp, v, i0..i1, &tb[a..b]) {
+                        lattice_row(p, &lp, v, i0..i1, &mut tb[a..b], &mut chunk[a..b]);
+                    }
                 }
             }
         });
@@ -458,34 +481,100 @@ impl ParallelRays {
     }
 }
 
+/// True when triangle `p` lies, for every ray of the row segment, wholly
+/// behind the nearest hit found so far (`tb`), so [`lattice_row`] would
+/// keep none of its hits: the back faces of a closed part, which come
+/// after the front ones in the depth order of `row_order`, cost a
+/// subtraction and a product per ray instead of the whole test. A hit's
+/// `t` is a convex combination of the corners' depths along the ray
+/// (the barycentric weights are all of one sign); the bound is that
+/// minimum, less a margin a million times the test's rounding, so a
+/// skipped row is one whose every `t` the test would find above `best`.
+#[inline]
+fn row_hidden(p: &Prep, f: &Frame, v: f64, cols: std::ops::Range<usize>, tb: &[f64]) -> bool {
+    let s2 = f.s[2];
+    let z = [p.p[0][2], p.p[1][2], p.p[2][2]];
+    let (zmin, zmax) = (z[0].min(z[1]).min(z[2]), z[0].max(z[1]).max(z[2]));
+    // The depth t = (z - o_z) * s2 is least at the corner nearest along
+    // the ray: the lowest z when s2 > 0, the highest when it is negative.
+    let near = if s2 > 0.0 { zmin } else { zmax };
+    let r2 = f.ev[2] * v;
+    // The margin, 1e-9 of the largest |z - o_z| |s2|, is bounded by
+    // 1e-9 (|near - o_z| + zmax - zmin) |s2| = 1e-9 |lb| + m0.
+    let m0 = 1e-9 * (zmax - zmin) * s2.abs();
+    f.col[2][cols].iter().zip(tb).all(|(&c2, &best)| {
+        // The ray's origin z, as `row_test` computes it.
+        let lb = (near - (c2 + r2)) * s2;
+        lb - 1e-9 * lb.abs() - m0 > best
+    })
+}
+
+/// The outcome of the ray-triangle test for one ray of a row.
+struct RowTest {
+    outside: bool,
+    det: f64,
+    t: f64,
+    ev: f64,
+    ew: f64,
+}
+
+/// `intersect` (src/mesh/triangle.rs)'s arithmetic, operation for
+/// operation (so the same bits), without its branches, for the ray from
+/// `base + eu * u + ev * v` given as its column's `(o0, o1, o2)` and the
+/// row's `r = ev * v`.
+#[inline(always)]
+fn row_test(p: &Prep, s: [f64; 3], r: [f64; 3], o0: f64, o1: f64, o2: f64) -> RowTest {
+    let [a, b, c] = &p.p;
+    // `base + eu * u + ev * v`, per component, as Lattice::origin.
+    let o = [o0 + r[0], o1 + r[1], o2 + r[2]];
+    let ta = [a[0] - o[0], a[1] - o[1], a[2] - o[2]];
+    let tb = [b[0] - o[0], b[1] - o[1], b[2] - o[2]];
+    let tc = [c[0] - o[0], c[1] - o[1], c[2] - o[2]];
+    let (ax, ay) = (ta[0] - s[0] * ta[2], ta[1] - s[1] * ta[2]);
+    let (bx, by) = (tb[0] - s[0] * tb[2], tb[1] - s[1] * tb[2]);
+    let (cx, cy) = (tc[0] - s[0] * tc[2], tc[1] - s[1] * tc[2]);
+    let eu = cx * by - cy * bx;
+    let ev = ax * cy - ay * cx;
+    let ew = bx * ay - by * ax;
+    let outside = (eu < 0.0 || ev < 0.0 || ew < 0.0) & (eu > 0.0 || ev > 0.0 || ew > 0.0);
+    let det = eu + ev + ew;
+    let t = (eu * ta[2] + ev * tb[2] + ew * tc[2]) * s[2] / det;
+    RowTest {
+        outside,
+        det,
+        t,
+        ev,
+        ew,
+    }
+}
+
 /// One row of candidate rays (coordinates `us` along the row, `v` across)
-/// against one triangle: `intersect` (src/mesh/triangle.rs)'s arithmetic operation for
-/// operation (so the same bits), without its branches, then the depth
-/// buffer `tb` and the hits `out` kept where the hit is nearer, or as near
-/// and of a lower triangle index.
+/// against one triangle: [`row_test`] per ray, then the depth buffer `tb`
+/// and the hits `out` kept where the hit is nearer, or as near and of a
+/// lower triangle index.
 #[inline]
 fn lattice_row<S: Slot>(p: &Prep, f: &Frame, v: f64, cols: std::ops::Range<usize>, tb: &mut [f64], out: &mut [S]) {
-    let [a, b, c] = &p.p;
-    let s = f.s;
     let r = [f.ev[0] * v, f.ev[1] * v, f.ev[2] * v];
     let (c0, c1, c2) = (&f.col[0][cols.clone()], &f.col[1][cols.clone()], &f.col[2][cols]);
     for ((((&o0, &o1), &o2), best), slot) in c0.iter().zip(c1).zip(c2).zip(tb.iter_mut()).zip(out.iter_mut()) {
-        // `base + eu * u + ev * v`, per component, as Lattice::origin.
-        let o = [o0 + r[0], o1 + r[1], o2 + r[2]];
-        let ta = [a[0] - o[0], a[1] - o[1], a[2] - o[2]];
-        let tb_ = [b[0] - o[0], b[1] - o[1], b[2] - o[2]];
-        let tc = [c[0] - o[0], c[1] - o[1], c[2] - o[2]];
-        let (ax, ay) = (ta[0] - s[0] * ta[2], ta[1] - s[1] * ta[2]);
-        let (bx, by) = (tb_[0] - s[0] * tb_[2], tb_[1] - s[1] * tb_[2]);
-        let (cx, cy) = (tc[0] - s[0] * tc[2], tc[1] - s[1] * tc[2]);
-        let eu = cx * by - cy * bx;
-        let ev = ax * cy - ay * cx;
-        let ew = bx * ay - by * ax;
-        let outside = (eu < 0.0 || ev < 0.0 || ew < 0.0) & (eu > 0.0 || ev > 0.0 || ew > 0.0);
-        let det = eu + ev + ew;
-        let t = (eu * ta[2] + ev * tb_[2] + ew * tc[2]) * s[2] / det;
-        if !outside & (det != 0.0) & (t >= 0.0) & (t <= *best) {
-            slot.offer(best, t, p, det, ev, ew);
+        let h = row_test(p, f.s, r, o0, o1, o2);
+        if !h.outside & (h.det != 0.0) & (h.t >= 0.0) & (h.t <= *best) {
+            slot.offer(best, h.t, p, h.det, h.ev, h.ew);
+        }
+    }
+}
+
+/// [`lattice_row`] for depths alone: the answer is its own depth buffer
+/// (of equal depths the triangle does not matter), one array less to
+/// fill, read and write per ray.
+#[inline]
+fn lattice_row_depths(p: &Prep, f: &Frame, v: f64, cols: std::ops::Range<usize>, out: &mut [f64]) {
+    let r = [f.ev[0] * v, f.ev[1] * v, f.ev[2] * v];
+    let (c0, c1, c2) = (&f.col[0][cols.clone()], &f.col[1][cols.clone()], &f.col[2][cols]);
+    for (((&o0, &o1), &o2), best) in c0.iter().zip(c1).zip(c2).zip(out.iter_mut()) {
+        let h = row_test(p, f.s, r, o0, o1, o2);
+        if !h.outside & (h.det != 0.0) & (h.t >= 0.0) & (h.t <= *best) {
+            *best = h.t;
         }
     }
 }
@@ -494,6 +583,10 @@ fn lattice_row<S: Slot>(p: &Prep, f: &Frame, v: f64, cols: std::ops::Range<usize
 trait Slot: Copy + Send + Sync {
     /// A ray with no hit yet.
     const EMPTY: Self;
+    /// The slot is the ray's depth (`f64`): no depth buffer beside it.
+    const IS_DEPTH: bool;
+    /// The slots as depths, when they are ([`Slot::IS_DEPTH`]).
+    fn as_depths(slots: &mut [Self]) -> Option<&mut [f64]>;
     /// The answer of a one-ray query.
     fn from_hit(h: Option<Hit>) -> Self;
     /// A hit of triangle `p` at `t <= best` (`best` the depth buffer's
@@ -503,6 +596,11 @@ trait Slot: Copy + Send + Sync {
 
 impl Slot for Option<Hit> {
     const EMPTY: Self = None;
+    const IS_DEPTH: bool = false;
+
+    fn as_depths(_: &mut [Self]) -> Option<&mut [f64]> {
+        None
+    }
 
     fn from_hit(h: Option<Hit>) -> Self {
         h
@@ -525,6 +623,11 @@ impl Slot for Option<Hit> {
 
 impl Slot for f64 {
     const EMPTY: Self = f64::INFINITY;
+    const IS_DEPTH: bool = true;
+
+    fn as_depths(slots: &mut [Self]) -> Option<&mut [f64]> {
+        Some(slots)
+    }
 
     fn from_hit(h: Option<Hit>) -> Self {
         h.map_or(f64::INFINITY, |h| h.t)

@@ -1,7 +1,7 @@
 use super::*;
-use crate::mesh::Mesh;
 use crate::mesh::bvh::{Bvh, Ray};
 use crate::mesh::solids;
+use crate::mesh::{Mesh, Triangle};
 use proptest::prelude::*;
 
 /// Every ray of the lattice: the rasteriser's hit is the BVH's first hit,
@@ -235,6 +235,63 @@ fn degenerate_triangles_and_unusual_lattices() {
             .first_hits_lattice(&Lattice { us: &[], ..l })
             .is_empty()
     );
+}
+
+/// The hidden-face cull (`row_hidden`) skips a triangle only when every
+/// ray finds it behind a nearer hit: layers of squares one behind the
+/// other, some at exactly the same depth, some a hair (1e-12 mm) behind or
+/// in front, listed far layers first and near first, cast at from both
+/// sides and obliquely. (Ties between triangles that share an edge, where
+/// the lower index must win, are in the closed-mesh tests above: a cull
+/// that skipped equal depths fails those.)
+#[test]
+fn hidden_layers_and_ties_match_the_bvh() {
+    let square = |z: f64, tilt: f64| {
+        let c = |x: f64, y: f64| P3::new(x, y, z + tilt * x);
+        [
+            Triangle {
+                a: c(-1.0, -1.0),
+                b: c(1.0, -1.0),
+                c: c(1.0, 1.0),
+            },
+            Triangle {
+                a: c(-1.0, -1.0),
+                b: c(1.0, 1.0),
+                c: c(-1.0, 1.0),
+            },
+        ]
+    };
+    let depths = [0.0, 0.0, 1e-12, -1e-12, 0.5, 0.5, -3.0, 2.0];
+    for reversed in [false, true] {
+        let mut tris: Vec<Triangle> = Vec::new();
+        for (k, &z) in depths.iter().enumerate() {
+            tris.extend(square(z, 0.01 * (k % 3) as f64));
+        }
+        if reversed {
+            tris.reverse();
+        }
+        let m = Mesh::from_triangles(&tris);
+        let us = steps(-1.3, 0.1, 27);
+        for (dir, z0) in [(-V3::z(), 10.0), (V3::z(), -10.0)] {
+            let l = Lattice {
+                base: P3::new(0.0, 0.0, z0),
+                eu: V3::x(),
+                ev: V3::y(),
+                us: &us,
+                vs: &us,
+            };
+            assert!(check(&m, dir, &l) > 0);
+        }
+        let dir = V3::new(0.2, -0.1, -1.0).normalize();
+        let l = Lattice {
+            base: P3::new(0.0, 0.0, 10.0),
+            eu: V3::x(),
+            ev: V3::y(),
+            us: &us,
+            vs: &us,
+        };
+        assert!(check(&m, dir, &l) > 0);
+    }
 }
 
 proptest! {
