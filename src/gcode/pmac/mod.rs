@@ -65,6 +65,7 @@
 mod buffers;
 mod expr;
 mod lexer;
+mod motion;
 mod online;
 mod preprocess;
 mod program;
@@ -74,8 +75,8 @@ use crate::geometry::{P3, Plane};
 use crate::model::toolpath::{Record, ShutterSwitch};
 use expr::{Var, VarKind, Vars};
 use lexer::{Cursor, find_word, is_ws, match_keyword};
+use motion::{MoveMode, PendingMove};
 use preprocess::{Defines, Directive, MAX_INCLUDE_DEPTH};
-use program::{MoveMode, PendingMove};
 use std::collections::VecDeque;
 use std::path::PathBuf;
 
