@@ -291,9 +291,7 @@ impl Segment {
     /// assert_eq!(s.point_at_length(9.0), s.end());
     /// ```
     pub fn point_at_length(&self, s: f64) -> P3 {
-        let len = self.length();
-        let t = if len > 0.0 { (s / len).clamp(0.0, 1.0) } else { 0.0 };
-        self.point_at(t)
+        self.point_at(length_fraction(s, self.length()))
     }
 
     /// Unit tangent in the direction of travel at parameter `t`; `None` for
@@ -485,6 +483,14 @@ fn planar_tangent(a: &Arc3, p: &P3) -> Option<V3> {
     t[i] = ti;
     t[j] = tj;
     Some(t)
+}
+
+/// The parameter `t` of the point `s` mm along a piece `len` mm long,
+/// clamped to the piece (0 for a piece without length): what
+/// [`Segment::point_at_length`] evaluates, for callers that keep the
+/// length (or an arc's frame) of a piece they sample many times.
+pub fn length_fraction(s: f64, len: f64) -> f64 {
+    if len > 0.0 { (s / len).clamp(0.0, 1.0) } else { 0.0 }
 }
 
 /// Exact signed area (mm²) enclosed by a closed run of segments in XY,

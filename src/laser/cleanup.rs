@@ -33,6 +33,7 @@
 use super::arcfit::{arc_from_tangent, biarc, dist_to_elem};
 use crate::geometry::Segment;
 use crate::geometry::arc::ArcFrame;
+use crate::geometry::segment::length_fraction;
 use crate::geometry::{P2, P3, Plane};
 
 /// What the cleanup does: pieces shorter than `min_len` (mm) are removed
@@ -139,11 +140,7 @@ impl Probe {
 
     /// `Segment::point_at_length`.
     fn point_at_length(&self, s: f64) -> P3 {
-        let t = if self.len > 0.0 {
-            (s / self.len).clamp(0.0, 1.0)
-        } else {
-            0.0
-        };
+        let t = length_fraction(s, self.len);
         match &self.arc {
             Some(f) => f.point_at(t),
             None => self.e.point_at(t),
