@@ -137,3 +137,43 @@ fn plain_text_lines_on_the_same_port() {
     }
     assert_eq!(got, b"603382\r\x062\r\x06");
 }
+
+/// `Faults::reset_mid_run_from`: no reset while nothing runs, however many
+/// requests pass; one reset at the first request that finds a program
+/// running; none after. The clock is set by hand, so the program is
+/// running (its one move takes 600 s) exactly when the test says.
+#[test]
+fn mid_run_reset_waits_for_a_running_program_and_fires_once() {
+    let ctl = Emulator::new(Config::default(), Clock::Manual(0.0), None);
+    let faults = Faults {
+        reset_mid_run_from: Some(2),
+        ..Faults::default()
+    };
+    let s = Server::start("127.0.0.1:0".parse().unwrap(), ctl, faults).unwrap();
+    let mut c = connect(&s);
+    let running = |s: &Server| s.controller.lock().unwrap().running();
+    let download = |c: &mut TcpStream| {
+        for cmd in ["OPEN PROG 1 CLEAR", "LINEAR X10 F1", "CLOSE"] {
+            assert_eq!(ask(c, cmd), b"\x06", "{cmd}");
+        }
+    };
+    download(&mut c);
+    assert_eq!(ask(&mut c, "P1=5"), b"\x06");
+    assert_eq!(ask(&mut c, "P1"), b"5\r\x06");
+    assert!(!running(&s));
+    // The request that starts the run finds nothing running: no reset.
+    assert_eq!(ask(&mut c, "&1B1R"), b"\x06");
+    assert!(running(&s));
+    // The next one finds it running: the controller resets (and forgets
+    // its programs, as a reset does).
+    ask(&mut c, "P1");
+    assert!(!running(&s), "no reset mid-run");
+    assert_eq!(ask(&mut c, "&1B1R"), b"\x07ERR015\r");
+    // Once only: a second run is left alone.
+    download(&mut c);
+    assert_eq!(ask(&mut c, "&1B1R"), b"\x06");
+    for _ in 0..3 {
+        ask(&mut c, "P1");
+        assert!(running(&s), "a second reset");
+    }
+}
