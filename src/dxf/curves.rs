@@ -8,7 +8,7 @@
 //! §6.1.4). The deviation is measured by sampling each piece's interval of
 //! the curve densely and taking the distance to the fitted arcs.
 
-use crate::geometry::arc::ArcFrame;
+use crate::geometry::arc::{ArcFrame, chord_angle};
 use crate::geometry::{P3, V3};
 use crate::model::chain::Segment;
 
@@ -252,8 +252,7 @@ fn chords_for(piece: &Segment, tol: f64) -> u64 {
     if !(r.is_finite() && sweep.is_finite() && r > 0.0) {
         return 1;
     }
-    // From tol = 2r on one chord spans the whole circle.
-    let step = 2.0 * (1.0 - tol / r).max(-1.0).acos();
+    let step = chord_angle(r, tol);
     // A chord per step, bounded: a near-zero step (a huge radius against a
     // tiny tolerance) must not turn into an absurd count.
     (sweep.abs() / step).ceil().clamp(1.0, 1e12) as u64

@@ -392,6 +392,14 @@ impl ArcFrame {
     }
 }
 
+/// The widest angle (radians) one chord of a circle of radius `r` may span
+/// with its sagitta, `r·(1 − cos(φ/2))`, within `sag`: `2·acos(1 − sag/r)`,
+/// reaching 2π (the whole circle) from `sag = 2r` on. Callers that flatten
+/// arcs into chords divide a sweep by it; each caps it as its use needs.
+pub fn chord_angle(r: f64, sag: f64) -> f64 {
+    2.0 * (1.0 - sag / r).max(-1.0).acos()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -4,6 +4,7 @@
 
 use super::regions::first_vertex;
 use super::{FillOptions, Fix, Region};
+use crate::geometry::arc::chord_angle;
 use crate::geometry::{P2, P3};
 use crate::laser::offset::{continue_line, from_polyline, join_closed_ends};
 use crate::model::chain::Segment;
@@ -87,8 +88,9 @@ fn fix_tight_arcs(path: Vec<Segment>, r: &Region, d: f64, rmin: f64, sag: f64) -
                 continue;
             }
         }
-        // Chords: each spans at most 2·acos(1 - sag/r) of the arc.
-        let span = 2.0 * (1.0 - (sag / rad).min(1.0)).acos();
+        // Chords: each spans at most 2·acos(1 - sag/r) of the arc, and at
+        // most half a turn.
+        let span = chord_angle(rad, sag).min(std::f64::consts::PI);
         let k = if span > 0.0 {
             (sweep / span).ceil().clamp(1.0, 4096.0) as usize
         } else {

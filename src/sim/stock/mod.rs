@@ -16,6 +16,7 @@
 //! `sim::stl`, pictures in `sim::picture`.
 
 use crate::cutter::Cutter;
+use crate::geometry::arc::chord_angle;
 use crate::geometry::{Arc3, P3};
 use rayon::prelude::*;
 use thiserror::Error;
@@ -208,7 +209,7 @@ impl Stock {
         let dphi = if sag >= r {
             std::f64::consts::FRAC_PI_2
         } else {
-            2.0 * (1.0 - sag / r).acos()
+            chord_angle(r, sag)
         };
         let n = ((arc.sweep().abs() / dphi).ceil() as usize).clamp(1, 1 << 20);
         let mut pieces = Vec::with_capacity(n);
