@@ -417,10 +417,10 @@ impl ParallelRays {
             let jb0 = b * br;
             let jb1 = jb0 + chunk.len() / nus;
             // The depth buffer, unless the slots are depths themselves.
-            let mut tb = if S::IS_DEPTH {
-                Vec::new()
-            } else {
+            let mut tb = if S::DEPTH_BUFFER {
                 vec![f64::INFINITY; chunk.len()]
+            } else {
+                Vec::new()
             };
             for &pi in &refs[start[b] as usize..start[b + 1] as usize] {
                 let Some(p) = &preps[pi as usize] else {
@@ -448,13 +448,8 @@ impl ParallelRays {
                     }
                     let row = (j - jb0) * nus;
                     let (a, b) = (row + i0, row + i1);
-                    if let Some(depths) = S::as_depths(&mut chunk[a..b]) {
-                        if !row_hidden(p, &lp, v, i0..i1, depths) {
-                            lattice_row_depths(p, &lp, v, i0..i1, depths);
-                        }
-                    } else if !row_hidden(p, &lp, v, i0..i1, &tb[a..b]) {
-                        lattice_row(p, &lp, v, i0..i1, &mut tb[a..b], &mut chunk[a..b]);
-                    }
+                    let tb = if S::DEPTH_BUFFER { &mut tb[a..b] } else { &mut [] };
+                    S::row(p, &lp, v, i0..i1, tb, &mut chunk[a..b]);
                 }
             }
         });
@@ -553,13 +548,22 @@ fn row_test(p: &Prep, s: [f64; 3], r: [f64; 3], o0: f64, o1: f64, o2: f64) -> Ro
 /// and the hits `out` kept where the hit is nearer, or as near and of a
 /// lower triangle index.
 #[inline]
-fn lattice_row<S: Slot>(p: &Prep, f: &Frame, v: f64, cols: std::ops::Range<usize>, tb: &mut [f64], out: &mut [S]) {
+fn lattice_row(p: &Prep, f: &Frame, v: f64, cols: std::ops::Range<usize>, tb: &mut [f64], out: &mut [Option<Hit>]) {
     let r = [f.ev[0] * v, f.ev[1] * v, f.ev[2] * v];
     let (c0, c1, c2) = (&f.col[0][cols.clone()], &f.col[1][cols.clone()], &f.col[2][cols]);
     for ((((&o0, &o1), &o2), best), slot) in c0.iter().zip(c1).zip(c2).zip(tb.iter_mut()).zip(out.iter_mut()) {
         let h = row_test(p, f.s, r, o0, o1, o2);
-        if !h.outside & (h.det != 0.0) & (h.t >= 0.0) & (h.t <= *best) {
-            slot.offer(best, h.t, p, h.det, h.ev, h.ew);
+        if !h.outside & (h.det != 0.0) & (h.t >= 0.0) & (h.t <= *best)
+            && (h.t < *best || slot.is_none_or(|s| p.id < s.triangle))
+        {
+            *best = h.t;
+            *slot = Some(Hit {
+                t: h.t,
+                triangle: p.id,
+                u: h.ev / h.det,
+                v: h.ew / h.det,
+                front: p.front,
+            });
         }
     }
 }
@@ -583,61 +587,46 @@ fn lattice_row_depths(p: &Prep, f: &Frame, v: f64, cols: std::ops::Range<usize>,
 trait Slot: Copy + Send + Sync {
     /// A ray with no hit yet.
     const EMPTY: Self;
-    /// The slot is the ray's depth (`f64`): no depth buffer beside it.
-    const IS_DEPTH: bool;
-    /// The slots as depths, when they are ([`Slot::IS_DEPTH`]).
-    fn as_depths(slots: &mut [Self]) -> Option<&mut [f64]>;
+    /// The query keeps a depth buffer beside its slots (hits do; depths
+    /// are their own).
+    const DEPTH_BUFFER: bool;
     /// The answer of a one-ray query.
     fn from_hit(h: Option<Hit>) -> Self;
-    /// A hit of triangle `p` at `t <= best` (`best` the depth buffer's
-    /// value): kept if nearer, or as near and of a lower triangle index.
-    fn offer(&mut self, best: &mut f64, t: f64, p: &Prep, det: f64, ev: f64, ew: f64);
+    /// One row of candidate rays against triangle `p`, unless the triangle
+    /// is hidden there ([`row_hidden`]); `tb` is the depth buffer when
+    /// [`Slot::DEPTH_BUFFER`], else empty.
+    fn row(p: &Prep, f: &Frame, v: f64, cols: std::ops::Range<usize>, tb: &mut [f64], out: &mut [Self]);
 }
 
 impl Slot for Option<Hit> {
     const EMPTY: Self = None;
-    const IS_DEPTH: bool = false;
-
-    fn as_depths(_: &mut [Self]) -> Option<&mut [f64]> {
-        None
-    }
+    const DEPTH_BUFFER: bool = true;
 
     fn from_hit(h: Option<Hit>) -> Self {
         h
     }
 
     #[inline(always)]
-    fn offer(&mut self, best: &mut f64, t: f64, p: &Prep, det: f64, ev: f64, ew: f64) {
-        if t < *best || self.is_none_or(|h| p.id < h.triangle) {
-            *best = t;
-            *self = Some(Hit {
-                t,
-                triangle: p.id,
-                u: ev / det,
-                v: ew / det,
-                front: p.front,
-            });
+    fn row(p: &Prep, f: &Frame, v: f64, cols: std::ops::Range<usize>, tb: &mut [f64], out: &mut [Self]) {
+        if !row_hidden(p, f, v, cols.clone(), tb) {
+            lattice_row(p, f, v, cols, tb, out);
         }
     }
 }
 
 impl Slot for f64 {
     const EMPTY: Self = f64::INFINITY;
-    const IS_DEPTH: bool = true;
-
-    fn as_depths(slots: &mut [Self]) -> Option<&mut [f64]> {
-        Some(slots)
-    }
+    const DEPTH_BUFFER: bool = false;
 
     fn from_hit(h: Option<Hit>) -> Self {
         h.map_or(f64::INFINITY, |h| h.t)
     }
 
     #[inline(always)]
-    fn offer(&mut self, best: &mut f64, t: f64, _: &Prep, _: f64, _: f64, _: f64) {
-        // Of equal t the triangle does not matter here.
-        *best = t;
-        *self = t;
+    fn row(p: &Prep, f: &Frame, v: f64, cols: std::ops::Range<usize>, _: &mut [f64], out: &mut [Self]) {
+        if !row_hidden(p, f, v, cols.clone(), out) {
+            lattice_row_depths(p, f, v, cols, out);
+        }
     }
 }
 
