@@ -477,7 +477,7 @@ impl ParallelRays {
 }
 
 /// True when triangle `p` lies, for every ray of the row segment, wholly
-/// behind the nearest hit found so far (`tb`), so [`lattice_row`] would
+/// behind the nearest hit found so far (`tb`), so the row functions would
 /// keep none of its hits: the back faces of a closed part, which come
 /// after the front ones in the depth order of `row_order`, cost a
 /// subtraction and a product per ray instead of the whole test. A hit's
