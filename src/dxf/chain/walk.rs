@@ -25,7 +25,14 @@ pub(super) fn chain_layer(
     // 2. End points to nodes.
     let mut nodes = Nodes::new(tol, 2 * w.len());
     let mut ends: Vec<(u32, u32)> = vec![(u32::MAX, u32::MAX); w.len()];
+    // The table slots of the pieces a few places ahead are asked for
+    // early, so their cache misses overlap with this piece's work.
+    const AHEAD: usize = 8;
     for (i, x) in w.iter().enumerate() {
+        if let Some(a) = w.get(i + AHEAD).filter(|a| a.alive) {
+            nodes.prefetch(&a.seg.start());
+            nodes.prefetch(&a.seg.end());
+        }
         if x.alive {
             ends[i] = (nodes.node_of(&x.seg.start()), nodes.node_of(&x.seg.end()));
         }
