@@ -315,9 +315,15 @@ pub fn arc_radii_accepted(r0: f64, r1: f64) -> bool {
     (r0 - r1).abs() <= crate::model::toolpath::arc_end_tolerance(r0.max(r1)) || iso::spiral_accepted(r0, r1)
 }
 
-/// Build arc data from an in-plane centre, checking that the start and
-/// end lie on the same circle within `tol` (mm) and the radius is not zero.
-#[allow(clippy::too_many_arguments)] // each is one fact about the arc; a struct would only rename them
+/// Build arc data from an in-plane centre, checking that the radius is
+/// not zero and that the start and end lie on one circle as far as
+/// [`arc_radii_accepted`] asks. A Turbo PMAC runs any I/J/K arc whose end is
+/// off the circle as a spiral (the radius changes evenly over the move),
+/// and so does the model's arc ([`crate::geometry::arc::ArcFrame`] blends
+/// the radii): a program printed with 2 or 3 decimals, whose rounded centre
+/// misses the rounded end by a micrometre or more, is read as the controller
+/// runs it. A larger miss is a wrong centre, the usual writer bug, and an
+/// error naming the line.
 pub(crate) fn make_arc(
     start: &P3,
     end: &P3,
@@ -325,7 +331,6 @@ pub(crate) fn make_arc(
     ccw: bool,
     plane: Plane,
     extra_turns: u32,
-    tol: f64,
     lineno: u64,
 ) -> Result<ArcData, GcodeError> {
     let s = plane.project(start);
@@ -338,7 +343,7 @@ pub(crate) fn make_arc(
             "arc of zero radius (the centre is on its start or end point)",
         ));
     }
-    if (r0 - r1).abs() > tol {
+    if !arc_radii_accepted(r0, r1) {
         return Err(GcodeError::at(
             lineno,
             format!(

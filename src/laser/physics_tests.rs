@@ -588,3 +588,84 @@ fn corpus_drawings_obey_the_machine_on_every_side() {
     assert!(planar_drawings >= 20, "{planar_drawings} planar drawings");
     crate::corpus::record("corpus_drawings_obey_the_machine_on_every_side", cases);
 }
+
+/// The corpus drawings planned for 3 decimals (`pathgen contour --gcode
+/// pmac --decimals 3`), written as PMAC programs and read back as gsim,
+/// pmac-send and the emulator read them: every program reads (a small arc's
+/// rounded centre can miss its rounded end by a micrometre or more, which
+/// the controller runs as a spiral and the reader must accept), and no
+/// block of what was read is stretched.
+#[test]
+fn corpus_programs_at_three_decimals_read_back_unstretched() {
+    use crate::dxf::{ImportOptions, chain, import};
+    use crate::gcode::writer::{WriteOptions, write_string};
+    use crate::gcode::{Dialect, ReadOptions, read_str};
+    use crate::model::toolpath::FeedUnit;
+    let files = crate::corpus::files("dxf", &[".dxf"]);
+    if files.is_empty() {
+        crate::corpus::skip("corpus_programs_at_three_decimals_read_back_unstretched");
+        return;
+    }
+    let m = LaserSetup {
+        decimals: 3,
+        ..Default::default()
+    };
+    let mut wopts = WriteOptions::for_dialect(Dialect::Pmac);
+    wopts.decimals = 3;
+    let ropts = ReadOptions {
+        dialect: Some(Dialect::Pmac),
+        ..Default::default()
+    };
+    let (mut cases, mut arcs) = (0, 0);
+    let mut failures: Vec<String> = Vec::new();
+    for path in &files {
+        let name = path.file_name().unwrap().to_string_lossy().into_owned();
+        let f = std::fs::File::open(path).unwrap();
+        let Ok(mut imp) = import(Box::new(std::io::BufReader::new(f)), &ImportOptions::default()) else {
+            continue;
+        };
+        let segs = std::mem::take(&mut imp.sink.segments);
+        let (built, _) = chain::build(segs, &imp.sink.points, &imp.sink.layers, 0.001);
+        let chains: Vec<Chain> = built.iter().collect();
+        if chains.is_empty() {
+            continue;
+        }
+        for side in [Side::On, Side::Outside] {
+            let o = ContourOptions {
+                side,
+                distance: 0.005,
+                ..Default::default()
+            };
+            let job = contour(&chains, &m, &o);
+            let text = match write_string(wopts.clone(), FeedUnit::MmPerS, &job.records) {
+                Ok(t) => t,
+                Err(e) => {
+                    failures.push(format!("{name} {side:?}: not written: {e}"));
+                    continue;
+                }
+            };
+            match read_str(&text, &ropts) {
+                Ok((_, records)) => {
+                    arcs += records
+                        .iter()
+                        .filter(|r| matches!(r, Record::Move(mv) if matches!(mv.kind, MotionKind::Arc(_))))
+                        .count();
+                    let a = audit(&records, &m, P3::origin());
+                    if a.stretched_moves != 0 {
+                        failures.push(format!("{name} {side:?}: {} stretched blocks", a.stretched_moves));
+                    }
+                }
+                Err(e) => failures.push(format!("{name} {side:?}: read back: {e}")),
+            }
+            cases += 1;
+        }
+    }
+    assert!(
+        failures.is_empty(),
+        "{} failures:\n{}",
+        failures.len(),
+        failures.join("\n")
+    );
+    assert!(arcs > 10_000, "{arcs} arcs read back");
+    crate::corpus::record("corpus_programs_at_three_decimals_read_back_unstretched", cases);
+}

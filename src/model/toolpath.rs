@@ -9,13 +9,14 @@ use crate::geometry::{Arc3, P3, Plane, Segment, V3};
 use serde::{Deserialize, Serialize};
 
 /// How far (mm) an arc's end may be off the circle through its start, on
-/// top of [`ARC_END_REL_TOL`] of the radius. Every reader of arcs (G-code
-/// of both dialects, toolpath JSON Lines) uses this one figure, so a program
-/// one tool accepts is accepted by the next. LinuxCNC accepts about 0.002
-/// inch (0.05 mm); micro parts need far tighter. Programs printed with 4
-/// decimals round by at most about 1.4e-4 mm, well inside this, while a
-/// wrong centre (the usual writer bug) is far outside; the miss is named in
-/// the error.
+/// top of [`ARC_END_REL_TOL`] of the radius, for an arc kept as a circle.
+/// Programs printed with 4 decimals round by at most about 1.4e-4 mm, well
+/// inside this. The readers of arcs (G-code of both dialects, toolpath JSON
+/// Lines) also accept a larger miss within LinuxCNC's rule for I/J/K arcs
+/// (about 0.002 inch), as the spiral a controller makes of it
+/// ([`crate::gcode::arc_radii_accepted`]), so a program one tool accepts is
+/// accepted by the next; a wrong centre (the usual writer bug) is far
+/// outside, and the miss is named in the error.
 pub const ARC_END_TOL_MM: f64 = 1e-3;
 /// Relative part of the arc end tolerance, for large radii.
 pub const ARC_END_REL_TOL: f64 = 1e-5;

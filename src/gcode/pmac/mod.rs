@@ -53,9 +53,13 @@
 //!
 //! Flow control (`IF`, `WHILE`, `GOTO`, `GOSUB`, `CALL`), `TM` move times,
 //! other axes (A B C U V W), tilted `NORMAL` planes, `CIRCLE` moves with
-//! neither I/J/K nor R, `R` full circles, unknown words, and arcs whose end is
-//! not on the circle are errors naming the line: a reader that guessed would
-//! hand the simulator a toolpath the controller never runs.
+//! neither I/J/K nor R, `R` full circles and unknown words are errors naming
+//! the line: a reader that guessed would hand the simulator a toolpath the
+//! controller never runs. An arc whose end is off its circle is read as the
+//! spiral the controller makes of it when the miss is within LinuxCNC's
+//! rule for I/J/K arcs (rounding: a program printed with 3 decimals misses
+//! by a micrometre or more on small arcs), and is an error beyond it (a
+//! wrong centre).
 //!
 //! Parsing is a hand-written byte scanner with no allocation per line (a
 //! [`Record::Var`] name is the only `String` made), bounded recursion in

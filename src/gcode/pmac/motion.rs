@@ -3,9 +3,10 @@
 //! centre or radius, shutter switch.
 
 use super::{GcodeError, PmacInterpreter, make_arc};
+use crate::gcode::arc_radii_accepted;
 use crate::geometry::planar::center_from_radius;
 use crate::geometry::{Arc3, EPS_LEN, P2, P3};
-use crate::model::toolpath::{ArcData, Motion, MotionKind, Record, arc_end_tolerance};
+use crate::model::toolpath::{ArcData, Motion, MotionKind, Record};
 use std::collections::VecDeque;
 
 /// The modal move mode.
@@ -243,8 +244,9 @@ impl PmacInterpreter {
                     Some(c) => c,
                     // A half circle written with rounded end points can have
                     // a chord a little longer than the diameter: within the
-                    // arc tolerance its centre is the chord's midpoint.
-                    None if (e - s).norm() / 2.0 - r.abs() <= arc_end_tolerance(r) && r != 0.0 => {
+                    // tolerance of an I/J/K arc's radii its centre is the
+                    // chord's midpoint.
+                    None if r != 0.0 && arc_radii_accepted(r.abs(), (e - s).norm() / 2.0) => {
                         P2::from((s.coords + e.coords) / 2.0)
                     }
                     None => {
@@ -275,7 +277,6 @@ impl PmacInterpreter {
                 ));
             }
         };
-        let tol = arc_end_tolerance((s - center).norm());
-        make_arc(&self.pos, to, center, ccw, plane, 0, tol, lineno)
+        make_arc(&self.pos, to, center, ccw, plane, 0, lineno)
     }
 }

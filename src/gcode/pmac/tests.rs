@@ -170,6 +170,38 @@ fn arc_off_its_circle_is_an_error_on_its_line() {
 }
 
 #[test]
+fn arc_rounded_to_few_decimals_runs_as_the_controller_spirals_it() {
+    // A 0.2 mm arc printed with 3 decimals (what `pathgen contour
+    // --decimals 3` makes of seahorse.dxf's small arcs): the rounded centre
+    // lies 0.2 mm from the start and 0.2013 mm from the end. A Turbo PMAC
+    // changes the radius evenly over such a move; the model's arc does the
+    // same, ending exactly on the programmed end point.
+    let recs = read("LINEAR X0.2 Y0 F1\nCIRCLE2 X0 Y0.2013 I-0.2 J0\n");
+    let m = moves(&recs);
+    let a = arc(m[1]);
+    assert_pt(&a.center, &p(0.0, 0.0, 0.0));
+    assert_pt(&m[1].to, &p(0.0, 0.2013, 0.0));
+    let geo = a.arc(m[0].to, m[1].to).expect("a spiral arc");
+    let mid = geo.point_at(0.5);
+    let r_mid = (mid.x * mid.x + mid.y * mid.y).sqrt();
+    assert!(
+        (r_mid - 0.20065).abs() < 1e-6,
+        "radius halfway is the mean, got {r_mid}"
+    );
+    assert_pt(&geo.point_at(1.0), &p(0.0, 0.2013, 0.0));
+    // Two decimals: 10 um off on a 1 mm arc still reads.
+    assert_eq!(moves(&read("LINEAR X1 Y0 F1\nCIRCLE2 X0 Y1.01 I-1 J0\n")).len(), 2);
+}
+
+#[test]
+fn an_arc_that_misses_by_more_than_rounding_is_refused() {
+    // 0.1 mm off on a 1 mm radius: a wrong centre, not rounding.
+    let (line, msg) = read_err("LINEAR X1 Y0 F1\nCIRCLE2 X0 Y1.1 I-1 J0\n");
+    assert_eq!(line, 2);
+    assert!(msg.contains("not on the circle"), "{msg}");
+}
+
+#[test]
 fn move_modes_are_modal_and_map_to_the_model() {
     let recs = read("RAPID X1 Y1\nX2\nLINEAR X3 F4\nY5\nCIRCLE1 X4 Y6 I1\nX5 Y5 I1 J0\nCIRCLE2 X7 Y5 R1\n");
     let m = moves(&recs);
