@@ -32,6 +32,7 @@ pub struct Audit {
     pub corners_at_speed: usize,
     /// Largest centripetal demand V²/r (mm/s²) on moves that are not cuts
     /// (loops, leads); cuts follow the drawing and are reported separately.
+    /// In G-code, which carries no roles, the beam-on moves are the cuts.
     pub max_accel_off_cut: f64,
     /// Largest demand on cut moves (the drawing's own tightest arc).
     pub max_accel_cut: f64,
@@ -57,8 +58,9 @@ pub struct Audit {
 impl Audit {
     /// Whether the toolpath keeps every promise of the laser flow on
     /// machine `m`, with lengths compared at `precision` mm (the printing
-    /// precision of the program): feed at V, no corner at speed, no beam-on
-    /// rapid, no arc tighter than V²/a, no stretched block, the stage at V
+    /// precision of the program): feed at V, no corner at speed (counted by
+    /// [`audit_at`] with the same precision), no beam-on rapid, no arc
+    /// tighter than V²/a, no stretched block, the stage at V
     /// from before the shutter opens until after it closes, and (when cut
     /// runs are marked: G-code carries no roles) the exposure on the cuts.
     pub fn passes(&self, m: &LaserSetup, precision: f64) -> bool {
@@ -67,7 +69,9 @@ impl Audit {
         self.off_feed_moves == 0
             && self.corners_at_speed == 0
             && self.beam_on_rapids == 0
-            && r_min >= m.min_radius() - precision
+            // A radius is the distance between two printed points (the
+            // centre and an end), each off by up to `precision`.
+            && r_min >= m.min_radius() - 2.0 * precision
             && self.stretched_moves == 0
             && self.min_run_after_close >= -precision
             && self.min_run_before_open >= m.accel_distance() - precision
@@ -166,8 +170,31 @@ pub fn feed_elem(pos: P3, mv: &Motion) -> Option<Segment> {
     }
 }
 
-/// Audit `records` (starting at `start`) against `m`.
+/// Audit `records` (starting at `start`) against `m`, taking every
+/// coordinate as exact (a toolpath from the planner).
 pub fn audit(records: &[Record], m: &LaserSetup, start: P3) -> Audit {
+    audit_at(records, m, start, 0.0)
+}
+
+/// How far (radians) an element's end directions may turn when its points
+/// move by up to `precision` mm: a line's by the angle whose sine is twice
+/// that over its length, an arc's by that over its radius (its centre and
+/// ends each rounded).
+fn direction_slack(e: &Segment, precision: f64) -> f64 {
+    if precision <= 0.0 {
+        return 0.0;
+    }
+    let ext = e.radius().map_or(e.length(), |r| r.min(e.length()));
+    (2.0 * precision / ext).min(1.0).asin()
+}
+
+/// [`audit`] of a program printed to `precision` mm (G-code read back):
+/// a joint counts as a corner only when its direction jumps by more than
+/// the tangency tolerance plus what rounding the points of the two
+/// elements by `precision` can turn them. A 4-decimal program of a
+/// drawing with pieces of a few micrometres otherwise shows hundreds of
+/// "corners" of a degree that the exact toolpath does not have.
+pub fn audit_at(records: &[Record], m: &LaserSetup, start: P3, precision: f64) -> Audit {
     let mut a = Audit {
         min_run_before_open: f64::INFINITY,
         min_run_after_close: f64::INFINITY,
@@ -176,10 +203,12 @@ pub fn audit(records: &[Record], m: &LaserSetup, start: P3) -> Audit {
     let v = m.feed;
     let pmac = m.controller == Controller::Pmac;
     let cos_tol = m.tangent_cos();
+    let tol_rad = m.tangent_tol_deg.to_radians();
     let mut ta = PmacTa::new(m);
     let mut pos = start;
     let mut s = 0.0; // path length since the last stop
-    let mut prev_dir: Option<crate::geometry::V3> = None;
+    // The end direction of the previous feed move and its rounding slack.
+    let mut prev_dir: Option<(crate::geometry::V3, f64)> = None;
     let mut blended = false; // a feed move precedes without a stop
     let mut acc_last = 0.0; // acceleration time of the last feed move (s)
     let mut beam = false;
@@ -230,18 +259,25 @@ pub fn audit(records: &[Record], m: &LaserSetup, start: P3) -> Audit {
         if mv.feed.is_none_or(|f| (f - v).abs() > 1e-9 * v) {
             a.off_feed_moves += 1;
         }
-        if let Some(pd) = prev_dir
-            && pd.dot(&elem.start_tangent()) < cos_tol
-        {
-            a.corners_at_speed += 1;
+        // A move of no length has no direction: the joint is between the
+        // moves on either side of it.
+        let len = elem.length();
+        let slack = direction_slack(&elem, precision);
+        if let Some((pd, pslack)) = prev_dir.filter(|_| len > 0.0) {
+            let dot = pd.dot(&elem.start_tangent());
+            if dot < cos_tol && dot.clamp(-1.0, 1.0).acos() > tol_rad + pslack + slack {
+                a.corners_at_speed += 1;
+            }
         }
         let demand = v * v / elem.curvature_radius();
-        if mv.role == Some(Role::Cut) {
+        // Without roles (G-code) a beam-on move is a cut: it follows the
+        // drawing's own radii at V, as every cut does; loops and leads run
+        // with the beam off.
+        if mv.role == Some(Role::Cut) || (mv.role.is_none() && mv.beam) {
             a.max_accel_cut = a.max_accel_cut.max(demand);
         } else {
             a.max_accel_off_cut = a.max_accel_off_cut.max(demand);
         }
-        let len = elem.length();
         let acc = if pmac { ta.accel_s() } else { m.ramp_time_s() };
         if pmac && ta.stretches(len, v) {
             a.stretched_moves += 1;
@@ -275,7 +311,9 @@ pub fn audit(records: &[Record], m: &LaserSetup, start: P3) -> Audit {
         s += len;
         g += len;
         pos = mv.to;
-        prev_dir = Some(elem.end_tangent());
+        if len > 0.0 {
+            prev_dir = Some((elem.end_tangent(), slack));
+        }
         blended = true;
         acc_last = acc;
     }
@@ -375,5 +413,75 @@ mod tests {
         let a = audit(&recs, &l, P3::origin());
         assert_eq!(a.stretched_moves, 0);
         assert!((a.min_run_before_open - 0.3).abs() < 1e-12);
+    }
+
+    #[test]
+    fn a_direction_jump_that_rounding_explains_is_no_corner_at_that_precision() {
+        let m = LaserSetup::default();
+        // Two 5 µm pieces meeting at 1.15°: 0.1 µm across the second, what
+        // rounding a 4-decimal program's points by 5e-5 mm can do.
+        let jitter = vec![
+            line(P3::new(1.0, 0.0, 0.0), false),
+            line(P3::new(1.005, 0.0, 0.0), false),
+            line(P3::new(1.010, 0.0001, 0.0), false),
+        ];
+        assert_eq!(audit(&jitter, &m, P3::origin()).corners_at_speed, 1, "exact: a corner");
+        assert_eq!(audit_at(&jitter, &m, P3::origin(), 1e-4).corners_at_speed, 0);
+        // A 10° turn between millimetre lines is a corner at any precision
+        // a program is printed with.
+        let bend = vec![
+            line(P3::new(1.0, 0.0, 0.0), false),
+            line(P3::new(2.0, 10f64.to_radians().tan(), 0.0), false),
+        ];
+        assert_eq!(audit_at(&bend, &m, P3::origin(), 1e-3).corners_at_speed, 1);
+        // A move of no length between two lines: one joint, the turn
+        // between the lines, whatever the precision.
+        let through_nothing = vec![
+            line(P3::new(1.0, 0.0, 0.0), false),
+            line(P3::new(1.0, 0.0, 0.0), false),
+            line(P3::new(1.0, 1.0, 0.0), false),
+        ];
+        for p in [0.0, 1e-4] {
+            assert_eq!(
+                audit_at(&through_nothing, &m, P3::origin(), p).corners_at_speed,
+                1,
+                "{p}"
+            );
+        }
+        let straight_on = vec![
+            line(P3::new(1.0, 0.0, 0.0), false),
+            line(P3::new(1.0, 0.0, 0.0), false),
+            line(P3::new(2.0, 0.0, 0.0), false),
+        ];
+        assert_eq!(audit(&straight_on, &m, P3::origin()).corners_at_speed, 0);
+    }
+
+    #[test]
+    fn without_roles_beam_on_moves_are_the_cuts() {
+        let m = LaserSetup::default();
+        // A 0.05 mm arc at 2 mm/s asks 80 mm/s²: allowed on a cut (the
+        // drawing's own radius), not on a loop.
+        let arc = |beam: bool| {
+            Record::Move(Motion {
+                kind: MotionKind::Arc(crate::model::toolpath::ArcData {
+                    center: P3::new(1.0, 0.05, 0.0),
+                    ccw: true,
+                    plane: crate::geometry::Plane::Xy,
+                    extra_turns: 0,
+                }),
+                to: P3::new(1.0, 0.1, 0.0),
+                ..match line(P3::origin(), beam) {
+                    Record::Move(mv) => mv,
+                    _ => unreachable!(),
+                }
+            })
+        };
+        for beam in [true, false] {
+            let recs = vec![line(P3::new(1.0, 0.0, 0.0), beam), arc(beam)];
+            let a = audit(&recs, &m, P3::origin());
+            let (cut, off) = if beam { (80.0, 0.0) } else { (0.0, 80.0) };
+            assert!((a.max_accel_cut - cut).abs() < 1e-9, "beam {beam}: {a:?}");
+            assert!((a.max_accel_off_cut - off).abs() < 1e-9, "beam {beam}: {a:?}");
+        }
     }
 }

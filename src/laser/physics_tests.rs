@@ -589,34 +589,32 @@ fn corpus_drawings_obey_the_machine_on_every_side() {
     crate::corpus::record("corpus_drawings_obey_the_machine_on_every_side", cases);
 }
 
-/// The corpus drawings planned for 3 decimals (`pathgen contour --gcode
-/// pmac --decimals 3`), written as PMAC programs and read back as gsim,
-/// pmac-send and the emulator read them: every program reads (a small arc's
-/// rounded centre can miss its rounded end by a micrometre or more, which
-/// the controller runs as a spiral and the reader must accept), and no
-/// block of what was read is stretched.
+/// The corpus drawings planned for 4 and for 3 decimals (`pathgen contour
+/// --gcode pmac --decimals N`), written as PMAC programs and read back as
+/// gsim, pmac-send and the emulator read them: every program reads (at 3
+/// decimals a small arc's rounded centre can miss its rounded end by a
+/// micrometre or more, which the controller runs as a spiral and the reader
+/// must accept), no block of what was read is stretched, and on the planar
+/// drawings the program passes `pathgen audit` at the printing precision
+/// (direction jumps that rounding explains are no corners; without roles
+/// the beam-on moves are the cuts).
 #[test]
-fn corpus_programs_at_three_decimals_read_back_unstretched() {
+fn corpus_programs_read_back_unstretched_and_pass_the_audit() {
+    use super::audit::audit_at;
     use crate::dxf::{ImportOptions, chain, import};
     use crate::gcode::writer::{WriteOptions, write_string};
     use crate::gcode::{Dialect, ReadOptions, read_str};
     use crate::model::toolpath::FeedUnit;
     let files = crate::corpus::files("dxf", &[".dxf"]);
     if files.is_empty() {
-        crate::corpus::skip("corpus_programs_at_three_decimals_read_back_unstretched");
+        crate::corpus::skip("corpus_programs_read_back_unstretched_and_pass_the_audit");
         return;
     }
-    let m = LaserSetup {
-        decimals: 3,
-        ..Default::default()
-    };
-    let mut wopts = WriteOptions::for_dialect(Dialect::Pmac);
-    wopts.decimals = 3;
     let ropts = ReadOptions {
         dialect: Some(Dialect::Pmac),
         ..Default::default()
     };
-    let (mut cases, mut arcs) = (0, 0);
+    let (mut cases, mut arcs, mut audited) = (0, 0, 0);
     let mut failures: Vec<String> = Vec::new();
     for path in &files {
         let name = path.file_name().unwrap().to_string_lossy().into_owned();
@@ -630,34 +628,53 @@ fn corpus_programs_at_three_decimals_read_back_unstretched() {
         if chains.is_empty() {
             continue;
         }
-        for side in [Side::On, Side::Outside] {
-            let o = ContourOptions {
-                side,
-                distance: 0.005,
+        // Chains in 3-D get no corner loops out of the XY plane (see
+        // corpus_drawings_obey_the_machine_on_every_side).
+        let planar = chains.iter().all(|c| {
+            let z = c.segments.first().map_or(0.0, |s| s.start().z);
+            c.segments.iter().all(|s| s.start().z == z && s.end().z == z)
+        });
+        for (decimals, precision) in [(4u8, 1e-4), (3, 1e-3)] {
+            let m = LaserSetup {
+                decimals,
                 ..Default::default()
             };
-            let job = contour(&chains, &m, &o);
-            let text = match write_string(wopts.clone(), FeedUnit::MmPerS, &job.records) {
-                Ok(t) => t,
-                Err(e) => {
-                    failures.push(format!("{name} {side:?}: not written: {e}"));
-                    continue;
-                }
-            };
-            match read_str(&text, &ropts) {
-                Ok((_, records)) => {
-                    arcs += records
-                        .iter()
-                        .filter(|r| matches!(r, Record::Move(mv) if matches!(mv.kind, MotionKind::Arc(_))))
-                        .count();
-                    let a = audit(&records, &m, P3::origin());
-                    if a.stretched_moves != 0 {
-                        failures.push(format!("{name} {side:?}: {} stretched blocks", a.stretched_moves));
+            let mut wopts = WriteOptions::for_dialect(Dialect::Pmac);
+            wopts.decimals = decimals;
+            for side in [Side::On, Side::Outside, Side::Inside] {
+                let o = ContourOptions {
+                    side,
+                    distance: 0.005,
+                    ..Default::default()
+                };
+                let job = contour(&chains, &m, &o);
+                let case = format!("{name} {side:?} {decimals} decimals");
+                let text = match write_string(wopts.clone(), FeedUnit::MmPerS, &job.records) {
+                    Ok(t) => t,
+                    Err(e) => {
+                        failures.push(format!("{case}: not written: {e}"));
+                        continue;
                     }
+                };
+                match read_str(&text, &ropts) {
+                    Ok((_, records)) => {
+                        arcs += records
+                            .iter()
+                            .filter(|r| matches!(r, Record::Move(mv) if matches!(mv.kind, MotionKind::Arc(_))))
+                            .count();
+                        let a = audit_at(&records, &m, P3::origin(), precision);
+                        if a.stretched_moves != 0 {
+                            failures.push(format!("{case}: {} stretched blocks", a.stretched_moves));
+                        }
+                        if planar && !a.passes(&m, precision) {
+                            failures.push(format!("{case}: audit fails: {}", a.report_json(&m, precision)));
+                        }
+                        audited += usize::from(planar);
+                    }
+                    Err(e) => failures.push(format!("{case}: read back: {e}")),
                 }
-                Err(e) => failures.push(format!("{name} {side:?}: read back: {e}")),
+                cases += 1;
             }
-            cases += 1;
         }
     }
     assert!(
@@ -667,5 +684,6 @@ fn corpus_programs_at_three_decimals_read_back_unstretched() {
         failures.join("\n")
     );
     assert!(arcs > 10_000, "{arcs} arcs read back");
-    crate::corpus::record("corpus_programs_at_three_decimals_read_back_unstretched", cases);
+    assert!(audited >= 120, "{audited} programs audited");
+    crate::corpus::record("corpus_programs_read_back_unstretched_and_pass_the_audit", cases);
 }

@@ -7,14 +7,15 @@ use microcam::gcode::ReadOptions;
 use microcam::geometry::P3;
 use microcam::model::toolpath::{FeedUnit, Record};
 use microcam::progress;
-use microcam::source::ToolpathSource;
+use microcam::source::{SourceKind, ToolpathSource};
 use std::path::PathBuf;
 
 pub(crate) const AUDIT_EXAMPLES: &str = "\
 Examples:
   pathgen contour part.chains | pathgen audit                toolpath straight from the planner
   pathgen audit --machine laser-stage part.pmc               a PMAC program (4 decimals)
-  pathgen audit --precision 1e-9 part.jsonl | jq .ok
+  pathgen audit --precision 1e-3 part.pmc                    a program printed with 3 decimals
+  pathgen audit part.jsonl | jq .ok
 
 Input: microcam.toolpath/1 or G-code of either dialect ('-' or no FILE:
 stdin), checked against --machine and the stage flags: feed moves at V,
@@ -27,10 +28,12 @@ report says which) or a failure, 2 bad usage or bad input.";
 pub(crate) struct AuditArgs {
     /// Toolpath or G-code to check ('-' for stdin).
     file: Option<PathBuf>,
-    /// Printing precision of the input (mm): radii and switch points may be
-    /// off by this much (1e-4 for 4-decimal G-code, 1e-9 for toolpaths).
-    #[arg(long, default_value_t = 1e-4)]
-    precision: f64,
+    /// Printing precision of the input (mm): how far its points may be off,
+    /// so radii, switch points and the directions of short moves are
+    /// compared within it [default: 1e-4 for G-code (4 decimals; give 1e-3
+    /// for 3), 1e-9 for toolpaths]
+    #[arg(long)]
+    precision: Option<f64>,
     #[command(flatten)]
     machine: MachineArgs,
     /// No progress bar on stderr (warnings and errors still appear).
@@ -40,13 +43,16 @@ pub(crate) struct AuditArgs {
 
 pub(crate) fn audit_cmd(a: AuditArgs) -> Result<(), CliError> {
     let m = a.machine.machine(None)?;
-    positive("precision", a.precision)?;
+    if let Some(p) = a.precision {
+        positive("precision", p)?;
+    }
     let input = cli::open_input(a.file.as_deref())?;
     // Reading is most of an audit; a stream of unknown length: the display
     // counts records.
     let meter = meter("audit: records", 0, a.quiet);
     let source = ToolpathSource::open(input, &ReadOptions::default())?;
     let unit = source.header.feed_unit;
+    let kind = source.kind;
     let mut records = Vec::new();
     for r in source {
         progress::advance(1);
@@ -57,10 +63,14 @@ pub(crate) fn audit_cmd(a: AuditArgs) -> Result<(), CliError> {
         }
         records.push(r);
     }
-    let au = microcam::laser::audit::audit(&records, &m, P3::origin());
+    let precision = a.precision.unwrap_or(match kind {
+        SourceKind::Gcode(_) => 1e-4,
+        SourceKind::Toolpath => 1e-9,
+    });
+    let au = microcam::laser::audit::audit_at(&records, &m, P3::origin(), precision);
     meter.finish();
-    println!("{}", au.report_json(&m, a.precision));
-    let ok = au.passes(&m, a.precision);
+    println!("{}", au.report_json(&m, precision));
+    let ok = au.passes(&m, precision);
     if ok {
         Ok(())
     } else {
