@@ -67,15 +67,19 @@ impl Nodes {
         }
     }
 
+    /// The cell coordinate of `v` (mm) on either axis.
+    #[inline]
+    fn cell_of(&self, v: f64) -> i64 {
+        (v / self.cell).floor() as i64
+    }
+
     /// The cells the square of the tolerance around `p` touches, as
     /// inclusive ranges: at most 2 x 2 (the cell is wider than twice the
     /// reach); far out, where the casts saturate, the range is clamped.
     #[inline]
     fn window(&self, p: &P3) -> (i64, i64, i64, i64) {
-        let c = self.cell;
-        let cell = |v: f64| (v / c).floor() as i64;
-        let (x0, x1) = (cell(p.x - self.reach), cell(p.x + self.reach));
-        let (y0, y1) = (cell(p.y - self.reach), cell(p.y + self.reach));
+        let (x0, x1) = (self.cell_of(p.x - self.reach), self.cell_of(p.x + self.reach));
+        let (y0, y1) = (self.cell_of(p.y - self.reach), self.cell_of(p.y + self.reach));
         (x0, x1.min(x0.saturating_add(1)), y0, y1.min(y0.saturating_add(1)))
     }
 
@@ -128,8 +132,8 @@ impl Nodes {
                 let id = self.reps.len() as u32;
                 self.reps.push(*p);
                 self.gaps.push(0.0);
-                let cell = |v: f64| (v / self.cell).floor() as i64;
-                let head = self.grid.head_mut(ckey(cell(p.x), cell(p.y)));
+                let key = ckey(self.cell_of(p.x), self.cell_of(p.y));
+                let head = self.grid.head_mut(key);
                 self.next.push(*head);
                 *head = id;
                 id
