@@ -479,25 +479,18 @@ fn depth_brute(
     Some(depth)
 }
 
-/// The corpus drawings (as dxf2chains makes them), planned on every side
-/// with the default machine and a 5 µm offset: the physics hold, no block
-/// is stretched, every chain is cut exactly as [`cut_paths`] says, and a
-/// hole (a chain inside an odd number of others) is offset to the other
-/// side: an outside cut encloses more than the part's contour and less
-/// than a hole, an inside cut the reverse.
-#[test]
-fn corpus_drawings_obey_the_machine_on_every_side() {
+/// The corpus drawings as dxf2chains makes them (joined within 0.001 mm):
+/// each one's file name, its chains, and whether it is planar (every
+/// chain at one Z: chains in 3-D get no corner loops out of the XY plane,
+/// so the physics hold on planar drawings only). Drawings that do not
+/// import or give no chain are left out; `None` without the corpus.
+fn corpus_drawings() -> Option<Vec<(String, Vec<Chain>, bool)>> {
     use crate::dxf::{ImportOptions, chain, import};
     let files = crate::corpus::files("dxf", &[".dxf"]);
     if files.is_empty() {
-        crate::corpus::skip("corpus_drawings_obey_the_machine_on_every_side");
-        return;
+        return None;
     }
-    let m = LaserSetup::default();
-    let mut cases = 0;
-    let mut failures: Vec<String> = Vec::new();
-    let mut holes = 0;
-    let mut planar_drawings = 0;
+    let mut out = Vec::new();
     for path in &files {
         let name = path.file_name().unwrap().to_string_lossy().into_owned();
         let f = std::fs::File::open(path).unwrap();
@@ -510,6 +503,34 @@ fn corpus_drawings_obey_the_machine_on_every_side() {
         if chains.is_empty() {
             continue;
         }
+        let planar = chains.iter().all(|c| {
+            let z = c.segments.first().map_or(0.0, |s| s.start().z);
+            c.segments.iter().all(|s| s.start().z == z && s.end().z == z)
+        });
+        out.push((name, chains, planar));
+    }
+    Some(out)
+}
+
+/// The corpus drawings (as dxf2chains makes them), planned on every side
+/// with the default machine and a 5 µm offset: the physics hold, no block
+/// is stretched, every chain is cut exactly as [`cut_paths`] says, and a
+/// hole (a chain inside an odd number of others) is offset to the other
+/// side: an outside cut encloses more than the part's contour and less
+/// than a hole, an inside cut the reverse.
+#[test]
+fn corpus_drawings_obey_the_machine_on_every_side() {
+    let Some(drawings) = corpus_drawings() else {
+        crate::corpus::skip("corpus_drawings_obey_the_machine_on_every_side");
+        return;
+    };
+    let m = LaserSetup::default();
+    let mut cases = 0;
+    let mut failures: Vec<String> = Vec::new();
+    let mut holes = 0;
+    let mut planar_drawings = 0;
+    for (name, chains, planar) in &drawings {
+        let (chains, planar) = (chains.as_slice(), *planar);
         let plines: Vec<_> = chains
             .iter()
             .map(|c| c.closed.then(|| super::offset::to_polyline(c)))
@@ -523,12 +544,6 @@ fn corpus_drawings_obey_the_machine_on_every_side() {
                 p.as_ref().is_some_and(|p| p.scan_for_self_intersect())
             })
             .collect();
-        // Chains in 3-D (z varying along them) get no corner loops out of
-        // the XY plane: the physics are checked on planar drawings only.
-        let planar = chains.iter().all(|c| {
-            let z = c.segments.first().map_or(0.0, |s| s.start().z);
-            c.segments.iter().all(|s| s.start().z == z && s.end().z == z)
-        });
         planar_drawings += usize::from(planar);
         for side in [Side::On, Side::Outside, Side::Inside] {
             let o = ContourOptions {
@@ -601,39 +616,21 @@ fn corpus_drawings_obey_the_machine_on_every_side() {
 #[test]
 fn corpus_programs_read_back_unstretched_and_pass_the_audit() {
     use super::audit::audit_at;
-    use crate::dxf::{ImportOptions, chain, import};
     use crate::gcode::writer::{WriteOptions, write_string};
     use crate::gcode::{Dialect, ReadOptions, read_str};
     use crate::model::toolpath::FeedUnit;
-    let files = crate::corpus::files("dxf", &[".dxf"]);
-    if files.is_empty() {
+    let Some(drawings) = corpus_drawings() else {
         crate::corpus::skip("corpus_programs_read_back_unstretched_and_pass_the_audit");
         return;
-    }
+    };
     let ropts = ReadOptions {
         dialect: Some(Dialect::Pmac),
         ..Default::default()
     };
     let (mut cases, mut arcs, mut audited) = (0, 0, 0);
     let mut failures: Vec<String> = Vec::new();
-    for path in &files {
-        let name = path.file_name().unwrap().to_string_lossy().into_owned();
-        let f = std::fs::File::open(path).unwrap();
-        let Ok(mut imp) = import(Box::new(std::io::BufReader::new(f)), &ImportOptions::default()) else {
-            continue;
-        };
-        let segs = std::mem::take(&mut imp.sink.segments);
-        let (built, _) = chain::build(segs, &imp.sink.points, &imp.sink.layers, 0.001);
-        let chains: Vec<Chain> = built.iter().collect();
-        if chains.is_empty() {
-            continue;
-        }
-        // Chains in 3-D get no corner loops out of the XY plane (see
-        // corpus_drawings_obey_the_machine_on_every_side).
-        let planar = chains.iter().all(|c| {
-            let z = c.segments.first().map_or(0.0, |s| s.start().z);
-            c.segments.iter().all(|s| s.start().z == z && s.end().z == z)
-        });
+    for (name, chains, planar) in &drawings {
+        let planar = *planar;
         for (decimals, precision) in [(4u8, 1e-4), (3, 1e-3)] {
             let m = LaserSetup {
                 decimals,
