@@ -535,7 +535,7 @@ fn corpus_drawings_obey_the_machine_on_every_side() {
             .iter()
             .map(|c| c.closed.then(|| super::offset::to_polyline(c)))
             .collect();
-        let depth: Vec<Option<usize>> = (0..chains.len()).map(|i| depth_brute(&chains, &plines, i)).collect();
+        let depth: Vec<Option<usize>> = (0..chains.len()).map(|i| depth_brute(chains, &plines, i)).collect();
         // A chain crossing itself has no inside to offset from.
         let crosses: Vec<bool> = plines
             .iter()
@@ -551,7 +551,7 @@ fn corpus_drawings_obey_the_machine_on_every_side() {
                 distance: 0.005,
                 ..Default::default()
             };
-            let job = contour(&chains, &m, &o);
+            let job = contour(chains, &m, &o);
             let a = audit(&job.records, &m, P3::origin());
             let off = job.warnings.iter().any(|w| w.message.contains("shutter switch"));
             let physics = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
@@ -566,7 +566,7 @@ fn corpus_drawings_obey_the_machine_on_every_side() {
                     a.stretched_moves, job.cleanup.left, job.cleanup.max_dev
                 ));
             }
-            let paths = cut_paths(&chains, &m, &o);
+            let paths = cut_paths(chains, &m, &o);
             for (i, (c, (p, _))) in chains.iter().zip(&paths).enumerate() {
                 let want: f64 = p.iter().flatten().map(Segment::length).sum();
                 let got = a.cut_length.get(&c.id).copied().unwrap_or(0.0);
@@ -644,7 +644,7 @@ fn corpus_programs_read_back_unstretched_and_pass_the_audit() {
                     distance: 0.005,
                     ..Default::default()
                 };
-                let job = contour(&chains, &m, &o);
+                let job = contour(chains, &m, &o);
                 let case = format!("{name} {side:?} {decimals} decimals");
                 let text = match write_string(wopts.clone(), FeedUnit::MmPerS, &job.records) {
                     Ok(t) => t,
