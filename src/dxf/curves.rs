@@ -510,38 +510,41 @@ mod tests {
         assert_eq!(n.point(0.0), P3::new(0.0, 0.0, 0.0));
         assert_eq!(n.point(1.0), P3::new(4.0, 0.0, 0.0));
     }
-    /// The rational B-spline from its definition: the Cox-de Boor basis
-    /// functions summed over every control point, with no knot span
-    /// search and no recurrence in place (`u` inside the domain).
+    /// The rational B-spline from its definition: every basis function
+    /// raised from degree 0 by the Cox-de Boor recursion and summed over
+    /// every control point, with no knot span search and no recurrence
+    /// over control points (`u` inside the domain).
     fn nurbs_by_basis(n: &Nurbs, u: f64) -> P3 {
         let k = &n.knots;
-        let (lo, hi) = n.domain();
+        let hi = n.domain().1;
+        // Degree 0: the half-open spans, except that the domain's last
+        // non-empty span also holds its right end.
         let last = n.ctrl.len();
-        fn basis(k: &[f64], i: usize, p: usize, u: f64, hi: f64, last: usize) -> f64 {
-            if p == 0 {
-                // Half-open spans, except that the domain's last non-empty
-                // span also holds its right end.
+        let mut basis: Vec<f64> = (0..k.len() - 1)
+            .map(|i| {
                 let inside = k[i] <= u && u < k[i + 1];
                 let at_end = u == hi && k[i] < k[i + 1] && k[i + 1] == hi && i < last;
-                return if inside || at_end { 1.0 } else { 0.0 };
-            }
-            let mut b = 0.0;
-            let den = k[i + p] - k[i];
-            if den > 0.0 {
-                b += (u - k[i]) / den * basis(k, i, p - 1, u, hi, last);
-            }
-            let den = k[i + p + 1] - k[i + 1];
-            if den > 0.0 {
-                b += (k[i + p + 1] - u) / den * basis(k, i + 1, p - 1, u, hi, last);
-            }
-            b
+                if inside || at_end { 1.0 } else { 0.0 }
+            })
+            .collect();
+        for q in 1..=n.degree {
+            basis = (0..basis.len() - 1)
+                .map(|i| {
+                    let mut b = 0.0;
+                    if k[i + q] > k[i] {
+                        b += (u - k[i]) / (k[i + q] - k[i]) * basis[i];
+                    }
+                    if k[i + q + 1] > k[i + 1] {
+                        b += (k[i + q + 1] - u) / (k[i + q + 1] - k[i + 1]) * basis[i + 1];
+                    }
+                    b
+                })
+                .collect();
         }
-        assert!(lo <= u && u <= hi);
         let (mut sum, mut w) = (V3::zeros(), 0.0);
-        for (i, (c, &wi)) in n.ctrl.iter().zip(&n.weights).enumerate() {
-            let b = basis(k, i, n.degree, u, hi, last) * wi;
-            sum += c.coords * b;
-            w += b;
+        for ((c, &wi), &b) in n.ctrl.iter().zip(&n.weights).zip(&basis) {
+            sum += c.coords * (b * wi);
+            w += b * wi;
         }
         P3::from(sum / w)
     }
