@@ -322,6 +322,12 @@ impl Expander<'_> {
             sink.out_of_range(e.pos, &p);
             return;
         }
+        // The entity that takes the drawing past the bound is the one
+        // named, the last one in the file included (the check above only
+        // looks before each entity).
+        if sink.segments.len() > self.max_segments {
+            sink.overflow = true;
+        }
         if depth == 0 {
             *sink.used.entry(name).or_default() += 1;
         }
@@ -469,7 +475,13 @@ impl Expander<'_> {
 
     fn fit(&self, c: &dyn Curve, lid: u32, sink: &mut Sink) {
         let mut segs = Vec::new();
-        let st = fit_biarcs(c, self.arc_tol, &mut segs);
+        // One more piece than the bound leaves room for, so a curve that
+        // does not fit is seen to overrun it (and stops there).
+        let left = self.max_segments.saturating_sub(sink.segments.len()).saturating_add(1);
+        let st = fit_biarcs(c, self.arc_tol, left, &mut segs);
+        if st.over_budget {
+            sink.overflow = true;
+        }
         if st.truncated {
             sink.warn(format!(
                 "a curve needed more than {} fitting steps at --arc-tol {}: the rest of it drawn as chords (raise --arc-tol)",

@@ -417,6 +417,39 @@ mod tests {
         assert!(e.starts_with("line 55:") && e.contains("10000 segments"), "{e}");
     }
 
+    /// A cubic spline through a zigzag of `n` control points, the file's
+    /// last entity (its `0`/`SPLINE` on line 5).
+    fn zigzag_spline(n: usize) -> String {
+        let mut t = String::from("0\nSECTION\n2\nENTITIES\n0\nSPLINE\n71\n3\n");
+        for i in 0..n {
+            t += &format!("10\n{}\n20\n{}\n30\n0\n", i, (i % 2) as f64 * 3.0);
+        }
+        t + "0\nENDSEC\n0\nEOF\n"
+    }
+
+    #[test]
+    fn a_curve_past_the_bound_stops_its_fit_and_names_itself() {
+        let t = zigzag_spline(60);
+        let all = run(&t, &ImportOptions::default()).unwrap();
+        let pieces = all.sink.segments.len();
+        assert!(pieces > 200, "{pieces}");
+        // Within the bound: the same pieces, bound or not.
+        let o = ImportOptions {
+            max_segments: pieces,
+            ..Default::default()
+        };
+        assert_eq!(run(&t, &o).unwrap().sink.segments, all.sink.segments);
+        // One short: the spline, though the last entity, is named as the
+        // one that takes the drawing past the bound (the check used to run
+        // only before each entity, so the last one went through).
+        let o = ImportOptions {
+            max_segments: pieces - 1,
+            ..Default::default()
+        };
+        let e = run(&t, &o).unwrap_err().to_string();
+        assert!(e.starts_with("line 5:") && e.contains("past"), "{e}");
+    }
+
     #[test]
     fn truncated_block_and_empty_input() {
         let t = "0\nSECTION\n2\nBLOCKS\n0\nBLOCK\n2\nX\n0\nLINE\n10\n0\n";
