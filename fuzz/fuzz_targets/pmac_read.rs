@@ -7,7 +7,7 @@
 
 use libfuzzer_sys::fuzz_target;
 use microcam::pmac::controller::{Clock, Config, Emulator, Session};
-use microcam::pmac::upload_plan::{UploadPlan, Names};
+use microcam::pmac::upload_plan::{Names, UploadPlan};
 
 fuzz_target!(|data: &[u8]| {
     let text = String::from_utf8_lossy(data);
