@@ -231,8 +231,8 @@ pub struct FitStats {
     /// The work bound ([`MAX_STEPS`]) was reached: the rest of the curve
     /// was drawn with chords.
     pub truncated: bool,
-    /// The curve needed more pieces than it was allowed: fitting stopped
-    /// there and the pieces end short of the curve's end.
+    /// The pieces reached the number allowed before the curve was done:
+    /// fitting stopped there, short of the curve's end.
     pub over_budget: bool,
 }
 
@@ -372,8 +372,9 @@ fn fit_interval(
         // decides; a sample is first measured against the arc of its half.
         // Only the work changes: the same samples, the same distances, the
         // same verdict (a distance that is NaN counts as too far, as it did
-        // when the largest distance was taken). About a third fewer curve
-        // points on spline-heavy drawings.
+        // when the largest distance was taken). On a spline-heavy input
+        // (a fuzz input, 6 splines fitted with 9,402 arcs) the whole import
+        // took 407 M instructions instead of 642 M (callgrind).
         let near = |k: usize| {
             let q = xy(curve.point(t0 + (t1 - t0) * k as f64 / SAMPLES as f64), z);
             let (a, b) = if k < SAMPLES / 2 { (0, 1) } else { (1, 0) };
