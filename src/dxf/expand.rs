@@ -476,12 +476,11 @@ impl Expander<'_> {
     fn fit(&self, c: &dyn Curve, lid: u32, sink: &mut Sink) {
         let mut segs = Vec::new();
         // One more piece than the bound leaves room for, so a curve that
-        // does not fit is seen to overrun it (and stops there).
+        // does not fit overruns it by a piece and stops there; the check
+        // at the end of `entity` then sees the drawing past the bound (the
+        // one place that decides it).
         let left = self.max_segments.saturating_sub(sink.segments.len()).saturating_add(1);
         let st = fit_biarcs(c, self.arc_tol, left, &mut segs);
-        if st.over_budget {
-            sink.overflow = true;
-        }
         if st.truncated {
             sink.warn(format!(
                 "a curve needed more than {} fitting steps at --arc-tol {}: the rest of it drawn as chords (raise --arc-tol)",
