@@ -13,7 +13,9 @@ use crate::geometry::{P3, V3};
 use crate::model::chain::Segment;
 
 /// A parametric curve in the XY plane (z is carried from the start).
-pub trait Curve {
+/// `Send` and `Sync` because curves are fitted on the thread pool: many
+/// at once, and a long one's intervals in parallel.
+pub trait Curve: Send + Sync {
     /// The point at parameter `t`, from 0 at the start to 1 at the end.
     fn point(&self, t: f64) -> P3;
     /// Parameter values where the curve may have a corner or where fitting
@@ -252,20 +254,52 @@ pub const MAX_STEPS: u64 = 1 << 18;
 /// of it, so one curve cannot do the work of fitting far past the bound
 /// before the bound is looked at.
 pub fn fit_biarcs(curve: &dyn Curve, tol: f64, max_pieces: usize, out: &mut Vec<Segment>) -> FitStats {
+    let parallel = rayon::current_num_threads() > 1;
+    fit_with(curve, tol, max_pieces, MAX_STEPS, parallel, out)
+}
+
+/// [`fit_biarcs`] on the calling thread only: for callers that fit many
+/// curves at once, one a thread.
+pub fn fit_biarcs_one_by_one(curve: &dyn Curve, tol: f64, max_pieces: usize, out: &mut Vec<Segment>) -> FitStats {
+    fit_with(curve, tol, max_pieces, MAX_STEPS, false, out)
+}
+
+/// [`fit_biarcs`] with the step bound given, and the waves on or off (the
+/// same result either way: the tests compare them).
+fn fit_with(
+    curve: &dyn Curve,
+    tol: f64,
+    max_pieces: usize,
+    max_steps: u64,
+    parallel: bool,
+    out: &mut Vec<Segment>,
+) -> FitStats {
     let tol = tol.max(1e-9);
     let z = curve.point(0.0).z;
     let before = out.len();
     let mut budget = Budget {
-        steps: MAX_STEPS,
+        steps: max_steps,
         end: before.saturating_add(max_pieces),
         over: false,
     };
-    for w in curve.breaks().windows(2) {
-        let ends = [(w[0], curve.point(w[0])), (w[1], curve.point(w[1]))];
-        fit_interval(curve, ends, tol, z, 0, &mut budget, out);
-        if budget.over {
-            break;
-        }
+    let breaks = curve.breaks();
+    let intervals = breaks.len().saturating_sub(1);
+    let fit = |k: usize, budget: &mut Budget, out: &mut Vec<Segment>| {
+        let ends = [
+            (breaks[k], curve.point(breaks[k])),
+            (breaks[k + 1], curve.point(breaks[k + 1])),
+        ];
+        fit_interval(curve, ends, tol, z, 0, budget, out);
+    };
+    let mut k = 0;
+    if parallel && intervals >= PARALLEL_INTERVALS {
+        k = fit_waves(intervals, &fit, &mut budget, out);
+    }
+    // What is left after the waves (all of it for a short curve) one
+    // interval after the other.
+    while k < intervals && !budget.over {
+        fit(k, &mut budget, out);
+        k += 1;
     }
     let pieces = &out[before..];
     FitStats {
@@ -274,6 +308,92 @@ pub fn fit_biarcs(curve: &dyn Curve, tol: f64, max_pieces: usize, out: &mut Vec<
         truncated: budget.steps == 0,
         over_budget: budget.over,
     }
+}
+
+/// Curves of at least this many intervals (between breaks) are fitted
+/// in parallel waves; shorter ones cost less than handing them out.
+const PARALLEL_INTERVALS: usize = 4;
+/// Intervals fitted at once in a wave.
+const WAVE: usize = 64;
+
+/// One interval fitted on its own, ahead of its turn.
+struct Trial {
+    pieces: Vec<Segment>,
+    /// Steps it took.
+    used: u64,
+    /// It took every step it was given.
+    exhausted: bool,
+    /// It stopped because its pieces ran out.
+    over: bool,
+}
+
+/// Fit the intervals of a curve in waves of [`WAVE`], each interval of a
+/// wave on its own (rayon), then taken in order: a trial whose budget
+/// checks would have gone the same way with the budget its turn actually
+/// leaves is exactly what the one-by-one fit gives, and is used as it is;
+/// any other interval is fitted again, in turn, with the real budget. So
+/// the pieces, the stats and the stopping point are those of the
+/// sequential fit, bit for bit, on any number of threads.
+///
+/// Work stays bounded: a trial gets at most `steps / WAVE` steps, so a
+/// wave wastes at most the steps left, and only a trial that ran out of
+/// them (and whose interval then takes at least as many in turn) or a
+/// wave near the end of the budget wastes any. Returns the number of
+/// intervals done (all of them, or up to where the budget ended the fit,
+/// or where too few steps are left to be worth a wave).
+fn fit_waves(
+    intervals: usize,
+    fit: &(dyn Fn(usize, &mut Budget, &mut Vec<Segment>) + Sync),
+    budget: &mut Budget,
+    out: &mut Vec<Segment>,
+) -> usize {
+    use rayon::prelude::*;
+    let mut k = 0;
+    while k < intervals && !budget.over {
+        let wave = (intervals - k).min(WAVE);
+        let cap = budget.steps / wave as u64;
+        if cap == 0 {
+            break;
+        }
+        // Pieces each trial may make: what is left for the whole curve.
+        let room = budget.end.saturating_sub(out.len());
+        let trials: Vec<Trial> = (k..k + wave)
+            .into_par_iter()
+            .map(|i| {
+                let mut b = Budget {
+                    steps: cap,
+                    end: room,
+                    over: false,
+                };
+                let mut pieces = Vec::new();
+                fit(i, &mut b, &mut pieces);
+                Trial {
+                    pieces,
+                    used: cap - b.steps,
+                    exhausted: b.steps == 0,
+                    over: b.over,
+                }
+            })
+            .collect();
+        for (i, t) in (k..).zip(trials) {
+            // The same run as in turn when no check could differ: the
+            // steps never ran out in the trial and do not in turn (each
+            // call sees at least one left), and the pieces never reached
+            // what is left in turn (the trial's end is at least that).
+            let left = budget.end.saturating_sub(out.len());
+            if !t.exhausted && !t.over && t.used < budget.steps && t.pieces.len() < left {
+                budget.steps -= t.used;
+                out.extend(t.pieces);
+            } else {
+                fit(i, budget, out);
+            }
+            if budget.over {
+                return i + 1;
+            }
+        }
+        k += wave;
+    }
+    k
 }
 
 /// What one curve's fit may still spend.
@@ -625,6 +745,29 @@ mod tests {
     }
 
     proptest::proptest! {
+        /// The parallel waves give the one-by-one fit's pieces, stats and
+        /// stopping point exactly, with bounds small enough that trials
+        /// run out of steps (chords follow), run out of pieces, or stop
+        /// mid-wave: long zigzag splines (more intervals than a wave) and
+        /// short ones.
+        #[test]
+        fn waves_fit_what_one_by_one_fits(
+            count in 4usize..150,
+            ys in proptest::collection::vec(-5.0f64..5.0, 150),
+            tol in proptest::sample::select(vec![1e-4, 1e-3, 0.05]),
+            max_steps in proptest::sample::select(vec![0u64, 1, 7, 64, 65, 300, 2_000, MAX_STEPS]),
+            max_pieces in proptest::sample::select(vec![0usize, 1, 5, 40, 400, usize::MAX]),
+        ) {
+            let ctrl: Vec<P3> = (0..count).map(|i| P3::new(i as f64, ys[i], 0.0)).collect();
+            let n = Nurbs::new(3, vec![], ctrl, vec![]).unwrap();
+            let (mut one, mut waves) = (vec![Segment::line(P3::origin(), P3::new(1.0, 0.0, 0.0))], Vec::new());
+            waves.clone_from(&one);
+            let a = fit_with(&n, tol, max_pieces, max_steps, false, &mut one);
+            let b = fit_with(&n, tol, max_pieces, max_steps, true, &mut waves);
+            proptest::prop_assert_eq!(a, b);
+            proptest::prop_assert_eq!(one, waves);
+        }
+
         /// de Boor's recurrence, run in place from the left, is the curve
         /// the basis functions define: any degree (the stack and the heap
         /// working buffers), repeated knots (corners), any positive

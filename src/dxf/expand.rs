@@ -2,7 +2,7 @@
 //! mirrored, arrayed), units and user transforms, all as one affine map per
 //! entity; curves leave here as exact lines and arcs.
 
-use super::curves::{Conic, Curve, FitPoints, Nurbs, fit_biarcs};
+use super::curves::{Conic, Curve, FitPoints, FitStats, Nurbs, fit_biarcs};
 use super::entities::{Entity, EntityShape, Insert};
 use super::ocs::Affine;
 use super::reader::Pos;
@@ -59,6 +59,60 @@ pub struct Sink {
     pub bad: Option<(Pos, String)>,
     /// Blocks being expanded, outermost first (the insert stack).
     stack: Vec<String>,
+    /// The fit of the curve the entity being expanded draws, made ahead
+    /// of its turn ([`Expander::prefit`]); used when it is what the fit in
+    /// turn would give.
+    prefit: Option<Prefit>,
+    /// Curves whose fit made ahead was used.
+    pub(crate) prefits_used: u64,
+}
+
+/// A curve fitted ahead of its turn.
+#[derive(Debug)]
+pub struct Prefit {
+    /// The pieces, as [`fit_biarcs`] gives them.
+    pub pieces: Vec<Segment>,
+    /// What the fit counted.
+    pub stats: FitStats,
+}
+
+/// What a SPLINE entity draws under a transform.
+enum SplineCurve {
+    Curve(Box<dyn Curve>),
+    /// A control or fit point beyond [`MAX_COORD`].
+    OutOfRange(P3),
+    /// Fewer than two points: nothing to draw.
+    TooFew,
+}
+
+/// The curve of a SPLINE's data under `t`.
+fn spline_curve(t: &Affine, shape: &EntityShape) -> Option<SplineCurve> {
+    let EntityShape::Spline {
+        degree,
+        knots,
+        ctrl,
+        weights,
+        fit,
+        ..
+    } = shape
+    else {
+        return None;
+    };
+    let ctrl_w: Vec<P3> = ctrl.iter().map(|p| t.apply(p)).collect();
+    let fit_w: Vec<P3> = fit.iter().map(|p| t.apply(p)).collect();
+    // Far-out control points would make the fit subdivide for ever:
+    // refuse them before fitting.
+    if let Some(p) = ctrl_w.iter().chain(&fit_w).find(|p| !in_range(p)) {
+        return Some(SplineCurve::OutOfRange(*p));
+    }
+    let curve: Option<Box<dyn Curve>> = if ctrl_w.len() >= 2 {
+        Nurbs::new(*degree, knots.clone(), ctrl_w, weights.clone()).map(|n| Box::new(n) as Box<dyn Curve>)
+    } else if fit.len() >= 2 {
+        Some(Box::new(FitPoints { pts: fit_w }))
+    } else {
+        None
+    };
+    Some(curve.map_or(SplineCurve::TooFew, SplineCurve::Curve))
 }
 
 /// How to expand: tolerance and layer filter.
@@ -181,6 +235,37 @@ fn first_out_of_range(s: &Segment) -> Option<P3> {
 }
 
 impl Expander<'_> {
+    /// The splines the top-level entities `batch` draw, each under every
+    /// transform of `tops`, numbered `i * tops.len() + j` for entity `i`
+    /// under transform `j` (layers the filter drops are left out).
+    pub(super) fn spline_curves(&self, batch: &[Entity], tops: &[Affine]) -> Vec<(usize, Box<dyn Curve>)> {
+        let mut curves = Vec::new();
+        for (i, e) in batch.iter().enumerate() {
+            if self.keeps(&e.layer) {
+                for (j, t) in tops.iter().enumerate() {
+                    if let Some(SplineCurve::Curve(c)) = spline_curve(t, &e.shape) {
+                        curves.push((i * tops.len() + j, c));
+                    }
+                }
+            }
+        }
+        curves
+    }
+
+    /// [`Expander::entity`] for a top-level entity, with the fit of the
+    /// spline it draws made ahead, if any (used only when it is what the
+    /// fit in turn would give).
+    pub(super) fn entity_prefitted(&self, e: &Entity, t: &Affine, prefit: Option<Prefit>, sink: &mut Sink) {
+        sink.prefit = prefit;
+        self.entity(e, t, None, 0, sink);
+        sink.prefit = None;
+    }
+
+    /// Whether the layer filter keeps `layer`.
+    fn keeps(&self, layer: &str) -> bool {
+        self.layers.is_empty() || self.layers.iter().any(|l| l == layer)
+    }
+
     /// Expand one entity under transform `t`; `inherit` is the layer that
     /// replaces "0" inside blocks.
     pub fn entity(&self, e: &Entity, t: &Affine, inherit: Option<&str>, depth: usize, sink: &mut Sink) {
@@ -200,7 +285,7 @@ impl Expander<'_> {
             self.insert(ins, e.pos, t, layer, depth, sink);
             return;
         }
-        if !self.layers.is_empty() && !self.layers.iter().any(|l| l == layer) {
+        if !self.keeps(layer) {
             return;
         }
         let lid = sink.layer_id(layer);
@@ -274,32 +359,14 @@ impl Expander<'_> {
                 self.place_conic(conic, lid, sink);
                 "ELLIPSE"
             }
-            EntityShape::Spline {
-                degree,
-                knots,
-                ctrl,
-                weights,
-                fit,
-                ..
-            } => {
-                let ctrl_w: Vec<P3> = ctrl.iter().map(|p| t.apply(p)).collect();
-                let fit_w: Vec<P3> = fit.iter().map(|p| t.apply(p)).collect();
-                // Far-out control points would make the fit subdivide for
-                // ever: refuse them before fitting.
-                if let Some(p) = ctrl_w.iter().chain(&fit_w).find(|p| !in_range(p)) {
-                    sink.out_of_range(e.pos, p);
-                    return;
-                }
-                let curve: Option<Box<dyn Curve>> = if ctrl_w.len() >= 2 {
-                    Nurbs::new(*degree, knots.clone(), ctrl_w, weights.clone()).map(|n| Box::new(n) as Box<dyn Curve>)
-                } else if fit.len() >= 2 {
-                    Some(Box::new(FitPoints { pts: fit_w }))
-                } else {
-                    None
-                };
-                match curve {
-                    Some(c) => self.fit(c.as_ref(), lid, sink),
-                    None => sink.warn("SPLINE with fewer than two points left out".into()),
+            EntityShape::Spline { .. } => {
+                match spline_curve(t, &e.shape) {
+                    Some(SplineCurve::Curve(c)) => self.fit(c.as_ref(), lid, sink),
+                    Some(SplineCurve::OutOfRange(p)) => {
+                        sink.out_of_range(e.pos, &p);
+                        return;
+                    }
+                    _ => sink.warn("SPLINE with fewer than two points left out".into()),
                 }
                 "SPLINE"
             }
@@ -474,13 +541,25 @@ impl Expander<'_> {
     }
 
     fn fit(&self, c: &dyn Curve, lid: u32, sink: &mut Sink) {
-        let mut segs = Vec::new();
         // One more piece than the bound leaves room for, so a curve that
         // does not fit overruns it by a piece and stops there; the check
         // at the end of `entity` then sees the drawing past the bound (the
         // one place that decides it).
         let left = self.max_segments.saturating_sub(sink.segments.len()).saturating_add(1);
-        let st = fit_biarcs(c, self.arc_tol, left, &mut segs);
+        // A fit made ahead with at least this room that stayed short of
+        // `left` pieces never met the bound: it is this fit, piece for
+        // piece (the same curve, tolerance and step bound).
+        let (segs, st) = match sink.prefit.take() {
+            Some(p) if !p.stats.over_budget && p.pieces.len() < left => {
+                sink.prefits_used += 1;
+                (p.pieces, p.stats)
+            }
+            _ => {
+                let mut segs = Vec::new();
+                let st = fit_biarcs(c, self.arc_tol, left, &mut segs);
+                (segs, st)
+            }
+        };
         if st.truncated {
             sink.warn(format!(
                 "a curve needed more than {} fitting steps at --arc-tol {}: the rest of it drawn as chords (raise --arc-tol)",

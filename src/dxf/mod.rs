@@ -13,10 +13,12 @@
 //! - [`summary`]: the stderr report.
 //!
 //! The file is read once, front to back; ENTITIES are expanded as they are
-//! read, so memory holds the block definitions and the output geometry but
-//! never the whole file. See docs/dxf.md.
+//! read (from the first SPLINE on, in batches whose splines are fitted on
+//! the thread pool: `batch.rs`), so memory holds the block definitions and
+//! the output geometry but never the whole file. See docs/dxf.md.
 #![warn(missing_docs)]
 
+mod batch;
 pub mod chain;
 pub mod curves;
 pub mod entities;
@@ -123,90 +125,108 @@ pub fn import(input: Box<dyn BufRead>, opts: &ImportOptions) -> Result<Import, D
     let mut saw_eof = false;
     // The current `0` tag's text, in one buffer reused for every entity.
     let mut tag = String::new();
+    // From the first SPLINE on, top-level entities wait in batches whose
+    // splines are fitted on the pool while the next batch is read.
+    let mut batches = batch::Batches::default();
 
-    while let Some(code) = r.next_tag()? {
-        seen_anything = true;
-        if code == 9 && section == Section::Header {
-            let var = r.text().trim().to_string();
-            if var == "$INSUNITS" || var == "$ACADVER" {
-                match r.next_tag()? {
-                    Some(70) if var == "$INSUNITS" => insunits = Some(r.int()),
-                    Some(1) if var == "$ACADVER" => version = Some(r.text().trim().to_string()),
-                    Some(_) => r.unread(),
-                    None => break,
-                }
-            }
-            continue;
-        }
-        if code != 0 {
-            continue;
-        }
-        tag.clear();
-        tag.push_str(r.text().trim());
-        match tag.as_str() {
-            "SECTION" => {
-                section = match r.next_tag()? {
-                    Some(2) => match r.text().trim() {
-                        "HEADER" => Section::Header,
-                        "BLOCKS" => Section::Blocks,
-                        "ENTITIES" => Section::Entities,
-                        _ => Section::Other,
-                    },
-                    Some(c) => {
-                        return Err(DxfError::at(
-                            r.pos,
-                            format!("SECTION must be followed by group code 2 (its name), found {c}"),
-                        ));
+    let mut read = || -> Result<(), DxfError> {
+        while let Some(code) = r.next_tag()? {
+            seen_anything = true;
+            if code == 9 && section == Section::Header {
+                let var = r.text().trim().to_string();
+                if var == "$INSUNITS" || var == "$ACADVER" {
+                    match r.next_tag()? {
+                        Some(70) if var == "$INSUNITS" => insunits = Some(r.int()),
+                        Some(1) if var == "$ACADVER" => version = Some(r.text().trim().to_string()),
+                        Some(_) => r.unread(),
+                        None => break,
                     }
-                    None => return Err(DxfError::at(r.pos, "file ends after SECTION: truncated file?")),
-                };
+                }
                 continue;
             }
-            "ENDSEC" => {
-                section = Section::None;
+            if code != 0 {
                 continue;
             }
-            "EOF" => {
-                saw_eof = true;
-                break;
+            tag.clear();
+            tag.push_str(r.text().trim());
+            if matches!(tag.as_str(), "SECTION" | "ENDSEC" | "EOF") {
+                finish(&mut batches, &blocks, &tops, &mut sink, opts)?;
             }
-            _ => {}
-        }
-        match section {
-            Section::Blocks if tag == "BLOCK" => {
-                let (name, block) = read_block(&mut r, &mut scratch, &mut skipped)?;
-                blocks.insert(name, block);
+            match tag.as_str() {
+                "SECTION" => {
+                    section = match r.next_tag()? {
+                        Some(2) => match r.text().trim() {
+                            "HEADER" => Section::Header,
+                            "BLOCKS" => Section::Blocks,
+                            "ENTITIES" => Section::Entities,
+                            _ => Section::Other,
+                        },
+                        Some(c) => {
+                            return Err(DxfError::at(
+                                r.pos,
+                                format!("SECTION must be followed by group code 2 (its name), found {c}"),
+                            ));
+                        }
+                        None => return Err(DxfError::at(r.pos, "file ends after SECTION: truncated file?")),
+                    };
+                    continue;
+                }
+                "ENDSEC" => {
+                    section = Section::None;
+                    continue;
+                }
+                "EOF" => {
+                    saw_eof = true;
+                    break;
+                }
+                _ => {}
             }
-            // Entities outside any section: some minimal writers omit the
-            // SECTION lines altogether.
-            Section::Entities | Section::None => {
-                let top = tops.get_or_insert_with(|| top_transforms(opts, insunits));
-                match entities::read_entity(&tag, &mut r, &mut scratch)? {
-                    Read::Skipped(k) => *skipped.entry(k).or_default() += 1,
-                    Read::Entity(mut e) => {
-                        if let EntityShape::Insert(ins) = &mut e.shape {
-                            ins.block = ins.block.to_uppercase();
-                            if !blocks.contains_key(&ins.block) {
-                                // BLOCKS after ENTITIES (non-standard): place later.
-                                pending.push(e);
-                                continue;
+            match section {
+                Section::Blocks if tag == "BLOCK" => {
+                    let (name, block) = read_block(&mut r, &mut scratch, &mut skipped)?;
+                    blocks.insert(name, block);
+                }
+                // Entities outside any section: some minimal writers omit the
+                // SECTION lines altogether.
+                Section::Entities | Section::None => {
+                    let top = tops.get_or_insert_with(|| top_transforms(opts, insunits));
+                    match entities::read_entity(&tag, &mut r, &mut scratch)? {
+                        Read::Skipped(k) => *skipped.entry(k).or_default() += 1,
+                        Read::Entity(mut e) => {
+                            if let EntityShape::Insert(ins) = &mut e.shape {
+                                ins.block = ins.block.to_uppercase();
+                                if !blocks.contains_key(&ins.block) {
+                                    // BLOCKS after ENTITIES (non-standard): place later.
+                                    pending.push(e);
+                                    continue;
+                                }
                             }
+                            let Some(e) = batches.offer(e, top.len()) else {
+                                if batches.full() {
+                                    batches.advance(&expander(&blocks, opts), top, &mut sink, |sink, pos| {
+                                        stopped(sink, pos, opts.max_segments)
+                                    })?;
+                                }
+                                continue;
+                            };
+                            let x = expander(&blocks, opts);
+                            for t in top.iter() {
+                                x.entity(&e, t, None, 0, &mut sink);
+                            }
+                            stopped(&mut sink, e.pos, opts.max_segments)?;
                         }
-                        let x = Expander {
-                            blocks: &blocks,
-                            arc_tol: opts.arc_tol,
-                            layers: &opts.layers,
-                            max_segments: opts.max_segments,
-                        };
-                        for t in top.iter() {
-                            x.entity(&e, t, None, 0, &mut sink);
-                        }
-                        stopped(&mut sink, e.pos, opts.max_segments)?;
                     }
                 }
+                _ => {}
             }
-            _ => {}
         }
+        finish(&mut batches, &blocks, &tops, &mut sink, opts)
+    };
+    if let Err(e) = read() {
+        // Entities read before the error come first: one of them may
+        // have an error of its own to report.
+        finish(&mut batches, &blocks, &tops, &mut sink, opts)?;
+        return Err(e);
     }
     if !seen_anything {
         return Err(DxfError::at(reader::Pos::Line(1), "empty input: not a DXF file"));
@@ -239,6 +259,30 @@ pub fn import(input: Box<dyn BufRead>, opts: &ImportOptions) -> Result<Import, D
         unit_source,
         version,
         binary,
+    })
+}
+
+fn expander<'a>(blocks: &'a HashMap<String, BlockDef>, opts: &'a ImportOptions) -> Expander<'a> {
+    Expander {
+        blocks,
+        arc_tol: opts.arc_tol,
+        layers: &opts.layers,
+        max_segments: opts.max_segments,
+    }
+}
+
+/// Expand every entity the batches hold (they hold some only once `tops`
+/// is set, at the first entity).
+fn finish(
+    batches: &mut batch::Batches,
+    blocks: &HashMap<String, BlockDef>,
+    tops: &Option<Vec<Affine>>,
+    sink: &mut Sink,
+    opts: &ImportOptions,
+) -> Result<(), DxfError> {
+    let top = tops.as_deref().unwrap_or(&[]);
+    batches.finish(&expander(blocks, opts), top, sink, |sink, pos| {
+        stopped(sink, pos, opts.max_segments)
     })
 }
 
