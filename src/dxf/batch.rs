@@ -12,7 +12,7 @@
 //! would make (see `Expander::fit`), so the segments, warnings, counts and
 //! errors are the same as without batches, on any number of threads.
 
-use super::curves::fit_biarcs_one_by_one;
+use super::curves::{Curve, fit_biarcs_one_by_one};
 use super::entities::{Entity, EntityShape};
 use super::expand::{Expander, Prefit, Sink};
 use super::ocs::Affine;
@@ -27,65 +27,82 @@ const BATCH_CURVES: usize = 64;
 /// spline, a batch of these ends the batching.
 const BATCH_ENTITIES: usize = 4096;
 
-/// The fits of one batch's splines, running on the pool.
-struct Fits {
-    done: Option<mpsc::Receiver<Vec<(usize, Prefit)>>>,
-    /// Entities times copies: the numbering of the fits.
-    slots: usize,
+/// The fits of one batch's splines.
+enum Fits {
+    /// Fewer than two splines: each is fitted in its turn (its long runs
+    /// of intervals in parallel).
+    None,
+    /// Running on the pool.
+    Running {
+        done: mpsc::Receiver<Vec<(usize, Prefit)>>,
+        /// Entities times copies: the numbering of the fits.
+        slots: usize,
+    },
+    /// Done already, by number.
+    Done(Vec<Option<Prefit>>),
 }
 
 impl Fits {
-    /// Start fitting the splines of `batch` (none for fewer than two: one
-    /// spline is fitted in its turn, its long runs of intervals in
-    /// parallel). `drawn`: segments in the drawing so far.
+    /// Start fitting the splines of `batch`. `drawn`: segments in the
+    /// drawing so far.
     fn start(x: &Expander, batch: &[Entity], tops: &[Affine], drawn: usize) -> Fits {
+        use rayon::prelude::*;
         let curves = x.spline_curves(batch, tops);
         if curves.len() < 2 {
-            return Fits { done: None, slots: 0 };
+            return Fits::None;
         }
         // Room for one more piece than the bound leaves now: the drawing
         // only grows, so no spline's fit in turn is allowed more.
         let room = x.max_segments.saturating_sub(drawn).saturating_add(1);
         let tol = x.arc_tol;
+        let fit_all = move |curves: Vec<(usize, Box<dyn Curve>)>| -> Vec<(usize, Prefit)> {
+            curves
+                .into_par_iter()
+                .map(|(k, c)| {
+                    let mut pieces = Vec::new();
+                    let stats = fit_biarcs_one_by_one(c.as_ref(), tol, room, &mut pieces);
+                    (k, Prefit { pieces, stats })
+                })
+                .collect()
+        };
+        let slots = batch.len() * tops.len();
+        if rayon::current_thread_index().is_some() {
+            // Called on the pool itself (an import inside a parallel
+            // loop): waiting there for a job queued behind it could wait
+            // for ever when every thread does the same. Fitted now, this
+            // thread taking its share.
+            return Fits::Done(numbered(fit_all(curves), slots));
+        }
         let (tx, rx) = mpsc::channel();
         rayon::spawn(move || {
-            use rayon::prelude::*;
             // A fit that panics sends nothing: the splines are then
             // fitted in turn, on the reading thread, which reports it.
-            let fits = catch_unwind(AssertUnwindSafe(|| {
-                curves
-                    .into_par_iter()
-                    .map(|(k, c)| {
-                        let mut pieces = Vec::new();
-                        let stats = fit_biarcs_one_by_one(c.as_ref(), tol, room, &mut pieces);
-                        (k, Prefit { pieces, stats })
-                    })
-                    .collect::<Vec<_>>()
-            }));
-            if let Ok(fits) = fits {
+            if let Ok(fits) = catch_unwind(AssertUnwindSafe(|| fit_all(curves))) {
                 // The import may have stopped on an error meanwhile.
                 let _ = tx.send(fits);
             }
         });
-        Fits {
-            done: Some(rx),
-            slots: batch.len() * tops.len(),
-        }
+        Fits::Running { done: rx, slots }
     }
 
     /// Wait for the fits, by number.
     fn wait(self) -> Vec<Option<Prefit>> {
-        let mut fits = Vec::new();
-        if let Some(rx) = self.done {
-            fits.resize_with(self.slots, || None);
-            if let Ok(done) = rx.recv() {
-                for (k, f) in done {
-                    fits[k] = Some(f);
-                }
-            }
+        match self {
+            Fits::None => Vec::new(),
+            Fits::Running { done, slots } => done.recv().map_or_else(|_| Vec::new(), |d| numbered(d, slots)),
+            Fits::Done(fits) => fits,
         }
-        fits
     }
+}
+
+/// Fits by number, in `slots` places.
+fn numbered(done: Vec<(usize, Prefit)>, slots: usize) -> Vec<Option<Prefit>> {
+    let mut fits = Vec::new();
+    fits.resize_with(slots, || None);
+    for (k, f) in done {
+        fits[k] = Some(f);
+    }
+    fits
 }
 
 /// Entities waiting for expansion: the batch being filled and the one
@@ -372,6 +389,43 @@ mod tests {
             let got = outcome(&t, &opts, false);
             proptest::prop_assert!(got == want, "batched:\n{}\none by one:\n{}", &got[..got.len().min(600)], &want[..want.len().min(600)]);
         }
+    }
+
+    #[test]
+    fn an_import_on_the_pool_itself_does_not_wait_for_itself() {
+        // One thread in the pool, and the import runs on it: a batch
+        // whose fits were queued behind the import would never be fitted.
+        let ents: Vec<(Ent, f64)> = (0..150)
+            .map(|k| {
+                (
+                    Ent::Spline {
+                        n: 6,
+                        amp: 1.0,
+                        layer: 0,
+                    },
+                    k as f64,
+                )
+            })
+            .collect();
+        let t = text(&ents, None);
+        let (tx, rx) = std::sync::mpsc::channel();
+        std::thread::spawn(move || {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
+            let imp = pool.install(|| {
+                import(
+                    Box::new(std::io::Cursor::new(t.as_bytes().to_vec())),
+                    &ImportOptions::default(),
+                )
+            });
+            let _ = tx.send(
+                imp.map(|i| (i.sink.curves, i.sink.prefits_used))
+                    .map_err(|e| e.to_string()),
+            );
+        });
+        let got = rx
+            .recv_timeout(std::time::Duration::from_secs(60))
+            .expect("the import hung");
+        assert_eq!(got, Ok((150, 150)));
     }
 
     #[test]
