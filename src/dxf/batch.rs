@@ -140,59 +140,33 @@ impl Batches {
     }
 
     /// Start fitting the batch being filled and expand the one before it
-    /// into `sink`, calling `after` with each entity's position once it is
-    /// expanded (an error there stops the expansion and is returned). A
-    /// batch without splines is expanded at once, with the one before it,
-    /// and the batching ends until the next spline.
-    pub fn advance<E>(
-        &mut self,
-        x: &Expander,
-        tops: &[Affine],
-        sink: &mut Sink,
-        after: impl FnMut(&mut Sink, Pos) -> Result<(), E>,
-    ) -> Result<(), E> {
-        let done = self.advance_inner(x, tops, sink, after);
+    /// (an error there stops the expansion and is returned). A batch
+    /// without splines is expanded at once, with the one before it, and
+    /// the batching ends until the next spline.
+    pub fn advance<E>(&mut self, to: &mut Expansion<impl FnMut(&mut Sink, Pos) -> Result<(), E>>) -> Result<(), E> {
+        let batch = std::mem::take(&mut self.filling);
+        let curves = std::mem::replace(&mut self.curves, 0);
+        let done = if curves == 0 {
+            self.finish_fitting(to).and_then(|()| to.expand(&batch, Vec::new()))
+        } else {
+            let fits = Fits::start(to.x, &batch, to.tops, to.sink.segments.len());
+            match self.fitting.replace((batch, fits)) {
+                Some((before, fits)) => to.expand(&before, fits.wait()),
+                None => Ok(()),
+            }
+        };
         self.drop_on_error(done)
     }
 
-    fn advance_inner<E>(
-        &mut self,
-        x: &Expander,
-        tops: &[Affine],
-        sink: &mut Sink,
-        mut after: impl FnMut(&mut Sink, Pos) -> Result<(), E>,
-    ) -> Result<(), E> {
-        let batch = std::mem::take(&mut self.filling);
-        let curves = std::mem::replace(&mut self.curves, 0);
-        if curves == 0 {
-            self.finish_fitting(x, tops, sink, &mut after)?;
-            return expand(x, &batch, Vec::new(), tops, sink, &mut after);
-        }
-        let fits = Fits::start(x, &batch, tops, sink.segments.len());
-        let before = self.fitting.replace((batch, fits));
-        if let Some((batch, fits)) = before {
-            expand(x, &batch, fits.wait(), tops, sink, &mut after)?;
-        }
-        Ok(())
-    }
-
     /// Expand everything held, in order.
-    pub fn finish<E>(
-        &mut self,
-        x: &Expander,
-        tops: &[Affine],
-        sink: &mut Sink,
-        mut after: impl FnMut(&mut Sink, Pos) -> Result<(), E>,
-    ) -> Result<(), E> {
+    pub fn finish<E>(&mut self, to: &mut Expansion<impl FnMut(&mut Sink, Pos) -> Result<(), E>>) -> Result<(), E> {
         if self.filling.is_empty() && self.fitting.is_none() {
             return Ok(());
         }
         let batch = std::mem::take(&mut self.filling);
-        let fits = Fits::start(x, &batch, tops, sink.segments.len());
+        let fits = Fits::start(to.x, &batch, to.tops, to.sink.segments.len());
         self.curves = 0;
-        let done = self
-            .finish_fitting(x, tops, sink, &mut after)
-            .and_then(|()| expand(x, &batch, fits.wait(), tops, sink, &mut after));
+        let done = self.finish_fitting(to).and_then(|()| to.expand(&batch, fits.wait()));
         self.drop_on_error(done)
     }
 
@@ -207,38 +181,37 @@ impl Batches {
         done
     }
 
-    fn finish_fitting<E>(
-        &mut self,
-        x: &Expander,
-        tops: &[Affine],
-        sink: &mut Sink,
-        after: &mut impl FnMut(&mut Sink, Pos) -> Result<(), E>,
-    ) -> Result<(), E> {
+    fn finish_fitting<E>(&mut self, to: &mut Expansion<impl FnMut(&mut Sink, Pos) -> Result<(), E>>) -> Result<(), E> {
         match self.fitting.take() {
-            Some((batch, fits)) => expand(x, &batch, fits.wait(), tops, sink, after),
+            Some((batch, fits)) => to.expand(&batch, fits.wait()),
             None => Ok(()),
         }
     }
 }
 
-/// Expand `batch` in order, entity `i` under transform `j` with the fit
-/// numbered `i * tops.len() + j`, if any.
-fn expand<E>(
-    x: &Expander,
-    batch: &[Entity],
-    mut fits: Vec<Option<Prefit>>,
-    tops: &[Affine],
-    sink: &mut Sink,
-    after: &mut impl FnMut(&mut Sink, Pos) -> Result<(), E>,
-) -> Result<(), E> {
-    for (i, e) in batch.iter().enumerate() {
-        for (j, t) in tops.iter().enumerate() {
-            let prefit = fits.get_mut(i * tops.len() + j).and_then(Option::take);
-            x.entity_prefitted(e, t, prefit, sink);
+/// Where held entities are expanded: each top-level entity under every
+/// transform of `tops` into `sink`, then `after` with its position (the
+/// import's check of the bound and of bad geometry, which may stop it).
+pub(super) struct Expansion<'a, 'b, F> {
+    pub x: &'a Expander<'b>,
+    pub tops: &'a [Affine],
+    pub sink: &'a mut Sink,
+    pub after: F,
+}
+
+impl<E, F: FnMut(&mut Sink, Pos) -> Result<(), E>> Expansion<'_, '_, F> {
+    /// Expand `batch` in order, entity `i` under transform `j` with the
+    /// fit numbered `i * tops.len() + j`, if any.
+    fn expand(&mut self, batch: &[Entity], mut fits: Vec<Option<Prefit>>) -> Result<(), E> {
+        for (i, e) in batch.iter().enumerate() {
+            for (j, t) in self.tops.iter().enumerate() {
+                let prefit = fits.get_mut(i * self.tops.len() + j).and_then(Option::take);
+                self.x.entity_prefitted(e, t, prefit, self.sink);
+            }
+            (self.after)(self.sink, e.pos)?;
         }
-        after(sink, e.pos)?;
+        Ok(())
     }
-    Ok(())
 }
 
 #[cfg(test)]

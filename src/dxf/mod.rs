@@ -203,8 +203,11 @@ pub fn import(input: Box<dyn BufRead>, opts: &ImportOptions) -> Result<Import, D
                             }
                             let Some(e) = batches.offer(e, top.len()) else {
                                 if batches.full() {
-                                    batches.advance(&expander(&blocks, opts), top, &mut sink, |sink, pos| {
-                                        stopped(sink, pos, opts.max_segments)
+                                    batches.advance(&mut batch::Expansion {
+                                        x: &expander(&blocks, opts),
+                                        tops: top,
+                                        sink: &mut sink,
+                                        after: |sink: &mut Sink, pos| stopped(sink, pos, opts.max_segments),
                                     })?;
                                 }
                                 continue;
@@ -280,9 +283,11 @@ fn finish(
     sink: &mut Sink,
     opts: &ImportOptions,
 ) -> Result<(), DxfError> {
-    let top = tops.as_deref().unwrap_or(&[]);
-    batches.finish(&expander(blocks, opts), top, sink, |sink, pos| {
-        stopped(sink, pos, opts.max_segments)
+    batches.finish(&mut batch::Expansion {
+        x: &expander(blocks, opts),
+        tops: tops.as_deref().unwrap_or(&[]),
+        sink,
+        after: |sink: &mut Sink, pos| stopped(sink, pos, opts.max_segments),
     })
 }
 
