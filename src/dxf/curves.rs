@@ -482,9 +482,9 @@ fn fit_interval(
         // atan2): the same distances as `Segment::distance_xy`, whose arcs
         // go through the same frame (the samples are at the pieces' z).
         let frames = pieces.each_ref().map(|s| s.arc().map(ArcFrame::new));
-        let dist = |k: usize, q: &P3| match &frames[k] {
-            Some(f) => f.distance(q).unwrap_or(f64::INFINITY),
-            None => pieces[k].distance_xy(q),
+        let within = |k: usize, q: &P3| match &frames[k] {
+            Some(f) => f.within(q, tol),
+            None => pieces[k].distance_xy(q) <= tol,
         };
         // Within the tolerance when every sample is near one of the two
         // arcs. Most trials that fail do so at a few samples, so the
@@ -498,7 +498,7 @@ fn fit_interval(
         let near = |k: usize| {
             let q = xy(curve.point(t0 + (t1 - t0) * k as f64 / SAMPLES as f64), z);
             let (a, b) = if k < SAMPLES / 2 { (0, 1) } else { (1, 0) };
-            dist(a, &q) <= tol || dist(b, &q) <= tol
+            within(a, &q) || within(b, &q)
         };
         if SAMPLE_ORDER.iter().all(|&k| near(k)) {
             out.extend(pieces.into_iter().filter(|s| s.start() != s.end()));

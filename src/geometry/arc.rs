@@ -364,6 +364,71 @@ impl ArcFrame {
         self.closest_point(p).map(|(q, _)| (q - p).norm())
     }
 
+    /// Whether `p` lies within `tol` of the arc: the verdict of
+    /// `self.distance(p).is_some_and(|d| d <= tol)`, the same in every
+    /// case, but most points are settled without trigonometry. A point
+    /// farther from the centre's circle than `tol` cannot be near any
+    /// point of the arc; a point whose direction lies well inside the
+    /// arc's span is as near as its radial gap. Both bounds leave a margin
+    /// far above the rounding of the exact computation, and a point in
+    /// the margin, near an end, or on an arc of a half turn or more gets
+    /// the exact distance. (The biarc fit asks this of every sample of
+    /// every trial arc.)
+    pub fn within(&self, p: &P3, tol: f64) -> bool {
+        match self.within_by_bounds(p, tol) {
+            Some(v) => v,
+            None => self.distance(p).is_some_and(|d| d <= tol),
+        }
+    }
+
+    fn within_by_bounds(&self, p: &P3, tol: f64) -> Option<bool> {
+        if !self.measurable || !finite_p3(p) || !tol.is_finite() || self.rise != 0.0 {
+            return None;
+        }
+        let q = self.arc.plane.project(p);
+        let v = q - self.c;
+        let lv = v.norm();
+        let dh = self.h0 - self.arc.plane.normal_coord(p);
+        let (rmin, rmax) = (self.r0.min(self.r1), self.r0.max(self.r1));
+        // The exact distance is computed from points of the arc built with
+        // cos and sin of angles near 2 pi: its rounding is a few ulps of
+        // the coordinates involved. This is a hundred times that.
+        let err = 1e-13 * (self.c.x.abs() + self.c.y.abs() + rmax + q.x.abs() + q.y.abs() + dh.abs());
+        // Every candidate of the exact distance (the ends, the points
+        // where the arc passes p's direction) lies between rmin and rmax
+        // from the centre, at height h0.
+        let gap_in = if lv < rmin {
+            rmin - lv
+        } else if lv > rmax {
+            lv - rmax
+        } else {
+            0.0
+        };
+        if gap_in.hypot(dh) > tol + err {
+            return Some(false);
+        }
+        // Inside the span (an open wedge under half a turn, entered by a
+        // margin of 1e-9 rad, far above the angles' rounding), the arc
+        // passes p's direction at a radius between rmin and rmax.
+        if self.arc.extra_turns != 0 || self.sweep.is_nan() || self.sweep.abs() > 3.0 || lv == 0.0 {
+            return None;
+        }
+        let s = self.arc.plane.project(&self.arc.start) - self.c;
+        let e = self.arc.plane.project(&self.arc.end) - self.c;
+        let turn = if self.arc.ccw { 1.0 } else { -1.0 };
+        let cross = |a: &V2, b: &V2| turn * (a.x * b.y - a.y * b.x);
+        let margin = 1e-9 * lv;
+        let inside = cross(&s, &v) > margin * s.norm() && cross(&v, &e) > margin * e.norm();
+        if !inside {
+            return None;
+        }
+        let gap_out = (lv - rmin).abs().max((lv - rmax).abs()) + 1e-12 * (lv + rmax);
+        if gap_out.hypot(dh) + err < tol {
+            return Some(true);
+        }
+        None
+    }
+
     /// [`Arc3::closest_point`].
     pub fn closest_point(&self, p: &P3) -> Option<(P3, f64)> {
         if !self.measurable || !finite_p3(p) {
@@ -567,5 +632,47 @@ mod tests {
             ..zero
         };
         let _ = huge.bbox();
+    }
+
+    proptest::proptest! {
+        /// `ArcFrame::within` is the exact distance's verdict: points
+        /// placed at a radial offset of a few tolerances (and right at
+        /// the tolerance, either side of it), at angles inside, near and
+        /// past the ends, on arcs of either turn, with start and end radii
+        /// a hair apart as fitted arcs have, far from the origin, and
+        /// with a height off the plane.
+        #[test]
+        fn within_is_the_distance_verdict(
+            cx in -1e4f64..1e4, cy in -1e4f64..1e4,
+            r in 1e-3f64..1e3,
+            a0 in -7.0f64..7.0,
+            sweep in 1e-6f64..6.2,
+            ccw: bool,
+            hair in -1e-12f64..1e-12,
+            at in -0.2f64..1.2,
+            off_tols in -3.0f64..3.0,
+            exact_edge in proptest::sample::select(vec![None, Some(1.0 - 1e-15), Some(1.0), Some(1.0 + 1e-15)]),
+            tol in proptest::sample::select(vec![1e-6, 1e-3, 0.05]),
+            dz in proptest::sample::select(vec![0.0, 1e-4, 0.02]),
+        ) {
+            let sg = if ccw { 1.0 } else { -1.0 };
+            let pt = |a: f64, rr: f64, z: f64| p(cx + rr * a.cos(), cy + rr * a.sin(), z);
+            let arc = Arc3 {
+                center: p(cx, cy, 0.0),
+                start: pt(a0, r, 0.0),
+                end: pt(a0 + sg * sweep, r * (1.0 + hair), 0.0),
+                ccw,
+                plane: Plane::Xy,
+                extra_turns: 0,
+            };
+            let f = ArcFrame::new(&arc);
+            let off = match exact_edge {
+                Some(k) => k * tol * off_tols.signum(),
+                None => off_tols * tol,
+            };
+            let q = pt(a0 + sg * sweep * at, r + off, dz);
+            let want = f.distance(&q).is_some_and(|d| d <= tol);
+            proptest::prop_assert_eq!(f.within(&q, tol), want, "q {:?} off {} tol {}", q, off, tol);
+        }
     }
 }
