@@ -479,8 +479,10 @@ fn fit_interval(
         && let Some(pieces) = biarc(p0, d0, p1, d1)
     {
         // Each arc's frame once, not once per sample (its angles cost two
-        // atan2): the same distances as `Segment::distance_xy`, whose arcs
-        // go through the same frame (the samples are at the pieces' z).
+        // atan2): the same verdicts as `Segment::distance_xy(q) <= tol`,
+        // whose arcs go through the same frame (the samples are at the
+        // pieces' z); `ArcFrame::within` settles most of them without
+        // trigonometry.
         let frames = pieces.each_ref().map(|s| s.arc().map(ArcFrame::new));
         let within = |k: usize, q: &P3| match &frames[k] {
             Some(f) => f.within(q, tol),

@@ -60,8 +60,8 @@ pub struct Sink {
     /// Blocks being expanded, outermost first (the insert stack).
     stack: Vec<String>,
     /// The fit of the curve the entity being expanded draws, made ahead
-    /// of its turn ([`Expander::prefit`]); used when it is what the fit in
-    /// turn would give.
+    /// of its turn (set by `Expander::entity_prefitted`); used when it is
+    /// what the fit in turn would give.
     prefit: Option<Prefit>,
     /// Curves whose fit made ahead was used.
     pub(crate) prefits_used: u64,

@@ -397,13 +397,7 @@ impl ArcFrame {
         // Every candidate of the exact distance (the ends, the points
         // where the arc passes p's direction) lies between rmin and rmax
         // from the centre, at height h0.
-        let gap_in = if lv < rmin {
-            rmin - lv
-        } else if lv > rmax {
-            lv - rmax
-        } else {
-            0.0
-        };
+        let gap_in = (rmin - lv).max(lv - rmax).max(0.0);
         if gap_in.hypot(dh) > tol + err {
             return Some(false);
         }
