@@ -111,9 +111,60 @@ pub fn same_point(a: &P3, b: &P3, tol: f64) -> bool {
     (a - b).norm() <= tol
 }
 
+/// `v.floor() as i64` (saturating, NaN to 0) without the libm call that
+/// `floor` is on x86_64's baseline instruction set (no SSE4.1 `roundsd`):
+/// the spatial hashes of the chaining take a floor per point, and the call
+/// was a tenth of the node clustering's time.
+#[inline]
+pub fn floor_i64(v: f64) -> i64 {
+    // The cast truncates towards zero and saturates; below zero a value
+    // with a fraction is one more than its floor. Saturated values are
+    // whole numbers as doubles, so they never take the step (except below
+    // i64::MIN, where the floor saturates too).
+    let t = v as i64;
+    if (t as f64) > v { t.saturating_sub(1) } else { t }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+    use proptest::prelude::*;
+
+    proptest! {
+        #[test]
+        fn floor_i64_is_floor_then_cast(bits in any::<u64>(), small in -1e6f64..1e6) {
+            for v in [f64::from_bits(bits), small, small.trunc(), -small.trunc(), small * 1e-300] {
+                prop_assert_eq!(floor_i64(v), v.floor() as i64, "{:e}", v);
+            }
+        }
+    }
+
+    #[test]
+    fn floor_i64_edges() {
+        for v in [
+            0.0,
+            -0.0,
+            0.5,
+            -0.5,
+            -1.0,
+            1.0,
+            -1.0 - f64::EPSILON,
+            f64::MIN_POSITIVE,
+            -f64::MIN_POSITIVE,
+            i64::MAX as f64,
+            i64::MIN as f64,
+            -9.223372036854778e18,
+            1e300,
+            -1e300,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            f64::NAN,
+            4503599627370495.5,
+            -4503599627370495.5,
+        ] {
+            assert_eq!(floor_i64(v), v.floor() as i64, "{v:e}");
+        }
+    }
 
     #[test]
     fn plane_axes_are_right_handed_and_lift_inverts_project() {

@@ -1,9 +1,11 @@
 //! Chain detection: from loose lines and arcs to ordered, oriented chains.
 //!
-//! Near-linear throughout, in four ideas, one file each:
+//! Near-linear throughout, in five ideas, one file each:
 //! - `nodes.rs`: end points clustered into nodes with a spatial hash (and a
 //!   short list of the nodes just seen, which catches the shared end of
 //!   consecutive pieces without a probe);
+//! - `assign.rs`: every piece's ends to node ids, on a large drawing on
+//!   two halves of the plane at once, with the ids one pass gives;
 //! - `repair.rs`: zero-length pieces, collinear overlaps (buckets of
 //!   direction and offset), duplicates (pieces between the same two nodes,
 //!   found through the node adjacency), snapping;
@@ -11,12 +13,18 @@
 //! - `orient.rs`: nesting depth through a grid over the closed chains'
 //!   boxes, and the exact point-in-chain and area tests.
 //!
+//! The steps that only read (collinear keys and candidates, the two
+//! halves' nodes, the chains' boxes, areas and nesting) run on the thread
+//! pool; the steps that change the drawing (merges, the walk) run in
+//! drawing order, so the output does not depend on the thread count.
+//!
 //! The chaining of Bayesteh (2013) compares every pair of segments; this
 //! one never does.
 //!
 //! Every change to the drawing is counted in [`ChainReport`] and noted on the
 //! chain it touched (`repairs`).
 
+mod assign;
 mod nodes;
 mod orient;
 mod repair;
@@ -101,7 +109,7 @@ pub(super) fn midpoint(s: &Segment) -> P3 {
 
 /// One piece being chained: the same size as the `(Segment, u32)` it is
 /// made from, so the conversion reuses the input's memory.
-#[derive(Clone, Copy)]
+#[derive(Clone, Copy, Debug)]
 struct Work {
     seg: Segment,
     order: u32,

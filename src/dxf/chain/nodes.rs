@@ -70,7 +70,7 @@ impl Nodes {
     /// The cell coordinate of `v` (mm) on either axis.
     #[inline]
     fn cell_of(&self, v: f64) -> i64 {
-        (v / self.cell).floor() as i64
+        crate::geometry::floor_i64(v / self.cell)
     }
 
     /// The cells the square of the tolerance around `p` touches, as

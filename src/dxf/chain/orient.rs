@@ -3,8 +3,9 @@
 //! included, no tessellation).
 
 use super::{ChainReport, Chains, midpoint};
-use crate::geometry::P3;
+use crate::geometry::{P3, floor_i64};
 use crate::model::chain::Segment;
+use rayon::prelude::*;
 
 /// Point in a closed chain: the parity of crossings of the ray from `p`
 /// towards +X, with lines and arcs exactly (no tessellation, so memory
@@ -89,27 +90,28 @@ pub(super) fn orient(chains: &mut Chains, tol: f64, report: &mut ChainReport) {
         area: f64,
         probe: P3,
     }
-    let mut infos: Vec<Info> = Vec::new();
-    let mut buf: Vec<Segment> = Vec::new();
     let quarter: [(f64, f64); 4] = std::array::from_fn(|k| {
         let t = k as f64 * std::f64::consts::FRAC_PI_2;
         (t.cos(), t.sin())
     });
-    for (idx, it) in chains.items.iter().enumerate() {
-        if !it.closed || it.len == 0 {
-            continue;
-        }
-        chains.segments_into(it, &mut buf);
-        let segs = &buf[..];
-        let (lo, hi, area) = box_and_area(segs, &quarter);
-        infos.push(Info {
-            idx,
-            lo,
-            hi,
-            area,
-            probe: midpoint(&segs[0]),
-        });
-    }
+    // Each chain's box, area and probe on its own: in parallel, in order.
+    let infos: Vec<Info> = chains
+        .items
+        .par_iter()
+        .enumerate()
+        .filter(|(_, it)| it.closed && it.len > 0)
+        .map_init(Vec::new, |buf: &mut Vec<Segment>, (idx, it)| {
+            chains.segments_into(it, buf);
+            let (lo, hi, area) = box_and_area(buf, &quarter);
+            Info {
+                idx,
+                lo,
+                hi,
+                area,
+                probe: midpoint(&buf[0]),
+            }
+        })
+        .collect();
     if infos.is_empty() {
         return;
     }
@@ -127,8 +129,8 @@ pub(super) fn orient(chains: &mut Chains, tol: f64, report: &mut ChainReport) {
     let mut grid: Vec<(u64, u32)> = Vec::new();
     let mut big: Vec<u32> = Vec::new();
     for (k, i) in infos.iter().enumerate() {
-        let (x0, y0) = ((i.lo.0 / size).floor() as i64, (i.lo.1 / size).floor() as i64);
-        let (x1, y1) = ((i.hi.0 / size).floor() as i64, (i.hi.1 / size).floor() as i64);
+        let (x0, y0) = (floor_i64(i.lo.0 / size), floor_i64(i.lo.1 / size));
+        let (x1, y1) = (floor_i64(i.hi.0 / size), floor_i64(i.hi.1 / size));
         // In i128: far-out boxes (the casts saturate) must not wrap into a
         // small, or a huge, cell range.
         let cells = (x1 as i128 - x0 as i128 + 1) * (y1 as i128 - y0 as i128 + 1);
@@ -142,51 +144,58 @@ pub(super) fn orient(chains: &mut Chains, tol: f64, report: &mut ChainReport) {
             }
         }
     }
-    grid.sort_unstable();
+    // The pairs are distinct: any sort gives this one order.
+    grid.par_sort_unstable();
     // Probes sorted by cell too, so the grid is walked once, in order.
     let mut probes: Vec<(u64, u32)> = infos
         .iter()
         .enumerate()
-        .map(|(k, i)| {
-            (
-                ckey((i.probe.x / size).floor() as i64, (i.probe.y / size).floor() as i64),
-                k as u32,
-            )
+        .map(|(k, i)| (ckey(floor_i64(i.probe.x / size), floor_i64(i.probe.y / size)), k as u32))
+        .collect();
+    probes.par_sort_unstable();
+    // Each probe's depth is a read-only question: the probes are answered
+    // in runs on the pool, each run finding its place in the grid once.
+    const RUN: usize = 1 << 10;
+    let flip: Vec<usize> = probes
+        .par_chunks(RUN)
+        .flat_map_iter(|run| {
+            let mut buf: Vec<Segment> = Vec::new();
+            let mut flip: Vec<usize> = Vec::new();
+            let mut lo = grid.partition_point(|e| e.0 < run[0].0);
+            for &(cell, k) in run {
+                let k = k as usize;
+                let me = &infos[k];
+                let p = me.probe;
+                while lo < grid.len() && grid[lo].0 < cell {
+                    lo += 1;
+                }
+                let hi = lo + grid[lo..].iter().take_while(|e| e.0 == cell).count();
+                let mut depth = 0;
+                for j in grid[lo..hi].iter().map(|e| e.1).chain(big.iter().copied()) {
+                    let o = &infos[j as usize];
+                    if j as usize == k
+                        || o.area.abs() <= me.area.abs()
+                        || o.lo.0 > me.lo.0 + tol
+                        || o.lo.1 > me.lo.1 + tol
+                        || o.hi.0 < me.hi.0 - tol
+                        || o.hi.1 < me.hi.1 - tol
+                    {
+                        continue;
+                    }
+                    chains.segments_into(&chains.items[o.idx], &mut buf);
+                    if inside(&buf, &p) {
+                        depth += 1;
+                    }
+                }
+                let want_ccw = depth % 2 == 0;
+                if me.area != 0.0 && (me.area > 0.0) != want_ccw {
+                    flip.push(me.idx);
+                }
+            }
+            flip
         })
         .collect();
-    probes.sort_unstable();
-    let mut flip: Vec<usize> = Vec::new();
-    let mut lo = 0;
-    for &(cell, k) in &probes {
-        let k = k as usize;
-        let me = &infos[k];
-        let p = me.probe;
-        while lo < grid.len() && grid[lo].0 < cell {
-            lo += 1;
-        }
-        let hi = lo + grid[lo..].iter().take_while(|e| e.0 == cell).count();
-        let mut depth = 0;
-        for j in grid[lo..hi].iter().map(|e| e.1).chain(big.iter().copied()) {
-            let o = &infos[j as usize];
-            if j as usize == k
-                || o.area.abs() <= me.area.abs()
-                || o.lo.0 > me.lo.0 + tol
-                || o.lo.1 > me.lo.1 + tol
-                || o.hi.0 < me.hi.0 - tol
-                || o.hi.1 < me.hi.1 - tol
-            {
-                continue;
-            }
-            chains.segments_into(&chains.items[o.idx], &mut buf);
-            if inside(&buf, &p) {
-                depth += 1;
-            }
-        }
-        let want_ccw = depth % 2 == 0;
-        if me.area != 0.0 && (me.area > 0.0) != want_ccw {
-            flip.push(me.idx);
-        }
-    }
+    let mut flip = flip;
     flip.sort_unstable();
     for idx in flip {
         chains.items[idx].reversed = true;

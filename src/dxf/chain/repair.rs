@@ -4,8 +4,10 @@
 
 use super::nodes::NONE;
 use super::{ChainReport, Notes, Work, fmt_num, midpoint};
+use crate::geometry::floor_i64;
 use crate::geometry::{Line3, P3, V3};
 use crate::model::chain::Segment;
+use rayon::prelude::*;
 
 /// Merge lines lying on one another: exact and near duplicates and partial
 /// overlaps become one line spanning their union.
@@ -20,88 +22,47 @@ pub(super) fn merge_collinear(w: &mut [Work], notes: &mut Notes, tol: f64, repor
     let off_bucket = (2.0 * tol).max(1e-9);
     let n_ang = (std::f64::consts::PI / ANGLE_BUCKET).ceil() as i64;
     // (bucket, line) sorted: each bucket is a contiguous range, found by
-    // binary search; no table of vectors.
-    let mut keyed: Vec<Keyed> = Vec::new();
-    for (i, x) in w.iter().enumerate() {
-        let Segment::Line(Line3 { start: a, end: b }) = x.seg else {
-            continue;
-        };
-        let len = (b - a).xy().norm();
-        // Only lines in a plane of constant z can lie on one another here.
-        if !x.alive || len <= tol || (b.z - a.z).abs() > tol {
-            continue;
-        }
-        let mut d = (b - a).xy() / len;
-        if d.y < 0.0 || (d.y == 0.0 && d.x < 0.0) {
-            d = -d;
-        }
-        let ai = ((d.y.atan2(d.x) / ANGLE_BUCKET).floor() as i64).clamp(0, n_ang - 1);
-        let off = d.x * a.y - d.y * a.x;
-        keyed.push(Keyed::new(ai, (off / off_bucket).floor() as i64, i as u32));
-    }
-    keyed.sort_unstable();
-    // Each direction bucket's range of `keyed` (an array over the
-    // directions: no hashing); offsets are found within it by binary
-    // search, and the offset neighbours in the group's own direction are
-    // the runs just before and after it.
-    let mut by_angle: Vec<(u32, u32)> = vec![(0, 0); n_ang as usize];
-    let mut g = 0;
-    while g < keyed.len() {
-        let a = keyed[g].ang();
-        let end = g + keyed[g..].partition_point(|e| e.ang() == a);
-        by_angle[a as usize] = (g as u32, end as u32);
-        g = end;
-    }
-    let range_of = |k: (i64, i64)| {
-        let (lo, hi) = by_angle[k.0 as usize];
-        let s = &keyed[lo as usize..hi as usize];
-        let a = s.partition_point(|e| e.off() < k.1);
-        let b = a + s[a..].partition_point(|e| e.off() == k.1);
-        lo as usize + a..lo as usize + b
-    };
-    let mut cand: Vec<usize> = Vec::new();
+    // binary search; no table of vectors. The keys on the pool, in drawing order (`collect` keeps it); each
+    // holds its line's index, so they are distinct and any sort gives the
+    // one order.
+    let mut keyed: Vec<Keyed> = w
+        .par_iter()
+        .enumerate()
+        .filter_map(|(i, x)| {
+            let Segment::Line(Line3 { start: a, end: b }) = x.seg else {
+                return None;
+            };
+            let len = (b - a).xy().norm();
+            // Only lines in a plane of constant z can lie on one another here.
+            if !x.alive || len <= tol || (b.z - a.z).abs() > tol {
+                return None;
+            }
+            let mut d = (b - a).xy() / len;
+            if d.y < 0.0 || (d.y == 0.0 && d.x < 0.0) {
+                d = -d;
+            }
+            let ai = floor_i64(d.y.atan2(d.x) / ANGLE_BUCKET).clamp(0, n_ang - 1);
+            let off = d.x * a.y - d.y * a.x;
+            Some(Keyed::new(ai, floor_i64(off / off_bucket), i as u32))
+        })
+        .collect();
+    keyed.par_sort_unstable();
+    let buckets = Buckets::new(keyed, n_ang);
+    let keyed = &buckets.keyed;
+    // The groups, then their candidates on the pool: most lines are alone
+    // with their neighbours, and only the groups with two or more lines to
+    // compare go on to the sweep, which merges and so runs in order.
+    let swept: Vec<(usize, Vec<usize>)> = (0..keyed.len())
+        .into_par_iter()
+        .filter(|&g0| g0 == 0 || keyed[g0 - 1].bucket() != keyed[g0].bucket())
+        .map_init(Vec::new, |cand, g0| {
+            buckets.candidates(g0, cand);
+            (cand.len() >= 2).then(|| (keyed[g0].idx() as usize, cand.clone()))
+        })
+        .flatten_iter()
+        .collect();
     let mut active: Vec<usize> = Vec::new();
-    let mut g = 0;
-    while g < keyed.len() {
-        let key = keyed[g].bucket();
-        let first = keyed[g].idx() as usize;
-        let g0 = g;
-        g += keyed[g..].partition_point(|e| e.bucket() == key);
-        let (a_lo, a_hi) = by_angle[key.0 as usize];
-        cand.clear();
-        for da in -1..=1 {
-            // Directions are folded into [0, pi): a line just below pi is a
-            // neighbour of one just above 0, with its offset's sign flipped.
-            let raw = key.0 + da;
-            let wrapped = !(0..n_ang).contains(&raw);
-            let a_key = raw.rem_euclid(n_ang);
-            if by_angle[a_key as usize].0 == by_angle[a_key as usize].1 {
-                continue;
-            }
-            for dofs in -1..=1 {
-                let o_key = if wrapped { -key.1 - 1 + dofs } else { key.1 + dofs };
-                let range = if da == 0 && !wrapped {
-                    match dofs {
-                        0 => g0..g,
-                        -1 if g0 > a_lo as usize && keyed[g0 - 1].bucket() == (a_key, o_key) => {
-                            a_lo as usize + keyed[a_lo as usize..g0].partition_point(|e| e.off() < o_key)..g0
-                        }
-                        1 if g < a_hi as usize && keyed[g].bucket() == (a_key, o_key) => {
-                            g..g + keyed[g..a_hi as usize].partition_point(|e| e.off() == o_key)
-                        }
-                        _ => 0..0,
-                    }
-                } else {
-                    range_of((a_key, o_key))
-                };
-                // Dead lines are skipped by the sweep: not looking at them here
-                // spares a cache miss per line alone in its bucket.
-                cand.extend(keyed[range].iter().map(|e| e.idx() as usize));
-            }
-        }
-        if cand.len() < 2 {
-            continue;
-        }
+    for (first, mut cand) in swept {
         let Segment::Line(Line3 { start: p, end: q }) = w[first].seg else {
             continue;
         };
@@ -173,6 +134,76 @@ impl Keyed {
     }
     fn bucket(self) -> (i64, i64) {
         (self.ang(), self.off())
+    }
+}
+
+/// The sorted keys with each direction's range of them (an array over the
+/// directions: no hashing); offsets are found within a range by binary
+/// search.
+struct Buckets {
+    keyed: Vec<Keyed>,
+    by_angle: Vec<(u32, u32)>,
+    n_ang: i64,
+}
+
+impl Buckets {
+    /// `keyed` sorted, with directions `0..n_ang`.
+    fn new(keyed: Vec<Keyed>, n_ang: i64) -> Buckets {
+        let mut by_angle: Vec<(u32, u32)> = vec![(0, 0); n_ang as usize];
+        let mut g = 0;
+        while g < keyed.len() {
+            let a = keyed[g].ang();
+            let end = g + keyed[g..].partition_point(|e| e.ang() == a);
+            by_angle[a as usize] = (g as u32, end as u32);
+            g = end;
+        }
+        Buckets { keyed, by_angle, n_ang }
+    }
+
+    /// The lines of the bucket starting at `keyed[g0]` and of its
+    /// neighbouring buckets (direction and offset one bucket either way),
+    /// into `cand`, from the keys alone. Directions are folded into
+    /// [0, pi): a line just below pi is a neighbour of one just above 0,
+    /// with its offset's sign flipped.
+    fn candidates(&self, g0: usize, cand: &mut Vec<usize>) {
+        let keyed = &self.keyed;
+        let key = keyed[g0].bucket();
+        cand.clear();
+        for da in -1..=1 {
+            let raw = key.0 + da;
+            let wrapped = !(0..self.n_ang).contains(&raw);
+            let a_key = raw.rem_euclid(self.n_ang);
+            let (lo, hi) = self.by_angle[a_key as usize];
+            let s = &keyed[lo as usize..hi as usize];
+            if s.is_empty() {
+                continue;
+            }
+            // The offsets `base - 1 ..= base + 1` are one run of the
+            // direction's range, found by two binary searches; where they
+            // wrap round the integers (offsets of some 1e16 tolerances),
+            // three runs, as the wrapping arithmetic has them.
+            let base = if wrapped {
+                key.1.wrapping_neg().wrapping_sub(1)
+            } else {
+                key.1
+            };
+            let run = |first: i64, last: i64| {
+                let a = s.partition_point(|e| e.off() < first);
+                let b = a + s[a..].partition_point(|e| e.off() <= last);
+                lo as usize + a..lo as usize + b
+            };
+            // Dead lines are skipped by the sweep: not looking at them here
+            // spares a cache miss per line alone in its bucket.
+            match (base.checked_sub(1), base.checked_add(1)) {
+                (Some(first), Some(last)) => cand.extend(keyed[run(first, last)].iter().map(|e| e.idx() as usize)),
+                _ => {
+                    for dofs in -1..=1 {
+                        let o = base.wrapping_add(dofs);
+                        cand.extend(keyed[run(o, o)].iter().map(|e| e.idx() as usize));
+                    }
+                }
+            }
+        }
     }
 }
 
@@ -344,6 +375,71 @@ pub(super) fn remove_duplicates(
                 .entry(j)
                 .or_default()
                 .push(format!("duplicate removed at [{}, {}]", fmt_num(p.x), fmt_num(p.y)));
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    /// The neighbourhood by its definition: every key within one direction
+    /// bucket (folded round at pi, the offset's sign flipped) and one
+    /// offset bucket of the group's, in the wrapping arithmetic of the
+    /// offsets.
+    fn brute(keyed: &[Keyed], n_ang: i64, g0: usize) -> Vec<usize> {
+        let key = keyed[g0].bucket();
+        let mut out: Vec<usize> = Vec::new();
+        for e in keyed {
+            for da in -1..=1 {
+                let raw = key.0 + da;
+                let wrapped = !(0..n_ang).contains(&raw);
+                let base = if wrapped {
+                    key.1.wrapping_neg().wrapping_sub(1)
+                } else {
+                    key.1
+                };
+                if e.ang() == raw.rem_euclid(n_ang) && (-1..=1).any(|d| e.off() == base.wrapping_add(d)) {
+                    out.push(e.idx() as usize);
+                }
+            }
+        }
+        out.sort_unstable();
+        out.dedup();
+        out
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(400))]
+        /// The two binary searches per direction find what the definition
+        /// names, at the fold and at the ends of the offsets too.
+        #[test]
+        fn candidates_are_the_neighbouring_buckets(
+            keys in proptest::collection::vec(
+                (0i64..6, prop_oneof![-4i64..4, Just(i64::MIN), Just(i64::MIN + 1), Just(i64::MAX), Just(i64::MAX - 1)]),
+                1..60,
+            ),
+        ) {
+            let n_ang = 6;
+            let mut keyed: Vec<Keyed> =
+                keys.iter().enumerate().map(|(i, &(a, o))| Keyed::new(a, o, i as u32)).collect();
+            keyed.sort_unstable();
+            let b = Buckets::new(keyed.clone(), n_ang);
+            let mut cand = Vec::new();
+            for g0 in 0..keyed.len() {
+                if g0 > 0 && keyed[g0 - 1].bucket() == keyed[g0].bucket() {
+                    continue;
+                }
+                b.candidates(g0, &mut cand);
+                let mut got = cand.clone();
+                got.sort_unstable();
+                // Each line once: the runs of one direction do not overlap.
+                let n = got.len();
+                got.dedup();
+                prop_assert_eq!(n, got.len(), "a line listed twice");
+                prop_assert_eq!(got, brute(&keyed, n_ang, g0));
+            }
         }
     }
 }

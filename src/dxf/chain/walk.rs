@@ -2,7 +2,7 @@
 //! from the nodes of degree other than two first, then the cycles; each
 //! chain's pieces snapped onto its nodes and its repairs gathered.
 
-use super::nodes::Nodes;
+use super::assign;
 use super::repair::{adjacency, merge_collinear, remove_duplicates, snap, zero_length};
 use super::{ChainReport, Chains, Item, Notes, REPORT_GAP, Work, fmt_num};
 
@@ -23,28 +23,14 @@ pub(super) fn chain_layer(
     merge_collinear(w, &mut notes, tol, report);
 
     // 2. End points to nodes.
-    let mut nodes = Nodes::new(tol, 2 * w.len());
-    let mut ends: Vec<(u32, u32)> = vec![(u32::MAX, u32::MAX); w.len()];
-    // The table slots of the pieces a few places ahead are asked for
-    // early, so their cache misses overlap with this piece's work.
-    const AHEAD: usize = 8;
-    for (i, x) in w.iter().enumerate() {
-        if let Some(a) = w.get(i + AHEAD).filter(|a| a.alive) {
-            nodes.prefetch(&a.seg.start());
-            nodes.prefetch(&a.seg.end());
-        }
-        if x.alive {
-            ends[i] = (nodes.node_of(&x.seg.start()), nodes.node_of(&x.seg.end()));
-        }
-    }
-    let (reps, gaps) = nodes.finish();
-    let n_nodes = reps.len();
+    let nodes = assign::assign(w, tol);
+    let (ends, n_nodes) = (&nodes.ends, nodes.len());
 
     // 3. Duplicates between the same pair of nodes.
-    remove_duplicates(w, &ends, n_nodes, &mut notes, tol, report);
+    remove_duplicates(w, ends, n_nodes, &mut notes, tol, report);
 
     // 4. Walk the graph: open chains from nodes of degree != 2, then cycles.
-    let (start_idx, adj) = adjacency(w, &ends, n_nodes);
+    let (start_idx, adj) = adjacency(w, ends, n_nodes);
     let degree = |n: u32| start_idx[n as usize + 1] - start_idx[n as usize];
     let mut used = vec![false; w.len()];
     // Each walk fills `run` (reused) and is turned into a chain at once:
@@ -85,20 +71,20 @@ pub(super) fn chain_layer(
             let (na, nb) = if fwd { (a, b) } else { (b, a) };
             let seg = if fwd { w[i].seg } else { w[i].seg.reversed() };
             // Snapped in place, turned to the direction of travel.
-            w[i].seg = snap(&seg, reps[na as usize], reps[nb as usize]);
+            w[i].seg = snap(&seg, nodes.rep(na), nodes.rep(nb));
             out.seq.push(base + i as u32);
             if let Some(mut v) = notes.remove(&i) {
                 repairs.append(&mut v);
             }
             for n in [na, nb] {
-                if gaps[n as usize] > REPORT_GAP && !gap_nodes.contains(&n) {
+                if nodes.gap(n) > REPORT_GAP && !gap_nodes.contains(&n) {
                     gap_nodes.push(n);
                 }
             }
         }
         for n in gap_nodes {
-            let g = gaps[n as usize];
-            let p = reps[n as usize];
+            let g = nodes.gap(n);
+            let p = nodes.rep(n);
             report.gaps_closed += 1;
             report.max_gap = report.max_gap.max(g);
             repairs.push(format!(

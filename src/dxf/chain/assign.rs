@@ -1,0 +1,358 @@
+//! End points to node ids: every alive piece's start and end joined to the
+//! first node within the tolerance, as [`Nodes`] does in drawing order, on
+//! one thread or, on a large drawing, on two halves of the plane at once.
+
+use super::Work;
+use super::nodes::{NONE, Nodes};
+use crate::geometry::P3;
+use rayon::prelude::*;
+
+/// Every piece's end nodes, and the nodes' points and gaps.
+pub(super) struct Assigned {
+    /// Piece `i`'s start and end node; `(NONE, NONE)` for a dead piece.
+    pub ends: Vec<(u32, u32)>,
+    /// The points and gaps of the nodes, of one side or two.
+    sides: [Found; 2],
+    /// Where node `n` is: `from[n]` is its index in `sides[0]`, or in
+    /// `sides[1]` with [`RIGHT`] set. Empty when there is one side, whose
+    /// indices are the node ids.
+    from: Vec<u32>,
+}
+
+/// The nodes' points and the largest distance of a point joined to each.
+#[derive(Default)]
+struct Found {
+    reps: Vec<P3>,
+    gaps: Vec<f64>,
+}
+
+const RIGHT: u32 = 1 << 31;
+
+impl Assigned {
+    /// How many nodes there are.
+    pub fn len(&self) -> usize {
+        self.sides[0].reps.len() + self.sides[1].reps.len()
+    }
+
+    fn locate(&self, n: u32) -> (&Found, usize) {
+        match self.from.get(n as usize) {
+            None => (&self.sides[0], n as usize),
+            Some(&k) if k & RIGHT != 0 => (&self.sides[1], (k & !RIGHT) as usize),
+            Some(&k) => (&self.sides[0], k as usize),
+        }
+    }
+
+    /// Node `n`'s point (the first point joined to it).
+    pub fn rep(&self, n: u32) -> P3 {
+        let (f, k) = self.locate(n);
+        f.reps[k]
+    }
+
+    /// The largest distance of a point joined to node `n`.
+    pub fn gap(&self, n: u32) -> f64 {
+        let (f, k) = self.locate(n);
+        f.gaps[k]
+    }
+}
+
+/// Below this many pieces the clustering runs on one thread: splitting
+/// would cost more than it saves.
+const SPLIT_MIN: usize = 1 << 14;
+
+/// The nodes of the alive pieces' end points, exactly as
+/// [`Nodes::node_of`] on each start and end in drawing order gives them.
+///
+/// On a large drawing the plane is cut by a vertical line that no end point
+/// comes near (farther than twice the tolerance, with a margin, on either
+/// side) and each half is clustered on its own thread. No node of one half
+/// can be within the tolerance of a point of the other, so each point meets
+/// the same candidates as in one pass; the ids of each half come in the
+/// order of their first points, and merging the halves by that order gives
+/// the ids one pass gives. A drawing with no such line near its median
+/// (every x taken, as in a dense grid) is clustered in one pass.
+pub(super) fn assign(w: &[Work], tol: f64) -> Assigned {
+    assign_from(w, tol, w.len() >= SPLIT_MIN && rayon::current_num_threads() > 1)
+}
+
+/// [`assign`], splitting where `split` and a line is found.
+fn assign_from(w: &[Work], tol: f64, split: bool) -> Assigned {
+    if split && let Some((m, left, right)) = split_line(w, tol) {
+        let (l, r) = rayon::join(
+            || cluster(w, tol, left, |p| p.x < m),
+            || cluster(w, tol, right, |p| p.x >= m),
+        );
+        return merge(l, r);
+    }
+    let c = cluster(w, tol, 2 * w.len(), |_| true);
+    Assigned {
+        ends: c.ends,
+        sides: [c.found, Found::default()],
+        from: Vec::new(),
+    }
+}
+
+/// The nodes of the end points that `mine` accepts, in drawing order.
+struct Side {
+    /// Local node ids; [`NONE`] for points of the other side.
+    ends: Vec<(u32, u32)>,
+    found: Found,
+    /// Each node's first point, as `2 * piece + (0 for start, 1 for end)`:
+    /// ascending, since ids are given in drawing order.
+    born: Vec<u64>,
+}
+
+fn cluster(w: &[Work], tol: f64, points: usize, mine: impl Fn(&P3) -> bool) -> Side {
+    let mut nodes = Nodes::new(tol, points);
+    let mut ends: Vec<(u32, u32)> = vec![(NONE, NONE); w.len()];
+    let mut born: Vec<u64> = Vec::new();
+    // The table slots of the pieces a few places ahead are asked for
+    // early, so their cache misses overlap with this piece's work.
+    const AHEAD: usize = 8;
+    for (i, x) in w.iter().enumerate() {
+        if let Some(a) = w.get(i + AHEAD).filter(|a| a.alive) {
+            for p in [a.seg.start(), a.seg.end()] {
+                if mine(&p) {
+                    nodes.prefetch(&p);
+                }
+            }
+        }
+        if !x.alive {
+            continue;
+        }
+        let mut end = [NONE; 2];
+        for (k, p) in [x.seg.start(), x.seg.end()].iter().enumerate() {
+            if mine(p) {
+                let before = nodes.reps.len();
+                end[k] = nodes.node_of(p);
+                if nodes.reps.len() > before {
+                    born.push(2 * i as u64 + k as u64);
+                }
+            }
+        }
+        ends[i] = (end[0], end[1]);
+    }
+    let (reps, gaps) = nodes.finish();
+    Side {
+        ends,
+        found: Found { reps, gaps },
+        born,
+    }
+}
+
+/// The two sides' nodes as one set, numbered in the order of their first
+/// points; the nodes themselves stay where they are.
+fn merge(l: Side, r: Side) -> Assigned {
+    let n = l.born.len() + r.born.len();
+    let (mut to_l, mut to_r) = (vec![NONE; l.born.len()], vec![NONE; r.born.len()]);
+    let mut from: Vec<u32> = Vec::with_capacity(n);
+    let (mut a, mut b) = (0, 0);
+    while a < l.born.len() || b < r.born.len() {
+        if b == r.born.len() || (a < l.born.len() && l.born[a] < r.born[b]) {
+            to_l[a] = from.len() as u32;
+            from.push(a as u32);
+            a += 1;
+        } else {
+            to_r[b] = from.len() as u32;
+            from.push(b as u32 | RIGHT);
+            b += 1;
+        }
+    }
+    // The left side's array takes the ids, in place.
+    let mut ends = l.ends;
+    ends.par_iter_mut().zip(&r.ends).for_each(|(e, &(ra, rb))| {
+        let pick = |x: u32, y: u32| match (x, y) {
+            (NONE, NONE) => NONE,
+            (NONE, y) => to_r[y as usize],
+            (x, _) => to_l[x as usize],
+        };
+        *e = (pick(e.0, ra), pick(e.1, rb));
+    });
+    Assigned {
+        ends,
+        sides: [l.found, r.found],
+        from,
+    }
+}
+
+/// A line x = m near the median of the end points' x with every alive end
+/// point more than twice the reach away from it, and how many end points lie
+/// on either side; `None` when a sample of the drawing offers none that
+/// holds.
+fn split_line(w: &[Work], tol: f64) -> Option<(f64, usize, usize)> {
+    let band = 2.0 * tol * (1.0 + 1e-6);
+    let step = (w.len() / 2048).max(1);
+    let mut xs: Vec<f64> = w
+        .iter()
+        .step_by(step)
+        .filter(|x| x.alive)
+        .flat_map(|x| [x.seg.start().x, x.seg.end().x])
+        .collect();
+    if xs.len() < 64 {
+        return None;
+    }
+    xs.sort_unstable_by(f64::total_cmp);
+    let mid = xs.len() / 2;
+    // Gaps of the sample outwards from the median, within its middle half;
+    // each one that is wide enough is checked against every point.
+    let mut tries = 0;
+    for d in 0..xs.len() / 4 {
+        for k in [mid + d, mid - 1 - d] {
+            let (a, b) = (xs[k], xs[k + 1]);
+            let m = a / 2.0 + b / 2.0;
+            if !(m - a > band && b - m > band) {
+                continue;
+            }
+            let counts = w
+                .par_iter()
+                .filter(|x| x.alive)
+                .map(|x| {
+                    let (p, q) = (x.seg.start().x, x.seg.end().x);
+                    if (p - m).abs() <= band || (q - m).abs() <= band {
+                        return None;
+                    }
+                    let left = (p < m) as usize + (q < m) as usize;
+                    Some((left, 2 - left))
+                })
+                .try_reduce(|| (0, 0), |x, y| Some((x.0 + y.0, x.1 + y.1)));
+            if let Some((left, right)) = counts {
+                return Some((m, left, right));
+            }
+            tries += 1;
+            if tries == 3 {
+                return None;
+            }
+        }
+    }
+    None
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::{Arc3, Plane, V3};
+    use crate::model::chain::Segment;
+    use proptest::prelude::*;
+
+    /// Everything a walk reads of an assignment, node by node.
+    fn nodes_of(a: &Assigned) -> Vec<(P3, f64)> {
+        (0..a.len() as u32).map(|n| (a.rep(n), a.gap(n))).collect()
+    }
+
+    fn work(seg: Segment, alive: bool) -> Work {
+        Work { seg, order: 0, alive }
+    }
+
+    /// Pieces with ends on a lattice `pitch` apart, jittered by up to
+    /// `jitter`: ends that meet, ends a hair apart and ends just outside
+    /// the tolerance, in columns with empty strips between some of them.
+    fn drawing() -> impl Strategy<Value = (Vec<Work>, f64)> {
+        let tol = prop_oneof![Just(0.0), Just(1e-3), Just(0.01), Just(0.3)];
+        let end = (0i32..24, 0i32..6, 0u8..4, -1.0f64..1.0, -1.0f64..1.0);
+        let piece = (end.clone(), end, any::<bool>(), 0u8..10);
+        (tol, proptest::collection::vec(piece, 40..400)).prop_map(|(tol, pieces)| {
+            let pt = |(i, j, k, dx, dy): (i32, i32, u8, f64, f64)| {
+                // Columns 0-7 and 16-23 only, mostly: the middle is empty
+                // save for a few pieces crossing it.
+                let x = if (8..16).contains(&i) {
+                    i as f64 * 0.25
+                } else {
+                    i as f64
+                };
+                let jitter = [0.0, 0.4 * tol, tol, 2.0 * tol][k as usize];
+                P3::new(x + dx * jitter, j as f64 + dy * jitter, 0.0)
+            };
+            let w = pieces
+                .into_iter()
+                .map(|(a, b, arc, dead)| {
+                    let (p, q) = (pt(a), pt(b));
+                    let c = P3::from((p.coords + q.coords) * 0.5);
+                    let seg = match Arc3::new(c, p, q, true, Plane::Xy, 0) {
+                        Some(a) if arc && (p - q).norm() > 1e-6 => Segment::Arc(a),
+                        _ => Segment::line(p, q),
+                    };
+                    work(seg, dead != 0)
+                })
+                .collect();
+            (w, tol)
+        })
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(300))]
+        /// Clustering the two halves on their own and merging them gives
+        /// the nodes, ids, points and gaps of one pass in drawing order.
+        #[test]
+        fn split_clustering_is_one_pass((w, tol) in drawing()) {
+            let one = assign_from(&w, tol, false);
+            let two = assign_from(&w, tol, true);
+            prop_assert!(one.from.is_empty());
+            prop_assert_eq!(&two.ends, &one.ends);
+            prop_assert_eq!(nodes_of(&two), nodes_of(&one));
+        }
+    }
+
+    #[test]
+    fn a_drawing_in_two_parts_is_split_and_a_dense_one_is_not() {
+        // Squares on the left and on the right, nothing in between.
+        let mut w = Vec::new();
+        for k in 0..200 {
+            let x = if k % 2 == 0 { 0.0 } else { 100.0 } + (k % 7) as f64;
+            let y = (k / 2) as f64;
+            let c = [
+                P3::new(x, y, 0.0),
+                P3::new(x + 0.5, y, 0.0),
+                P3::new(x + 0.5, y + 0.5, 0.0),
+                P3::new(x, y + 0.5, 0.0),
+            ];
+            for i in 0..4 {
+                w.push(work(Segment::line(c[i], c[(i + 1) % 4]), true));
+            }
+        }
+        let two = assign_from(&w, 0.001, true);
+        assert!(!two.from.is_empty(), "split");
+        let one = assign_from(&w, 0.001, false);
+        assert_eq!(two.ends, one.ends);
+        assert_eq!(nodes_of(&two), nodes_of(&one));
+        // Every x of the middle half within the tolerance of the next:
+        // no line can be drawn, and one pass is taken.
+        let w: Vec<Work> = (0..400)
+            .map(|k| {
+                let x = k as f64 * 0.0015;
+                work(Segment::line(P3::new(x, 0.0, 0.0), P3::new(x, 1.0, 0.0)), true)
+            })
+            .collect();
+        let a = assign_from(&w, 0.001, true);
+        assert!(a.from.is_empty(), "not split");
+        assert_eq!(a.ends, assign_from(&w, 0.001, false).ends);
+        // The sample (every other piece here) sees the even columns; the
+        // pieces it skips stand on the odd ones, halfway between, where the
+        // lines through the sample's gaps would pass: every one is refused.
+        let w: Vec<Work> = (0..5000)
+            .map(|k| {
+                let x = (2 * (k / 2 % 25) + k % 2) as f64;
+                let y = (k / 50) as f64;
+                work(Segment::line(P3::new(x, y, 0.0), P3::new(x, y + 0.5, 0.0)), true)
+            })
+            .collect();
+        assert!(split_line(&w, 0.001).is_none());
+        // With the odd columns moved off by a quarter, a line passes.
+        let w: Vec<Work> = w
+            .iter()
+            .enumerate()
+            .map(|(k, x)| {
+                let d = if k % 2 == 1 { 0.25 } else { 0.0 };
+                work(
+                    Segment::line(x.seg.start() + V3::new(d, 0.0, 0.0), x.seg.end() + V3::new(d, 0.0, 0.0)),
+                    true,
+                )
+            })
+            .collect();
+        let (m, left, right) = split_line(&w, 0.001).expect("a line between the columns");
+        assert_eq!(m % 2.0, 1.0, "{m}: halfway between two even columns");
+        assert_eq!(left + right, 10_000);
+        let (one, two) = (assign_from(&w, 0.001, false), assign_from(&w, 0.001, true));
+        assert!(!two.from.is_empty());
+        assert_eq!(two.ends, one.ends);
+        assert_eq!(nodes_of(&two), nodes_of(&one));
+    }
+}
