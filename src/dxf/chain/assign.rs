@@ -96,15 +96,11 @@ struct Side {
     /// Local node ids; [`NONE`] for points of the other side.
     ends: Vec<(u32, u32)>,
     found: Found,
-    /// Each node's first point, as `2 * piece + (0 for start, 1 for end)`:
-    /// ascending, since ids are given in drawing order.
-    born: Vec<u64>,
 }
 
 fn cluster(w: &[Work], tol: f64, points: usize, mine: impl Fn(&P3) -> bool) -> Side {
     let mut nodes = Nodes::new(tol, points);
     let mut ends: Vec<(u32, u32)> = vec![(NONE, NONE); w.len()];
-    let mut born: Vec<u64> = Vec::new();
     // The table slots of the pieces a few places ahead are asked for
     // early, so their cache misses overlap with this piece's work.
     const AHEAD: usize = 8;
@@ -122,11 +118,7 @@ fn cluster(w: &[Work], tol: f64, points: usize, mine: impl Fn(&P3) -> bool) -> S
         let mut end = [NONE; 2];
         for (k, p) in [x.seg.start(), x.seg.end()].iter().enumerate() {
             if mine(p) {
-                let before = nodes.reps.len();
                 end[k] = nodes.node_of(p);
-                if nodes.reps.len() > before {
-                    born.push(2 * i as u64 + k as u64);
-                }
             }
         }
         ends[i] = (end[0], end[1]);
@@ -135,26 +127,28 @@ fn cluster(w: &[Work], tol: f64, points: usize, mine: impl Fn(&P3) -> bool) -> S
     Side {
         ends,
         found: Found { reps, gaps },
-        born,
     }
 }
 
 /// The two sides' nodes as one set, numbered in the order of their first
 /// points; the nodes themselves stay where they are.
 fn merge(l: Side, r: Side) -> Assigned {
-    let n = l.born.len() + r.born.len();
-    let (mut to_l, mut to_r) = (vec![NONE; l.born.len()], vec![NONE; r.born.len()]);
-    let mut from: Vec<u32> = Vec::with_capacity(n);
-    let (mut a, mut b) = (0, 0);
-    while a < l.born.len() || b < r.born.len() {
-        if b == r.born.len() || (a < l.born.len() && l.born[a] < r.born[b]) {
-            to_l[a] = from.len() as u32;
-            from.push(a as u32);
-            a += 1;
-        } else {
-            to_r[b] = from.len() as u32;
-            from.push(b as u32 | RIGHT);
-            b += 1;
+    // A side's ids are given in the order of their first points, so going
+    // through the points in drawing order, a point whose local id is the
+    // number of that side's nodes met so far is a node's first point: the
+    // next id in one pass.
+    let (nl, nr) = (l.found.reps.len(), r.found.reps.len());
+    let (mut to_l, mut to_r): (Vec<u32>, Vec<u32>) = (Vec::with_capacity(nl), Vec::with_capacity(nr));
+    let mut from: Vec<u32> = Vec::with_capacity(nl + nr);
+    for (&(la, lb), &(ra, rb)) in l.ends.iter().zip(&r.ends) {
+        for (x, y) in [(la, ra), (lb, rb)] {
+            if x != NONE && x as usize == to_l.len() {
+                to_l.push(from.len() as u32);
+                from.push(x);
+            } else if y != NONE && y as usize == to_r.len() {
+                to_r.push(from.len() as u32);
+                from.push(y | RIGHT);
+            }
         }
     }
     // The left side's array takes the ids, in place.
