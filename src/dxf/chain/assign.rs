@@ -6,6 +6,7 @@ use super::Work;
 use super::nodes::{NONE, Nodes};
 use crate::geometry::P3;
 use rayon::prelude::*;
+use std::sync::atomic::{AtomicU32, Ordering};
 
 /// Every piece's end nodes, and the nodes' points and gaps.
 pub(super) struct Assigned {
@@ -26,6 +27,9 @@ struct Found {
     gaps: Vec<f64>,
 }
 
+/// Set on the ids of the right side's nodes (in the end slots and in
+/// [`Assigned`]'s `from`): local ids stay below 2^31, as a drawing of
+/// 2^31 nodes would need some 100 GB.
 const RIGHT: u32 = 1 << 31;
 
 impl Assigned {
@@ -76,31 +80,41 @@ pub(super) fn assign(w: &[Work], tol: f64) -> Assigned {
 
 /// [`assign`], splitting where `split` and a line is found.
 fn assign_from(w: &[Work], tol: f64, split: bool) -> Assigned {
+    // One array of end slots for both sides: each point's slot is written
+    // by the one side it lies on (relaxed stores: plain moves on x86), so
+    // the drawing costs one array of ends, not one per side.
+    let slots: Vec<[AtomicU32; 2]> = (0..w.len())
+        .map(|_| [AtomicU32::new(NONE), AtomicU32::new(NONE)])
+        .collect();
     if split && let Some((m, left, right)) = split_line(w, tol) {
         let (l, r) = rayon::join(
-            || cluster(w, tol, left, |p| p.x < m),
-            || cluster(w, tol, right, |p| p.x >= m),
+            || cluster(w, tol, left, &slots, 0, |p| p.x < m),
+            || cluster(w, tol, right, &slots, RIGHT, |p| p.x >= m),
         );
-        return merge(l, r);
+        return merge(slots, l, r);
     }
-    let c = cluster(w, tol, 2 * w.len(), |_| true);
+    let found = cluster(w, tol, 2 * w.len(), &slots, 0, |_| true);
     Assigned {
-        ends: c.ends,
-        sides: [c.found, Found::default()],
+        ends: slots
+            .into_iter()
+            .map(|[a, b]| (a.into_inner(), b.into_inner()))
+            .collect(),
+        sides: [found, Found::default()],
         from: Vec::new(),
     }
 }
 
-/// The nodes of the end points that `mine` accepts, in drawing order.
-struct Side {
-    /// Local node ids; [`NONE`] for points of the other side.
-    ends: Vec<(u32, u32)>,
-    found: Found,
-}
-
-fn cluster(w: &[Work], tol: f64, points: usize, mine: impl Fn(&P3) -> bool) -> Side {
+/// The nodes of the end points that `mine` accepts, in drawing order: each
+/// point's local id, with `tag` set, into its slot.
+fn cluster(
+    w: &[Work],
+    tol: f64,
+    points: usize,
+    slots: &[[AtomicU32; 2]],
+    tag: u32,
+    mine: impl Fn(&P3) -> bool,
+) -> Found {
     let mut nodes = Nodes::new(tol, points);
-    let mut ends: Vec<(u32, u32)> = vec![(NONE, NONE); w.len()];
     // The table slots of the pieces a few places ahead are asked for
     // early, so their cache misses overlap with this piece's work.
     const AHEAD: usize = 8;
@@ -115,55 +129,53 @@ fn cluster(w: &[Work], tol: f64, points: usize, mine: impl Fn(&P3) -> bool) -> S
         if !x.alive {
             continue;
         }
-        let mut end = [NONE; 2];
         for (k, p) in [x.seg.start(), x.seg.end()].iter().enumerate() {
             if mine(p) {
-                end[k] = nodes.node_of(p);
+                slots[i][k].store(nodes.node_of(p) | tag, Ordering::Relaxed);
             }
         }
-        ends[i] = (end[0], end[1]);
     }
     let (reps, gaps) = nodes.finish();
-    Side {
-        ends,
-        found: Found { reps, gaps },
-    }
+    Found { reps, gaps }
 }
 
 /// The two sides' nodes as one set, numbered in the order of their first
 /// points; the nodes themselves stay where they are.
-fn merge(l: Side, r: Side) -> Assigned {
+fn merge(slots: Vec<[AtomicU32; 2]>, l: Found, r: Found) -> Assigned {
     // A side's ids are given in the order of their first points, so going
     // through the points in drawing order, a point whose local id is the
     // number of that side's nodes met so far is a node's first point: the
     // next id in one pass.
-    let (nl, nr) = (l.found.reps.len(), r.found.reps.len());
-    let (mut to_l, mut to_r): (Vec<u32>, Vec<u32>) = (Vec::with_capacity(nl), Vec::with_capacity(nr));
-    let mut from: Vec<u32> = Vec::with_capacity(nl + nr);
-    for (&(la, lb), &(ra, rb)) in l.ends.iter().zip(&r.ends) {
-        for (x, y) in [(la, ra), (lb, rb)] {
-            if x != NONE && x as usize == to_l.len() {
-                to_l.push(from.len() as u32);
-                from.push(x);
-            } else if y != NONE && y as usize == to_r.len() {
-                to_r.push(from.len() as u32);
-                from.push(y | RIGHT);
-            }
+    let (mut to_l, mut to_r): (Vec<u32>, Vec<u32>) =
+        (Vec::with_capacity(l.reps.len()), Vec::with_capacity(r.reps.len()));
+    let mut from: Vec<u32> = Vec::with_capacity(l.reps.len() + r.reps.len());
+    for v in slots.iter().flatten().map(|s| s.load(Ordering::Relaxed)) {
+        if v == NONE {
+            continue;
+        }
+        let (to, k) = if v & RIGHT != 0 {
+            (&mut to_r, v & !RIGHT)
+        } else {
+            (&mut to_l, v)
+        };
+        if k as usize == to.len() {
+            to.push(from.len() as u32);
+            from.push(v);
         }
     }
-    // The left side's array takes the ids, in place.
-    let mut ends = l.ends;
-    ends.par_iter_mut().zip(&r.ends).for_each(|(e, &(ra, rb))| {
-        let pick = |x: u32, y: u32| match (x, y) {
-            (NONE, NONE) => NONE,
-            (NONE, y) => to_r[y as usize],
-            (x, _) => to_l[x as usize],
-        };
-        *e = (pick(e.0, ra), pick(e.1, rb));
-    });
+    let id = |v: u32| match v {
+        NONE => NONE,
+        v if v & RIGHT != 0 => to_r[(v & !RIGHT) as usize],
+        v => to_l[v as usize],
+    };
+    // In place: the slots and the pairs have the same size and alignment.
+    let ends = slots
+        .into_iter()
+        .map(|[a, b]| (id(a.into_inner()), id(b.into_inner())))
+        .collect();
     Assigned {
         ends,
-        sides: [l.found, r.found],
+        sides: [l, r],
         from,
     }
 }
