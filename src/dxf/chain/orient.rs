@@ -156,7 +156,7 @@ pub(super) fn orient(chains: &mut Chains, tol: f64, report: &mut ChainReport) {
     // Each probe's depth is a read-only question: the probes are answered
     // in runs on the pool, each run finding its place in the grid once.
     const RUN: usize = 1 << 10;
-    let flip: Vec<usize> = probes
+    let mut flip: Vec<usize> = probes
         .par_chunks(RUN)
         .flat_map_iter(|run| {
             let mut buf: Vec<Segment> = Vec::new();
@@ -195,7 +195,6 @@ pub(super) fn orient(chains: &mut Chains, tol: f64, report: &mut ChainReport) {
             flip
         })
         .collect();
-    let mut flip = flip;
     flip.sort_unstable();
     for idx in flip {
         chains.items[idx].reversed = true;

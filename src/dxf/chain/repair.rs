@@ -4,8 +4,7 @@
 
 use super::nodes::NONE;
 use super::{ChainReport, Notes, Work, fmt_num, midpoint};
-use crate::geometry::floor_i64;
-use crate::geometry::{Line3, P3, V3};
+use crate::geometry::{Line3, P3, V3, floor_i64};
 use crate::model::chain::Segment;
 use rayon::prelude::*;
 
@@ -22,9 +21,9 @@ pub(super) fn merge_collinear(w: &mut [Work], notes: &mut Notes, tol: f64, repor
     let off_bucket = (2.0 * tol).max(1e-9);
     let n_ang = (std::f64::consts::PI / ANGLE_BUCKET).ceil() as i64;
     // (bucket, line) sorted: each bucket is a contiguous range, found by
-    // binary search; no table of vectors. The keys on the pool, in drawing order (`collect` keeps it); each
-    // holds its line's index, so they are distinct and any sort gives the
-    // one order.
+    // binary search; no table of vectors. The keys are made on the pool, in
+    // drawing order (`collect` keeps it); each holds its line's index, so
+    // they are distinct and any sort gives the one order.
     let mut keyed: Vec<Keyed> = w
         .par_iter()
         .enumerate()
