@@ -297,6 +297,52 @@ mod tests {
         }
     }
 
+    /// Real drawings, split wherever a line is found, at three tolerances:
+    /// the same nodes as one pass.
+    #[test]
+    fn corpus_drawings_split_as_one_pass() {
+        let files = crate::corpus::files("dxf", &[".dxf"]);
+        if files.is_empty() {
+            crate::corpus::skip("dxf_split_clustering");
+            return;
+        }
+        let (mut cases, mut split) = (0, 0);
+        for path in &files {
+            let Ok(f) = std::fs::File::open(path) else { continue };
+            let input = Box::new(std::io::BufReader::new(f));
+            let Ok(imp) = crate::dxf::import(input, &crate::dxf::ImportOptions::default()) else {
+                continue;
+            };
+            let w: Vec<Work> = imp
+                .sink
+                .segments
+                .iter()
+                .map(|(seg, _)| {
+                    work(
+                        *seg,
+                        seg.start()
+                            .coords
+                            .iter()
+                            .chain(seg.end().coords.iter())
+                            .all(|v| v.is_finite()),
+                    )
+                })
+                .collect();
+            for tol in [0.0, 0.001, 0.05] {
+                let one = assign_from(&w, tol, false);
+                let two = assign_from(&w, tol, true);
+                assert_eq!(two.ends, one.ends, "{} at {tol}", path.display());
+                assert_eq!(nodes_of(&two), nodes_of(&one), "{} at {tol}", path.display());
+                cases += 1;
+                split += usize::from(!two.from.is_empty());
+            }
+        }
+        // Most of them are split: the test compares the two ways, not one
+        // way with itself.
+        assert!(split * 2 > cases, "{split} of {cases} split");
+        crate::corpus::record("dxf_split_clustering", cases);
+    }
+
     #[test]
     fn a_drawing_in_two_parts_is_split_and_a_dense_one_is_not() {
         // Squares on the left and on the right, nothing in between.
