@@ -317,16 +317,7 @@ mod tests {
                 .sink
                 .segments
                 .iter()
-                .map(|(seg, _)| {
-                    work(
-                        *seg,
-                        seg.start()
-                            .coords
-                            .iter()
-                            .chain(seg.end().coords.iter())
-                            .all(|v| v.is_finite()),
-                    )
-                })
+                .map(|(seg, _)| work(*seg, seg.is_finite()))
                 .collect();
             for tol in [0.0, 0.001, 0.05] {
                 let one = assign_from(&w, tol, false);
