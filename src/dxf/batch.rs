@@ -105,6 +105,19 @@ fn numbered(done: Vec<(usize, Prefit)>, slots: usize) -> Vec<Option<Prefit>> {
     fits
 }
 
+/// Whether this thread's imports expand every entity as it is read (the
+/// tests' reference): the import hands it to its placer thread.
+#[cfg(test)]
+pub(super) fn unbatched() -> bool {
+    tests::UNBATCHED.get()
+}
+
+/// See [`unbatched`].
+#[cfg(test)]
+pub(super) fn set_unbatched(on: bool) {
+    tests::UNBATCHED.set(on);
+}
+
 /// Entities waiting for expansion: the batch being filled and the one
 /// whose splines are being fitted.
 #[derive(Default)]

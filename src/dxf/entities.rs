@@ -8,7 +8,7 @@
 
 use super::reader::{DxfError, Pos, Reader};
 use crate::geometry::{P3, V3};
-use std::rc::Rc;
+use std::sync::Arc;
 
 /// A typed drawing entity we can turn into geometry.
 #[derive(Debug, Clone, PartialEq)]
@@ -138,7 +138,7 @@ pub struct Insert {
 pub struct Entity {
     /// Shared by the entities of a run on one layer (one allocation per
     /// run, not per entity).
-    pub layer: Rc<str>,
+    pub layer: Arc<str>,
     /// The geometry.
     pub shape: EntityShape,
     /// Where its `0` tag sits, for error messages.
@@ -160,7 +160,7 @@ pub enum Read {
 pub struct Scratch {
     layer: String,
     /// The layer name of the last entity read, shared.
-    last_layer: Option<Rc<str>>,
+    last_layer: Option<Arc<str>>,
     name: String,
     p10: Vec<P3>,
     bulge: Vec<f64>,
@@ -207,11 +207,11 @@ impl Scratch {
 impl Scratch {
     /// The layer just read, as the shared name of the previous entity's
     /// when it is the same.
-    fn layer_rc(&mut self) -> Rc<str> {
+    fn shared_layer(&mut self) -> Arc<str> {
         match &self.last_layer {
             Some(l) if **l == *self.layer => l.clone(),
             _ => {
-                let l: Rc<str> = Rc::from(self.layer.as_str());
+                let l: Arc<str> = Arc::from(self.layer.as_str());
                 self.last_layer = Some(l.clone());
                 l
             }
@@ -382,7 +382,7 @@ pub fn read_entity(kind: &str, r: &mut Reader, s: &mut Scratch) -> Result<Read, 
         return Err(bad("non-finite coordinate"));
     }
     Ok(Read::Entity(Entity {
-        layer: s.layer_rc(),
+        layer: s.shared_layer(),
         shape,
         pos,
     }))
@@ -401,7 +401,7 @@ fn shape_finite(s: &EntityShape) -> bool {
 fn read_polyline(r: &mut Reader, s: &mut Scratch, pos: Pos) -> Result<Read, DxfError> {
     let flags = s.i70;
     let paper = s.paper;
-    let layer = s.layer_rc();
+    let layer = s.shared_layer();
     let elevation = s.p10.first().map(|p| p.z).unwrap_or(0.0);
     let ext = s.ext;
     let mut verts2 = Vec::new();

@@ -24,6 +24,7 @@ pub mod curves;
 pub mod entities;
 pub mod expand;
 pub mod ocs;
+mod place;
 pub mod reader;
 pub mod summary;
 pub mod svg;
@@ -31,7 +32,7 @@ pub mod tokens;
 pub mod transform;
 pub mod units;
 
-use entities::{Entity, EntityShape, Read, Scratch};
+use entities::{EntityShape, Read, Scratch};
 use expand::{BlockDef, Expander, Sink};
 use ocs::Affine;
 use reader::{DxfError, Reader};
@@ -112,32 +113,68 @@ enum Section {
 pub fn import(input: Box<dyn BufRead>, opts: &ImportOptions) -> Result<Import, DxfError> {
     let mut r = Reader::new(input)?;
     let binary = r.is_binary();
-    let mut blocks: HashMap<String, BlockDef> = HashMap::new();
-    let mut skipped: BTreeMap<String, u64> = BTreeMap::new();
-    let mut pending: Vec<Entity> = Vec::new();
-    let mut sink = Sink::default();
+    let (mut events, rx) = place::channel();
+    #[cfg(test)]
+    let unbatched = batch::unbatched();
+    let (parsed, placed) = std::thread::scope(|s| {
+        let placer = s.spawn(move || {
+            #[cfg(test)]
+            batch::set_unbatched(unbatched);
+            place::place(rx, opts)
+        });
+        let parsed = parse(&mut r, opts, &mut events);
+        // The placer ends at the End or Error event, or when the channel
+        // closes (the parser stopped because the placer had).
+        drop(events);
+        let placed = placer.join().unwrap_or_else(|p| std::panic::resume_unwind(p));
+        (parsed, placed)
+    });
+    let mut sink = placed?;
+    // Give back the growth slack of the geometry array before chaining
+    // starts allocating (a shrink of a large block is a remap, not a copy).
+    sink.segments.shrink_to_fit();
+    let (unit_mm, unit_source) = unit_of(opts, parsed.insunits);
+    Ok(Import {
+        sink,
+        skipped: parsed.skipped,
+        unit_mm,
+        unit_source,
+        version: parsed.version,
+        binary,
+    })
+}
+
+/// What only the parser sees: the header's variables and the entities
+/// it skipped.
+#[derive(Default)]
+struct Parsed {
+    skipped: BTreeMap<String, u64>,
+    insunits: Option<i64>,
+    version: Option<String>,
+}
+
+/// The entity state machine over the whole file: sections, header
+/// variables, block definitions and top-level entities, sent to the
+/// placer in file order. Ends with [`place::Event::End`] or
+/// [`place::Event::Error`], or early when the placer has stopped.
+fn parse(r: &mut Reader, opts: &ImportOptions, events: &mut place::Events) -> Parsed {
+    let mut parsed = Parsed::default();
     let mut scratch = Scratch::default();
     let mut section = Section::None;
-    let mut insunits: Option<i64> = None;
-    let mut version: Option<String> = None;
-    let mut tops: Option<Vec<Affine>> = None;
+    let mut tops_sent = false;
     let mut seen_anything = false;
     let mut saw_eof = false;
     // The current `0` tag's text, in one buffer reused for every entity.
     let mut tag = String::new();
-    // From the first SPLINE on, top-level entities wait in batches whose
-    // splines are fitted on the pool while the next batch is read.
-    let mut batches = batch::Batches::default();
-
-    let mut read = || -> Result<(), DxfError> {
+    let mut read = |events: &mut place::Events| -> Result<Result<(), place::Stopped>, DxfError> {
         while let Some(code) = r.next_tag()? {
             seen_anything = true;
             if code == 9 && section == Section::Header {
                 let var = r.text().trim().to_string();
                 if var == "$INSUNITS" || var == "$ACADVER" {
                     match r.next_tag()? {
-                        Some(70) if var == "$INSUNITS" => insunits = Some(r.int()),
-                        Some(1) if var == "$ACADVER" => version = Some(r.text().trim().to_string()),
+                        Some(70) if var == "$INSUNITS" => parsed.insunits = Some(r.int()),
+                        Some(1) if var == "$ACADVER" => parsed.version = Some(r.text().trim().to_string()),
                         Some(_) => r.unread(),
                         None => break,
                     }
@@ -149,8 +186,10 @@ pub fn import(input: Box<dyn BufRead>, opts: &ImportOptions) -> Result<Import, D
             }
             tag.clear();
             tag.push_str(r.text().trim());
-            if matches!(tag.as_str(), "SECTION" | "ENDSEC" | "EOF") {
-                finish(&mut batches, &blocks, &tops, &mut sink, opts)?;
+            if matches!(tag.as_str(), "SECTION" | "ENDSEC" | "EOF")
+                && let Err(s) = events.send(place::Event::SectionBoundary)
+            {
+                return Ok(Err(s));
             }
             match tag.as_str() {
                 "SECTION" => {
@@ -181,88 +220,54 @@ pub fn import(input: Box<dyn BufRead>, opts: &ImportOptions) -> Result<Import, D
                 }
                 _ => {}
             }
-            match section {
+            let sent = match section {
                 Section::Blocks if tag == "BLOCK" => {
-                    let (name, block) = read_block(&mut r, &mut scratch, &mut skipped)?;
-                    blocks.insert(name, block);
+                    let (name, block) = read_block(r, &mut scratch, &mut parsed.skipped)?;
+                    events.send(place::Event::Block(name, block))
                 }
                 // Entities outside any section: some minimal writers omit the
                 // SECTION lines altogether.
                 Section::Entities | Section::None => {
-                    let top = tops.get_or_insert_with(|| top_transforms(opts, insunits));
-                    match entities::read_entity(&tag, &mut r, &mut scratch)? {
-                        Read::Skipped(k) => *skipped.entry(k).or_default() += 1,
-                        Read::Entity(mut e) => {
-                            if let EntityShape::Insert(ins) = &mut e.shape {
-                                ins.block = ins.block.to_uppercase();
-                                if !blocks.contains_key(&ins.block) {
-                                    // BLOCKS after ENTITIES (non-standard): place later.
-                                    pending.push(e);
-                                    continue;
-                                }
-                            }
-                            let Some(e) = batches.offer(e, top.len()) else {
-                                if batches.full() {
-                                    batches.advance(&mut batch::Expansion {
-                                        x: &expander(&blocks, opts),
-                                        tops: top,
-                                        sink: &mut sink,
-                                        after: |sink: &mut Sink, pos| stopped(sink, pos, opts.max_segments),
-                                    })?;
-                                }
-                                continue;
-                            };
-                            let x = expander(&blocks, opts);
-                            for t in top.iter() {
-                                x.entity(&e, t, None, 0, &mut sink);
-                            }
-                            stopped(&mut sink, e.pos, opts.max_segments)?;
+                    if !tops_sent {
+                        tops_sent = true;
+                        if let Err(s) = events.send(place::Event::Tops(top_transforms(opts, parsed.insunits))) {
+                            return Ok(Err(s));
                         }
                     }
+                    match entities::read_entity(&tag, r, &mut scratch)? {
+                        Read::Skipped(k) => {
+                            *parsed.skipped.entry(k).or_default() += 1;
+                            Ok(())
+                        }
+                        Read::Entity(e) => events.send(place::Event::Entity(e)),
+                    }
                 }
-                _ => {}
+                _ => Ok(()),
+            };
+            if let Err(s) = sent {
+                return Ok(Err(s));
             }
         }
-        finish(&mut batches, &blocks, &tops, &mut sink, opts)
-    };
-    if let Err(e) = read() {
-        // Entities read before the error come first: one of them may
-        // have an error of its own to report.
-        finish(&mut batches, &blocks, &tops, &mut sink, opts)?;
-        return Err(e);
-    }
-    if !seen_anything {
-        return Err(DxfError::at(reader::Pos::Line(1), "empty input: not a DXF file"));
-    }
-    if !saw_eof {
-        // Every writer ends with 0/EOF; its absence means the file was cut.
-        return Err(DxfError::at(r.pos, "file ends without the EOF marker: truncated file?"));
-    }
-    let top = tops.unwrap_or_else(|| top_transforms(opts, insunits));
-    let x = Expander {
-        blocks: &blocks,
-        arc_tol: opts.arc_tol,
-        layers: &opts.layers,
-        max_segments: opts.max_segments,
-    };
-    for e in &pending {
-        for t in &top {
-            x.entity(e, t, None, 0, &mut sink);
+        if let Err(s) = events.send(place::Event::SectionBoundary) {
+            return Ok(Err(s));
         }
-        stopped(&mut sink, e.pos, opts.max_segments)?;
-    }
-    // Give back the growth slack of the geometry array before chaining
-    // starts allocating (a shrink of a large block is a remap, not a copy).
-    sink.segments.shrink_to_fit();
-    let (unit_mm, unit_source) = unit_of(opts, insunits);
-    Ok(Import {
-        sink,
-        skipped,
-        unit_mm,
-        unit_source,
-        version,
-        binary,
-    })
+        Ok(Ok(()))
+    };
+    let last = match read(events) {
+        Ok(Err(place::Stopped)) => return parsed,
+        Err(e) => place::Event::Error(e),
+        Ok(Ok(())) if !seen_anything => {
+            place::Event::Error(DxfError::at(reader::Pos::Line(1), "empty input: not a DXF file"))
+        }
+        // Every writer ends with 0/EOF; its absence means the file was cut.
+        Ok(Ok(())) if !saw_eof => {
+            place::Event::Error(DxfError::at(r.pos, "file ends without the EOF marker: truncated file?"))
+        }
+        Ok(Ok(())) => place::Event::End,
+    };
+    // A failed send means the placer stopped first, with its own error.
+    let _ = events.send(last);
+    parsed
 }
 
 fn expander<'a>(blocks: &'a HashMap<String, BlockDef>, opts: &'a ImportOptions) -> Expander<'a> {
@@ -464,6 +469,36 @@ mod tests {
         };
         let e = run(t, &o).unwrap_err().to_string();
         assert!(e.starts_with("line 55:") && e.contains("10000 segments"), "{e}");
+    }
+
+    /// The placer runs behind the parser: an entity past the bound must
+    /// still be the error reported when the parser has gone on to a
+    /// syntax error twenty thousand entities later (the placer stops, the
+    /// parser's sends fail and it stops too), and a syntax error after a
+    /// long run of good entities is reported once every one of them is
+    /// placed.
+    #[test]
+    fn errors_come_in_file_order_across_the_pipeline() {
+        let line = "0\nLINE\n8\nL\n10\n0\n20\n0\n11\n1\n21\n0\n";
+        let mut t = String::from("0\nSECTION\n2\nENTITIES\n");
+        t.push_str(&line.repeat(20_000));
+        // The value line of the 20,001st entity's group 10.
+        let bad = 4 + 12 * 20_000 + 4;
+        t.push_str("0\nLINE\n10\nnot-a-number\n0\nENDSEC\n0\nEOF\n");
+        let o = ImportOptions {
+            max_segments: 40,
+            ..Default::default()
+        };
+        // The 41st entity (its `0` on line 4 + 12 * 40 + 1) passes the bound.
+        let e = run(&t, &o).unwrap_err().to_string();
+        assert!(e.starts_with("line 485:") && e.contains("40 segments"), "{e}");
+        let e = run(&t, &ImportOptions::default()).unwrap_err().to_string();
+        assert!(e.starts_with(&format!("line {bad}:")), "{e}");
+        // And a good ending: every entity placed, in order.
+        let good = t.replace("0\nLINE\n10\nnot-a-number\n", "");
+        let imp = run(&good, &ImportOptions::default()).unwrap();
+        assert_eq!(imp.sink.segments.len(), 20_000);
+        assert!(imp.sink.segments.iter().all(|(s, _)| s.end().x == 1.0));
     }
 
     /// A cubic spline through a zigzag of `n` control points, the file's

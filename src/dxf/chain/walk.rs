@@ -5,6 +5,7 @@
 use super::assign;
 use super::repair::{adjacency, merge_collinear, remove_duplicates, snap, zero_length};
 use super::{ChainReport, Chains, Item, Notes, REPORT_GAP, Work, fmt_num};
+use rayon::prelude::*;
 
 /// Chain the pieces of one layer (`w`, whose first piece is number `base`
 /// of the drawing) into `out`.
@@ -59,6 +60,10 @@ pub(super) fn chain_layer(
         cur
     };
     let mut run: Vec<(usize, bool)> = Vec::new();
+    // Each walked piece's direction of travel: the pieces are snapped onto
+    // their nodes after the walk, on the pool (the walk never reads a
+    // piece's geometry).
+    let mut forward = vec![false; w.len()];
     let alive: Vec<bool> = w.iter().map(|x| x.alive).collect();
     let mut emit = |run: &[(usize, bool)], first: u32, last: u32| {
         let start = out.seq.len() as u32;
@@ -69,9 +74,7 @@ pub(super) fn chain_layer(
             order = order.min(w[i].order);
             let (a, b) = ends[i];
             let (na, nb) = if fwd { (a, b) } else { (b, a) };
-            let seg = if fwd { w[i].seg } else { w[i].seg.reversed() };
-            // Snapped in place, turned to the direction of travel.
-            w[i].seg = snap(&seg, nodes.rep(na), nodes.rep(nb));
+            forward[i] = fwd;
             out.seq.push(base + i as u32);
             if let Some(mut v) = notes.remove(&i) {
                 repairs.append(&mut v);
@@ -126,4 +129,16 @@ pub(super) fn chain_layer(
             emit(&run, ends[i].0, last);
         }
     }
+    // Snapped in place, turned to the direction of travel.
+    w.par_iter_mut().enumerate().for_each(|(i, x)| {
+        if used[i] {
+            let (a, b) = ends[i];
+            let (na, nb, seg) = if forward[i] {
+                (a, b, x.seg)
+            } else {
+                (b, a, x.seg.reversed())
+            };
+            x.seg = snap(&seg, nodes.rep(na), nodes.rep(nb));
+        }
+    });
 }
