@@ -317,6 +317,10 @@ pub(super) fn adjacency(w: &[Work], ends: &[(u32, u32)], n_nodes: usize) -> (Vec
 /// one (lines; arcs with the same centre and midpoint) is removed, with a
 /// note on the latest such kept piece. The earlier pieces are found among
 /// those at the piece's first node, so no table of node pairs is built.
+///
+/// Returns the [`adjacency`] of the pieces left, which the walk needs:
+/// the one built here when nothing was removed from it (the usual case),
+/// built again otherwise.
 pub(super) fn remove_duplicates(
     w: &mut [Work],
     ends: &[(u32, u32)],
@@ -324,7 +328,7 @@ pub(super) fn remove_duplicates(
     notes: &mut Notes,
     tol: f64,
     report: &mut ChainReport,
-) {
+) -> (Vec<u32>, Vec<u32>) {
     for (i, x) in w.iter_mut().enumerate() {
         if x.alive && ends[i].0 == ends[i].1 && matches!(x.seg, Segment::Line(_)) {
             x.alive = false;
@@ -332,6 +336,7 @@ pub(super) fn remove_duplicates(
         }
     }
     let (start, adj) = adjacency(w, ends, n_nodes);
+    let mut removed = false;
     for i in 0..w.len() {
         if !w[i].alive {
             continue;
@@ -368,6 +373,7 @@ pub(super) fn remove_duplicates(
         }
         if let Some(j) = dup_of {
             w[i].alive = false;
+            removed = true;
             report.duplicates += 1;
             let p = midpoint(&w[i].seg);
             notes
@@ -375,6 +381,11 @@ pub(super) fn remove_duplicates(
                 .or_default()
                 .push(format!("duplicate removed at [{}, {}]", fmt_num(p.x), fmt_num(p.y)));
         }
+    }
+    if removed {
+        adjacency(w, ends, n_nodes)
+    } else {
+        (start, adj)
     }
 }
 

@@ -3,7 +3,7 @@
 //! chain's pieces snapped onto its nodes and its repairs gathered.
 
 use super::assign;
-use super::repair::{adjacency, merge_collinear, remove_duplicates, snap, zero_length};
+use super::repair::{merge_collinear, remove_duplicates, snap, zero_length};
 use super::{ChainReport, Chains, Item, Notes, REPORT_GAP, Work, fmt_num};
 use rayon::prelude::*;
 
@@ -27,11 +27,11 @@ pub(super) fn chain_layer(
     let nodes = assign::assign(w, tol);
     let (ends, n_nodes) = (&nodes.ends, nodes.len());
 
-    // 3. Duplicates between the same pair of nodes.
-    remove_duplicates(w, ends, n_nodes, &mut notes, tol, report);
+    // 3. Duplicates between the same pair of nodes, and the nodes'
+    // adjacency lists of the pieces left.
+    let (start_idx, adj) = remove_duplicates(w, ends, n_nodes, &mut notes, tol, report);
 
     // 4. Walk the graph: open chains from nodes of degree != 2, then cycles.
-    let (start_idx, adj) = adjacency(w, ends, n_nodes);
     let degree = |n: u32| start_idx[n as usize + 1] - start_idx[n as usize];
     let mut used = vec![false; w.len()];
     // Each walk fills `run` (reused) and is turned into a chain at once:
@@ -65,6 +65,9 @@ pub(super) fn chain_layer(
     // piece's geometry).
     let mut forward = vec![false; w.len()];
     let alive: Vec<bool> = w.iter().map(|x| x.alive).collect();
+    // Each chain's repair notes and the nodes where it closed a gap; the
+    // gaps' messages are formatted after the walk, on the pool.
+    let mut chain_repairs: Vec<(u32, Vec<String>, Vec<u32>)> = Vec::new();
     let mut emit = |run: &[(usize, bool)], first: u32, last: u32| {
         let start = out.seq.len() as u32;
         let mut repairs: Vec<String> = Vec::new();
@@ -76,7 +79,9 @@ pub(super) fn chain_layer(
             let (na, nb) = if fwd { (a, b) } else { (b, a) };
             forward[i] = fwd;
             out.seq.push(base + i as u32);
-            if let Some(mut v) = notes.remove(&i) {
+            if !notes.is_empty()
+                && let Some(mut v) = notes.remove(&i)
+            {
                 repairs.append(&mut v);
             }
             for n in [na, nb] {
@@ -85,20 +90,12 @@ pub(super) fn chain_layer(
                 }
             }
         }
-        for n in gap_nodes {
-            let g = nodes.gap(n);
-            let p = nodes.rep(n);
+        for &n in &gap_nodes {
             report.gaps_closed += 1;
-            report.max_gap = report.max_gap.max(g);
-            repairs.push(format!(
-                "gap of {} mm closed at [{}, {}]",
-                fmt_num(g),
-                fmt_num(p.x),
-                fmt_num(p.y)
-            ));
+            report.max_gap = report.max_gap.max(nodes.gap(n));
         }
-        if !repairs.is_empty() {
-            repairs_out.push((out.items.len() as u32, repairs));
+        if !repairs.is_empty() || !gap_nodes.is_empty() {
+            chain_repairs.push((out.items.len() as u32, repairs, gap_nodes));
         }
         out.items.push(Item {
             start,
@@ -129,6 +126,18 @@ pub(super) fn chain_layer(
             emit(&run, ends[i].0, last);
         }
     }
+    chain_repairs.par_iter_mut().for_each(|(_, repairs, gap_nodes)| {
+        for &n in gap_nodes.iter() {
+            let p = nodes.rep(n);
+            repairs.push(format!(
+                "gap of {} mm closed at [{}, {}]",
+                fmt_num(nodes.gap(n)),
+                fmt_num(p.x),
+                fmt_num(p.y)
+            ));
+        }
+    });
+    repairs_out.extend(chain_repairs.into_iter().map(|(k, repairs, _)| (k, repairs)));
     // Snapped in place, turned to the direction of travel.
     w.par_iter_mut().enumerate().for_each(|(i, x)| {
         if used[i] {
