@@ -213,23 +213,23 @@ pub fn build(
 ) -> (Chains, ChainReport) {
     let tol = if tol.is_finite() { tol.max(0.0) } else { 0.0 };
     let mut report = ChainReport::default();
-    let layer_of: Vec<u32> = segments.iter().map(|(_, l)| *l).collect();
-    // In place (same size and alignment): no second copy of the drawing.
+    let mut layer_of: Vec<u32> = Vec::with_capacity(segments.len());
+    // In place (same size and alignment): no second copy of the drawing,
+    // and one pass over it for the layers and the finiteness check.
     let mut work: Vec<Work> = segments
         .into_iter()
         .enumerate()
-        .map(|(i, (seg, _))| Work {
-            seg,
-            order: i as u32,
-            alive: true,
+        .map(|(i, (seg, l))| {
+            layer_of.push(l);
+            let alive = finite(&seg);
+            report.non_finite += u64::from(!alive);
+            Work {
+                seg,
+                order: i as u32,
+                alive,
+            }
         })
         .collect();
-    for x in work.iter_mut() {
-        if !finite(&x.seg) {
-            x.alive = false;
-            report.non_finite += 1;
-        }
-    }
     // Layer by layer, in drawing order within each layer: a stable
     // counting sort (layers are few), applied in place by cycles so the
     // 88-byte records are neither sorted by comparison nor copied.
