@@ -61,7 +61,8 @@ pub(super) fn merge_collinear(w: &mut [Work], notes: &mut Notes, tol: f64, repor
         .flatten_iter()
         .collect();
     let mut active: Vec<usize> = Vec::new();
-    for (first, mut cand) in swept {
+    let mut by_start: Vec<(f64, usize)> = Vec::new();
+    for (first, cand) in swept {
         let Segment::Line(Line3 { start: p, end: q }) = w[first].seg else {
             continue;
         };
@@ -71,14 +72,18 @@ pub(super) fn merge_collinear(w: &mut [Work], notes: &mut Notes, tol: f64, repor
             let (x, y) = (d.x * a.x + d.y * a.y, d.x * b.x + d.y * b.y);
             (x.min(y), x.max(y))
         };
-        cand.sort_by(|&i, &j| span(&w[i].seg).0.total_cmp(&span(&w[j].seg).0).then(i.cmp(&j)));
-        cand.dedup();
+        // Each line's start along the direction, read once: a line is
+        // changed only after its turn (when it is kept and a later one
+        // merges into it), so these are the values the sweep sees.
+        by_start.clear();
+        by_start.extend(cand.iter().map(|&i| (span(&w[i].seg).0, i)));
+        by_start.sort_by(|x, y| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1)));
+        by_start.dedup_by_key(|x| x.1);
         active.clear();
-        for &i in cand.iter() {
+        for &(lo, i) in by_start.iter() {
             if !w[i].alive {
                 continue;
             }
-            let (lo, _) = span(&w[i].seg);
             active.retain(|&k| w[k].alive && span(&w[k].seg).1 >= lo - tol);
             let Segment::Line(Line3 { start: a, end: b }) = w[i].seg else {
                 continue;
