@@ -293,10 +293,10 @@ pub(super) fn zero_length(w: &mut [Work], tol: f64, report: &mut ChainReport) {
 /// The pieces at each node, in piece order (compressed rows: node `n`'s
 /// pieces are `adj[start[n]..start[n + 1]]`; a piece from a node to itself
 /// is listed twice).
-pub(super) fn adjacency(w: &[Work], ends: &[(u32, u32)], n_nodes: usize) -> (Vec<u32>, Vec<u32>) {
+pub(super) fn adjacency(alive: &[bool], ends: &[(u32, u32)], n_nodes: usize) -> (Vec<u32>, Vec<u32>) {
     let mut start = vec![0u32; n_nodes + 1];
-    for (i, x) in w.iter().enumerate() {
-        if x.alive {
+    for (i, &a) in alive.iter().enumerate() {
+        if a {
             start[ends[i].0 as usize + 1] += 1;
             start[ends[i].1 as usize + 1] += 1;
         }
@@ -306,8 +306,8 @@ pub(super) fn adjacency(w: &[Work], ends: &[(u32, u32)], n_nodes: usize) -> (Vec
     }
     let mut adj = vec![0u32; start[n_nodes] as usize];
     let mut fill = start.clone();
-    for (i, x) in w.iter().enumerate() {
-        if x.alive {
+    for (i, &a) in alive.iter().enumerate() {
+        if a {
             for n in [ends[i].0, ends[i].1] {
                 adj[fill[n as usize] as usize] = i as u32;
                 fill[n as usize] += 1;
@@ -334,16 +334,21 @@ pub(super) fn remove_duplicates(
     tol: f64,
     report: &mut ChainReport,
 ) -> (Vec<u32>, Vec<u32>) {
+    // The alive flags as a dense array, kept with the pieces' own: the
+    // passes below read them for every piece and neighbour, and a flag in
+    // an 88-byte piece costs a cache line.
+    let mut alive: Vec<bool> = Vec::with_capacity(w.len());
     for (i, x) in w.iter_mut().enumerate() {
         if x.alive && ends[i].0 == ends[i].1 && matches!(x.seg, Segment::Line(_)) {
             x.alive = false;
             report.zero_length += 1;
         }
+        alive.push(x.alive);
     }
-    let (start, adj) = adjacency(w, ends, n_nodes);
+    let (start, adj) = adjacency(&alive, ends, n_nodes);
     let mut removed = false;
     for i in 0..w.len() {
-        if !w[i].alive {
+        if !alive[i] {
             continue;
         }
         let (a, b) = ends[i];
@@ -356,7 +361,7 @@ pub(super) fn remove_duplicates(
             let j_ = j as usize;
             // Later pieces (and this one) are not candidates yet; a piece
             // from a node to itself is listed twice.
-            if j_ >= i || j == last || !w[j_].alive {
+            if j_ >= i || j == last || !alive[j_] {
                 continue;
             }
             last = j;
@@ -378,6 +383,7 @@ pub(super) fn remove_duplicates(
         }
         if let Some(j) = dup_of {
             w[i].alive = false;
+            alive[i] = false;
             removed = true;
             report.duplicates += 1;
             let p = midpoint(&w[i].seg);
@@ -388,7 +394,7 @@ pub(super) fn remove_duplicates(
         }
     }
     if removed {
-        adjacency(w, ends, n_nodes)
+        adjacency(&alive, ends, n_nodes)
     } else {
         (start, adj)
     }
