@@ -199,6 +199,22 @@ impl Buckets {
             // Dead lines are skipped by the sweep: not looking at them here
             // spares a cache miss per line alone in its bucket.
             match (base.checked_sub(1), base.checked_add(1)) {
+                // In the group's own direction the run holds `g0`: it is
+                // found by stepping out from there, over the lines it
+                // gives, instead of two binary searches of a direction
+                // that may hold most of the drawing.
+                (Some(first), Some(last)) if da == 0 => {
+                    let (lo, hi) = (lo as usize, hi as usize);
+                    let mut a = g0;
+                    while a > lo && keyed[a - 1].off() >= first {
+                        a -= 1;
+                    }
+                    let mut b = g0;
+                    while b < hi && keyed[b].off() <= last {
+                        b += 1;
+                    }
+                    cand.extend(keyed[a..b].iter().map(|e| e.idx() as usize));
+                }
                 (Some(first), Some(last)) => cand.extend(keyed[run(first, last)].iter().map(|e| e.idx() as usize)),
                 _ => {
                     for dofs in -1..=1 {
