@@ -86,14 +86,16 @@ fn assign_from(w: &[Work], tol: f64, split: bool) -> Assigned {
     let slots: Vec<[AtomicU32; 2]> = (0..w.len())
         .map(|_| [AtomicU32::new(NONE), AtomicU32::new(NONE)])
         .collect();
-    if split && let Some((m, left, right)) = split_line(w, tol) {
+    if split && let Some(Split { side, left, right, .. }) = split_line(w, tol) {
+        // Each half reads the one byte per piece saying which of its ends
+        // are its own, and a piece's 88 bytes only for those.
         let (l, r) = rayon::join(
-            || cluster(w, tol, left, &slots, 0, |p| p.x < m),
-            || cluster(w, tol, right, &slots, RIGHT, |p| p.x >= m),
+            || cluster(w, tol, left, &slots, 0, |i| if side[i] == 0 { 0 } else { !side[i] & 3 }),
+            || cluster(w, tol, right, &slots, RIGHT, |i| side[i] & 3),
         );
         return merge(slots, l, r);
     }
-    let found = cluster(w, tol, 2 * w.len(), &slots, 0, |_| true);
+    let found = cluster(w, tol, 2 * w.len(), &slots, 0, |i| if w[i].alive { 3 } else { 0 });
     Assigned {
         ends: slots
             .into_iter()
@@ -104,33 +106,41 @@ fn assign_from(w: &[Work], tol: f64, split: bool) -> Assigned {
     }
 }
 
-/// The nodes of the end points that `mine` accepts, in drawing order: each
-/// point's local id, with `tag` set, into its slot.
+/// The nodes of the end points that are this side's, in drawing order:
+/// each point's local id, with `tag` set, into its slot. `mine(i)` says
+/// which ends of piece `i` are (bit 0 its start, bit 1 its end; 0 for a
+/// dead piece).
 fn cluster(
     w: &[Work],
     tol: f64,
     points: usize,
     slots: &[[AtomicU32; 2]],
     tag: u32,
-    mine: impl Fn(&P3) -> bool,
+    mine: impl Fn(usize) -> u8,
 ) -> Found {
     let mut nodes = Nodes::new(tol, points);
     // The table slots of the pieces a few places ahead are asked for
     // early, so their cache misses overlap with this piece's work.
     const AHEAD: usize = 8;
-    for (i, x) in w.iter().enumerate() {
-        if let Some(a) = w.get(i + AHEAD).filter(|a| a.alive) {
-            for p in [a.seg.start(), a.seg.end()] {
-                if mine(&p) {
-                    nodes.prefetch(&p);
+    for i in 0..w.len() {
+        if i + AHEAD < w.len() {
+            let m = mine(i + AHEAD);
+            if m != 0 {
+                let a = &w[i + AHEAD];
+                for (k, p) in [a.seg.start(), a.seg.end()].iter().enumerate() {
+                    if m >> k & 1 != 0 {
+                        nodes.prefetch(p);
+                    }
                 }
             }
         }
-        if !x.alive {
+        let m = mine(i);
+        if m == 0 {
             continue;
         }
+        let x = &w[i];
         for (k, p) in [x.seg.start(), x.seg.end()].iter().enumerate() {
-            if mine(p) {
+            if m >> k & 1 != 0 {
                 slots[i][k].store(nodes.node_of(p) | tag, Ordering::Relaxed);
             }
         }
@@ -180,11 +190,28 @@ fn merge(slots: Vec<[AtomicU32; 2]>, l: Found, r: Found) -> Assigned {
     }
 }
 
+/// Where the plane is cut for the two halves.
+struct Split {
+    /// The line x = m.
+    #[cfg_attr(not(test), allow(dead_code))]
+    m: f64,
+    /// Per piece: bit 0 set when its start lies right of the line, bit 1
+    /// its end, bit 2 when the piece is alive (0 for a dead one).
+    side: Vec<u8>,
+    /// End points on either side.
+    left: usize,
+    right: usize,
+}
+
+/// Per piece: [`Split::side`] of the line x = `m`, or [`BAND`] when an end
+/// lies within `band` of it.
+const BAND: u8 = 0xff;
+
 /// A line x = m near the median of the end points' x with every alive end
-/// point more than twice the reach away from it, and how many end points lie
-/// on either side; `None` when a sample of the drawing offers none that
-/// holds.
-fn split_line(w: &[Work], tol: f64) -> Option<(f64, usize, usize)> {
+/// point more than twice the reach away from it, which side each point is
+/// on, and how many end points lie on either side; `None` when a sample of
+/// the drawing offers none that holds.
+fn split_line(w: &[Work], tol: f64) -> Option<Split> {
     let band = 2.0 * tol * (1.0 + 1e-6);
     let step = (w.len() / 2048).max(1);
     let mut xs: Vec<f64> = w
@@ -208,20 +235,28 @@ fn split_line(w: &[Work], tol: f64) -> Option<(f64, usize, usize)> {
             if !(m - a > band && b - m > band) {
                 continue;
             }
-            let counts = w
+            let side: Vec<u8> = w
                 .par_iter()
-                .filter(|x| x.alive)
                 .map(|x| {
+                    if !x.alive {
+                        return 0;
+                    }
                     let (p, q) = (x.seg.start().x, x.seg.end().x);
                     if (p - m).abs() <= band || (q - m).abs() <= band {
-                        return None;
+                        return BAND;
                     }
-                    let left = (p < m) as usize + (q < m) as usize;
-                    Some((left, 2 - left))
+                    4 | (p >= m) as u8 | ((q >= m) as u8) << 1
                 })
-                .try_reduce(|| (0, 0), |x, y| Some((x.0 + y.0, x.1 + y.1)));
-            if let Some((left, right)) = counts {
-                return Some((m, left, right));
+                .collect();
+            if !side.contains(&BAND) {
+                let right: usize = side.iter().map(|&s| (s & 1) as usize + (s >> 1 & 1) as usize).sum();
+                let alive = side.iter().filter(|&&s| s != 0).count();
+                return Some(Split {
+                    m,
+                    side,
+                    left: 2 * alive - right,
+                    right,
+                });
             }
             tries += 1;
             if tries == 3 {
@@ -390,7 +425,7 @@ mod tests {
                 )
             })
             .collect();
-        let (m, left, right) = split_line(&w, 0.001).expect("a line between the columns");
+        let Split { m, left, right, .. } = split_line(&w, 0.001).expect("a line between the columns");
         assert_eq!(m % 2.0, 1.0, "{m}: halfway between two even columns");
         assert_eq!(left + right, 10_000);
         let (one, two) = (assign_from(&w, 0.001, false), assign_from(&w, 0.001, true));
