@@ -144,6 +144,26 @@ pub fn import(input: Box<dyn BufRead>, opts: &ImportOptions) -> Result<Import, D
     })
 }
 
+/// Why the parser stopped before the end of the file.
+enum Halt {
+    /// The file is bad here: sent on to the placer as the last event.
+    Error(DxfError),
+    /// The placer stopped first (its own error is the import's).
+    Stopped(place::Stopped),
+}
+
+impl From<DxfError> for Halt {
+    fn from(e: DxfError) -> Halt {
+        Halt::Error(e)
+    }
+}
+
+impl From<place::Stopped> for Halt {
+    fn from(s: place::Stopped) -> Halt {
+        Halt::Stopped(s)
+    }
+}
+
 /// What only the parser sees: the header's variables and the entities
 /// it skipped.
 #[derive(Default)]
@@ -166,7 +186,7 @@ fn parse(r: &mut Reader, opts: &ImportOptions, events: &mut place::Events) -> Pa
     let mut saw_eof = false;
     // The current `0` tag's text, in one buffer reused for every entity.
     let mut tag = String::new();
-    let mut read = |events: &mut place::Events| -> Result<Result<(), place::Stopped>, DxfError> {
+    let mut read = |events: &mut place::Events| -> Result<(), Halt> {
         while let Some(code) = r.next_tag()? {
             seen_anything = true;
             if code == 9 && section == Section::Header {
@@ -186,10 +206,8 @@ fn parse(r: &mut Reader, opts: &ImportOptions, events: &mut place::Events) -> Pa
             }
             tag.clear();
             tag.push_str(r.text().trim());
-            if matches!(tag.as_str(), "SECTION" | "ENDSEC" | "EOF")
-                && let Err(s) = events.send(place::Event::SectionBoundary)
-            {
-                return Ok(Err(s));
+            if matches!(tag.as_str(), "SECTION" | "ENDSEC" | "EOF") {
+                events.send(place::Event::SectionBoundary)?;
             }
             match tag.as_str() {
                 "SECTION" => {
@@ -204,9 +222,10 @@ fn parse(r: &mut Reader, opts: &ImportOptions, events: &mut place::Events) -> Pa
                             return Err(DxfError::at(
                                 r.pos,
                                 format!("SECTION must be followed by group code 2 (its name), found {c}"),
-                            ));
+                            )
+                            .into());
                         }
-                        None => return Err(DxfError::at(r.pos, "file ends after SECTION: truncated file?")),
+                        None => return Err(DxfError::at(r.pos, "file ends after SECTION: truncated file?").into()),
                     };
                     continue;
                 }
@@ -220,50 +239,40 @@ fn parse(r: &mut Reader, opts: &ImportOptions, events: &mut place::Events) -> Pa
                 }
                 _ => {}
             }
-            let sent = match section {
+            match section {
                 Section::Blocks if tag == "BLOCK" => {
                     let (name, block) = read_block(r, &mut scratch, &mut parsed.skipped)?;
-                    events.send(place::Event::Block(name, block))
+                    events.send(place::Event::Block(name, block))?;
                 }
                 // Entities outside any section: some minimal writers omit the
                 // SECTION lines altogether.
                 Section::Entities | Section::None => {
                     if !tops_sent {
                         tops_sent = true;
-                        if let Err(s) = events.send(place::Event::Tops(top_transforms(opts, parsed.insunits))) {
-                            return Ok(Err(s));
-                        }
+                        events.send(place::Event::Tops(top_transforms(opts, parsed.insunits)))?;
                     }
                     match entities::read_entity(&tag, r, &mut scratch)? {
-                        Read::Skipped(k) => {
-                            *parsed.skipped.entry(k).or_default() += 1;
-                            Ok(())
-                        }
-                        Read::Entity(e) => events.send(place::Event::Entity(e)),
+                        Read::Skipped(k) => *parsed.skipped.entry(k).or_default() += 1,
+                        Read::Entity(e) => events.send(place::Event::Entity(e))?,
                     }
                 }
-                _ => Ok(()),
-            };
-            if let Err(s) = sent {
-                return Ok(Err(s));
+                _ => {}
             }
         }
-        if let Err(s) = events.send(place::Event::SectionBoundary) {
-            return Ok(Err(s));
-        }
-        Ok(Ok(()))
+        events.send(place::Event::SectionBoundary)?;
+        Ok(())
     };
     let last = match read(events) {
-        Ok(Err(place::Stopped)) => return parsed,
-        Err(e) => place::Event::Error(e),
-        Ok(Ok(())) if !seen_anything => {
+        Err(Halt::Stopped(place::Stopped)) => return parsed,
+        Err(Halt::Error(e)) => place::Event::Error(e),
+        Ok(()) if !seen_anything => {
             place::Event::Error(DxfError::at(reader::Pos::Line(1), "empty input: not a DXF file"))
         }
         // Every writer ends with 0/EOF; its absence means the file was cut.
-        Ok(Ok(())) if !saw_eof => {
+        Ok(()) if !saw_eof => {
             place::Event::Error(DxfError::at(r.pos, "file ends without the EOF marker: truncated file?"))
         }
-        Ok(Ok(())) => place::Event::End,
+        Ok(()) => place::Event::End,
     };
     // A failed send means the placer stopped first, with its own error.
     let _ = events.send(last);
