@@ -15,7 +15,6 @@ use super::arc::Arc3;
 use super::bbox::BBox3;
 use super::line::Line3;
 use super::{P2, P3, Plane, V3};
-use std::f64::consts::TAU;
 
 /// A line or an arc, in travel order.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -75,9 +74,9 @@ impl ArcXy {
     /// ```
     pub fn angle_offset(&self, a: f64) -> f64 {
         if self.sweep >= 0.0 {
-            (a - self.start_angle).rem_euclid(TAU)
+            super::tol::rem_tau(a - self.start_angle)
         } else {
-            (self.start_angle - a).rem_euclid(TAU)
+            super::tol::rem_tau(self.start_angle - a)
         }
     }
 

@@ -6,11 +6,15 @@
 //! cells that the square of the tolerance around the point touches, one in
 //! most cases and at most four. Each cell keeps its newest node; the others
 //! follow through `next` (no allocation per cell). The cells live in an
-//! open-addressed table of 16-byte slots (key and head together), so a
+//! open-addressed table of 8-byte slots (key and head together), so a
 //! lookup, and the insert of a new node after it, touch one cache line:
 //! with hashbrown's split control bytes and entries every new node cost two
 //! cache misses, two thirds of the clustering's time on a drawing of parts
-//! at random places. The caller can also [`Nodes::prefetch`] the slot of a
+//! at random places. The key is a 32-bit fingerprint of the cell, not the
+//! cell: cells with equal fingerprints share one list of nodes, which only
+//! adds candidates (the distance test is exact), and the table is half the
+//! size of one keyed by both coordinates (fewer cache misses and page
+//! faults). The caller can also [`Nodes::prefetch`] the slot of a
 //! point a few pieces ahead, so the misses of consecutive pieces overlap
 //! instead of queueing one behind the other. Before any of that, the
 //! point is compared with the few nodes just created or found: consecutive
@@ -42,11 +46,13 @@ pub(super) struct Nodes {
     slot: usize,
 }
 
-/// Cell coordinates packed into one word: cells 2^32 apart share a key,
-/// which only adds candidates (the distance test is exact) and halves the
-/// table.
-fn ckey(x: i64, y: i64) -> u64 {
-    ((x as u32 as u64) << 32) | (y as u32 as u64)
+/// A cell's fingerprint: both coordinates mixed into 32 bits. Cells with
+/// equal fingerprints share a list of nodes, which only adds candidates
+/// (the distance test is exact); among the few hundred thousand cells of a
+/// large drawing about a dozen pairs do.
+fn ckey(x: i64, y: i64) -> u32 {
+    let k = ((x as u32 as u64) << 32) | (y as u32 as u64);
+    (k.wrapping_mul(0x9e37_79b9_7f4a_7c15) >> 32) as u32
 }
 
 impl Nodes {
@@ -54,14 +60,16 @@ impl Nodes {
     /// about `points` ends.
     pub fn new(tol: f64, points: usize) -> Nodes {
         let grid = CellTable::with_capacity(points / 2);
+        // At most one node per point: reserved, not touched, so only the
+        // nodes made cost memory, and the arrays never move as they grow.
         Nodes {
             tol,
             reach: tol * (1.0 + 1e-6),
             cell: (8.0 * tol).max(1e-9),
             grid,
-            next: Vec::new(),
-            reps: Vec::new(),
-            gaps: Vec::new(),
+            next: Vec::with_capacity(points),
+            reps: Vec::with_capacity(points),
+            gaps: Vec::with_capacity(points),
             recent: [NONE; RECENT],
             slot: 0,
         }
@@ -149,21 +157,21 @@ impl Nodes {
     }
 }
 
-/// Cell key to the newest node in that cell, open-addressed with linear
-/// probing. A slot whose head is [`NONE`] is empty; nodes are never
+/// Cell fingerprint to the newest node in that cell, open-addressed with
+/// linear probing. A slot whose head is [`NONE`] is empty; nodes are never
 /// removed, so no tombstones. The load stays at most 3/4 (the size of
 /// hashbrown's table for the same cells), so a probe for a missing key
 /// reads a few slots, mostly of one cache line.
 struct CellTable {
     slots: Vec<Slot>,
-    /// `64 - log2(slots.len())`: a key's home is the top bits of its hash.
+    /// `32 - log2(slots.len())`: a key's home is the top bits of its hash.
     shift: u32,
     len: usize,
 }
 
 #[derive(Clone, Copy)]
 struct Slot {
-    key: u64,
+    key: u32,
     head: u32,
 }
 
@@ -172,23 +180,23 @@ const EMPTY: Slot = Slot { key: 0, head: NONE };
 impl CellTable {
     /// A table that holds `n` cells without growing.
     fn with_capacity(n: usize) -> CellTable {
-        let slots = (n.saturating_mul(4) / 3).max(16).next_power_of_two();
+        let slots = (n.saturating_mul(4) / 3).clamp(16, 1 << 31).next_power_of_two();
         CellTable {
             slots: vec![EMPTY; slots],
-            shift: 64 - slots.trailing_zeros(),
+            shift: 32 - slots.trailing_zeros(),
             len: 0,
         }
     }
 
-    /// Fibonacci hashing: the multiply spreads every bit of both packed
-    /// cell coordinates into the top bits.
+    /// The key is already a hash; one more multiply decorrelates the home
+    /// slot from the key's own bits.
     #[inline]
-    fn home(&self, key: u64) -> usize {
-        (key.wrapping_mul(0x9e37_79b9_7f4a_7c15) >> self.shift) as usize
+    fn home(&self, key: u32) -> usize {
+        (key.wrapping_mul(0x9e37_79b9) >> self.shift) as usize
     }
 
     #[inline]
-    fn prefetch(&self, key: u64) {
+    fn prefetch(&self, key: u32) {
         #[cfg(target_arch = "x86_64")]
         {
             let p = &self.slots[self.home(key)] as *const Slot as *const i8;
@@ -203,7 +211,7 @@ impl CellTable {
 
     /// The head of `key`'s cell, or [`NONE`].
     #[inline]
-    fn get(&self, key: u64) -> u32 {
+    fn get(&self, key: u32) -> u32 {
         let mask = self.slots.len() - 1;
         let mut i = self.home(key);
         loop {
@@ -216,7 +224,7 @@ impl CellTable {
     }
 
     /// The head of `key`'s cell, made (as [`NONE`]) when missing.
-    fn head_mut(&mut self, key: u64) -> &mut u32 {
+    fn head_mut(&mut self, key: u32) -> &mut u32 {
         if (self.len + 1) * 4 > self.slots.len() * 3 {
             self.grow();
         }
@@ -236,7 +244,7 @@ impl CellTable {
         let old = std::mem::take(&mut self.slots);
         let n = old.len() * 2;
         self.slots = vec![EMPTY; n];
-        self.shift = 64 - n.trailing_zeros();
+        self.shift = 32 - n.trailing_zeros();
         let mask = n - 1;
         for s in old.into_iter().filter(|s| s.head != NONE) {
             let mut i = self.home(s.key);
@@ -276,12 +284,9 @@ mod tests {
     fn the_cell_table_grows_and_keeps_every_cell() {
         // Sized for nothing: 5,000 cells force nine doublings; each cell's
         // head must survive every rehash, including keys that collide in
-        // their home slot (cells 2^32 apart share a packed key, and keys
-        // equal in the hash's top bits share a home).
+        // their home slot (keys equal in the hash's top bits share a home).
         let mut t = CellTable::with_capacity(0);
-        let keys: Vec<u64> = (0..5000u64)
-            .map(|k| k.wrapping_mul(0x1_0000_0001) ^ (k << 40))
-            .collect();
+        let keys: Vec<u32> = (0..5000u32).map(|k| k.wrapping_mul(0x1_0001) ^ (k << 20)).collect();
         for (i, &k) in keys.iter().enumerate() {
             assert_eq!(t.get(k), NONE);
             *t.head_mut(k) = i as u32;
