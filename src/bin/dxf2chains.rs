@@ -5,7 +5,7 @@ use clap::Parser;
 use microcam::cli::{self, CliError, Output};
 use microcam::dxf::transform::{Mirror, Transforms, count, parse_numbers};
 use microcam::dxf::{ImportOptions, chain, import, summary, svg, units};
-use microcam::formats::chains::{ChainsWriter, format_chain};
+use microcam::formats::chains::ChainsWriter;
 use microcam::model::chain::ChainsHeader;
 use microcam::progress::{self, Meter, Show};
 use std::io::{BufRead, Read, Write};
@@ -175,12 +175,11 @@ fn write_chains<W: Write>(chains: &chain::Chains, w: &mut ChainsWriter<W>) -> st
     let mut from = 0;
     while from < n {
         let to = (from + BATCH).min(n);
-        parts.par_iter_mut().enumerate().for_each(|(p, s)| {
+        parts.par_iter_mut().enumerate().for_each_init(Vec::new, |buf, (p, s)| {
             s.clear();
             let a = from + p * PART;
             for k in a..(a + PART).min(to) {
-                if let Some(c) = chains.get(k) {
-                    format_chain(s, &c);
+                if chains.format_into(k, s, buf) {
                     s.push('\n');
                 }
             }

@@ -296,7 +296,7 @@ impl Expander<'_> {
                 "LINE"
             }
             EntityShape::Arc { c, r, a0, a1, ext } => {
-                let t = t.then_after(&Affine::ocs(*ext));
+                let t = t.with_ocs(ext);
                 let a0r = a0.to_radians();
                 // Counter-clockwise from a0 to a1; equal angles are a full circle.
                 let mut sweep = normalize_angle((a1 - a0).to_radians());
@@ -307,7 +307,7 @@ impl Expander<'_> {
                 "ARC"
             }
             EntityShape::Circle { c, r, ext } => {
-                let t = t.then_after(&Affine::ocs(*ext));
+                let t = t.with_ocs(ext);
                 self.conic(&t, c, *r, (0.0, TAU), lid, sink);
                 "CIRCLE"
             }
@@ -318,7 +318,7 @@ impl Expander<'_> {
                 ext,
                 lw,
             } => {
-                let t = t.then_after(&Affine::ocs(*ext));
+                let t = t.with_ocs(ext);
                 self.poly2(&t, verts, *closed, *elevation, lid, sink);
                 if *lw { "LWPOLYLINE" } else { "POLYLINE" }
             }

@@ -71,6 +71,20 @@ impl Affine {
         }
     }
 
+    /// `self ∘ ocs(extrusion)`: an entity's own coordinates to the world.
+    /// Nearly every entity has the default extrusion (0, 0, 1), whose OCS
+    /// is the identity: then `self` as it is, without building the axes
+    /// and multiplying by them (a tenth of the placer's time on the mix
+    /// benchmark). The product with the identity differs from `self` at
+    /// most in the sign of a zero entry.
+    pub fn with_ocs(&self, extrusion: &V3) -> Affine {
+        if *extrusion == V3::z() {
+            *self
+        } else {
+            self.then_after(&Affine::ocs(*extrusion))
+        }
+    }
+
     /// The image of point `p`.
     pub fn apply(&self, p: &P3) -> P3 {
         P3::from(self.m * p.coords + self.t)

@@ -251,9 +251,42 @@ fn push_start(b: &mut String, p: &P3, prev: Option<(P3, usize, usize)>) {
 
 /// Append one chain as a JSON object (no newline).
 pub fn format_chain(b: &mut String, c: &Chain) {
+    format_chain_ref(
+        b,
+        &ChainRef {
+            id: c.id,
+            layer: c.layer.as_deref(),
+            closed: c.closed,
+            segments: &c.segments,
+            points: &c.points,
+            repairs: &c.repairs,
+        },
+    );
+}
+
+/// A chain's parts, borrowed: what [`format_chain_ref`] writes, for a
+/// writer that holds its chains in another form (dxf2chains formats
+/// 50,000 chains and more without building each one).
+pub struct ChainRef<'a> {
+    /// As [`Chain::id`].
+    pub id: u64,
+    /// As [`Chain::layer`].
+    pub layer: Option<&'a str>,
+    /// As [`Chain::closed`].
+    pub closed: bool,
+    /// As [`Chain::segments`].
+    pub segments: &'a [Segment],
+    /// As [`Chain::points`].
+    pub points: &'a [P3],
+    /// As [`Chain::repairs`].
+    pub repairs: &'a [String],
+}
+
+/// [`format_chain`] of borrowed parts.
+pub fn format_chain_ref(b: &mut String, c: &ChainRef) {
     b.push_str("{\"id\":");
     super::push_uint(b, c.id);
-    if let Some(l) = &c.layer {
+    if let Some(l) = c.layer {
         b.push_str(",\"layer\":");
         push_str_lit(b, l);
     }

@@ -197,6 +197,40 @@ impl Chains {
         })
     }
 
+    /// Chain `k` as [`Chains::get`] gives it, formatted onto `b` (one
+    /// JSON line without its line end) without building it: `buf` holds
+    /// its segments, and the layer and notes are borrowed. `false` past
+    /// the last chain.
+    pub fn format_into(&self, k: usize, b: &mut String, buf: &mut Vec<Segment>) -> bool {
+        use crate::formats::chains::{ChainRef, format_chain_ref};
+        let (layer, closed, points, repairs): (u32, bool, &[P3], &[String]) = match self.items.get(k) {
+            Some(it) => {
+                self.segments_into(it, buf);
+                let repairs = self.repairs.get(&(k as u32)).map_or(&[][..], |v| v.as_slice());
+                (it.layer, it.closed, &[], repairs)
+            }
+            None => match self.points.get(k - self.items.len()) {
+                Some((l, p)) => {
+                    buf.clear();
+                    (*l, false, p.as_slice(), &[])
+                }
+                None => return false,
+            },
+        };
+        format_chain_ref(
+            b,
+            &ChainRef {
+                id: k as u64 + 1,
+                layer: self.layers.get(layer as usize).map(String::as_str),
+                closed,
+                segments: buf,
+                points,
+                repairs,
+            },
+        );
+        true
+    }
+
     /// The chains in output order with ids from 1.
     pub fn iter(&self) -> impl Iterator<Item = Chain> + Clone + '_ {
         (0..self.len()).filter_map(move |k| self.get(k))
@@ -368,18 +402,24 @@ fn group_by_layer(work: &mut [Work], layer_of: Vec<u32>, n_layers: usize) -> Vec
 /// a thousandth of a half (its round-off is below 2^-12 for |x| < 1e6);
 /// the rest, and large or non-finite values, take the exact path.
 pub(super) fn fmt_num(x: f64) -> String {
+    let mut out = String::with_capacity(16);
+    push_num(&mut out, x);
+    out
+}
+
+/// [`fmt_num`] appended to `out`.
+pub(super) fn push_num(out: &mut String, x: f64) {
     let y = x * 1e6;
     if x.abs() < 1e6 {
         let r = y.round();
         let half = (y - y.trunc()).abs();
         if (half - 0.5).abs() > 1e-3 {
             let v = r as i64;
-            let mut out = String::with_capacity(16);
             if v < 0 {
                 out.push('-');
             }
             let v = v.unsigned_abs();
-            crate::formats::push_uint(&mut out, v / 1_000_000);
+            crate::formats::push_uint(out, v / 1_000_000);
             let frac = v % 1_000_000;
             if frac != 0 {
                 let mut digits = *b".000000";
@@ -393,10 +433,10 @@ pub(super) fn fmt_num(x: f64) -> String {
                     out.push(char::from(d));
                 }
             }
-            return out;
+            return;
         }
     }
-    fmt_num_exact(x)
+    out.push_str(&fmt_num_exact(x));
 }
 
 /// [`fmt_num`] by the exact decimal expansion.
@@ -477,6 +517,37 @@ mod tests {
 
     fn layers() -> Vec<String> {
         vec!["0".into()]
+    }
+
+    #[test]
+    fn formatting_in_place_is_formatting_the_chain() {
+        use crate::formats::chains::format_chain;
+        // Reversed holes, a gap note, a duplicate note, two layers and
+        // POINT chains: every part that `get` builds.
+        let mut segs = square(0.0, 0.0, 10.0, true);
+        segs.extend(square(2.0, 2.0, 2.0, false).into_iter().map(|(s, _)| (s, 1)));
+        segs.push(line(20.0, 0.0, 25.0, 0.0005));
+        segs.push(line(25.0, 0.0, 25.0, 5.0));
+        segs.push(line(25.0, 0.0, 25.0, 5.0));
+        let pts = [(P3::new(1.0, 1.0, 0.0), 0), (P3::new(2.0, 1.0, 0.0), 1)];
+        let names: Vec<String> = vec!["CUT".into(), "HOLE \"A\"".into()];
+        let (c, _) = build(segs, &pts, &names, 0.001);
+        assert!(c.len() >= 5);
+        let mut buf = Vec::new();
+        for k in 0..c.len() {
+            let mut want = String::new();
+            format_chain(&mut want, &c.get(k).unwrap());
+            let mut got = String::new();
+            assert!(c.format_into(k, &mut got, &mut buf));
+            assert_eq!(got, want, "chain {k}");
+        }
+        assert!(c.get(c.len()).is_none());
+        assert!(!c.format_into(c.len(), &mut String::new(), &mut buf));
+        let all: String = (0..c.len())
+            .map(|k| c.get(k).unwrap().repairs.len())
+            .sum::<usize>()
+            .to_string();
+        assert_ne!(all, "0", "the drawing has repair notes to format");
     }
 
     #[test]

@@ -35,7 +35,11 @@ pub(super) struct Nodes {
     tol: f64,
     /// The tolerance with a margin for round-off in the distance test.
     reach: f64,
-    cell: f64,
+    /// One over the cell's width (mm): a multiply per coordinate instead
+    /// of a division, eight of them a point with the prefetch. Any
+    /// monotonic map to cells serves: the window and the cell a node is
+    /// filed under come from the same one.
+    per_mm: f64,
     grid: CellTable,
     next: Vec<u32>,
     /// Each node's point (its first point).
@@ -65,7 +69,7 @@ impl Nodes {
         Nodes {
             tol,
             reach: tol * (1.0 + 1e-6),
-            cell: (8.0 * tol).max(1e-9),
+            per_mm: 1.0 / (8.0 * tol).max(1e-9),
             grid,
             next: Vec::with_capacity(points),
             reps: Vec::with_capacity(points),
@@ -78,7 +82,7 @@ impl Nodes {
     /// The cell coordinate of `v` (mm) on either axis.
     #[inline]
     fn cell_of(&self, v: f64) -> i64 {
-        crate::geometry::floor_i64(v / self.cell)
+        crate::geometry::floor_i64(v * self.per_mm)
     }
 
     /// The cells the square of the tolerance around `p` touches, as

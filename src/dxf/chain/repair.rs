@@ -287,23 +287,26 @@ const CHORD_SHORTCUT_TOL: f64 = 1e-5;
 /// computed. The sweep's round-off is far below that margin whenever the
 /// tolerance is at least [`CHORD_SHORTCUT_TOL`] (radii are below 1e10 mm
 /// after the range check); below it every arc is measured.
+/// Each piece on its own: on the pool.
 pub(super) fn zero_length(w: &mut [Work], tol: f64, report: &mut ChainReport) {
-    for x in w.iter_mut() {
-        if !x.alive {
-            continue;
-        }
-        let short = match x.seg.radius() {
-            Some(r) => {
-                let chord = (x.seg.end() - x.seg.start()).xy().norm();
-                r <= tol || (!(tol >= CHORD_SHORTCUT_TOL && chord > 2.0 * tol) && x.seg.length() <= tol)
+    report.zero_length += w
+        .par_iter_mut()
+        .with_min_len(1 << 12)
+        .map(|x| {
+            if !x.alive {
+                return 0;
             }
-            None => x.seg.length() <= tol,
-        };
-        if short {
-            x.alive = false;
-            report.zero_length += 1;
-        }
-    }
+            let short = match x.seg.radius() {
+                Some(r) => {
+                    let chord = (x.seg.end() - x.seg.start()).xy().norm();
+                    r <= tol || (!(tol >= CHORD_SHORTCUT_TOL && chord > 2.0 * tol) && x.seg.length() <= tol)
+                }
+                None => x.seg.length() <= tol,
+            };
+            x.alive &= !short;
+            u64::from(short)
+        })
+        .sum::<u64>();
 }
 
 /// The pieces at each node, in piece order (compressed rows: node `n`'s
