@@ -356,17 +356,41 @@ pub(super) fn remove_duplicates(
     // The alive flags as a dense array, kept with the pieces' own: the
     // passes below read them for every piece and neighbour, and a flag in
     // an 88-byte piece costs a cache line.
-    let mut alive: Vec<bool> = Vec::with_capacity(w.len());
-    for (i, x) in w.iter_mut().enumerate() {
-        if x.alive && ends[i].0 == ends[i].1 && matches!(x.seg, Segment::Line(_)) {
-            x.alive = false;
-            report.zero_length += 1;
-        }
-        alive.push(x.alive);
-    }
+    let mut alive: Vec<bool> = vec![false; w.len()];
+    report.zero_length += w
+        .par_iter_mut()
+        .zip(ends.par_iter())
+        .zip(alive.par_iter_mut())
+        .with_min_len(1 << 12)
+        .map(|((x, &(a, b)), alive)| {
+            let short = x.alive && a == b && matches!(x.seg, Segment::Line(_));
+            x.alive &= !short;
+            *alive = x.alive;
+            u64::from(short)
+        })
+        .sum::<u64>();
     let (start, adj) = adjacency(&alive, ends, n_nodes);
+    // The pieces with an earlier piece between the same two nodes, found
+    // on the pool from the nodes alone: only these can be duplicates (the
+    // ordered pass below only ever removes pieces), and in most drawings
+    // they are a handful.
+    let paired = |i: usize| {
+        let (a, b) = ends[i];
+        adj[start[a as usize] as usize..start[a as usize + 1] as usize]
+            .iter()
+            .any(|&j| {
+                let (p, q) = ends[j as usize];
+                (j as usize) < i && alive[j as usize] && ((p == a && q == b) || (p == b && q == a))
+            })
+    };
+    let maybe: Vec<u32> = (0..w.len())
+        .into_par_iter()
+        .with_min_len(1 << 12)
+        .filter(|&i| alive[i] && paired(i))
+        .map(|i| i as u32)
+        .collect();
     let mut removed = false;
-    for i in 0..w.len() {
+    for i in maybe.into_iter().map(|i| i as usize) {
         if !alive[i] {
             continue;
         }
