@@ -5,7 +5,7 @@ use clap::Parser;
 use microcam::cli::{self, CliError, Output};
 use microcam::dxf::transform::{Mirror, Transforms, count, parse_numbers};
 use microcam::dxf::{ImportOptions, chain, import, summary, svg, units};
-use microcam::formats::chains::ChainsWriter;
+use microcam::formats::chains::{ChainsWriter, format_chain_ref};
 use microcam::model::chain::ChainsHeader;
 use microcam::progress::{self, Meter, Show};
 use std::io::{BufRead, Read, Write};
@@ -173,7 +173,8 @@ fn write_chains<W: Write + Send>(chains: &chain::Chains, w: &mut ChainsWriter<W>
             s.clear();
             let a = from + p * PART;
             for k in a..(a + PART).min(to) {
-                if chains.format_into(k, s, buf) {
+                if let Some(c) = chains.view(k, buf) {
+                    format_chain_ref(s, &c);
                     s.push('\n');
                 }
             }

@@ -2,7 +2,7 @@
 
 use super::{FormatError, LineSource, check_schema, parse_json, point_from, push_point_2or3, push_str_lit};
 use crate::geometry::P3;
-use crate::model::chain::{Chain, ChainsHeader, Segment};
+use crate::model::chain::{Chain, ChainRef, ChainsHeader, Segment};
 use serde::Deserialize;
 use std::io::{BufRead, Write};
 
@@ -262,24 +262,6 @@ pub fn format_chain(b: &mut String, c: &Chain) {
             repairs: &c.repairs,
         },
     );
-}
-
-/// A chain's parts, borrowed: what [`format_chain_ref`] writes, for a
-/// writer that holds its chains in another form (dxf2chains formats
-/// 50,000 chains and more without building each one).
-pub struct ChainRef<'a> {
-    /// As [`Chain::id`].
-    pub id: u64,
-    /// As [`Chain::layer`].
-    pub layer: Option<&'a str>,
-    /// As [`Chain::closed`].
-    pub closed: bool,
-    /// As [`Chain::segments`].
-    pub segments: &'a [Segment],
-    /// As [`Chain::points`].
-    pub points: &'a [P3],
-    /// As [`Chain::repairs`].
-    pub repairs: &'a [String],
 }
 
 /// [`format_chain`] of borrowed parts.

@@ -25,6 +25,25 @@ pub struct Chain {
     pub repairs: Vec<String>,
 }
 
+#[derive(Debug, Clone, Copy, PartialEq)]
+/// A chain's parts, borrowed: what `formats::chains::format_chain_ref`
+/// writes, for a producer that holds its chains in another form
+/// (dxf2chains formats 50,000 chains and more without building each).
+pub struct ChainRef<'a> {
+    /// As [`Chain::id`].
+    pub id: u64,
+    /// As [`Chain::layer`].
+    pub layer: Option<&'a str>,
+    /// As [`Chain::closed`].
+    pub closed: bool,
+    /// As [`Chain::segments`].
+    pub segments: &'a [Segment],
+    /// As [`Chain::points`].
+    pub points: &'a [P3],
+    /// As [`Chain::repairs`].
+    pub repairs: &'a [String],
+}
+
 /// The header record of a chains stream.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct ChainsHeader {
