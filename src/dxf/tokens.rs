@@ -454,12 +454,9 @@ mod tests {
     #[test]
     fn fast_float_random_values_match_std() {
         // A fixed sequence of values printed the ways writers print them.
-        let mut x: u64 = 0x9e37_79b9_7f4a_7c15;
+        let mut rnd = crate::geometry::test_rng::unit_rng(0x9e37_79b9_7f4a_7c15);
         for _ in 0..20_000 {
-            x ^= x << 13;
-            x ^= x >> 7;
-            x ^= x << 17;
-            let v = (x >> 11) as f64 / (1u64 << 53) as f64 * 2e6 - 1e6;
+            let v = rnd() * 2e6 - 1e6;
             for s in [
                 format!("{v:.6}"),
                 format!("{v:.12}"),

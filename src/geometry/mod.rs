@@ -27,6 +27,8 @@ pub mod planar;
 #[cfg(test)]
 mod proptests;
 pub mod segment;
+#[cfg(test)]
+pub(crate) mod test_rng;
 pub mod tol;
 
 pub use arc::Arc3;

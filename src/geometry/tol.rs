@@ -114,13 +114,7 @@ pub fn valid_tol(tol: f64) -> bool {
 mod tests {
     #[test]
     fn rem_tau_is_rem_euclid_bit_for_bit() {
-        let mut x: u64 = 0x9e37_79b9_7f4a_7c15;
-        let mut rnd = || {
-            x ^= x << 13;
-            x ^= x >> 7;
-            x ^= x << 17;
-            (x >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut rnd = crate::geometry::test_rng::unit_rng(0x9e37_79b9_7f4a_7c15);
         let mut v: Vec<f64> = vec![
             0.0,
             -0.0,

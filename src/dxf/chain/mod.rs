@@ -447,13 +447,7 @@ mod tests {
 
     #[test]
     fn fast_note_numbers_are_the_exact_ones() {
-        let mut x: u64 = 0x2545_f491_4f6c_dd1d;
-        let mut rnd = || {
-            x ^= x << 13;
-            x ^= x >> 7;
-            x ^= x << 17;
-            (x >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut rnd = crate::geometry::test_rng::unit_rng(0x2545_f491_4f6c_dd1d);
         let mut values: Vec<f64> = vec![
             0.0,
             -0.0,

@@ -308,13 +308,7 @@ mod tests {
         // Points on a fine lattice with jitter, so many fall within the
         // tolerance of several nodes; compared with the definition.
         let tol = 0.01;
-        let mut x: u64 = 12345;
-        let mut rnd = || {
-            x ^= x << 13;
-            x ^= x >> 7;
-            x ^= x << 17;
-            (x >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut rnd = crate::geometry::test_rng::unit_rng(12345);
         let pts: Vec<P3> = (0..3000)
             .map(|_| P3::new((rnd() * 40.0).floor() * 0.007 + rnd() * 0.004, rnd() * 0.05, 0.0))
             .collect();
