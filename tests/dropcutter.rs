@@ -86,6 +86,56 @@ fn ball_on_a_sphere_gives_the_offset_sphere() {
 }
 
 #[test]
+fn waterlines_circle_a_hemisphere_at_each_level() {
+    // Ball of radius 0.5 round a hemisphere of radius 5 on the table: at tip
+    // height z the loop is the circle of radius sqrt(5.5² - (z + 0.5)²),
+    // within the tessellation's sag; levels every 1 mm from the top down to
+    // the floor (the table, z 0), top down, the part on the right.
+    let dir = tempfile::tempdir().unwrap();
+    let stl = dir.path().join("s.stl");
+    write_stl(&stl, &hemisphere(5.0, 128, 32));
+    let run = |fmt: &[&str]| {
+        pathgen()
+            .args(["dropcutter", stl.to_str().unwrap(), "-q", "--tool", "ball:1"])
+            .args(["--waterline-step", "1", "--step-over", "0.05", "--safe-z", "7"])
+            .args(fmt)
+            .output()
+            .unwrap()
+    };
+    let out = run(&[]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("5 waterline levels, 5 loops"), "{err}");
+    let d = read_cldata(&out.stdout[..]).unwrap();
+    let mut levels: Vec<f64> = Vec::new();
+    let sag = 5.0 * (1.0 - (std::f64::consts::PI / 64.0).cos());
+    for p in d.points.iter().filter(|p| p.z != 7.0) {
+        if levels.last() != Some(&p.z) {
+            levels.push(p.z);
+        }
+        let r = p.x.hypot(p.y);
+        let want = (5.5f64 * 5.5 - (p.z + 0.5).powi(2)).sqrt();
+        assert!(
+            r <= want + 1e-5 && r >= want - 2.0 * sag - 1e-5,
+            "{p:?}: r {r} vs {want}"
+        );
+    }
+    assert_eq!(levels, [4.0, 3.0, 2.0, 1.0, 0.0], "top (z 5) down to the table");
+    // Clockwise round the part (climb milling with M3).
+    let lp: Vec<_> = d.points.iter().filter(|p| p.z == levels[0]).collect();
+    let area2: f64 = lp.windows(2).map(|w| w[0].x * w[1].y - w[1].x * w[0].y).sum();
+    assert!(area2 < 0.0);
+    // G-code and toolpath outputs too, and the same bytes again.
+    assert_eq!(run(&[]).stdout, out.stdout);
+    let g = run(&["--gcode", "iso"]);
+    assert!(g.status.success());
+    assert!(String::from_utf8_lossy(&g.stdout).contains("G1"));
+    let t = run(&["--format", "toolpath"]);
+    assert!(t.status.success());
+    assert!(String::from_utf8_lossy(&t.stdout).starts_with("{"));
+}
+
+#[test]
 fn toolpath_gcode_adaptive_and_five_axis_outputs() {
     let dir = tempfile::tempdir().unwrap();
     let stl = dir.path().join("s.stl");
@@ -175,6 +225,19 @@ fn bad_input_exits_2_and_writes_nothing() {
         vec!["--tool", "ball:1", "--step-over", "0"],
         vec!["--tool", "ball:1", "--step-over", "1", "--region", "1,1,0,0"],
         vec!["--tool", "ball:1", "--step-over", "1e-9"],
+        vec!["--tool", "ball:1", "--waterline", "0.5"],
+        vec!["--tool", "ball:1", "--step-over", "0.1", "--waterline", "nan"],
+        vec!["--tool", "ball:1", "--step-over", "0.1", "--waterline", "-5"],
+        vec!["--tool", "ball:1", "--step-over", "0.1", "--waterline-step", "0"],
+        vec![
+            "--tool",
+            "ball:1",
+            "--step-over",
+            "0.1",
+            "--waterline",
+            "0.5",
+            "--five-axis",
+        ],
     ] {
         let o = pathgen().arg("dropcutter").arg(&stl).args(&args).output().unwrap();
         assert_eq!(o.status.code(), Some(2), "{args:?}");

@@ -11,7 +11,8 @@
 //! On top of the drop: raster and along-chain sampling ([`raster`]),
 //! adaptive refinement to a chordal tolerance ([`adaptive`]), 5-axis
 //! locations along the surface normal in the layout of Singh 2014's
-//! Annexure 2 ([`fiveaxis`]), and the outputs ([`output`]).
+//! Annexure 2 ([`fiveaxis`]), constant-Z waterlines ([`waterline`]), and
+//! the outputs ([`output`]).
 
 #![warn(missing_docs)]
 
@@ -21,6 +22,7 @@ pub mod fiveaxis;
 pub mod index;
 pub mod output;
 pub mod raster;
+pub mod waterline;
 
 use crate::cutter::Cutter;
 use crate::geometry::{BBox3, P2, P3};

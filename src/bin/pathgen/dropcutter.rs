@@ -9,6 +9,7 @@ use microcam::dropcutter::adaptive::Adaptive;
 use microcam::dropcutter::fiveaxis::FiveAxis;
 use microcam::dropcutter::output::{Feeds, toolpath_records, write_cldata, write_cldata5};
 use microcam::dropcutter::raster::{Direction, Pattern, Raster, chain_passes};
+use microcam::dropcutter::waterline::Waterline;
 use microcam::dropcutter::{DropCutter, DropError};
 use microcam::formats::cldata::ClWriter;
 use microcam::formats::read_chains;
@@ -28,11 +29,15 @@ Examples:
   pathgen dropcutter part.stl --tool flat:1 --step-over 0.1 --chord-tol 0.001 --gcode iso > part.ngc
   dxf2chains path.dxf | pathgen dropcutter part.stl --tool ball:0.5 --chains - --step-forward 0.02
   pathgen dropcutter part.stl --tool flat:2 --step-over 0.5 --five-axis --lead 5 --tilt 0 > part5.cl
+  pathgen dropcutter part.stl --tool ball:1 --waterline-step 0.2 --step-over 0.02 --gcode iso > walls.ngc
 
 The mesh is STL (ASCII or binary) or OBJ in mm unless --units says otherwise.
 CL data rows are 'x y z' (tool tip) or, with --five-axis, 'x y z x1 y1 z1'
 (tip and a point up the tool axis: the layout of Singh 2014, Annexure 2).
-Passes are joined at the safe Z. A summary goes to stderr.
+Passes are joined at the safe Z. Waterlines (--waterline, --waterline-step)
+are closed loops at constant Z round the model, the model on the right of
+the travel (climb milling with M3), found on fibres --step-over apart.
+A summary goes to stderr.
 Exit status: 0 ok, 1 failure, 2 bad usage or bad input.";
 
 /// Raster direction.
@@ -124,6 +129,12 @@ pub struct DropcutterArgs {
     /// Plunge feed (mm/s; default: the cutting feed).
     #[arg(long)]
     plunge_feed: Option<f64>,
+    /// Waterlines at these tip heights (Z1,Z2,...; mm) instead of a raster.
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true, value_name = "Z", conflicts_with_all = ["chains", "five_axis", "waterline_step"])]
+    waterline: Option<Vec<f64>>,
+    /// Waterlines every DZ down from the mesh top to the floor.
+    #[arg(long, value_name = "DZ", conflicts_with_all = ["chains", "five_axis"])]
+    waterline_step: Option<f64>,
     /// 5-axis CL data: flat or torus cutter along the surface normal.
     #[arg(long)]
     five_axis: bool,
@@ -211,6 +222,9 @@ pub fn run(a: DropcutterArgs) -> Result<(), CliError> {
             "pathgen: warning: dropcutter: safe Z {safe_z} is below the mesh top {}",
             bb.max.z
         );
+    }
+    if a.waterline.is_some() || a.waterline_step.is_some() {
+        return run_waterlines(&a, &dc, floor, safe_z, feeds, &name);
     }
     // The XY passes.
     let passes: Vec<Vec<P2>> = if let Some(path) = &a.chains {
@@ -303,44 +317,133 @@ pub fn run(a: DropcutterArgs) -> Result<(), CliError> {
             });
         }
         n_points = cl.iter().map(Vec::len).sum();
-        match (&a.gcode, a.format) {
-            (Some(d), _) => {
-                let dialect: Dialect = d.parse().map_err(CliError::input)?;
-                let recs = toolpath_records(&cl, safe_z, feeds);
-                write_gcode(
-                    recs.into_iter().map(Ok::<_, CliError>),
-                    FeedUnit::MmPerS,
-                    write_options(dialect, &a.writer),
-                    &name,
-                    &mut out,
-                )?;
-            }
-            (None, FormatArg::Toolpath) => {
-                let mut w = ToolpathWriter::new(&mut out);
-                w.header(&Header {
-                    feed_unit: FeedUnit::MmPerS,
-                    source: Some(name.clone()),
-                })?;
-                for r in toolpath_records(&cl, safe_z, feeds) {
-                    w.record(&r)?;
-                }
-                w.finish()?;
-            }
-            (None, FormatArg::Cl) => {
-                let mut w = ClWriter::new(&mut out);
-                w.comment(&format!(
-                    "microcam CL data: x y z (tool tip), mm; cutter {cutter}, safe z {safe_z}, from {name}"
-                ))?;
-                write_cldata(&mut w, &cl, safe_z)?;
-                w.finish()?;
-            }
-        }
+        write_passes(&a, cutter, &cl, safe_z, feeds, &name, &mut out)?;
     }
     out.commit()?;
     eprintln!(
         "pathgen: dropcutter: {} triangles, {} passes, {n_points} CL points",
         loaded.mesh.triangles.len(),
         passes.len(),
+    );
+    Ok(())
+}
+
+/// 3-axis passes (raster, chains or waterlines) as G-code, toolpath or CL
+/// data, as the flags ask.
+fn write_passes(
+    a: &DropcutterArgs,
+    cutter: Cutter,
+    cl: &[Vec<P3>],
+    safe_z: f64,
+    feeds: Feeds,
+    name: &str,
+    out: &mut Output,
+) -> Result<(), CliError> {
+    match (&a.gcode, a.format) {
+        (Some(d), _) => {
+            let dialect: Dialect = d.parse().map_err(CliError::input)?;
+            let recs = toolpath_records(cl, safe_z, feeds);
+            write_gcode(
+                recs.into_iter().map(Ok::<_, CliError>),
+                FeedUnit::MmPerS,
+                write_options(dialect, &a.writer),
+                name,
+                out,
+            )?;
+        }
+        (None, FormatArg::Toolpath) => {
+            let mut w = ToolpathWriter::new(out);
+            w.header(&Header {
+                feed_unit: FeedUnit::MmPerS,
+                source: Some(name.to_string()),
+            })?;
+            for r in toolpath_records(cl, safe_z, feeds) {
+                w.record(&r)?;
+            }
+            w.finish()?;
+        }
+        (None, FormatArg::Cl) => {
+            let mut w = ClWriter::new(out);
+            w.comment(&format!(
+                "microcam CL data: x y z (tool tip), mm; cutter {cutter}, safe z {safe_z}, from {name}"
+            ))?;
+            write_cldata(&mut w, cl, safe_z)?;
+            w.finish()?;
+        }
+    }
+    Ok(())
+}
+
+/// `--waterline` / `--waterline-step`: closed loops at each level, top
+/// down, sampled on fibres `--step-over` apart.
+fn run_waterlines(
+    a: &DropcutterArgs,
+    dc: &DropCutter,
+    floor: f64,
+    safe_z: f64,
+    feeds: Feeds,
+    name: &str,
+) -> Result<(), CliError> {
+    let sampling = positive(
+        "step-over",
+        a.step_over
+            .ok_or_else(|| CliError::input("--step-over (the waterline's fibre spacing) is required"))?,
+    )?;
+    let top = dc.bbox().max.z;
+    let mut levels: Vec<f64> = match (&a.waterline, a.waterline_step) {
+        (Some(zs), _) => {
+            if let Some(z) = zs.iter().find(|z| !z.is_finite() || **z < floor) {
+                return Err(CliError::input(format!(
+                    "--waterline {z}: not a finite height at or above the floor {floor}"
+                )));
+            }
+            zs.clone()
+        }
+        (None, Some(dz)) => {
+            let dz = positive("waterline-step", dz)?;
+            let n = ((top - floor) / dz * (1.0 + 1e-12)).floor();
+            if n > 100_000.0 {
+                return Err(CliError::input(format!(
+                    "--waterline-step {dz}: {n:.0} levels from {top} down to {floor}, more than 100000"
+                )));
+            }
+            (1..=n as usize).map(|k| top - k as f64 * dz).collect()
+        }
+        (None, None) => Vec::new(),
+    };
+    // Top down, each level once.
+    levels.sort_by(|p, q| q.total_cmp(p));
+    levels.dedup();
+    let wl = Waterline {
+        sampling,
+        // Far below any stage's resolution, and a few bisection steps.
+        tol: (sampling * 1e-6).max(1e-9),
+    };
+    let meter = Meter::start(
+        "pathgen",
+        "waterline levels",
+        levels.len() as u64,
+        Show::from_flags(a.quiet, false),
+    );
+    let mut cl: Vec<Vec<P3>> = Vec::new();
+    for &z in &levels {
+        let loops = wl.loops(dc, z).map_err(|e| CliError::input(format!("{name}: {e}")))?;
+        cl.extend(
+            loops
+                .into_iter()
+                .map(|l| l.into_iter().map(|p| P3::new(p.x, p.y, z)).collect()),
+        );
+        microcam::progress::advance(1);
+    }
+    meter.finish();
+    let mut out = Output::new(a.output.as_deref());
+    write_passes(a, dc.cutter(), &cl, safe_z, feeds, name, &mut out)?;
+    out.commit()?;
+    eprintln!(
+        "pathgen: dropcutter: {} waterline levels, {} loops, {} CL points",
+        levels.len(),
+        cl.len(),
+        cl.iter().map(Vec::len).sum::<usize>()
     );
     Ok(())
 }

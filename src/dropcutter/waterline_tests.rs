@@ -1,0 +1,192 @@
+//! Waterlines against exact offsets of a block, against a sphere, and
+//! their direction round islands and pockets.
+
+use super::*;
+use crate::cutter::Cutter;
+use crate::dropcutter::tests::surface;
+use crate::geometry::P3;
+use crate::mesh::solids::{cuboid, sphere};
+
+const TOL: f64 = 1e-7;
+
+fn wl(sampling: f64) -> Waterline {
+    Waterline { sampling, tol: TOL }
+}
+
+/// Distance in XY from `p` to the rectangle [0, a] x [0, b].
+fn to_rect(p: P2, a: f64, b: f64) -> f64 {
+    let dx = (-p.x).max(p.x - a).max(0.0);
+    let dy = (-p.y).max(p.y - b).max(0.0);
+    dx.hypot(dy)
+}
+
+/// Twice the signed area (positive counter-clockwise) of a closed loop.
+fn area2(lp: &[P2]) -> f64 {
+    lp.windows(2).map(|w| w[0].x * w[1].y - w[1].x * w[0].y).sum()
+}
+
+/// Each vertex is free (the cutter there does not reach above `z`) and a
+/// blocked point lies within the tolerance along one of its fibres.
+fn on_the_boundary(dc: &DropCutter, lp: &[P2], z: f64) {
+    for p in lp {
+        assert_eq!(dc.drop_above(p.x, p.y, z), z, "{p:?} is blocked");
+        let d = TOL * 1.01;
+        let near = [(d, 0.0), (-d, 0.0), (0.0, d), (0.0, -d)]
+            .iter()
+            .any(|(dx, dy)| dc.drop_above(p.x + dx, p.y + dy, z) > z);
+        assert!(near, "{p:?}: no blocked point within the tolerance");
+    }
+}
+
+#[test]
+fn a_block_gives_its_exact_offset_for_each_cutter() {
+    let m = cuboid(P3::new(0.0, 0.0, 0.0), P3::new(4.0, 3.0, 2.0));
+    // (cutter, tip height, distance of the waterline from the block in XY)
+    let cases = [
+        (Cutter::Flat { radius: 0.5 }, 1.0, 0.5),
+        (Cutter::Flat { radius: 0.5 }, 1.999, 0.5),
+        (Cutter::Ball { radius: 0.5 }, 1.0, 0.5),
+        // The ball's centre at 2.3 rests on the block's top edge.
+        (Cutter::Ball { radius: 0.5 }, 1.8, (0.25f64 - 0.09).sqrt()),
+        (
+            Cutter::Torus {
+                radius: 0.5,
+                corner: 0.25,
+            },
+            1.0,
+            0.5,
+        ),
+        // The tube's centre circle at 2.15: 0.25 + sqrt(0.25² - 0.15²).
+        (
+            Cutter::Torus {
+                radius: 0.5,
+                corner: 0.25,
+            },
+            1.9,
+            0.25 + (0.0625f64 - 0.0225).sqrt(),
+        ),
+    ];
+    for (cutter, z, d) in cases {
+        let dc = DropCutter::new(&m, cutter).unwrap();
+        let loops = wl(0.05).loops(&dc, z).unwrap();
+        assert_eq!(loops.len(), 1, "{cutter:?} at {z}");
+        let lp = &loops[0];
+        assert_eq!(lp.first(), lp.last());
+        assert!(lp.len() > 100);
+        for p in lp {
+            let e = to_rect(*p, 4.0, 3.0) - d;
+            assert!(
+                (-1e-12..=TOL + 1e-12).contains(&e),
+                "{cutter:?} z {z}: {p:?} off by {e}"
+            );
+        }
+        on_the_boundary(&dc, lp, z);
+        // Clockwise round the island (the block on the right), with the
+        // area of the offset rectangle less the corners' chord sag.
+        let area = -area2(lp) / 2.0;
+        let want = 12.0 + 2.0 * d * 7.0 + std::f64::consts::PI * d * d;
+        assert!(
+            area > 0.0 && (area - want).abs() < 1e-3 * want,
+            "{cutter:?}: {area} vs {want}"
+        );
+    }
+}
+
+#[test]
+fn nothing_above_the_model_gives_no_loop() {
+    let m = cuboid(P3::new(0.0, 0.0, 0.0), P3::new(4.0, 3.0, 2.0));
+    let dc = DropCutter::new(&m, Cutter::Ball { radius: 0.5 }).unwrap();
+    assert!(wl(0.1).loops(&dc, 2.0).unwrap().is_empty());
+    assert!(wl(0.1).loops(&dc, 5.0).unwrap().is_empty());
+}
+
+#[test]
+fn a_ball_round_a_sphere_follows_the_offset_sphere() {
+    // Ball of radius r round a sphere of radius R: the centre stays R + r
+    // from the sphere's centre, so at tip height z the waterline is a
+    // circle of radius sqrt((R + r)² - (z + r)²), less the tessellation's
+    // sag R (1 - cos(pi / n)). Below the equator (centre below it) the
+    // tool, coming from above, cannot reach under the bulge: the
+    // waterline is the silhouette's offset, radius R + r. The mesh is
+    // stored in f32: corners within 1e-6 of the sphere.
+    let (rr, r) = (5.0, 1.0);
+    let m = sphere(P3::origin(), rr, 128, 64);
+    let dc = DropCutter::new(&m, Cutter::Ball { radius: r }).unwrap();
+    let sag = rr * (1.0 - (std::f64::consts::PI / 64.0).cos());
+    for z in [-3.0, 0.0, 2.5, 4.5] {
+        let loops = wl(0.1).loops(&dc, z).unwrap();
+        assert_eq!(loops.len(), 1, "z {z}");
+        let want = if z + r < 0.0 {
+            rr + r
+        } else {
+            ((rr + r).powi(2) - (z + r).powi(2)).sqrt()
+        };
+        for p in &loops[0] {
+            let e = p.coords.norm() - want;
+            assert!(e <= TOL + 1e-6 && e >= -2.0 * sag - 1e-6, "z {z}: {p:?} off by {e}");
+        }
+        on_the_boundary(&dc, &loops[0], z);
+        assert!(area2(&loops[0]) < 0.0, "clockwise round the sphere");
+    }
+}
+
+#[test]
+fn a_pocket_wall_is_followed_counter_clockwise() {
+    // A bowl z = (x² + y²) / 4 over [-3, 3]²: at z = 1 the cutter is free
+    // inside the bowl (a pocket, loop counter-clockwise) and outside the
+    // surface's edge (an island, clockwise).
+    let m = surface(3.0, 60, |x, y| (x * x + y * y) / 4.0);
+    let dc = DropCutter::new(&m, Cutter::Ball { radius: 0.25 }).unwrap();
+    let loops = wl(0.05).loops(&dc, 1.0).unwrap();
+    assert_eq!(loops.len(), 2);
+    let mut areas: Vec<f64> = loops.iter().map(|l| area2(l) / 2.0).collect();
+    areas.sort_by(f64::total_cmp);
+    assert!(areas[0] < -36.0, "the outer loop is clockwise: {areas:?}");
+    assert!(areas[1] > 0.0 && areas[1] < std::f64::consts::PI * 4.0, "{areas:?}");
+    for lp in &loops {
+        on_the_boundary(&dc, lp, 1.0);
+    }
+}
+
+#[test]
+fn saddle_cells_keep_two_close_islands_apart() {
+    // Two blocks touching at a corner, diagonally: the loops round them
+    // must not cross. Whatever the grid decides at the shared corner, each
+    // vertex is on the boundary and the loops are closed.
+    let mut tris = cuboid(P3::new(0.0, 0.0, 0.0), P3::new(1.0, 1.0, 1.0))
+        .iter_triangles()
+        .collect::<Vec<_>>();
+    tris.extend(cuboid(P3::new(1.0 + 0.31, 1.0 + 0.31, 0.0), P3::new(2.31, 2.31, 1.0)).iter_triangles());
+    let m = crate::mesh::Mesh::from_triangles(&tris);
+    let dc = DropCutter::new(&m, Cutter::Flat { radius: 0.2 }).unwrap();
+    let loops = wl(0.07).loops(&dc, 0.5).unwrap();
+    assert_eq!(
+        loops.len(),
+        2,
+        "the blocks' offsets (0.2 each) are 0.438 apart at the corners"
+    );
+    for lp in &loops {
+        assert_eq!(lp.first(), lp.last());
+        assert!(area2(lp) < 0.0);
+        on_the_boundary(&dc, lp, 0.5);
+    }
+}
+
+#[test]
+fn bad_options_are_refused() {
+    let m = cuboid(P3::new(0.0, 0.0, 0.0), P3::new(4.0, 3.0, 2.0));
+    let dc = DropCutter::new(&m, Cutter::Flat { radius: 0.5 }).unwrap();
+    for w in [
+        wl(0.0),
+        wl(-1.0),
+        wl(f64::NAN),
+        Waterline {
+            sampling: 0.1,
+            tol: 0.0,
+        },
+        wl(1e-6),
+    ] {
+        assert!(w.loops(&dc, 1.0).is_err(), "{w:?}");
+    }
+    assert!(wl(0.1).loops(&dc, f64::NAN).is_err());
+}
