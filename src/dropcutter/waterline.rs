@@ -39,9 +39,9 @@ pub struct Waterline {
     pub tol: f64,
 }
 
-/// More grid nodes than this in one level are refused (minutes of drops
-/// on two cores).
-pub const MAX_NODES: f64 = 1.0e8;
+/// More fibre grid nodes than this are refused (a node height is 8 bytes;
+/// minutes of drops on two cores).
+pub const MAX_NODES: f64 = 5.0e7;
 
 impl Waterline {
     /// The loops at tip height `z`, each closed (its last point is its
@@ -49,6 +49,15 @@ impl Waterline {
     /// (by the grid cell each loop's first segment lies in). No loop when
     /// the cutter touches nothing above `z`.
     pub fn loops(&self, dc: &DropCutter, z: f64) -> Result<Vec<Vec<P2>>, DropError> {
+        Ok(self.levels(dc, &[z])?.pop().unwrap_or_default())
+    }
+
+    /// The loops at each of the heights `zs`, in their order. The node
+    /// heights do not depend on the level (a node is blocked at `z` when
+    /// the drop there stops above `z`), so the fibre grid is dropped once
+    /// for all levels, down to the lowest; only the bisections and saddle
+    /// centres drop again per level.
+    pub fn levels(&self, dc: &DropCutter, zs: &[f64]) -> Result<Vec<Vec<Vec<P2>>>, DropError> {
         let h = self.sampling;
         if !(h.is_finite() && h > 0.0) {
             return Err(DropError::Option(format!(
@@ -61,19 +70,35 @@ impl Waterline {
                 self.tol
             )));
         }
-        if !z.is_finite() {
+        if let Some(z) = zs.iter().find(|z| !z.is_finite()) {
             return Err(DropError::Option(format!("waterline height {z} is not finite")));
         }
+        let Some(lowest) = zs.iter().copied().reduce(f64::min) else {
+            return Ok(Vec::new());
+        };
         let grid = Fibres::new(dc, h)?;
-        let blocked = |x: f64, y: f64| dc.drop_above(x, y, z) > z;
-        // Node states, row by row in parallel.
-        let state: Vec<bool> = (0..grid.ny)
+        // Node heights, row by row in parallel; contacts below the lowest
+        // level need not be searched for.
+        let heights: Vec<f64> = (0..grid.ny)
             .into_par_iter()
             .flat_map_iter(|j| {
                 let y = grid.y(j);
-                (0..grid.nx).map(move |i| blocked(grid.x(i), y))
+                (0..grid.nx).map(move |i| dc.drop_above(grid.x(i), y, lowest))
             })
             .collect();
+        let mut out = Vec::with_capacity(zs.len());
+        for &z in zs {
+            out.push(self.trace(dc, &grid, &heights, z));
+            crate::progress::advance(1);
+        }
+        Ok(out)
+    }
+
+    /// The loops at `z` from the node heights.
+    fn trace(&self, dc: &DropCutter, grid: &Fibres, heights: &[f64], z: f64) -> Vec<Vec<P2>> {
+        let h = self.sampling;
+        let blocked = |x: f64, y: f64| dc.drop_above(x, y, z) > z;
+        let state: Vec<bool> = heights.par_iter().map(|&hz| hz > z).collect();
         // Edges whose ends differ, in id order, and their points.
         let crossing: Vec<usize> = (0..grid.n_edges())
             .filter(|&e| {
@@ -186,7 +211,7 @@ impl Waterline {
                 loops.push(lp);
             }
         }
-        Ok(loops)
+        loops
     }
 }
 

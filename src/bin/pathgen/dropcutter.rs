@@ -425,15 +425,16 @@ fn run_waterlines(
         levels.len() as u64,
         Show::from_flags(a.quiet, false),
     );
+    let per_level = wl
+        .levels(dc, &levels)
+        .map_err(|e| CliError::input(format!("{name}: {e}")))?;
     let mut cl: Vec<Vec<P3>> = Vec::new();
-    for &z in &levels {
-        let loops = wl.loops(dc, z).map_err(|e| CliError::input(format!("{name}: {e}")))?;
+    for (loops, &z) in per_level.into_iter().zip(&levels) {
         cl.extend(
             loops
                 .into_iter()
                 .map(|l| l.into_iter().map(|p| P3::new(p.x, p.y, z)).collect()),
         );
-        microcam::progress::advance(1);
     }
     meter.finish();
     let mut out = Output::new(a.output.as_deref());
