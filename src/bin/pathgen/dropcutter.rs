@@ -130,10 +130,10 @@ pub struct DropcutterArgs {
     #[arg(long)]
     plunge_feed: Option<f64>,
     /// Waterlines at these tip heights (Z1,Z2,...; mm) instead of a raster.
-    #[arg(long, value_delimiter = ',', allow_hyphen_values = true, value_name = "Z", conflicts_with_all = ["chains", "five_axis", "waterline_step"])]
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true, value_name = "Z", conflicts_with_all = ["chains", "five_axis", "waterline_step", "region", "chord_tol", "min_step", "step_forward", "direction", "pattern"])]
     waterline: Option<Vec<f64>>,
     /// Waterlines every DZ down from the mesh top to the floor.
-    #[arg(long, value_name = "DZ", conflicts_with_all = ["chains", "five_axis"])]
+    #[arg(long, value_name = "DZ", conflicts_with_all = ["chains", "five_axis", "region", "chord_tol", "min_step", "step_forward", "direction", "pattern"])]
     waterline_step: Option<f64>,
     /// 5-axis CL data: flat or torus cutter along the surface normal.
     #[arg(long)]
