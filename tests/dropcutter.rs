@@ -273,3 +273,49 @@ fn every_corpus_stl_drops_or_is_refused() {
     }
     corpus::record("dropcutter_corpus", files.len());
 }
+
+#[test]
+fn every_corpus_stl_gives_closed_waterlines_or_is_refused() {
+    // Levels every 0.5 mm down each real mesh, fibres 0.2 mm apart: every
+    // loop closed and at its level, the levels top down.
+    let files = corpus::files("stl", &[".stl"]);
+    if files.is_empty() {
+        corpus::skip("waterline_corpus");
+        return;
+    }
+    for f in &files {
+        let o = pathgen()
+            .arg("dropcutter")
+            .arg(f)
+            .args([
+                "-q",
+                "--tool",
+                "ball:1",
+                "--waterline-step",
+                "0.5",
+                "--step-over",
+                "0.2",
+            ])
+            .args(["--safe-z", "1e6"])
+            .output()
+            .unwrap();
+        match o.status.code() {
+            Some(0) => {}
+            Some(2) => {
+                assert!(!o.stderr.is_empty() && o.stdout.is_empty(), "{f:?}");
+                continue;
+            }
+            c => panic!("{f:?}: exit {c:?}: {}", String::from_utf8_lossy(&o.stderr)),
+        }
+        let d = read_cldata(&o.stdout[..]).unwrap();
+        let mut prev_z = f64::INFINITY;
+        for pass in d.points.split(|p| p.z == 1e6).filter(|p| !p.is_empty()) {
+            assert!(pass.len() >= 3, "{f:?}: a loop of {} points", pass.len());
+            assert_eq!(pass.first(), pass.last(), "{f:?}: loop not closed");
+            assert!(pass.iter().all(|p| p.z == pass[0].z), "{f:?}: a loop off its level");
+            assert!(pass[0].z <= prev_z, "{f:?}: levels not top down");
+            prev_z = pass[0].z;
+        }
+    }
+    corpus::record("waterline_corpus", files.len());
+}
