@@ -52,12 +52,17 @@ impl Waterline {
         Ok(self.levels(dc, &[z])?.pop().unwrap_or_default())
     }
 
-    /// The loops at each of the heights `zs`, in their order. The node
-    /// heights do not depend on the level (a node is blocked at `z` when
-    /// the drop there stops above `z`), so the fibre grid is dropped once
-    /// for all levels, down to the lowest; only the bisections and saddle
-    /// centres drop again per level.
-    pub fn levels(&self, dc: &DropCutter, zs: &[f64]) -> Result<Vec<Vec<Vec<P2>>>, DropError> {
+    /// Nodes of the fibre grid [`levels`](Self::levels) drops for this
+    /// mesh and cutter; the progress counter advances by twice this over
+    /// a whole call (once per node dropped, then in equal shares per
+    /// level traced).
+    pub fn grid_nodes(&self, dc: &DropCutter) -> Result<u64, DropError> {
+        self.check()?;
+        let g = Fibres::new(dc, self.sampling)?;
+        Ok((g.nx * g.ny) as u64)
+    }
+
+    fn check(&self) -> Result<(), DropError> {
         let h = self.sampling;
         if !(h.is_finite() && h > 0.0) {
             return Err(DropError::Option(format!(
@@ -70,26 +75,40 @@ impl Waterline {
                 self.tol
             )));
         }
+        Ok(())
+    }
+
+    /// The loops at each of the heights `zs`, in their order. The node
+    /// heights do not depend on the level (a node is blocked at `z` when
+    /// the drop there stops above `z`), so the fibre grid is dropped once
+    /// for all levels, down to the lowest; only the bisections and saddle
+    /// centres drop again per level.
+    pub fn levels(&self, dc: &DropCutter, zs: &[f64]) -> Result<Vec<Vec<Vec<P2>>>, DropError> {
+        self.check()?;
         if let Some(z) = zs.iter().find(|z| !z.is_finite()) {
             return Err(DropError::Option(format!("waterline height {z} is not finite")));
         }
         let Some(lowest) = zs.iter().copied().reduce(f64::min) else {
             return Ok(Vec::new());
         };
-        let grid = Fibres::new(dc, h)?;
+        let grid = Fibres::new(dc, self.sampling)?;
         // Node heights, row by row in parallel; contacts below the lowest
         // level need not be searched for.
         let heights: Vec<f64> = (0..grid.ny)
             .into_par_iter()
             .flat_map_iter(|j| {
                 let y = grid.y(j);
+                crate::progress::advance(grid.nx as u64);
                 (0..grid.nx).map(move |i| dc.drop_above(grid.x(i), y, lowest))
             })
             .collect();
+        let nodes = heights.len() as u64;
+        let share = nodes / zs.len() as u64;
         let mut out = Vec::with_capacity(zs.len());
-        for &z in zs {
+        for (k, &z) in zs.iter().enumerate() {
             out.push(self.trace(dc, &grid, &heights, z));
-            crate::progress::advance(1);
+            let last = k + 1 == zs.len();
+            crate::progress::advance(if last { nodes - share * k as u64 } else { share });
         }
         Ok(out)
     }

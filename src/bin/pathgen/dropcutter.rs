@@ -419,12 +419,10 @@ fn run_waterlines(
         // Far below any stage's resolution, and a few bisection steps.
         tol: (sampling * 1e-6).max(1e-9),
     };
-    let meter = Meter::start(
-        "pathgen",
-        "waterline levels",
-        levels.len() as u64,
-        Show::from_flags(a.quiet, false),
-    );
+    // Dropping the fibre grid is most of the work: the meter counts its
+    // nodes, then the levels traced.
+    let units = 2 * wl.grid_nodes(dc).map_err(|e| CliError::input(format!("{name}: {e}")))?;
+    let meter = Meter::start("pathgen", "waterlines", units, Show::from_flags(a.quiet, false));
     let per_level = wl
         .levels(dc, &levels)
         .map_err(|e| CliError::input(format!("{name}: {e}")))?;
