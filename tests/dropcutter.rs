@@ -245,67 +245,66 @@ fn bad_input_exits_2_and_writes_nothing() {
     }
 }
 
-#[test]
-fn every_corpus_stl_drops_or_is_refused() {
+/// `pathgen dropcutter FILE ARGS...` on every corpus STL, tallied as
+/// `test`: each file with its output; an exit other than 0 (done) or 2
+/// (refused) fails the test. Empty when the corpus is absent.
+fn on_every_corpus_stl(test: &str, args: &[&str]) -> Vec<(std::path::PathBuf, std::process::Output)> {
     let files = corpus::files("stl", &[".stl"]);
     if files.is_empty() {
-        corpus::skip("dropcutter_corpus");
-        return;
+        corpus::skip(test);
+        return Vec::new();
     }
-    for f in &files {
-        let o = pathgen()
-            .arg("dropcutter")
-            .arg(f)
-            .args(["--tool", "torus:1:0.2", "--step-over", "0.5"])
-            .output()
-            .unwrap();
-        match o.status.code() {
-            Some(0) => {
-                let d = read_cldata(&o.stdout[..]).unwrap();
-                assert!(
-                    !d.points.is_empty() && d.points.iter().all(|p| p.z.is_finite()),
-                    "{f:?}"
-                );
-            }
-            Some(2) => assert!(!o.stderr.is_empty(), "{f:?}"),
-            c => panic!("{f:?}: exit {c:?}"),
+    let runs: Vec<_> = files
+        .into_iter()
+        .map(|f| {
+            let o = pathgen().arg("dropcutter").arg(&f).args(args).output().unwrap();
+            assert!(
+                matches!(o.status.code(), Some(0 | 2)),
+                "{f:?}: exit {:?}: {}",
+                o.status.code(),
+                String::from_utf8_lossy(&o.stderr)
+            );
+            (f, o)
+        })
+        .collect();
+    corpus::record(test, runs.len());
+    runs
+}
+
+#[test]
+fn every_corpus_stl_drops_or_is_refused() {
+    for (f, o) in on_every_corpus_stl("dropcutter_corpus", &["--tool", "torus:1:0.2", "--step-over", "0.5"]) {
+        if o.status.code() == Some(2) {
+            assert!(!o.stderr.is_empty(), "{f:?}");
+            continue;
         }
+        let d = read_cldata(&o.stdout[..]).unwrap();
+        assert!(
+            !d.points.is_empty() && d.points.iter().all(|p| p.z.is_finite()),
+            "{f:?}"
+        );
     }
-    corpus::record("dropcutter_corpus", files.len());
 }
 
 #[test]
 fn every_corpus_stl_gives_closed_waterlines_or_is_refused() {
     // Levels every 0.5 mm down each real mesh, fibres 0.2 mm apart: every
     // loop closed and at its level, the levels top down.
-    let files = corpus::files("stl", &[".stl"]);
-    if files.is_empty() {
-        corpus::skip("waterline_corpus");
-        return;
-    }
-    for f in &files {
-        let o = pathgen()
-            .arg("dropcutter")
-            .arg(f)
-            .args([
-                "-q",
-                "--tool",
-                "ball:1",
-                "--waterline-step",
-                "0.5",
-                "--step-over",
-                "0.2",
-            ])
-            .args(["--safe-z", "1e6"])
-            .output()
-            .unwrap();
-        match o.status.code() {
-            Some(0) => {}
-            Some(2) => {
-                assert!(!o.stderr.is_empty() && o.stdout.is_empty(), "{f:?}");
-                continue;
-            }
-            c => panic!("{f:?}: exit {c:?}: {}", String::from_utf8_lossy(&o.stderr)),
+    let args = [
+        "-q",
+        "--tool",
+        "ball:1",
+        "--waterline-step",
+        "0.5",
+        "--step-over",
+        "0.2",
+        "--safe-z",
+        "1e6",
+    ];
+    for (f, o) in on_every_corpus_stl("waterline_corpus", &args) {
+        if o.status.code() == Some(2) {
+            assert!(!o.stderr.is_empty() && o.stdout.is_empty(), "{f:?}");
+            continue;
         }
         let d = read_cldata(&o.stdout[..]).unwrap();
         let mut prev_z = f64::INFINITY;
@@ -317,5 +316,4 @@ fn every_corpus_stl_gives_closed_waterlines_or_is_refused() {
             prev_z = pass[0].z;
         }
     }
-    corpus::record("waterline_corpus", files.len());
 }
