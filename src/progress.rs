@@ -28,6 +28,37 @@ static STAGE: Mutex<Option<&'static str>> = Mutex::new(None);
 /// The bar a meter draws now, if any (for [`note`]).
 static SHOWN: Mutex<Option<ProgressBar>> = Mutex::new(None);
 
+/// When the environment sets `MICROCAM_TIMING`, print to stderr how long
+/// the job spent since the last lap (or since the first call), with the
+/// stage's name: where a tool's wall time goes, for tuning, without a
+/// profiler. Costs one environment lookup, once, when unset.
+pub fn lap(what: &str) {
+    use std::sync::OnceLock;
+    static ON: OnceLock<bool> = OnceLock::new();
+    static LAST: Mutex<Option<(Instant, f64)>> = Mutex::new(None);
+    if !*ON.get_or_init(|| std::env::var_os("MICROCAM_TIMING").is_some()) {
+        return;
+    }
+    let now = (Instant::now(), cpu_seconds());
+    let mut last = LAST.lock().unwrap_or_else(|e| e.into_inner());
+    let (wall, cpu) = last.map_or((0.0, 0.0), |(t, c)| {
+        ((now.0 - t).as_secs_f64() * 1e3, (now.1 - c) * 1e3)
+    });
+    *last = Some(now);
+    eprintln!("timing: {what:<24} {wall:8.2} ms wall {cpu:8.2} ms CPU");
+}
+
+/// The process's CPU time so far (user and system, all threads), seconds.
+fn cpu_seconds() -> f64 {
+    // SAFETY: getrusage only writes the struct it is given.
+    let mut ru: libc::rusage = unsafe { std::mem::zeroed() };
+    if unsafe { libc::getrusage(libc::RUSAGE_SELF, &mut ru) } != 0 {
+        return 0.0;
+    }
+    let t = |v: libc::timeval| v.tv_sec as f64 + v.tv_usec as f64 * 1e-6;
+    t(ru.ru_utime) + t(ru.ru_stime)
+}
+
 /// Start counting a new job of `total` units (0 when not known yet).
 pub fn begin(total: u64) {
     DONE.store(0, Ordering::Relaxed);

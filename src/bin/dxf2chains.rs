@@ -242,12 +242,14 @@ fn run(args: Args) -> Result<(), CliError> {
         .and_then(|p| std::fs::metadata(p).ok())
         .filter(|m| m.is_file())
         .map_or(0, |m| m.len());
+    microcam::progress::lap("start");
     let meter = Meter::start("dxf2chains", "bytes read", size, Show::from_flags(args.quiet, false));
     let imp = import(Box::new(Counted(input.reader)), &opts).map_err(|e| match e {
         microcam::dxf::reader::DxfError::Io(io) => CliError::input(format!("{name}: {io}")),
         e => CliError::in_file(&name, e),
     });
     let mut imp = imp?;
+    microcam::progress::lap("import");
     let (chains, report) = chain::build(
         std::mem::take(&mut imp.sink.segments),
         &imp.sink.points,
@@ -255,6 +257,7 @@ fn run(args: Args) -> Result<(), CliError> {
         args.tol,
     );
     meter.finish();
+    microcam::progress::lap("chain: counts");
 
     let mut out = Output::new(args.output.as_deref());
     let mut w = ChainsWriter::new(&mut out);
@@ -263,6 +266,7 @@ fn run(args: Args) -> Result<(), CliError> {
     })?;
     write_chains(&chains, &mut w)?;
     w.finish()?;
+    microcam::progress::lap("write");
     let svg_out = match &args.svg {
         Some(p) => {
             let mut o = Output::new(Some(p));

@@ -260,7 +260,9 @@ pub fn build(
     // Layer by layer, in drawing order within each layer: a stable
     // counting sort (layers are few), applied in place by cycles so the
     // 88-byte records are neither sorted by comparison nor copied.
+    crate::progress::lap("chain: pieces");
     let runs = group_by_layer(&mut work, layer_of, layers.len());
+    crate::progress::lap("chain: group by layer");
     let mut out = Chains {
         layers: layers.to_vec(),
         ..Default::default()
@@ -282,6 +284,7 @@ pub fn build(
     }
     out.work = work;
     orient::orient(&mut out, tol, &mut report);
+    crate::progress::lap("orient: probes");
     // Output order: by each chain's first piece in the drawing (the orders
     // are distinct, so sorting (order, chain) words is the same order).
     let mut perm: Vec<u64> = out
@@ -308,6 +311,7 @@ pub fn build(
             out.points.push((l as u32, pts));
         }
     }
+    crate::progress::lap("chain: output order");
     for it in &out.items {
         if it.closed {
             report.closed += 1;

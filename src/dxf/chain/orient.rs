@@ -112,6 +112,7 @@ pub(super) fn orient(chains: &mut Chains, tol: f64, report: &mut ChainReport) {
             }
         })
         .collect();
+    crate::progress::lap("orient: infos");
     if infos.is_empty() {
         return;
     }
@@ -181,6 +182,7 @@ pub(super) fn orient(chains: &mut Chains, tol: f64, report: &mut ChainReport) {
         }
     }
     drop((cells, fill));
+    crate::progress::lap("orient: grid");
     // Each probe's depth is a read-only question: answered on the pool.
     let flip: Vec<usize> = infos
         .par_iter()

@@ -21,15 +21,19 @@ pub(super) fn chain_layer(
     let mut notes = Notes::default();
     // 1. Zero-length pieces, collinear overlaps.
     zero_length(w, tol, report);
+    crate::progress::lap("chain: zero length");
     merge_collinear(w, &mut notes, tol, report);
+    crate::progress::lap("chain: collinear");
 
     // 2. End points to nodes.
     let nodes = assign::assign(w, tol);
     let (ends, n_nodes) = (&nodes.ends, nodes.len());
+    crate::progress::lap("chain: nodes");
 
     // 3. Duplicates between the same pair of nodes, and the nodes'
     // adjacency lists of the pieces left.
     let (start_idx, adj) = remove_duplicates(w, ends, n_nodes, &mut notes, tol, report);
+    crate::progress::lap("chain: duplicates");
 
     // 4. Walk the graph: open chains from nodes of degree != 2, then cycles.
     let degree = |n: u32| start_idx[n as usize + 1] - start_idx[n as usize];
@@ -127,6 +131,7 @@ pub(super) fn chain_layer(
             emit(&run, ends[i].0, last);
         }
     }
+    crate::progress::lap("chain: walk");
     chain_repairs.par_iter_mut().for_each(|(_, repairs, gap_nodes)| {
         for &n in gap_nodes.iter() {
             let p = nodes.rep(n);
@@ -156,4 +161,5 @@ pub(super) fn chain_layer(
             x.seg = snap(&seg, nodes.rep(na), nodes.rep(nb));
         }
     });
+    crate::progress::lap("chain: notes and snap");
 }
