@@ -3,13 +3,14 @@
 //! share their edges and the topology can be read.
 //!
 //! A hash on the exact coordinates first (an STL soup repeats each corner
-//! three to eight times), then a spatial hash with cells twice the
-//! tolerance for the distinct positions: each looks in the 8 cells its
-//! tolerance ball can reach. Linear work, mostly in parallel, and a result
-//! that depends on the input order alone (see [`weld`]).
+//! three to eight times), then a spatial hash with cells eight times the
+//! tolerance for the distinct positions: each looks in the cells its
+//! tolerance ball can reach (about two). Linear work, mostly in parallel,
+//! and a result that depends on the input order alone (see [`weld`]).
 
 use std::collections::HashMap;
 use std::hash::{BuildHasherDefault, Hash, Hasher};
+use std::sync::atomic::{AtomicU32, Ordering};
 
 use super::Mesh;
 use crate::geometry::P3;
@@ -75,10 +76,10 @@ impl Hash for Key {
 ///
 /// The work, mostly in parallel (rayon): identical coordinates are found
 /// by hashing their bits in shards; the distinct positions are put in a
-/// spatial hash of cells `2 tol` wide (the ball of radius `tol` reaches 8
-/// of them), and each finds out whether any other lies within `tol`. Only
-/// those that have such a neighbour (none on a clean mesh) go through the
-/// rule above one by one.
+/// spatial hash of cells `8 tol` wide (the ball of radius `tol` reaches
+/// one to eight of them, about two on average), and each finds out
+/// whether any other lies within `tol`. Only those that have such a
+/// neighbour (none on a clean mesh) go through the rule above one by one.
 pub fn weld(mesh: &Mesh, tol: f64) -> (Mesh, WeldReport) {
     use rayon::prelude::*;
     let n = mesh.vertices.len();
@@ -97,78 +98,65 @@ pub fn weld(mesh: &Mesh, tol: f64) -> (Mesh, WeldReport) {
         k.hash(&mut h);
         h.finish()
     };
-    const SHARDS: u64 = 64;
+    // Identical coordinates by shards of their hash, two per thread, each
+    // with its own table. A shard goes through the vertices in file order
+    // and takes its own, so its table gives each the first vertex with the
+    // same coordinates (whatever the number of shards), and it reads the
+    // vertex array in order. Until 29 November 2026 the vertices were
+    // first sorted into 64 shards, on one thread, and each shard read its
+    // own at random, a cache miss a vertex: 150-225 ms on a 1 M-triangle
+    // STL on two cores, now 100-120 (8, 16 and 32 shards: 135-160,
+    // 155-205 and 240-250 ms; each shard's pass over all the vertices
+    // costs more than its table's cache misses save).
+    let shards = (2 * rayon::current_num_threads()).clamp(1, 64) as u64;
     let shard: Vec<u8> = mesh
         .vertices
         .par_iter()
         .with_min_len(8192)
-        .map(|p| (hash_of(&key_of(p)) % SHARDS) as u8)
+        .map(|p| (hash_of(&key_of(p)) % shards) as u8)
         .collect();
-    // The used vertices of each shard, in file order (a counting sort, so
-    // each shard reads only its own vertices).
-    let mut start = vec![0usize; SHARDS as usize + 1];
-    for i in 0..n {
-        if used[i] {
-            start[shard[i] as usize + 1] += 1;
-        }
-    }
-    for s in 0..SHARDS as usize {
-        start[s + 1] += start[s];
-    }
-    let mut by_shard = vec![0u32; start[SHARDS as usize]];
-    let mut fill = start.clone();
-    for i in 0..n {
-        if used[i] {
-            let s = shard[i] as usize;
-            by_shard[fill[s]] = i as u32;
-            fill[s] += 1;
-        }
-    }
-    // first[i]: the first vertex (file order) with i's coordinates.
-    let pairs: Vec<Vec<(u32, u32)>> = (0..SHARDS as usize)
-        .into_par_iter()
-        .map(|s| {
-            let mine = &by_shard[start[s]..start[s + 1]];
-            let mut map: FastMap<Key, u32> = FastMap::default();
-            map.reserve(mine.len());
-            let mut out = Vec::with_capacity(mine.len());
-            for &i in mine {
-                let f = *map.entry(key_of(&mesh.vertices[i as usize])).or_insert(i);
-                out.push((i, f));
+    // first[i]: the first vertex (file order) with i's coordinates; each
+    // index is stored by the one shard that owns it (relaxed atomic stores
+    // are plain stores on x86).
+    let first: Vec<AtomicU32> = (0..n).map(|_| AtomicU32::new(u32::MAX)).collect();
+    (0..shards as u8).into_par_iter().for_each(|s| {
+        let mut map: FastMap<Key, u32> = FastMap::default();
+        map.reserve(n / shards as usize / 4);
+        for i in 0..n {
+            if shard[i] == s && used[i] {
+                let f = *map.entry(key_of(&mesh.vertices[i])).or_insert(i as u32);
+                first[i].store(f, Ordering::Relaxed);
             }
-            out
-        })
-        .collect();
-    let mut first = vec![u32::MAX; n];
-    for v in &pairs {
-        for &(i, f) in v {
-            first[i as usize] = f;
         }
-    }
-    drop(pairs);
+    });
+    let first: Vec<u32> = first.into_iter().map(AtomicU32::into_inner).collect();
     // Distinct positions in file order.
     let uniq: Vec<u32> = (0..n as u32).filter(|&i| first[i as usize] == i).collect();
     let near = tol > 0.0 && tol.is_finite();
-    let inv = 0.5 / tol;
+    // Cells eight tolerances wide: the ball of radius tol around a point
+    // reaches a neighbouring cell along an axis only when the point lies
+    // within tol of that side, so a point looks in about two cells, not
+    // the eight that cells of 2 tol always gave (the lookups were half the
+    // weld's time on a 1 M-triangle STL).
+    let inv = 0.125 / tol;
     let tol2 = tol * tol;
-    let cell_of = |p: &P3| [p.x, p.y, p.z].map(|v| (v * inv).floor() as i64);
-    // The 8 cells the ball of radius tol around p can reach.
+    // `floor_i64`, not `floor`: a libm call on baseline x86_64.
+    let cell_of = |p: &P3| [p.x, p.y, p.z].map(|v| crate::geometry::floor_i64(v * inv));
+    // The cells the ball of radius tol around p can reach: on each axis
+    // its own, and a neighbour when p is within an eighth of the cell (plus
+    // a margin for the round-off of v * inv) of that side.
+    const NEAR_SIDE: f64 = 0.125 + 1e-3;
     let reach = |p: &P3| {
         let c = cell_of(p);
-        let side = |v: f64, c: i64| {
-            if v * inv - c as f64 >= 0.5 {
-                c.wrapping_add(1)
-            } else {
-                c.wrapping_sub(1)
-            }
+        let span = |v: f64, c: i64| {
+            let f = v * inv - c as f64;
+            let lo = if f < NEAR_SIDE { c.saturating_sub(1) } else { c };
+            let hi = if f > 1.0 - NEAR_SIDE { c.saturating_add(1) } else { c };
+            (lo, hi)
         };
-        let s = [side(p.x, c[0]), side(p.y, c[1]), side(p.z, c[2])];
-        (0..8).map(move |m| {
-            Key([
-                (if m & 1 == 0 { c[0] } else { s[0] }) as u64,
-                (if m & 2 == 0 { c[1] } else { s[1] }) as u64,
-                (if m & 4 == 0 { c[2] } else { s[2] }) as u64,
-            ])
+        let (x, y, z) = (span(p.x, c[0]), span(p.y, c[1]), span(p.z, c[2]));
+        (x.0..=x.1).flat_map(move |cx| {
+            (y.0..=y.1).flat_map(move |cy| (z.0..=z.1).map(move |cz| Key([cx as u64, cy as u64, cz as u64])))
         })
     };
     // Cell -> first distinct position in it; `next` chains the others
@@ -349,6 +337,42 @@ mod tests {
             let (w, r) = weld(&m, tol);
             assert_eq!(w, reference(&m, tol), "tol {tol}");
             assert_eq!(r.vertices_out, w.vertices.len());
+        }
+    }
+
+    #[test]
+    fn pairs_across_cell_sides_weld_by_the_rule() {
+        // Cells are 8 tol wide: pairs of points either side of a cell's
+        // side (and of its corners), just within and just beyond tol of
+        // each other, on every axis and at negative coordinates.
+        let tol = 1e-3;
+        let w = 8.0 * tol;
+        let mut v = Vec::new();
+        for k in -3i32..3 {
+            let side = k as f64 * w;
+            for d in [0.4999, 0.5, 0.5001, 0.9999, 1.0001] {
+                let (a, b) = (side - d * tol, side + (1.0 - d) * tol);
+                for axis in 0..3 {
+                    let mut p = [0.3 * w, 0.6 * w, 0.1 * w];
+                    let mut q = p;
+                    p[axis] = a;
+                    q[axis] = b;
+                    // Both orders: the later point is the one that looks.
+                    let (p, q) = (P3::new(p[0], p[1], p[2]), P3::new(q[0], q[1], q[2]));
+                    let shift = crate::geometry::V3::new(0.0, 0.0, 40.0 * w);
+                    v.extend([p, q, q + shift, p + shift]);
+                }
+                // Across a corner: both x and y change sides.
+                let e = tol * 0.7 * d;
+                v.push(P3::new(side - e, side - e, 0.0));
+                v.push(P3::new(side + e * 0.4, side + e * 0.4, 0.0));
+            }
+        }
+        let n = v.len() as u32;
+        let triangles: Vec<[u32; 3]> = (0..n).map(|i| [i, (i + 1) % n, (i + 2) % n]).collect();
+        let m = Mesh { vertices: v, triangles };
+        for tol in [tol, 0.999 * tol, 1.001 * tol] {
+            assert_eq!(weld(&m, tol).0, reference(&m, tol), "tol {tol}");
         }
     }
 }
