@@ -136,8 +136,9 @@ pub fn weld(mesh: &Mesh, tol: f64) -> (Mesh, WeldReport) {
     // Cells eight tolerances wide: the ball of radius tol around a point
     // reaches a neighbouring cell along an axis only when the point lies
     // within tol of that side, so a point looks in about two cells, not
-    // the eight that cells of 2 tol always gave (the lookups were half the
-    // weld's time on a 1 M-triangle STL).
+    // the eight that cells of 2 tol always gave. On a 1 M-triangle STL
+    // the search below went only from 120-135 to 100-115 ms: each lookup
+    // is a cache miss, and the eight of a point overlapped.
     let inv = 0.125 / tol;
     let tol2 = tol * tol;
     // `floor_i64`, not `floor`: a libm call on baseline x86_64.
@@ -159,8 +160,8 @@ pub fn weld(mesh: &Mesh, tol: f64) -> (Mesh, WeldReport) {
             (y.0..=y.1).flat_map(move |cy| (z.0..=z.1).map(move |cz| Key([cx as u64, cy as u64, cz as u64])))
         })
     };
-    // Cell -> first distinct position in it; `next` chains the others
-    // (in decreasing file order).
+    // Cell -> the last distinct position (in file order) in it; `next`
+    // chains the others, in decreasing file order.
     let mut cells: FastMap<Key, u32> = FastMap::default();
     let mut next = vec![u32::MAX; if near { uniq.len() } else { 0 }];
     let mut crowded = vec![false; if near { uniq.len() } else { 0 }];
