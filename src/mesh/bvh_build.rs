@@ -1,6 +1,6 @@
 //! Building the hierarchy: a binned surface-area heuristic over the
-//! triangles' f32 boxes, the top levels in parallel, the binary nodes
-//! flattened depth-first and then collapsed into the 4-wide quads that
+//! triangles' f32 boxes (an exact sweep for nodes of a few triangles),
+//! the top levels in parallel, the binary nodes flattened depth-first and then collapsed into the 4-wide quads that
 //! rays traverse (the design and its figures: the module doc of
 //! [`super`] and docs/mesh.md).
 
@@ -93,6 +93,7 @@ impl Bvh {
     /// are never hit by rays but take part in nearest-point queries).
     pub fn new(mesh: &Mesh) -> Bvh {
         let n = mesh.triangles.len();
+        crate::progress::lap("bvh: start");
         // Corners straight from the mesh, here and for the tree's own copy
         // below: an array of every triangle's corners in file order (72
         // bytes a triangle) lived through the whole build, 71 MB of the
@@ -132,6 +133,7 @@ impl Bvh {
                 }
             })
             .collect();
+        crate::progress::lap("bvh: prims");
         // The root's box and centroid box (each node's children get theirs
         // from the bins of its split).
         let (all, call) = bounds(&prims);
@@ -142,17 +144,21 @@ impl Bvh {
             .map(|k| (all.max[k].abs().max(all.min[k].abs())) as f64)
             .fold(0.0, f64::max);
         let pad = scale * 1e-6 + 1e-12;
-        let mut nodes = Vec::with_capacity(2 * n / MAX_LEAF + 1);
-        if n > 0 {
-            build(&mut prims, 0, &mut nodes, pad, all, call);
-        }
+        let nodes = if n > 0 {
+            join_runs(build_runs(&mut prims, 0, pad, all, call))
+        } else {
+            Vec::new()
+        };
+        crate::progress::lap("bvh: tree");
         let ids: Vec<u32> = prims.iter().map(|p| p.id()).collect();
         let tris = ids
             .par_iter()
             .with_min_len(4096)
             .map(|&i| corners(&mesh.triangles[i as usize]))
             .collect();
+        crate::progress::lap("bvh: ids, corners");
         let quads = quads_of(&nodes);
+        crate::progress::lap("bvh: quads");
         Bvh {
             nodes,
             quads,
@@ -166,7 +172,10 @@ impl Bvh {
 /// is interior: each quad takes up to four descendants of a binary node,
 /// opening the child with the largest box first.
 fn quads_of(nodes: &[Node]) -> Vec<Quad> {
-    let mut out = Vec::new();
+    // A quad holds at least one interior node of its own, and a binary
+    // tree of n nodes has (n - 1) / 2 interior ones: reserving that keeps
+    // the list from growing by copies (and fresh page faults) each time.
+    let mut out = Vec::with_capacity(nodes.len() / 2 + 1);
     if nodes.first().is_none_or(|r| r.n > 0) {
         return out;
     }
@@ -252,14 +261,22 @@ fn bounds(ids: &[Prim]) -> (Aabb, Aabb) {
     )
 }
 
-/// Build the subtree over `ids` (which start at `offset` in the full id
-/// list; `bb` and `cb` their box and centroid box), appending nodes to
-/// `out` depth-first; returns its root index.
-fn build(ids: &mut [Prim], offset: usize, out: &mut Vec<Node>, pad: f64, bb: Aabb, cb: Aabb) -> u32 {
-    let me = out.len() as u32;
-    out.push(to_node(&bb, pad));
+/// What a node does with its triangles: stays a leaf, or splits them at
+/// `mid` (already partitioned), with the two sides' bounds when the
+/// binning gave them.
+enum Step {
+    Leaf,
+    Split { mid: usize, kids: Option<Sides> },
+}
+
+/// Decide a node over `ids` (box `bb`, centroid box `cb`) and partition
+/// its triangles for the split.
+fn step(ids: &mut [Prim], bb: &Aabb, cb: &Aabb) -> Step {
     let n = ids.len();
-    let split = if n <= 2 { None } else { best_split(ids, &bb, &cb) };
+    if n > 2 && n <= SMALL {
+        return small_step(ids, bb);
+    }
+    let split = if n <= 2 { None } else { best_split(ids, bb, cb) };
     let (mid, kids) = match split {
         Some((sp, kids)) => (partition(ids, |q| sp.left(q)), Some(kids)),
         None if n > MAX_LEAF => {
@@ -276,58 +293,113 @@ fn build(ids: &mut [Prim], offset: usize, out: &mut Vec<Node>, pad: f64, bb: Aab
     if mid == 0 || mid == n {
         if n > MAX_LEAF {
             // Degenerate partition (all on one side): halve by position.
-            return finish_split(ids, offset, out, pad, me, n / 2, None);
+            return Step::Split { mid: n / 2, kids: None };
         }
-        let nd = &mut out[me as usize];
-        nd.a = offset as u32;
-        nd.n = n as u32;
-        return me;
+        return Step::Leaf;
     }
-    finish_split(ids, offset, out, pad, me, mid, kids)
+    Step::Split { mid, kids }
+}
+
+/// The two sides of a split at `mid` and their bounds.
+fn sides(ids: &mut [Prim], mid: usize, kids: Option<Sides>) -> (&mut [Prim], &mut [Prim], Sides) {
+    let (l, r) = ids.split_at_mut(mid);
+    let kids = kids.unwrap_or_else(|| [bounds(l), bounds(r)]);
+    (l, r, kids)
+}
+
+/// Build the subtree over `ids` (which start at `offset` in the full id
+/// list; `bb` and `cb` their box and centroid box) on this thread,
+/// appending nodes to `out` depth-first; returns its root index.
+fn build(ids: &mut [Prim], offset: usize, out: &mut Vec<Node>, pad: f64, bb: Aabb, cb: Aabb) -> u32 {
+    let me = out.len() as u32;
+    out.push(to_node(&bb, pad));
+    match step(ids, &bb, &cb) {
+        Step::Leaf => {
+            let nd = &mut out[me as usize];
+            nd.a = offset as u32;
+            nd.n = ids.len() as u32;
+        }
+        Step::Split { mid, kids } => {
+            let (l, r, [(lb, lc), (rb, rc)]) = sides(ids, mid, kids);
+            build(l, offset, out, pad, lb, lc);
+            let rr = build(r, offset + mid, out, pad, rb, rc);
+            out[me as usize].a = rr;
+        }
+    }
+    me
+}
+
+/// A run of the depth-first node list, built on its own thread. Its
+/// interior nodes' right-child indices are relative to the run's first
+/// node; `add` makes them indices in the whole list.
+struct Run {
+    nodes: Vec<Node>,
+    add: u32,
+}
+
+/// Build the subtree over `ids` as [`build`] does, the two sides of big
+/// nodes in parallel, as runs in depth-first order with indices relative
+/// to the subtree's root. The runs are joined once at the end: copying
+/// each side's nodes into its parent's list at every parallel level cost
+/// 5 copies of the whole tree on 1 M triangles.
+fn build_runs(ids: &mut [Prim], offset: usize, pad: f64, bb: Aabb, cb: Aabb) -> Vec<Run> {
+    let n = ids.len();
+    if n < PAR_MIN {
+        // A subtree of n triangles has at most 2n - 1 nodes.
+        let mut out = Vec::with_capacity(2 * n.max(1) - 1);
+        build(ids, offset, &mut out, pad, bb, cb);
+        return vec![Run { nodes: out, add: 0 }];
+    }
+    let mut me = to_node(&bb, pad);
+    match step(ids, &bb, &cb) {
+        Step::Leaf => {
+            me.a = offset as u32;
+            me.n = n as u32;
+            vec![Run {
+                nodes: vec![me],
+                add: 0,
+            }]
+        }
+        Step::Split { mid, kids } => {
+            let (l, r, [(lb, lc), (rb, rc)]) = sides(ids, mid, kids);
+            let (mut left, mut right) = rayon::join(
+                || build_runs(l, offset, pad, lb, lc),
+                || build_runs(r, offset + mid, pad, rb, rc),
+            );
+            let nl: usize = left.iter().map(|r| r.nodes.len()).sum();
+            me.a = 1 + nl as u32;
+            left.iter_mut().for_each(|r| r.add += 1);
+            right.iter_mut().for_each(|r| r.add += 1 + nl as u32);
+            let mut runs = Vec::with_capacity(1 + left.len() + right.len());
+            runs.push(Run {
+                nodes: vec![me],
+                add: 0,
+            });
+            runs.append(&mut left);
+            runs.append(&mut right);
+            runs
+        }
+    }
+}
+
+/// The whole node list from the root's runs.
+fn join_runs(runs: Vec<Run>) -> Vec<Node> {
+    let total = runs.iter().map(|r| r.nodes.len()).sum();
+    let mut out = Vec::with_capacity(total);
+    for r in runs {
+        out.extend(r.nodes.iter().map(|&nd| {
+            let mut nd = nd;
+            if nd.n == 0 {
+                nd.a += r.add;
+            }
+            nd
+        }));
+    }
+    out
 }
 
 /// Bounds of the two sides of a split: (box, centroid box) left, right.
 type Sides = [(Aabb, Aabb); 2];
-
-fn finish_split(
-    ids: &mut [Prim],
-    offset: usize,
-    out: &mut Vec<Node>,
-    pad: f64,
-    me: u32,
-    mid: usize,
-    kids: Option<Sides>,
-) -> u32 {
-    let (l, r) = ids.split_at_mut(mid);
-    let [(lb, lc), (rb, rc)] = kids.unwrap_or_else(|| [bounds(l), bounds(r)]);
-    if l.len() + r.len() >= PAR_MIN {
-        let (mut lv, mut rv) = (Vec::new(), Vec::new());
-        rayon::join(
-            || build(l, offset, &mut lv, pad, lb, lc),
-            || build(r, offset + mid, &mut rv, pad, rb, rc),
-        );
-        let lbase = out.len() as u32;
-        out.extend(lv.into_iter().map(|mut n| {
-            if n.n == 0 {
-                n.a += lbase;
-            }
-            n
-        }));
-        let rbase = out.len() as u32;
-        out.extend(rv.into_iter().map(|mut n| {
-            if n.n == 0 {
-                n.a += rbase;
-            }
-            n
-        }));
-        out[me as usize].a = rbase;
-    } else {
-        build(l, offset, out, pad, lb, lc);
-        let rr = build(r, offset + mid, out, pad, rb, rc);
-        out[me as usize].a = rr;
-    }
-    me
-}
 
 /// A binned split: primitives whose centroid falls in bins `0..=last`
 /// of `axis` go left (the same bin function as the binning, so the
@@ -367,70 +439,61 @@ fn bin_prims(ids: &[Prim], axis: usize, lo: f32, k: f32) -> Bins {
     bins
 }
 
-/// Binned SAH over all three axes: the cheapest split and the bounds of
-/// its two sides, or None when keeping a leaf is cheaper (and allowed).
+/// Binned SAH along the longest centroid axis: the cheapest split and
+/// the bounds of its two sides, or None when keeping a leaf is cheaper
+/// (and allowed). Nodes of up to [`SMALL`] triangles take the exact sweep
+/// of [`small_step`] over all three axes instead.
 fn best_split(ids: &[Prim], bb: &Aabb, cb: &Aabb) -> Option<(Split, Sides)> {
     let n = ids.len();
-    let mut best = (f64::INFINITY, None);
-    let mut best_bins = [(Aabb::EMPTY, Aabb::EMPTY, 0u32); BINS];
-    // Nodes above 256 triangles: the longest centroid axis only (a third
-    // of the binning work where most of the build time goes; the SAH
-    // rarely prefers another axis there).
-    let longest = (0..3)
+    // One axis: binning all three tripled the work where most of the
+    // build's time goes, and on the test meshes it changed the nodes a
+    // ray visits by under 1 % (docs/mesh.md, "Building the BVH").
+    let axis = (0..3)
         .max_by(|&a, &b| (cb.max[a] - cb.min[a]).total_cmp(&(cb.max[b] - cb.min[b])))
         .unwrap_or(0);
-    for axis in 0..3 {
-        if n > 256 && axis != longest {
-            continue;
-        }
-        let lo = cb.min[axis];
-        let ext = cb.max[axis] - lo;
-        if ext.is_nan() || ext <= 0.0 {
-            continue;
-        }
-        let k = BINS as f32 / ext;
-        if !k.is_finite() {
-            continue;
-        }
-        let bins = if n >= PAR_MIN {
-            // Box unions and counts: the same result in any order.
-            ids.par_chunks(PAR_MIN / 4).map(|c| bin_prims(c, axis, lo, k)).reduce(
-                || [(Aabb::EMPTY, Aabb::EMPTY, 0u32); BINS],
-                |mut a, b| {
-                    for (x, y) in a.iter_mut().zip(&b) {
-                        x.0.grow(&y.0);
-                        x.1.grow(&y.1);
-                        x.2 += y.2;
-                    }
-                    a
-                },
-            )
-        } else {
-            bin_prims(ids, axis, lo, k)
-        };
-        // Sweep from the right, then from the left.
-        let mut right = [0.0f64; BINS];
-        let mut acc = Aabb::EMPTY;
-        let mut cnt = 0u32;
-        for j in (1..BINS).rev() {
-            acc.grow(&bins[j].0);
-            cnt += bins[j].2;
-            right[j] = acc.half_area() * cnt as f64;
-        }
-        let mut acc = Aabb::EMPTY;
-        let mut cnt = 0u32;
-        let mut improved = false;
-        for j in 0..BINS - 1 {
-            acc.grow(&bins[j].0);
-            cnt += bins[j].2;
-            let cost = acc.half_area() * cnt as f64 + right[j + 1];
-            if cnt > 0 && (cnt as usize) < n && cost < best.0 {
-                best = (cost, Some(Split { axis, lo, k, last: j }));
-                improved = true;
-            }
-        }
-        if improved {
-            best_bins = bins;
+    let lo = cb.min[axis];
+    let ext = cb.max[axis] - lo;
+    if ext.is_nan() || ext <= 0.0 {
+        return None;
+    }
+    let k = BINS as f32 / ext;
+    if !k.is_finite() {
+        return None;
+    }
+    let bins = if n >= PAR_MIN {
+        // Box unions and counts: the same result in any order.
+        ids.par_chunks(PAR_MIN / 4).map(|c| bin_prims(c, axis, lo, k)).reduce(
+            || [(Aabb::EMPTY, Aabb::EMPTY, 0u32); BINS],
+            |mut a, b| {
+                for (x, y) in a.iter_mut().zip(&b) {
+                    x.0.grow(&y.0);
+                    x.1.grow(&y.1);
+                    x.2 += y.2;
+                }
+                a
+            },
+        )
+    } else {
+        bin_prims(ids, axis, lo, k)
+    };
+    // Sweep from the right, then from the left.
+    let mut right = [0.0f64; BINS];
+    let mut acc = Aabb::EMPTY;
+    let mut cnt = 0u32;
+    for j in (1..BINS).rev() {
+        acc.grow(&bins[j].0);
+        cnt += bins[j].2;
+        right[j] = acc.half_area() * cnt as f64;
+    }
+    let mut best = (f64::INFINITY, None);
+    let mut acc = Aabb::EMPTY;
+    let mut cnt = 0u32;
+    for j in 0..BINS - 1 {
+        acc.grow(&bins[j].0);
+        cnt += bins[j].2;
+        let cost = acc.half_area() * cnt as f64 + right[j + 1];
+        if cnt > 0 && (cnt as usize) < n && cost < best.0 {
+            best = (cost, Some(Split { axis, lo, k, last: j }));
         }
     }
     let (cost, split) = best;
@@ -442,12 +505,84 @@ fn best_split(ids: &[Prim], bb: &Aabb, cb: &Aabb) -> Option<(Split, Sides)> {
         return None;
     }
     let mut sides = [(Aabb::EMPTY, Aabb::EMPTY); 2];
-    for (j, b) in best_bins.iter().enumerate() {
+    for (j, b) in bins.iter().enumerate() {
         let side = &mut sides[(j > split.last) as usize];
         side.0.grow(&b.0);
         side.1.grow(&b.1);
     }
     Some((split, sides))
+}
+
+/// Most nodes hold a handful of triangles, and for them the exact sweep
+/// (each axis in centroid order, every cut between neighbours) costs
+/// less than filling and sweeping twelve bins on three axes, and finds
+/// the best cut rather than the best between bin walls.
+const SMALL: usize = 16;
+
+/// [`step`] for 3 to [`SMALL`] triangles: the cheapest cut of each
+/// axis's centroid order, the triangles reordered along the best.
+fn small_step(ids: &mut [Prim], bb: &Aabb) -> Step {
+    let n = ids.len();
+    debug_assert!(n > 2 && n <= SMALL);
+    // f32 bits made to order as integers the way total_cmp orders floats.
+    let key = |x: f32| {
+        let b = x.to_bits() as i32;
+        b ^ ((((b >> 31) as u32) >> 1) as i32)
+    };
+    let mut best = (f64::INFINITY, 0usize);
+    let mut best_order = [0u8; SMALL];
+    let mut right = [0.0f64; SMALL];
+    for axis in 0..3 {
+        // Insertion sort of (key, index): stable, so equal centroids keep
+        // their order and the result does not depend on the sort's details.
+        let mut ord = [(0i32, 0u8); SMALL];
+        for (i, q) in ids.iter().enumerate() {
+            let k = key(q.c[axis]);
+            let mut j = i;
+            while j > 0 && ord[j - 1].0 > k {
+                ord[j] = ord[j - 1];
+                j -= 1;
+            }
+            ord[j] = (k, i as u8);
+        }
+        let mut acc = Aabb::EMPTY;
+        for j in (1..n).rev() {
+            acc.grow(&ids[ord[j].1 as usize].b);
+            right[j] = acc.half_area() * (n - j) as f64;
+        }
+        let mut acc = Aabb::EMPTY;
+        let mut improved = false;
+        for j in 0..n - 1 {
+            acc.grow(&ids[ord[j].1 as usize].b);
+            let cost = acc.half_area() * (j + 1) as f64 + right[j + 1];
+            if cost < best.0 {
+                best = (cost, j + 1);
+                improved = true;
+            }
+        }
+        if improved {
+            for (o, &(_, i)) in best_order.iter_mut().zip(&ord[..n]) {
+                *o = i;
+            }
+        }
+    }
+    let (cost, mid) = best;
+    if mid == 0 {
+        // No finite cost (cannot happen for finite boxes): keep a leaf or
+        // halve by position, as the binned path does.
+        return if n <= MAX_LEAF {
+            Step::Leaf
+        } else {
+            Step::Split { mid: n / 2, kids: None }
+        };
+    }
+    let split_cost = 1.0 + cost / bb.half_area().max(f64::MIN_POSITIVE);
+    if n <= MAX_LEAF && n as f64 <= split_cost {
+        return Step::Leaf;
+    }
+    let copy: [Prim; SMALL] = std::array::from_fn(|i| ids[best_order[i.min(n - 1)] as usize]);
+    ids.copy_from_slice(&copy[..n]);
+    Step::Split { mid, kids: None }
 }
 
 fn partition(ids: &mut [Prim], left: impl Fn(&Prim) -> bool) -> usize {

@@ -358,3 +358,71 @@ fn brute_count(m: &Mesh, ray: &Ray) -> usize {
         })
         .count()
 }
+
+/// Every node's box holds its subtree's triangles, the leaves hold at most
+/// `MAX_LEAF` and together each triangle exactly once.
+fn check_tree(m: &Mesh, bvh: &Bvh) {
+    let mut seen = vec![0u32; m.triangles.len()];
+    let mut todo = vec![0usize];
+    while let Some(i) = todo.pop() {
+        let nd = &bvh.nodes[i];
+        let (lo, hi) = (nd.a as usize, (nd.a + nd.n) as usize);
+        let tris: Vec<usize> = if nd.n > 0 {
+            assert!(nd.n as usize <= 4, "leaf of {} triangles", nd.n);
+            bvh.ids[lo..hi].iter().map(|&t| t as usize).collect()
+        } else {
+            todo.push(i + 1);
+            todo.push(nd.a as usize);
+            Vec::new()
+        };
+        for t in tris {
+            seen[t] += 1;
+            for &v in &m.triangles[t] {
+                let p = m.vertices[v as usize];
+                for k in 0..3 {
+                    assert!(
+                        nd.min[k] as f64 <= p[k] && p[k] <= nd.max[k] as f64,
+                        "node {i} misses triangle {t}"
+                    );
+                }
+            }
+        }
+    }
+    assert!(seen.iter().all(|&c| c == 1), "triangles seen {seen:?}");
+}
+
+#[test]
+fn small_nodes_split_by_the_exact_sweep_keep_every_triangle_once() {
+    // 1 to 40 triangles (the exact sweep takes nodes of 3 to 16): spread
+    // out, stacked on one another (equal centroids), and a mix of both.
+    for n in 1..=40usize {
+        for kind in 0..3 {
+            let tris: Vec<_> = (0..n)
+                .map(|i| {
+                    let s = match kind {
+                        0 => i as f64,
+                        1 => 0.0,
+                        _ => (i % 3) as f64,
+                    };
+                    let o = P3::new(s, 0.5 * s, -s);
+                    crate::mesh::Triangle::new(o, o + V3::new(1.0, 0.0, 0.0), o + V3::new(0.0, 1.0, 0.2 * i as f64))
+                })
+                .collect();
+            let m = Mesh::from_triangles(&tris);
+            let bvh = Bvh::new(&m);
+            check_tree(&m, &bvh);
+            for i in 0..n {
+                let t = m.triangle(i);
+                let c = P3::from((t.a.coords + t.b.coords + t.c.coords) / 3.0);
+                let ray = Ray::new(c + V3::new(0.013, 0.007, 50.0), V3::new(0.0, 0.0, -1.0));
+                let (got, want) = (bvh.first_hit(&ray).map(|h| h.t), brute_first(&m, &ray));
+                assert!(
+                    got.is_some() && want.is_some_and(|w| (got.unwrap() - w).abs() < 1e-9),
+                    "n {n} kind {kind} ray {i}: {got:?} vs {want:?}"
+                );
+            }
+        }
+    }
+    let m = solids::sphere(P3::origin(), 1.0, 256, 80);
+    check_tree(&m, &Bvh::new(&m));
+}
