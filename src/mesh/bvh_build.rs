@@ -10,7 +10,7 @@ use super::{Bvh, Node, Quad};
 use crate::mesh::Mesh;
 
 const BINS: usize = 12;
-const MAX_LEAF: usize = 4;
+pub(super) const MAX_LEAF: usize = 4;
 pub(super) const PAR_MIN: usize = 1 << 15;
 
 /// A box during the build, in f32 rounded outward (half the memory of
@@ -93,7 +93,7 @@ impl Bvh {
     /// are never hit by rays but take part in nearest-point queries).
     pub fn new(mesh: &Mesh) -> Bvh {
         let n = mesh.triangles.len();
-        crate::progress::lap("bvh: start");
+        crate::progress::lap("before the bvh");
         // Corners straight from the mesh, here and for the tree's own copy
         // below: an array of every triangle's corners in file order (72
         // bytes a triangle) lived through the whole build, 71 MB of the

@@ -1,7 +1,7 @@
 use super::*;
 use crate::mesh::Mesh;
 use crate::mesh::solids;
-use build::PAR_MIN;
+use build::{MAX_LEAF, PAR_MIN};
 use proptest::prelude::*;
 
 fn brute_first(m: &Mesh, ray: &Ray) -> Option<f64> {
@@ -368,7 +368,7 @@ fn check_tree(m: &Mesh, bvh: &Bvh) {
         let nd = &bvh.nodes[i];
         let (lo, hi) = (nd.a as usize, (nd.a + nd.n) as usize);
         let tris: Vec<usize> = if nd.n > 0 {
-            assert!(nd.n as usize <= 4, "leaf of {} triangles", nd.n);
+            assert!(nd.n as usize <= MAX_LEAF, "leaf of {} triangles", nd.n);
             bvh.ids[lo..hi].iter().map(|&t| t as usize).collect()
         } else {
             todo.push(i + 1);
