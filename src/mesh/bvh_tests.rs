@@ -426,3 +426,29 @@ fn small_nodes_split_by_the_exact_sweep_keep_every_triangle_once() {
     let m = solids::sphere(P3::origin(), 1.0, 256, 80);
     check_tree(&m, &Bvh::new(&m));
 }
+
+#[test]
+fn corpus_meshes_build_sound_trees() {
+    // The trees of the meshes other programs wrote: long thin facets,
+    // stacked and degenerate triangles, the exact sweep's small nodes.
+    let mut files = crate::corpus::files("stl", &[".stl"]);
+    files.extend(crate::corpus::files("obj", &[".obj"]));
+    if files.is_empty() {
+        crate::corpus::skip("corpus_meshes_build_sound_trees");
+        return;
+    }
+    let mut built = 0;
+    for f in &files {
+        // Files the reader refuses are the reader's tests' business.
+        let Ok(m) = crate::mesh::read_path(f, &crate::mesh::ReadOptions::default()) else {
+            continue;
+        };
+        if m.mesh.triangles.is_empty() {
+            continue;
+        }
+        check_tree(&m.mesh, &Bvh::new(&m.mesh));
+        built += 1;
+    }
+    assert!(built > 0, "no corpus mesh was read");
+    crate::corpus::record("corpus_meshes_build_sound_trees", built);
+}
