@@ -27,6 +27,13 @@ pub fn file(rel: &str) -> Option<PathBuf> {
     p.is_file().then_some(p)
 }
 
+/// Every corpus mesh: the STL files, then the OBJ files, each sorted.
+pub fn meshes() -> Vec<PathBuf> {
+    let mut v = files("stl", &[".stl"]);
+    v.extend(files("obj", &[".obj"]));
+    v
+}
+
 /// Every file under `sub` (e.g. `"dxf"`) whose name ends with one of
 /// `exts` (case-insensitive), sorted; empty when the corpus is absent.
 pub fn files(sub: &str, exts: &[&str]) -> Vec<PathBuf> {

@@ -149,8 +149,7 @@ fn mesh_info_reports_topology_and_repairs() {
 
 #[test]
 fn corpus_meshes_slice_or_are_refused() {
-    let mut files = microcam::corpus::files("stl", &[".stl"]);
-    files.extend(microcam::corpus::files("obj", &[".obj"]));
+    let files = microcam::corpus::meshes();
     if files.is_empty() {
         microcam::corpus::skip("corpus_meshes_slice_or_are_refused");
         return;

@@ -52,8 +52,7 @@ fn compare(name: &str, bvh: &Bvh, pr: &ParallelRays, dir: V3, l: &Lattice) -> us
 
 #[test]
 fn lattice_rays_equal_the_bvh_on_corpus_meshes() {
-    let mut files = microcam::corpus::files("stl", &[".stl"]);
-    files.extend(microcam::corpus::files("obj", &[".obj"]));
+    let files = microcam::corpus::meshes();
     if files.is_empty() {
         microcam::corpus::skip("lattice_rays_equal_the_bvh_on_corpus_meshes");
         return;

@@ -431,8 +431,7 @@ fn small_nodes_split_by_the_exact_sweep_keep_every_triangle_once() {
 fn corpus_meshes_build_sound_trees() {
     // The trees of the meshes other programs wrote: long thin facets,
     // stacked and degenerate triangles, the exact sweep's small nodes.
-    let mut files = crate::corpus::files("stl", &[".stl"]);
-    files.extend(crate::corpus::files("obj", &[".obj"]));
+    let files = crate::corpus::meshes();
     if files.is_empty() {
         crate::corpus::skip("corpus_meshes_build_sound_trees");
         return;

@@ -229,8 +229,7 @@ mod corpus_tests {
     /// Every corpus STL and OBJ reads, or is refused with a message.
     #[test]
     fn corpus_meshes_read_or_are_refused() {
-        let mut files = corpus::files("stl", &[".stl"]);
-        files.extend(corpus::files("obj", &[".obj"]));
+        let files = corpus::meshes();
         if files.is_empty() {
             corpus::skip("corpus_meshes_read_or_are_refused");
             return;
