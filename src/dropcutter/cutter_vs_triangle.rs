@@ -118,7 +118,7 @@ impl ContactCutter {
 
     /// Height of the underside above the tip at distance ρ <= R.
     #[inline]
-    fn profile(&self, rho: f64) -> f64 {
+    pub(super) fn profile(&self, rho: f64) -> f64 {
         if rho <= self.a {
             0.0
         } else {

@@ -18,6 +18,7 @@
 
 pub mod adaptive;
 pub mod cutter_vs_triangle;
+mod fibre;
 pub mod fiveaxis;
 pub mod index;
 pub mod output;

@@ -8,26 +8,34 @@
 //! the one exact test, shared with the raster passes. That boundary is
 //! found on "fibres" as OpenCAMLib's waterline does: lines along X and Y
 //! a sampling step apart. Every grid node is classified by one drop (in
-//! parallel); each grid edge whose ends differ holds a point of the
-//! waterline, found by bisection along the edge to within `tol`; the
-//! points are joined cell by cell (marching squares, a saddle cell
-//! decided by a drop at its centre) into closed loops. The loops are
-//! directed with the blocked side — the material — on the right of the
-//! direction of travel: climb milling with a clockwise (M3) spindle, so
-//! round an island clockwise and round a pocket's wall counter-clockwise.
+//! parallel). On each grid edge not blocked at both ends, the exact blocked
+//! stretches are found triangle by triangle (module `fibre`): one
+//! triangle blocks one interval of a fibre, whose ends are bisected to
+//! within `tol`. So an edge whose ends are both free can still hold two
+//! crossings, where the boundary dips across it between the nodes, and an
+//! edge with ends that differ three. The crossings are joined cell by cell
+//! (marching squares generalised to any even number of crossings round a
+//! cell; a cell with four or more decided by a drop at its centre) into
+//! closed loops. The loops are directed with the blocked side — the
+//! material — on the right of the direction of travel: climb milling with
+//! a clockwise (M3) spindle, so round an island clockwise and round a
+//! pocket's wall counter-clockwise.
 //!
 //! What is exact and what is sampled: every loop vertex lies on a fibre
 //! within `tol` of a point where the cutter touches the model (the drop
-//! on either side of it is checked, not interpolated). Between fibres the
-//! loop is a straight chord: a blocked feature narrower than the sampling
-//! step between two fibres can be missed, and a corner of the waterline
-//! is cut by at most the chord's sag. Choose the sampling below the
-//! smallest feature to keep.
+//! on either side of it is checked, not interpolated), and every place a
+//! fibre enters or leaves the blocked set outside edges blocked at both
+//! ends is a vertex. Between fibres the loop is a straight chord: a
+//! blocked feature that no fibre meets is missed, one that meets a single
+//! fibre only is left out (its "loop" would run through it and back), a
+//! free gap inside an edge blocked at both ends is not followed (that only
+//! leaves material), and a corner of the waterline is cut by at most the
+//! chord's sag. Choose the sampling below the smallest feature to keep.
 
+use super::fibre::{FibreEdge, blocked_stretches};
 use super::{DropCutter, DropError};
 use crate::geometry::P2;
 use rayon::prelude::*;
-use std::collections::HashMap;
 
 /// How finely waterlines are sampled.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -118,101 +126,100 @@ impl Waterline {
         let h = self.sampling;
         let blocked = |x: f64, y: f64| dc.drop_above(x, y, z) > z;
         let state: Vec<bool> = heights.par_iter().map(|&hz| hz > z).collect();
-        // Edges whose ends differ, in id order, and their points.
-        let crossing: Vec<usize> = (0..grid.n_edges())
-            .filter(|&e| {
+        // Every edge's crossings, in order along it (from its lower node).
+        // An edge blocked at both ends is taken as blocked throughout: a
+        // free gap inside it is narrower than the sampling, and leaving it
+        // out only leaves material, never cuts into the model.
+        let per_edge: Vec<(usize, Vec<P2>)> = (0..grid.n_edges())
+            .into_par_iter()
+            .filter_map(|e| {
                 let (a, b) = grid.edge_nodes(e);
-                state[a] != state[b]
-            })
-            .collect();
-        let points: Vec<P2> = crossing
-            .par_iter()
-            .map(|&e| {
-                let (a, b) = grid.edge_nodes(e);
-                let (pa, pb) = (grid.node_xy(a), grid.node_xy(b));
-                // Bisect from the free end `lo` to the blocked end `hi`.
-                let (mut lo, mut hi) = if state[a] { (pb, pa) } else { (pa, pb) };
-                while (hi - lo).norm() > self.tol {
-                    let m = P2::from((lo.coords + hi.coords) * 0.5);
-                    if m == lo || m == hi {
-                        break;
-                    }
-                    if blocked(m.x, m.y) {
-                        hi = m;
-                    } else {
-                        lo = m;
-                    }
+                if state[a] && state[b] {
+                    return None;
                 }
-                // The free end: the cutter there touches, never cuts.
-                lo
+                let pts = self.edge_crossings(dc, grid, e, (state[a], state[b]), z);
+                (!pts.is_empty()).then_some((e, pts))
             })
             .collect();
-        let index_of: HashMap<usize, usize> = crossing.iter().enumerate().map(|(k, &e)| (e, k)).collect();
-        // Directed segments, cell by cell: from an edge where the cell
+        // Crossing ids: edge e's are first[e]..first[e + 1].
+        let mut first = vec![0u32; grid.n_edges() + 1];
+        for (e, pts) in &per_edge {
+            first[e + 1] = pts.len() as u32;
+        }
+        for e in 0..grid.n_edges() {
+            first[e + 1] += first[e];
+        }
+        let points: Vec<P2> = per_edge.into_iter().flat_map(|(_, p)| p).collect();
+        // Directed segments, cell by cell: from a crossing where the cell
         // boundary (counter-clockwise) enters the blocked set to one where
         // it leaves it, which keeps the blocked side on the right. A
-        // crossing edge is entered in one of its two cells and left in the
-        // other (they run along it in opposite directions), and the grid's
-        // outer nodes are free, so each crossing starts exactly one segment
-        // and ends exactly one: the segments form closed loops.
+        // crossing is entered in one of its edge's two cells and left in
+        // the other (they run along the edge in opposite directions), and
+        // the grid's outer edges are free, so each crossing starts exactly
+        // one segment and ends exactly one: the segments form closed loops.
         const NONE: usize = usize::MAX;
-        let mut next = vec![NONE; crossing.len()];
+        let mut next = vec![NONE; points.len()];
         let mut starts: Vec<usize> = Vec::new();
+        let mut seq: Vec<(usize, bool)> = Vec::new();
         for j in 0..grid.ny - 1 {
             for i in 0..grid.nx - 1 {
-                let corners = [
-                    grid.node(i, j),
-                    grid.node(i + 1, j),
-                    grid.node(i + 1, j + 1),
-                    grid.node(i, j + 1),
+                // Cell edges counter-clockwise (bottom, right, top, left),
+                // each with whether the walk runs along it from its lower
+                // node, and the corner it starts at.
+                let edges = [
+                    (grid.h_edge(i, j), true, grid.node(i, j)),
+                    (grid.v_edge(i + 1, j), true, grid.node(i + 1, j)),
+                    (grid.h_edge(i, j + 1), false, grid.node(i + 1, j + 1)),
+                    (grid.v_edge(i, j), false, grid.node(i, j + 1)),
                 ];
-                let s = corners.map(|n| state[n]);
-                if s.iter().all(|&b| b == s[0]) {
+                if edges.iter().all(|&(e, _, _)| first[e] == first[e + 1]) {
                     continue;
                 }
-                // Cell edges counter-clockwise: bottom, right, top, left,
-                // each running from corner k to corner k + 1.
-                let edges = [
-                    grid.h_edge(i, j),
-                    grid.v_edge(i + 1, j),
-                    grid.h_edge(i, j + 1),
-                    grid.v_edge(i, j),
-                ];
-                let mut ins = Vec::with_capacity(2);
-                let mut outs = Vec::with_capacity(2);
-                for k in 0..4 {
-                    match (s[k], s[(k + 1) % 4]) {
-                        (false, true) => ins.push(k),
-                        (true, false) => outs.push(k),
-                        _ => {}
+                // The crossings in walking order, each an entry into the
+                // blocked set or an exit from it; they alternate.
+                seq.clear();
+                for &(e, forward, corner) in &edges {
+                    let mut inside = state[corner];
+                    let ids = first[e] as usize..first[e + 1] as usize;
+                    let mut push = |k: usize| {
+                        seq.push((k, !inside));
+                        inside = !inside;
+                    };
+                    if forward {
+                        ids.for_each(&mut push);
+                    } else {
+                        ids.rev().for_each(&mut push);
                     }
                 }
-                // With two crossings there is one way to join them. In a
-                // saddle (two blocked corners facing each other) the drop at
-                // the centre says whether the blocked corners are joined
-                // (pair each entry with the exit before it) or apart (with
-                // the exit after it).
-                let joined = ins.len() == 2 && {
-                    let c = grid.node_xy(corners[0]);
+                // With two crossings there is one way to join them. With
+                // more (a saddle), the drop at the centre says whether the
+                // blocked stretches are joined through the cell (pair each
+                // entry with the exit before it) or apart (with the exit
+                // after it).
+                let n = seq.len();
+                let joined = n >= 4 && {
+                    let c = grid.node_xy(grid.node(i, j));
                     blocked(c.x + 0.5 * h, c.y + 0.5 * h)
                 };
-                for &k in &ins {
-                    let o = if joined {
-                        outs.iter().rev().find(|&&o| o < k).or(outs.last())
-                    } else {
-                        outs.iter().find(|&&o| o > k).or(outs.first())
-                    };
-                    if let (Some(from), Some(&o)) = (index_of.get(&edges[k]), o)
-                        && let Some(&to) = index_of.get(&edges[o])
-                    {
-                        next[*from] = to;
-                        starts.push(*from);
+                for p in 0..n {
+                    let (from, entry) = seq[p];
+                    if !entry {
+                        continue;
+                    }
+                    let q = if joined { (p + n - 1) % n } else { (p + 1) % n };
+                    let (to, exit) = seq[q];
+                    if !exit {
+                        next[from] = to;
+                        starts.push(from);
                     }
                 }
             }
         }
-        // Follow the segments into loops.
-        let mut used = vec![false; crossing.len()];
+        // Follow the segments into loops. A loop whose points all lie on
+        // one fibre is a blocked stretch that no other fibre meets: its
+        // "loop" would run through it and back, so it is left out (the
+        // feature is narrower than the sampling).
+        let mut used = vec![false; points.len()];
         let mut loops = Vec::new();
         for &start in &starts {
             if used[start] {
@@ -225,12 +232,62 @@ impl Waterline {
                 lp.push(points[k]);
                 k = next[k];
             }
-            if k == start && lp.len() >= 2 {
+            let flat = lp.iter().all(|p| p.x == lp[0].x) || lp.iter().all(|p| p.y == lp[0].y);
+            if k == start && lp.len() >= 2 && !flat {
                 lp.push(lp[0]);
                 loops.push(lp);
             }
         }
         loops
+    }
+
+    /// The points where edge `e` (its ends' states given) crosses the
+    /// boundary of the blocked set at `z`, in order from its lower node:
+    /// each a free point within `tol` of a blocked one. The exact stretches
+    /// of the module `fibre` where they agree with the node states;
+    /// where round-off makes them disagree, the one bisection between the
+    /// nodes (no crossing when both are free).
+    fn edge_crossings(&self, dc: &DropCutter, grid: &Fibres, e: usize, ends: (bool, bool), z: f64) -> Vec<P2> {
+        let (a, b) = grid.edge_nodes(e);
+        let (pa, pb) = (grid.node_xy(a), grid.node_xy(b));
+        let along_x = pa.y == pb.y;
+        let fe = FibreEdge {
+            x0: pa.x,
+            y0: pa.y,
+            along_x,
+            len: if along_x { pb.x - pa.x } else { pb.y - pa.y },
+        };
+        let at = |s: f64| {
+            if along_x {
+                P2::new(pa.x + s, pa.y)
+            } else {
+                P2::new(pa.x, pa.y + s)
+            }
+        };
+        let st = blocked_stretches(dc, &fe, z, self.tol);
+        let starts_blocked = st.first().is_some_and(|s| s.0.is_none());
+        let ends_blocked = st.last().is_some_and(|s| s.1.is_none());
+        if (starts_blocked, ends_blocked) == ends && !st.iter().any(|s| s.0.is_none() && s.1.is_none()) {
+            return st.iter().flat_map(|s| [s.0, s.1]).flatten().map(at).collect();
+        }
+        if ends.0 == ends.1 {
+            return Vec::new();
+        }
+        // Bisect from the free end `lo` to the blocked end `hi`.
+        let (mut lo, mut hi) = if ends.0 { (pb, pa) } else { (pa, pb) };
+        while (hi - lo).norm() > self.tol {
+            let m = P2::from((lo.coords + hi.coords) * 0.5);
+            if m == lo || m == hi {
+                break;
+            }
+            if dc.drop_above(m.x, m.y, z) > z {
+                hi = m;
+            } else {
+                lo = m;
+            }
+        }
+        // The free end: the cutter there touches, never cuts.
+        vec![lo]
     }
 }
 

@@ -229,3 +229,97 @@ fn bad_options_are_refused() {
     }
     assert!(wl(0.1).loops(&dc, f64::NAN).is_err());
 }
+
+/// Every place where a fibre enters or leaves the blocked set, found by
+/// sampling the drop densely along every fibre, has a loop vertex within
+/// the sampling's 1/`per` (plus the tolerance) on that fibre, except
+/// inside edges blocked at both ends (taken as blocked throughout).
+fn every_fibre_crossing_is_a_vertex(dc: &DropCutter, loops: &[Vec<P2>], z: f64, h: f64, per: usize) {
+    let g = Fibres::new(dc, h).unwrap();
+    let blocked = |x: f64, y: f64| dc.drop_above(x, y, z) > z;
+    let verts: Vec<P2> = loops.iter().flatten().copied().collect();
+    let near = |p: P2| verts.iter().any(|v| (v - p).norm() <= h / per as f64 + 2.0 * TOL);
+    let mut checked = 0;
+    for along_x in [true, false] {
+        let (n_fibres, n_nodes) = if along_x { (g.ny, g.nx) } else { (g.nx, g.ny) };
+        for f in 0..n_fibres {
+            let at = |k: usize, s: f64| {
+                if along_x {
+                    P2::new(g.x(k) + s, g.y(f))
+                } else {
+                    P2::new(g.x(f), g.y(k) + s)
+                }
+            };
+            for k in 0..n_nodes - 1 {
+                let (a, b) = (at(k, 0.0), at(k + 1, 0.0));
+                if blocked(a.x, a.y) && blocked(b.x, b.y) {
+                    continue;
+                }
+                let mut prev = blocked(a.x, a.y);
+                for m in 1..=per {
+                    let p = at(k, h * m as f64 / per as f64);
+                    let now = blocked(p.x, p.y);
+                    if now != prev {
+                        checked += 1;
+                        assert!(
+                            near(p),
+                            "z {z}: the fibre crosses the boundary near {p:?} and no loop vertex is there"
+                        );
+                    }
+                    prev = now;
+                }
+            }
+        }
+    }
+    assert!(checked > 0, "no crossing was checked");
+}
+
+/// A thin wall on a table, with a tiny cube far off that fixes where the
+/// fibres fall (they start two cutter radii below the mesh's box).
+fn thin_wall(x: f64, y: f64) -> crate::mesh::Mesh {
+    let mut tris = cuboid(P3::new(-5.0, -5.0, 0.0), P3::new(-4.99, -4.99, 0.01))
+        .iter_triangles()
+        .collect::<Vec<_>>();
+    tris.extend(cuboid(P3::new(x, y, 0.0), P3::new(x + 0.01, y + 2.0, 1.0)).iter_triangles());
+    crate::mesh::Mesh::from_triangles(&tris)
+}
+
+#[test]
+fn a_boundary_crossing_one_fibre_edge_twice_is_followed() {
+    // Flat R 0.5, sampling 0.7: fibres at -6 + 0.7 k. The wall's end
+    // (offset: a half disc round y = 0.05) dips 0.05 below the fibre
+    // y = -0.4 between its nodes x = -0.4 and 0.3, both free: that edge
+    // holds two crossings and the loop must dip through both, not cut
+    // straight across 0.09 above them.
+    let dc = DropCutter::new(&thin_wall(-0.055, 0.05), Cutter::Flat { radius: 0.5 }).unwrap();
+    let loops = wl(0.7).loops(&dc, 0.5).unwrap();
+    assert_eq!(loops.len(), 1);
+    on_the_boundary(&dc, &loops[0], 0.5);
+    let low = loops[0][1..].iter().filter(|p| (p.y + 0.4).abs() < 1e-12).count();
+    assert_eq!(low, 2, "{:?}", loops[0]);
+    every_fibre_crossing_is_a_vertex(&dc, &loops, 0.5, 0.7, 400);
+    // The same for ball and torus cutters, at other samplings and places.
+    for (cutter, h) in [
+        (Cutter::Ball { radius: 0.5 }, 0.7),
+        (Cutter::Ball { radius: 0.3 }, 0.45),
+        (
+            Cutter::Torus {
+                radius: 0.5,
+                corner: 0.2,
+            },
+            0.66,
+        ),
+    ] {
+        for (x, y) in [(-0.055, 0.05), (0.013, -0.021), (0.2, 0.31)] {
+            let dc = DropCutter::new(&thin_wall(x, y), cutter).unwrap();
+            for z in [0.3, 0.8, 0.97] {
+                let loops = wl(h).loops(&dc, z).unwrap();
+                for lp in &loops {
+                    on_the_boundary(&dc, lp, z);
+                    assert!(area2(lp) < 0.0);
+                }
+                every_fibre_crossing_is_a_vertex(&dc, &loops, z, h, 200);
+            }
+        }
+    }
+}
