@@ -151,6 +151,32 @@ fn fast_int(b: &[u8], mut i: usize) -> Option<(i64, usize)> {
     Some((if neg { -v } else { v }, i))
 }
 
+/// Fast path for the group code lines most writers emit: right-aligned in
+/// three columns, `"  0\n"`, `" 10\n"`, `"330\n"` (AutoCAD's layout):
+/// (code, index of the next line). Four bytes read at once and three digit
+/// checks, where the general path walks the line byte by byte with a
+/// bounds check on each. Anything else (CRLF, other widths, signs) goes
+/// the general way.
+#[inline]
+fn code3(b: &[u8], pos: usize) -> Option<(i64, usize)> {
+    let s: &[u8; 4] = b.get(pos..pos + 4)?.try_into().ok()?;
+    if s[3] != b'\n' {
+        return None;
+    }
+    let d = |c: u8| c.wrapping_sub(b'0');
+    let (c0, c1, c2) = (s[0], s[1], d(s[2]));
+    if c2 > 9 {
+        return None;
+    }
+    let v = match (c0, c1) {
+        (b' ', b' ') => c2 as i64,
+        (b' ', _) if d(c1) <= 9 => (d(c1) * 10 + c2) as i64,
+        _ if d(c0) <= 9 && d(c1) <= 9 => d(c0) as i64 * 100 + (d(c1) * 10 + c2) as i64,
+        _ => return None,
+    };
+    Some((v, pos + 4))
+}
+
 /// Past trailing spaces and the line end: the next line's start.
 #[inline]
 fn eol(b: &[u8], mut i: usize) -> Option<usize> {
@@ -228,7 +254,7 @@ pub fn tokenize_into(bytes: Vec<u8>, mut tags: Vec<Tag>) -> TokenBlock {
         line += 1;
         let code_line = line;
         let code_start = pos;
-        let code = match fast_int(b, pos).filter(|&(c, _)| i32::try_from(c).is_ok()) {
+        let code = match code3(b, pos).or_else(|| fast_int(b, pos).filter(|&(c, _)| i32::try_from(c).is_ok())) {
             Some((c, next)) => {
                 pos = next;
                 c
@@ -339,11 +365,19 @@ pub fn tokenize_into(bytes: Vec<u8>, mut tags: Vec<Tag>) -> TokenBlock {
                 }
             },
             Kind::Str | Kind::Binary => {
-                let e = line_end(b, pos);
+                // The line's end and whether it is ASCII in one pass (names,
+                // handles and markers are short: a second pass to check
+                // them cost as much as finding the end).
+                let mut e = pos;
+                let mut high = 0u8;
+                while e < b.len() && b[e] != b'\n' {
+                    high |= b[e];
+                    e += 1;
+                }
                 let t = strip_eol(&b[pos..e]);
                 let start = pos;
                 pos = e + 1;
-                if t.is_ascii() || std::str::from_utf8(t).is_ok() {
+                if high < 0x80 || std::str::from_utf8(t).is_ok() {
                     (start as u64) | ((t.len() as u64) << 32)
                 } else {
                     // Pre-2007 files are in a code page; names only matter
@@ -467,6 +501,28 @@ mod tests {
                 if let Some((got, _)) = fast_float(format!("{s}\r\n").as_bytes(), 0) {
                     assert_eq!(got.to_bits(), want.to_bits(), "{s}");
                 }
+            }
+        }
+    }
+
+    #[test]
+    fn three_column_codes_match_the_general_path() {
+        // Every code line code3 takes is read as the general path reads
+        // it; whatever it refuses goes to the general path unchanged.
+        for line in [
+            "  0\n", " 10\n", "330\n", "100\n", "999\n", " 07\n", "007\n", "  9\n", " -1\n", "0\n", "1071\n", "  a\n",
+            " 1 \n", "1 0\n", "  0\r\n", "  0", " +1\n", "\n\n\n\n",
+        ] {
+            let b = line.as_bytes();
+            if let Some((v, next)) = code3(b, 0) {
+                assert_eq!(next, 4, "{line:?}");
+                let (w, next2) = fast_int(b, 0).unwrap_or_else(|| panic!("{line:?}"));
+                assert_eq!((v, next), (w, next2), "{line:?}");
+            } else {
+                assert!(
+                    !["  0\n", " 10\n", "330\n", "100\n", "999\n", " 07\n", "007\n", "  9\n"].contains(&line),
+                    "{line:?} refused"
+                );
             }
         }
     }
