@@ -359,7 +359,43 @@ impl Reader {
     }
 
     /// The next tag's group code, or `None` at the end of the input.
+    ///
+    /// Inline for the common case, the next tag of the current ASCII block
+    /// (a few million calls on a large drawing: the call itself had cost
+    /// more than the work); the rest goes through [`Reader::next_tag_slow`].
+    #[inline]
     pub fn next_tag(&mut self) -> Result<Option<i32>, DxfError> {
+        if !self.peeked
+            && let Some(a) = self.ascii.as_mut()
+            && let Some(&t) = a.cur.tags.get(a.idx)
+        {
+            a.idx += 1;
+            let base = a.base;
+            return Ok(Some(self.accept(t, base)));
+        }
+        self.next_tag_slow()
+    }
+
+    /// Make `t` (of the block whose first line follows line `base`) the
+    /// current tag and return its code.
+    #[inline]
+    fn accept(&mut self, t: Tag, base: u64) -> i32 {
+        let code = t.code as i32;
+        self.code = code;
+        self.pos = Pos::Line(base + t.line as u64);
+        match kind_of(code) {
+            Kind::Float => self.float = f64::from_bits(t.val),
+            Kind::Int16 | Kind::Int32 | Kind::Int64 | Kind::Bool => self.int = t.val as i64,
+            Kind::Str | Kind::Binary => {}
+        }
+        self.tag = Some(t);
+        code
+    }
+
+    /// [`Reader::next_tag`] past the current block, after an unread, or
+    /// in a binary file.
+    #[inline(never)]
+    fn next_tag_slow(&mut self) -> Result<Option<i32>, DxfError> {
         if self.peeked {
             self.peeked = false;
             return Ok(Some(self.code));
@@ -409,16 +445,8 @@ impl Reader {
         loop {
             if let Some(&t) = a.cur.tags.get(a.idx) {
                 a.idx += 1;
-                let code = t.code as i32;
-                self.code = code;
-                self.pos = Pos::Line(a.base + t.line as u64);
-                match kind_of(code) {
-                    Kind::Float => self.float = f64::from_bits(t.val),
-                    Kind::Int16 | Kind::Int32 | Kind::Int64 | Kind::Bool => self.int = t.val as i64,
-                    Kind::Str | Kind::Binary => {}
-                }
-                self.tag = Some(t);
-                return Ok(Some(code));
+                let base = a.base;
+                return Ok(Some(self.accept(t, base)));
             }
             let input = &mut *self.input;
             match std::mem::replace(&mut a.cur.end, End::Clean) {
