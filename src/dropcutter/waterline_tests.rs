@@ -323,3 +323,56 @@ fn a_boundary_crossing_one_fibre_edge_twice_is_followed() {
         }
     }
 }
+
+#[test]
+fn corpus_meshes_put_every_fibre_crossing_on_a_loop() {
+    // The meshes other programs wrote, 100 fibres across, at three
+    // heights, flat and ball cutters of 12 % of the part (as
+    // scripts/waterline-ocl-check runs them): every loop vertex free, and
+    // every place a fibre crosses the boundary (sampled 20 times per edge)
+    // a vertex.
+    let files = crate::corpus::meshes();
+    if files.is_empty() {
+        crate::corpus::skip("corpus_meshes_put_every_fibre_crossing_on_a_loop");
+        return;
+    }
+    let mut checked = 0;
+    for f in &files {
+        let Ok(m) = crate::mesh::read_path(f, &crate::mesh::ReadOptions::default()) else {
+            continue;
+        };
+        let bb = m.mesh.bbox();
+        let size = (bb.max.x - bb.min.x).max(bb.max.y - bb.min.y);
+        if m.mesh.triangles.is_empty() || size <= 0.0 || bb.max.z <= bb.min.z {
+            continue;
+        }
+        let h = size / 100.0;
+        for cutter in [
+            Cutter::Flat { radius: 0.06 * size },
+            Cutter::Ball { radius: 0.06 * size },
+        ] {
+            let Ok(dc) = DropCutter::new(&m.mesh, cutter) else {
+                continue;
+            };
+            for f_z in [0.2, 0.5, 0.8] {
+                let z = bb.min.z + f_z * (bb.max.z - bb.min.z);
+                let w = Waterline {
+                    sampling: h,
+                    tol: 1e-6 * h,
+                };
+                let loops = w.loops(&dc, z).unwrap();
+                for lp in &loops {
+                    for p in lp {
+                        assert_eq!(dc.drop_above(p.x, p.y, z), z, "{}: {p:?} is blocked", f.display());
+                    }
+                }
+                if !loops.is_empty() {
+                    every_fibre_crossing_is_a_vertex(&dc, &loops, z, h, 20);
+                    checked += 1;
+                }
+            }
+        }
+    }
+    crate::corpus::record("corpus_meshes_put_every_fibre_crossing_on_a_loop", checked);
+    assert!(checked > 0);
+}
