@@ -127,7 +127,9 @@ fn peak_above(f: &impl Fn(f64) -> f64, mut a: f64, mut b: f64, z: f64, tol: f64)
         if fd > z {
             return Some(d);
         }
-        if concave_bound(a, fa, c, fc, d, fd, b, fb) <= z || b - a <= tol {
+        // Also stop where the points no longer move apart (a tolerance
+        // below the coordinates' resolution).
+        if concave_bound(a, fa, c, fc, d, fd, b, fb) <= z || b - a <= tol || !(a < c && c < d && d < b) {
             return None;
         }
         if fc < fd {
@@ -447,6 +449,9 @@ mod tests {
         // A plateau at its maximum.
         let plateau = |x: f64| (1.0f64).min(10.0 - 20.0 * (x - 0.5).abs());
         assert!(peak_above(&plateau, 0.0, 1.0, 0.9, 1e-9).is_some());
+        // Far from the origin with a tolerance below the coordinates'
+        // resolution: it ends.
+        assert!(peak_above(&tent(1e6 + 0.3, -1e-3), 1e6, 1e6 + 1.0, 0.0, 1e-15).is_none());
     }
 
     #[test]
