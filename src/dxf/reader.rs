@@ -362,7 +362,7 @@ impl Reader {
     ///
     /// Inline for the common case, the next tag of the current ASCII block
     /// (a few million calls on a large drawing: the call itself had cost
-    /// more than the work); the rest goes through [`Reader::next_tag_slow`].
+    /// more than the work); the rest goes through `next_tag_slow`.
     #[inline]
     pub fn next_tag(&mut self) -> Result<Option<i32>, DxfError> {
         if !self.peeked
