@@ -29,7 +29,7 @@ pub(super) struct FibreEdge {
 }
 
 impl FibreEdge {
-    fn at(&self, s: f64) -> (f64, f64) {
+    pub(super) fn at(&self, s: f64) -> (f64, f64) {
         if self.along_x {
             (self.x0 + s, self.y0)
         } else {
@@ -51,23 +51,146 @@ const G: f64 = 0.618_033_988_749_894_8;
 /// joined (a free gap narrower than the tolerance is no gap). A stretch
 /// whose peak rises above `z` over less than about `tol` of the edge may be
 /// missed.
+///
+/// Only what can change the union is searched. What the stretches found
+/// so far block is kept merged (a [`Cover`]); a triangle is searched only
+/// on the parts of the edge still open. The triangles that block wherever
+/// their disc reaches (see [`stretch_in`]) go first, at the cost of their
+/// reach alone: inside a model's section they cover nearly everything, and
+/// the others are left a few short parts near the waterline.
 pub(super) fn blocked_stretches(dc: &DropCutter, e: &FibreEdge, z: f64, tol: f64) -> Vec<Stretch> {
     let s = &dc.shape;
-    let (xm, ym) = e.at(0.5 * e.len);
+    let (x1, y1) = e.at(e.len);
+    let query = [e.x0 - s.r, e.y0 - s.r, x1 + s.r, y1 + s.r];
+    let (u0, along) = if e.along_x { (e.x0, 0) } else { (e.y0, 1) };
+    let mut cover = Cover::new(tol);
     let mut found: Vec<Stretch> = Vec::new();
-    dc.grid.query(&dc.tris, xm, ym, s.r + 0.5 * e.len, |t| {
+    let mut parts: Vec<Part> = Vec::new();
+    let mut new: Vec<Stretch> = Vec::new();
+    let mut later: Vec<&Tri> = Vec::new();
+    let mut take = |t: &Tri, cover: &mut Cover| {
+        // The triangle's box widened by the radius bounds its reach.
+        if cover.covers(t.bb[along] - s.r - u0, t.bb[along + 2] + s.r - u0) {
+            return;
+        }
+        let Some(reach) = reach(t, e, s.r) else {
+            return;
+        };
+        cover.open_parts(reach, e.len, &mut parts);
+        new.extend(
+            parts
+                .iter()
+                .filter_map(|part| stretch_in(dc, t, e, z, tol, reach, part)),
+        );
+        for st in new.drain(..) {
+            cover.add(st);
+            found.push(st);
+        }
+    };
+    dc.grid.query_box(&dc.tris, query, |t| {
         // Highest tops first in each cell: nothing below z can block.
         if t.zmax <= z {
             return false;
         }
-        if may_block(s, t, e, z)
-            && let Some(st) = stretch_of(dc, t, e, z, tol)
-        {
-            found.push(st);
+        if blocks_all_it_reaches(s, t, z) {
+            take(t, &mut cover);
+        } else {
+            later.push(t);
         }
         true
     });
+    for t in later {
+        take(t, &mut cover);
+    }
     union(found, tol)
+}
+
+/// Whether `t` blocks at `z` wherever the cutter's disc reaches it: its
+/// lowest point lies more than the deepest profile (the corner radius)
+/// above `z`, and the point nearest the axis is touched at most that far
+/// below itself.
+fn blocks_all_it_reaches(s: &ContactCutter, t: &Tri, z: f64) -> bool {
+    t.v[0][2].min(t.v[1][2]).min(t.v[2][2]) - s.rc > z
+}
+
+/// Open intervals of an edge known to be blocked, sorted and disjoint
+/// (a stretch's free ends are its ends; a missing end is the edge's).
+/// Intervals whose ends are within the tolerance are merged, as
+/// [`union`] joins stretches: a gap narrower than that is no gap. (Found
+/// stretches often meet exactly: a search on a part that starts at an
+/// earlier stretch's free end, blocked by this triangle, starts there.)
+struct Cover {
+    iv: Vec<(f64, f64)>,
+    tol: f64,
+}
+
+/// A part of an edge not yet known to be blocked, `[lo, hi]`; each end is
+/// the edge's own end (`*_edge`) or the free end of a stretch found before.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Part {
+    lo: f64,
+    hi: f64,
+    lo_edge: bool,
+    hi_edge: bool,
+}
+
+impl Cover {
+    fn new(tol: f64) -> Cover {
+        Cover { iv: Vec::new(), tol }
+    }
+
+    fn add(&mut self, st: Stretch) {
+        let (mut a, mut b) = (st.0.unwrap_or(f64::NEG_INFINITY), st.1.unwrap_or(f64::INFINITY));
+        // Intervals that overlap (a, b) or end within the tolerance of it
+        // are merged into it.
+        let lo = self.iv.partition_point(|&(_, q)| q < a - self.tol);
+        let hi = self.iv.partition_point(|&(p, _)| p <= b + self.tol);
+        if lo < hi {
+            a = a.min(self.iv[lo].0);
+            b = b.max(self.iv[hi - 1].1);
+        }
+        self.iv.splice(lo..hi, [(a, b)]);
+    }
+
+    /// Whether `[a, b]` lies inside one interval.
+    fn covers(&self, a: f64, b: f64) -> bool {
+        let k = self.iv.partition_point(|&(_, q)| q <= b);
+        k < self.iv.len() && self.iv[k].0 < a
+    }
+
+    /// The parts of the edge `[0, len]` outside every interval that meet
+    /// `(lo, hi)`, in order, into `out` (cleared first); parts of one
+    /// point are left out (nothing is blocked on them).
+    fn open_parts(&self, (lo, hi): (f64, f64), len: f64, out: &mut Vec<Part>) {
+        out.clear();
+        let (mut from, mut from_edge) = (0.0, true);
+        let mut push = |a: f64, b: f64, a_edge: bool, b_edge: bool| {
+            if a < b && a < hi && b > lo {
+                out.push(Part {
+                    lo: a,
+                    hi: b,
+                    lo_edge: a_edge,
+                    hi_edge: b_edge,
+                });
+            }
+        };
+        // Intervals that end before `lo` only move `from` forward.
+        let mut k = self.iv.partition_point(|&(_, q)| q < lo);
+        if k > 0 && self.iv[k - 1].1 >= 0.0 {
+            (from, from_edge) = (self.iv[k - 1].1, false);
+        }
+        while from <= len && from < hi {
+            let Some(&(a, b)) = self.iv.get(k) else {
+                push(from, len, from_edge, true);
+                return;
+            };
+            push(from, a.min(len), from_edge, a >= len);
+            if b > from {
+                (from, from_edge) = (b, false);
+            }
+            k += 1;
+        }
+    }
 }
 
 /// The drop on one triangle at parameter `sp` of the edge (−∞ when the
@@ -79,16 +202,86 @@ fn drop_one(dc: &DropCutter, t: &Tri, e: &FibreEdge, sp: f64) -> f64 {
     best
 }
 
-/// This triangle's stretch on `e` above `z`, if any.
+/// This triangle's stretch on the whole edge, if any.
+#[cfg(test)]
 fn stretch_of(dc: &DropCutter, t: &Tri, e: &FibreEdge, z: f64, tol: f64) -> Option<Stretch> {
-    let (lo, hi) = reach(t, e, dc.shape.r)?;
+    let part = Part {
+        lo: 0.0,
+        hi: e.len,
+        lo_edge: true,
+        hi_edge: true,
+    };
+    stretch_in(dc, t, e, z, tol, reach(t, e, dc.shape.r)?, &part)
+}
+
+/// This triangle's stretch above `z` within `part` of the edge, if any
+/// (`reach` is where its disc reaches it, from [`reach`]). An end of the
+/// stretch at an end of the part is `None` at the edge's own end (that
+/// node is blocked) and that end's parameter at a stretch found before
+/// (free by that stretch, blocked by this one: the union joins them).
+fn stretch_in(
+    dc: &DropCutter,
+    t: &Tri,
+    e: &FibreEdge,
+    z: f64,
+    tol: f64,
+    (rlo, rhi): (f64, f64),
+    part: &Part,
+) -> Option<Stretch> {
+    let (lo, hi) = (rlo.max(part.lo), rhi.min(part.hi));
+    if lo > hi {
+        return None;
+    }
     let f = |sp: f64| drop_one(dc, t, e, sp);
+    // The end of a stretch that reaches the part's end.
+    let at_bound = |p: f64, is_edge: bool| if is_edge { None } else { Some(p) };
+    if blocks_all_it_reaches(&dc.shape, t, z) {
+        // Its stretch is the reach. Each end checked: blocked where the
+        // reach passes the part's end, free just past the reach otherwise.
+        // Round-off that fails either check leaves it to the search.
+        // Half the tolerance past the reach is free unless the reach's
+        // round-off (a few ulps of the coordinates) is as large: checked
+        // by a drop only then.
+        let margin_is_safe = 0.5 * tol > 1e-9 * (1.0 + e.x0.abs() + e.y0.abs() + e.len);
+        let end = |raw: f64, bound: f64, is_edge: bool, dir: f64| -> Option<Option<f64>> {
+            if (raw - bound) * dir > 0.0 {
+                return (!is_edge || f(bound) > z).then_some(at_bound(bound, is_edge));
+            }
+            let p = raw + dir * 0.5 * tol;
+            if (p - bound) * dir > 0.0 {
+                return (f(bound) <= z).then_some(Some(bound));
+            }
+            (margin_is_safe || f(p) <= z).then_some(Some(p))
+        };
+        if let (Some(a), Some(b)) = (
+            end(rlo, part.lo, part.lo_edge, -1.0),
+            end(rhi, part.hi, part.hi_edge, 1.0),
+        ) {
+            return Some((a, b));
+        }
+    } else {
+        let sub = FibreEdge {
+            x0: if e.along_x { e.x0 + lo } else { e.x0 },
+            y0: if e.along_x { e.y0 } else { e.y0 + lo },
+            along_x: e.along_x,
+            len: hi - lo,
+        };
+        if !may_block(&dc.shape, t, &sub, z) {
+            return None;
+        }
+    }
     let w = peak_above(&f, lo, hi, z, tol)?;
+    // Where the search for an end starts from outside: just past the
+    // reach (free: the disc misses the triangle there), or the part's end.
+    let outer = |raw: f64, bound: f64, dir: f64| -> f64 {
+        let p = raw + dir * 0.5 * tol;
+        if (p - bound) * dir >= 0.0 || f(p) > z { bound } else { p }
+    };
     // Outwards from the peak: {f > z} is an interval, so bisection between
     // a point inside and one outside meets its end.
-    let side = |inside: f64, end: f64| -> Option<f64> {
+    let side = |inside: f64, end: f64, is_bound: bool, is_edge: bool| -> Option<f64> {
         if f(end) > z {
-            return None;
+            return if is_bound { at_bound(end, is_edge) } else { Some(end) };
         }
         let (mut a, mut b) = (inside, end);
         while (b - a).abs() > tol {
@@ -104,7 +297,11 @@ fn stretch_of(dc: &DropCutter, t: &Tri, e: &FibreEdge, z: f64, tol: f64) -> Opti
         }
         Some(b)
     };
-    Some((side(w, 0.0), side(w, e.len)))
+    let (out_lo, out_hi) = (outer(rlo, part.lo, -1.0), outer(rhi, part.hi, 1.0));
+    Some((
+        side(w, out_lo, out_lo == part.lo, part.lo_edge),
+        side(w, out_hi, out_hi == part.hi, part.hi_edge),
+    ))
 }
 
 /// A point of `[lo, hi]` where the concave `f` exceeds `z`, or `None`
@@ -173,8 +370,9 @@ fn concave_bound(a: f64, fa: f64, c: f64, fc: f64, d: f64, fd: f64, b: f64, fb: 
     outer.max(inner).max(fc).max(fd)
 }
 
-/// The part of the edge where the cutter's disc reaches the triangle's
-/// XY projection: where the drop is finite. The set of axis positions
+/// Where on the edge's line (parameters, not clipped to the edge) the
+/// cutter's disc reaches the triangle's XY projection: where the drop is
+/// finite. The set of axis positions
 /// within R of a convex polygon is convex, and its boundary lies on the
 /// circles round the vertices and the edges offset by R, so its ends on
 /// the fibre's line are the extreme crossings of those.
@@ -209,8 +407,7 @@ fn reach(t: &Tri, e: &FibreEdge, r: f64) -> Option<(f64, f64)> {
             }
         }
     }
-    let (lo, hi) = ((lo - u0).max(0.0), (hi - u0).min(e.len));
-    (lo <= hi).then_some((lo, hi))
+    (lo <= hi).then_some((lo - u0, hi - u0))
 }
 
 /// Whether the cutter can touch `t` with its tip above `z` somewhere on
@@ -411,6 +608,148 @@ mod tests {
             }
         }
         assert!(found > 100 && empty > 100, "found {found}, empty {empty}");
+    }
+
+    #[test]
+    fn the_cover_and_its_open_parts_partition_the_edge() {
+        // Random stretches added in random order: a point is inside the
+        // cover exactly when it is inside one of them, and the open parts
+        // of any window are what is left of it, with the right ends marked
+        // as the edge's own.
+        let mut rnd = crate::geometry::test_rng::unit_rng(0xc0_7e4);
+        let len = 10.0;
+        for case in 0..300 {
+            let mut cover = Cover::new(0.0);
+            let mut added: Vec<Stretch> = Vec::new();
+            for _ in 0..(case % 9) {
+                let a = rnd() * 12.0 - 1.0;
+                let b = a + rnd() * rnd() * 4.0;
+                let st = (
+                    (rnd() > 0.1 && a > 0.0).then_some(a),
+                    (rnd() > 0.1 && b < len).then_some(b),
+                );
+                cover.add(st);
+                added.push(st);
+            }
+            let inside = |x: f64| {
+                added
+                    .iter()
+                    .any(|s| s.0.is_none_or(|a| a < x) && s.1.is_none_or(|b| x < b))
+            };
+            for w in cover.iv.windows(2) {
+                assert!(w[0].1 <= w[1].0, "case {case}: {:?}", cover.iv);
+            }
+            let (lo, hi) = (rnd() * 12.0 - 1.0, rnd() * 12.0 - 1.0);
+            let (lo, hi) = (lo.min(hi), lo.max(hi));
+            let mut parts = Vec::new();
+            cover.open_parts((lo, hi), len, &mut parts);
+            let ends: Vec<f64> = added.iter().flat_map(|s| [s.0, s.1]).flatten().collect();
+            for k in 0..=2000 {
+                let x = -1.0 + 12.0 * k as f64 / 2000.0;
+                if ends.contains(&x) {
+                    continue;
+                }
+                let in_part = parts.iter().any(|p| p.lo <= x && x <= p.hi);
+                let open = (0.0..=len).contains(&x) && !inside(x);
+                // Every point of a part is open; every open point of the
+                // window is in a part.
+                assert!(!in_part || open, "case {case}: {x} in {parts:?}, covered by {added:?}");
+                if open && x > lo && x < hi {
+                    assert!(in_part, "case {case}: {x} open, in no part of {parts:?}");
+                }
+            }
+            for p in &parts {
+                assert!(p.lo < p.hi && p.lo < hi && p.hi > lo, "case {case}: {p:?}");
+                assert!(p.lo >= 0.0 && p.hi <= len);
+                // An end is the edge's own or a stretch's free end.
+                assert_eq!(p.lo_edge, !ends.contains(&p.lo), "case {case}: {p:?}");
+                assert_eq!(p.hi_edge, !ends.contains(&p.hi), "case {case}: {p:?}");
+                if p.lo_edge {
+                    assert_eq!(p.lo, 0.0);
+                }
+                if p.hi_edge {
+                    assert_eq!(p.hi, len);
+                }
+                let m = 0.5 * (p.lo + p.hi);
+                assert!(!cover.covers(m, m));
+            }
+            for &(a, b) in &cover.iv {
+                let m = match (a.is_finite(), b.is_finite()) {
+                    (true, true) => 0.5 * (a + b),
+                    (true, false) => a + 1.0,
+                    (false, true) => b - 1.0,
+                    (false, false) => 0.0,
+                };
+                assert!(cover.covers(m, m), "case {case}");
+                assert!(inside(m), "case {case}");
+            }
+        }
+    }
+
+    #[test]
+    fn the_cover_joins_stretches_within_the_tolerance() {
+        let mut cover = Cover::new(1e-3);
+        cover.add((Some(1.0), Some(2.0)));
+        cover.add((Some(3.0), Some(4.0)));
+        cover.add((Some(2.0005), Some(2.9995)));
+        assert_eq!(cover.iv, vec![(1.0, 4.0)]);
+        cover.add((Some(4.1), None));
+        cover.add((None, Some(0.5)));
+        assert_eq!(cover.iv.len(), 3);
+        assert!(cover.covers(1.5, 3.5) && !cover.covers(3.5, 4.05) && cover.covers(5.0, 1e9));
+    }
+
+    #[test]
+    fn skipping_what_is_covered_changes_no_stretch() {
+        // A soup of triangles, whole fibres across it: the stretches found
+        // with the cover are the union of every triangle's own stretch.
+        let mut rnd = crate::geometry::test_rng::unit_rng(0x50_b7);
+        for (case, cutter) in [
+            Cutter::Flat { radius: 0.4 },
+            Cutter::Ball { radius: 0.4 },
+            Cutter::Torus {
+                radius: 0.4,
+                corner: 0.1,
+            },
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            let mut tris = Vec::new();
+            for _ in 0..60 {
+                let c = P3::new(rnd() * 6.0, rnd() * 6.0, rnd() * 2.0);
+                let mut p = || c + crate::geometry::V3::new(rnd() - 0.5, rnd() - 0.5, rnd() - 0.5);
+                tris.push(Triangle { a: p(), b: p(), c: p() });
+            }
+            let dc = DropCutter::new(&Mesh::from_triangles(&tris), cutter).unwrap();
+            let tol = 1e-9;
+            for k in 0..40 {
+                let e = FibreEdge {
+                    x0: if k % 2 == 0 { -1.0 } else { rnd() * 6.0 },
+                    y0: if k % 2 == 0 { rnd() * 6.0 } else { -1.0 },
+                    along_x: k % 2 == 0,
+                    len: 8.0,
+                };
+                for z in [0.2, 0.9, 1.6] {
+                    let got = blocked_stretches(&dc, &e, z, tol);
+                    let all: Vec<Stretch> = dc.tris.iter().filter_map(|t| stretch_of(&dc, t, &e, z, tol)).collect();
+                    let want = union(all, tol);
+                    assert_eq!(
+                        got.len(),
+                        want.len(),
+                        "case {case} fibre {k} z {z}: {got:?} vs {want:?}"
+                    );
+                    for (g, w) in got.iter().zip(&want) {
+                        for (a, b) in [(g.0, w.0), (g.1, w.1)] {
+                            assert_eq!(a.is_none(), b.is_none(), "case {case} fibre {k} z {z}");
+                            if let (Some(a), Some(b)) = (a, b) {
+                                assert!((a - b).abs() <= 2.0 * tol, "case {case} fibre {k} z {z}: {a} vs {b}");
+                            }
+                        }
+                    }
+                }
+            }
+        }
     }
 
     #[test]

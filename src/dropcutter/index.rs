@@ -115,8 +115,16 @@ impl Grid {
     /// around (x, y) once, in each cell from the highest top down; `f`
     /// returns false to skip the rest of a cell.
     #[inline]
-    pub fn query(&self, tris: &[Tri], x: f64, y: f64, r: f64, mut f: impl FnMut(&Tri) -> bool) {
-        let (qx0, qy0, qx1, qy1) = (x - r, y - r, x + r, y + r);
+    pub fn query<'a>(&self, tris: &'a [Tri], x: f64, y: f64, r: f64, f: impl FnMut(&'a Tri) -> bool) {
+        self.query_box(tris, [x - r, y - r, x + r, y + r], f);
+    }
+
+    /// Visit each triangle whose box may meet the box `[x0, y0, x1, y1]`
+    /// once, in each cell from the highest top down; `f` returns false to
+    /// skip the rest of a cell.
+    #[inline]
+    pub fn query_box<'a>(&self, tris: &'a [Tri], q: [f64; 4], mut f: impl FnMut(&'a Tri) -> bool) {
+        let [qx0, qy0, qx1, qy1] = q;
         if qx1 < self.x0
             || qy1 < self.y0
             || qx0 > self.x0 + self.h * self.nx as f64
@@ -190,6 +198,27 @@ mod tests {
                 seen.sort();
                 want.sort();
                 assert_eq!(seen, want, "cell {cell} at {x},{y} r {r}");
+                // A fibre's strip: long along one axis, narrow across.
+                let len = rnd() * 14.0;
+                let q = if r < 1.0 {
+                    [x - 2.0, y - r, x - 2.0 + len, y + r]
+                } else {
+                    [x - r, y - 2.0, x + r, y - 2.0 + len]
+                };
+                let mut seen = Vec::new();
+                g.query_box(&tris, q, |t| {
+                    seen.push(tris.iter().position(|u| std::ptr::eq(u, t)).unwrap());
+                    true
+                });
+                let mut want: Vec<usize> = (0..tris.len())
+                    .filter(|&k| {
+                        let b = tris[k].bb;
+                        !(b[0] > q[2] || b[2] < q[0] || b[1] > q[3] || b[3] < q[1])
+                    })
+                    .collect();
+                seen.sort();
+                want.sort();
+                assert_eq!(seen, want, "cell {cell}: box {q:?}");
             }
         }
     }

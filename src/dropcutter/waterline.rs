@@ -8,14 +8,16 @@
 //! the one exact test, shared with the raster passes. That boundary is
 //! found on "fibres" as OpenCAMLib's waterline does: lines along X and Y
 //! a sampling step apart. Every grid node is classified by one drop (in
-//! parallel). On each grid edge not blocked at both ends, the exact blocked
-//! stretches are found triangle by triangle (module `fibre`): one
-//! triangle blocks one interval of a fibre, whose ends are bisected to
-//! within `tol`. So an edge whose ends are both free can still hold two
-//! crossings, where the boundary dips across it between the nodes, and an
-//! edge with ends that differ three. The crossings are joined cell by cell
-//! (marching squares generalised to any even number of crossings round a
-//! cell; a cell with four or more decided by a drop at its centre) into
+//! parallel). Along every whole fibre, the exact blocked stretches are
+//! found triangle by triangle (module `fibre`): one triangle blocks one
+//! interval of a fibre, whose ends are bisected to within `tol`. So an
+//! edge whose ends are both free can hold two crossings, where the
+//! boundary dips across it between the nodes; an edge with ends that
+//! differ three; and an edge blocked at both ends two, where a free gap
+//! (two islands closer than the sampling) crosses it. The crossings are
+//! joined cell by cell (marching squares generalised to any even number
+//! of crossings round a cell; a cell with four or more decided by a drop
+//! at its centre) into
 //! closed loops. The loops are directed with the blocked side — the
 //! material — on the right of the direction of travel: climb milling with
 //! a clockwise (M3) spindle, so round an island clockwise and round a
@@ -24,15 +26,14 @@
 //! What is exact and what is sampled: every loop vertex lies on a fibre
 //! within `tol` of a point where the cutter touches the model (the drop
 //! on either side of it is checked, not interpolated), and every place a
-//! fibre enters or leaves the blocked set outside edges blocked at both
-//! ends is a vertex. Between fibres the loop is a straight chord: a
-//! blocked feature that no fibre meets is missed, one that meets a single
-//! fibre only is left out (its "loop" would run through it and back), a
-//! free gap inside an edge blocked at both ends is not followed (that only
-//! leaves material), and a corner of the waterline is cut by at most the
-//! chord's sag. Choose the sampling below the smallest feature to keep.
+//! fibre enters or leaves the blocked set is a vertex. Between fibres the
+//! loop is a straight chord: a blocked feature or a free gap that no fibre
+//! meets is missed, one that meets a single fibre only is left out (its
+//! "loop" would run through it and back), and a corner of the waterline is
+//! cut by at most the chord's sag. Choose the sampling below the smallest
+//! feature to keep.
 
-use super::fibre::{FibreEdge, blocked_stretches};
+use super::fibre::{FibreEdge, Stretch, blocked_stretches};
 use super::{DropCutter, DropError};
 use crate::geometry::P2;
 use rayon::prelude::*;
@@ -126,18 +127,38 @@ impl Waterline {
         let h = self.sampling;
         let blocked = |x: f64, y: f64| dc.drop_above(x, y, z) > z;
         let state: Vec<bool> = heights.par_iter().map(|&hz| hz > z).collect();
-        // Every edge's crossings, in order along it (from its lower node).
-        // An edge blocked at both ends is taken as blocked throughout: a
-        // free gap inside it is narrower than the sampling, and leaving it
-        // out only leaves material, never cuts into the model.
+        // Every fibre's blocked stretches, whole fibres at once: a triangle
+        // is searched once per fibre, not once per grid edge it reaches.
+        let fibres: Vec<Vec<Stretch>> = (0..grid.ny + grid.nx)
+            .into_par_iter()
+            .map(|k| blocked_stretches(dc, &grid.fibre(k), z, self.tol))
+            .collect();
+        // Every edge's crossings, in order along it (from its lower node):
+        // its fibre's stretch ends that fall on it, where the stretches
+        // agree with its nodes' drops; where round-off makes them disagree
+        // (a node within the tolerance of a stretch's end), the edge's own
+        // search. An edge blocked at both ends holds crossings where a free
+        // gap crosses it.
         let per_edge: Vec<(usize, Vec<P2>)> = (0..grid.n_edges())
             .into_par_iter()
             .filter_map(|e| {
                 let (a, b) = grid.edge_nodes(e);
-                if state[a] && state[b] {
-                    return None;
-                }
-                let pts = self.edge_crossings(dc, grid, e, (state[a], state[b]), z);
+                let (f, p0, p1) = grid.edge_on_fibre(e);
+                let st = &fibres[f];
+                let agree = blocked_at(st, p0) == state[a] && blocked_at(st, p1) == state[b];
+                let pts = if agree {
+                    let fe = grid.fibre(f);
+                    ends_within(st, p0, p1)
+                        .map(|s| {
+                            let (x, y) = fe.at(s);
+                            P2::new(x, y)
+                        })
+                        .collect()
+                } else if state[a] && state[b] {
+                    Vec::new()
+                } else {
+                    self.edge_crossings(dc, grid, e, (state[a], state[b]), z)
+                };
                 (!pts.is_empty()).then_some((e, pts))
             })
             .collect();
@@ -242,11 +263,13 @@ impl Waterline {
     }
 
     /// The points where edge `e` (its ends' states given) crosses the
-    /// boundary of the blocked set at `z`, in order from its lower node:
-    /// each a free point within `tol` of a blocked one. The exact stretches
-    /// of the module `fibre` where they agree with the node states;
-    /// where round-off makes them disagree, the one bisection between the
-    /// nodes (no crossing when both are free).
+    /// boundary of the blocked set at `z`, searched on the edge alone: the
+    /// way out where its fibre's stretches disagree with the node states
+    /// (a node within the tolerance of a stretch's end). In order from its
+    /// lower node, each a free point within `tol` of a blocked one: the
+    /// edge's own exact stretches where they agree with the node states;
+    /// where they do not either, the one bisection between the nodes (no
+    /// crossing when both are free).
     fn edge_crossings(&self, dc: &DropCutter, grid: &Fibres, e: usize, ends: (bool, bool), z: f64) -> Vec<P2> {
         let (a, b) = grid.edge_nodes(e);
         let (pa, pb) = (grid.node_xy(a), grid.node_xy(b));
@@ -289,6 +312,25 @@ impl Waterline {
         // The free end: the cutter there touches, never cuts.
         vec![lo]
     }
+}
+
+/// Whether the fibre position `p` lies inside one of the stretches
+/// (a free end is free).
+fn blocked_at(st: &[Stretch], p: f64) -> bool {
+    st.iter()
+        .any(|s| s.0.is_none_or(|a| a < p) && s.1.is_none_or(|b| p < b))
+}
+
+/// The stretch ends on the part `[p0, p1]` of a fibre, in order: an end
+/// where a stretch starts counts on the edge whose lower node it is at,
+/// one where a stretch ends on the edge whose upper node it is at (the
+/// node, free, is that end).
+fn ends_within(st: &[Stretch], p0: f64, p1: f64) -> impl Iterator<Item = f64> + '_ {
+    st.iter().flat_map(move |s| {
+        let a = s.0.filter(|&a| p0 <= a && a < p1);
+        let b = s.1.filter(|&b| p0 < b && b <= p1);
+        [a, b].into_iter().flatten()
+    })
 }
 
 /// The fibre grid: nodes a sampling step apart from the mesh's box less
@@ -355,6 +397,39 @@ impl Fibres {
     /// The edge from node (i, j) to (i, j + 1).
     fn v_edge(&self, i: usize, j: usize) -> usize {
         (self.nx - 1) * self.ny + j * self.nx + i
+    }
+
+    /// Fibre `k`: the rows along X first (`ny` of them), then the
+    /// columns along Y, each from its first node to its last.
+    fn fibre(&self, k: usize) -> FibreEdge {
+        if k < self.ny {
+            FibreEdge {
+                x0: self.x(0),
+                y0: self.y(k),
+                along_x: true,
+                len: self.x(self.nx - 1) - self.x(0),
+            }
+        } else {
+            FibreEdge {
+                x0: self.x(k - self.ny),
+                y0: self.y(0),
+                along_x: false,
+                len: self.y(self.ny - 1) - self.y(0),
+            }
+        }
+    }
+
+    /// The fibre edge `e` lies on and its ends' positions along it.
+    fn edge_on_fibre(&self, e: usize) -> (usize, f64, f64) {
+        let nh = (self.nx - 1) * self.ny;
+        if e < nh {
+            let (j, i) = (e / (self.nx - 1), e % (self.nx - 1));
+            (j, self.x(i) - self.x(0), self.x(i + 1) - self.x(0))
+        } else {
+            let e = e - nh;
+            let (j, i) = (e / self.nx, e % self.nx);
+            (self.ny + i, self.y(j) - self.y(0), self.y(j + 1) - self.y(0))
+        }
     }
 
     fn edge_nodes(&self, e: usize) -> (usize, usize) {
