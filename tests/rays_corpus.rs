@@ -10,7 +10,6 @@
 use microcam::geometry::{P3, V3};
 use microcam::mesh::bvh::{Bvh, Ray};
 use microcam::mesh::parallel::{Lattice, ParallelRays};
-use microcam::mesh::{ReadOptions, read_path};
 
 /// At most `n` values of `v` (sorted, distinct), evenly picked.
 fn pick(mut v: Vec<f64>, n: usize) -> Vec<f64> {
@@ -52,30 +51,20 @@ fn compare(name: &str, bvh: &Bvh, pr: &ParallelRays, dir: V3, l: &Lattice) -> us
 
 #[test]
 fn lattice_rays_equal_the_bvh_on_corpus_meshes() {
-    let files = microcam::corpus::meshes();
-    if files.is_empty() {
+    let Some(read) = microcam::corpus::read_meshes() else {
         microcam::corpus::skip("lattice_rays_equal_the_bvh_on_corpus_meshes");
         return;
-    }
-    let mut meshes = 0;
+    };
     let mut total_hits = 0;
-    for f in &files {
-        let Ok(loaded) = read_path(f, &ReadOptions::default()) else {
-            continue; // refused with a message: the reader tests cover it
-        };
-        let m = loaded.mesh;
-        if m.triangles.is_empty() {
-            continue;
-        }
-        meshes += 1;
+    for (f, m) in &read {
         let name = f.file_name().unwrap().to_string_lossy().into_owned();
-        let bvh = Bvh::new(&m);
+        let bvh = Bvh::new(m);
         let b = m.bbox();
         let (lo, hi) = (b.min, b.max);
         // Straight down: rays through every vertex's x and y (up to 60 of
         // each), and an even grid over the box.
         let dir = V3::new(0.0, 0.0, -1.0);
-        let pr = ParallelRays::new(&m, dir);
+        let pr = ParallelRays::new(m, dir);
         let base = P3::new(0.0, 0.0, hi.z + 1.0);
         let (ex, ey) = (V3::x(), V3::y());
         for (us, vs) in [
@@ -96,7 +85,7 @@ fn lattice_rays_equal_the_bvh_on_corpus_meshes() {
         }
         // Along +x, through the vertices' y and z.
         let dir = V3::new(1.0, 0.0, 0.0);
-        let pr = ParallelRays::new(&m, dir);
+        let pr = ParallelRays::new(m, dir);
         let us = pick(m.vertices.iter().map(|p| p.y).collect(), 50);
         let vs = pick(m.vertices.iter().map(|p| p.z).collect(), 50);
         let l = Lattice {
@@ -109,7 +98,7 @@ fn lattice_rays_equal_the_bvh_on_corpus_meshes() {
         total_hits += compare(&name, &bvh, &pr, dir, &l);
         // Obliquely, from a plane above the part, on an even grid.
         let dir = V3::new(0.3, -0.5, -0.8).normalize();
-        let pr = ParallelRays::new(&m, dir);
+        let pr = ParallelRays::new(m, dir);
         let span = (hi - lo).norm().max(1e-3);
         let (us, vs) = (spread(-span, span, 60), spread(-span, span, 60));
         let c = P3::from((lo.coords + hi.coords) * 0.5);
@@ -122,6 +111,7 @@ fn lattice_rays_equal_the_bvh_on_corpus_meshes() {
         };
         total_hits += compare(&name, &bvh, &pr, dir, &l);
     }
+    let meshes = read.len();
     assert!(meshes >= 3, "only {meshes} corpus meshes read");
     assert!(total_hits > 0, "no ray hit any corpus mesh");
     eprintln!("{meshes} corpus meshes, {total_hits} rays hit");

@@ -368,19 +368,15 @@ fn corpus_meshes_put_every_fibre_crossing_on_a_loop() {
     // scripts/waterline-ocl-check runs them): every loop vertex free, and
     // every place a fibre crosses the boundary (sampled 20 times per edge)
     // a vertex.
-    let files = crate::corpus::meshes();
-    if files.is_empty() {
+    let Some(meshes) = crate::corpus::read_meshes() else {
         crate::corpus::skip("corpus_meshes_put_every_fibre_crossing_on_a_loop");
         return;
-    }
+    };
     let mut checked = 0;
-    for f in &files {
-        let Ok(m) = crate::mesh::read_path(f, &crate::mesh::ReadOptions::default()) else {
-            continue;
-        };
-        let bb = m.mesh.bbox();
+    for (f, mesh) in &meshes {
+        let bb = mesh.bbox();
         let size = (bb.max.x - bb.min.x).max(bb.max.y - bb.min.y);
-        if m.mesh.triangles.is_empty() || size <= 0.0 || bb.max.z <= bb.min.z {
+        if size <= 0.0 || bb.max.z <= bb.min.z {
             continue;
         }
         let h = size / 100.0;
@@ -388,7 +384,7 @@ fn corpus_meshes_put_every_fibre_crossing_on_a_loop() {
             Cutter::Flat { radius: 0.06 * size },
             Cutter::Ball { radius: 0.06 * size },
         ] {
-            let Ok(dc) = DropCutter::new(&m.mesh, cutter) else {
+            let Ok(dc) = DropCutter::new(mesh, cutter) else {
                 continue;
             };
             for f_z in [0.2, 0.5, 0.8] {
