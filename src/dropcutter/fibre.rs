@@ -1,6 +1,7 @@
-//! The blocked stretches of one fibre edge at one height, exactly, as
-//! OpenCAMLib's fibre intervals are: what a waterline needs where the
-//! boundary crosses an edge twice between two grid nodes, which the nodes'
+//! The blocked stretches of a fibre (or of one edge of it) at one height,
+//! exactly, as OpenCAMLib's fibre intervals are: what a waterline needs
+//! where the boundary crosses an edge twice between two grid nodes, or a
+//! free gap crosses an edge between two blocked ones, which the nodes'
 //! own drops cannot see.
 //!
 //! Why one triangle gives one stretch: the tip height at which the cutter
@@ -279,9 +280,10 @@ fn stretch_in(
     };
     // Outwards from the peak: {f > z} is an interval, so bisection between
     // a point inside and one outside meets its end.
-    let side = |inside: f64, end: f64, is_bound: bool, is_edge: bool| -> Option<f64> {
+    // `end` is free unless it is the part's end (`outer` checked it).
+    let side = |inside: f64, end: f64, is_edge: bool| -> Option<f64> {
         if f(end) > z {
-            return if is_bound { at_bound(end, is_edge) } else { Some(end) };
+            return at_bound(end, is_edge);
         }
         let (mut a, mut b) = (inside, end);
         while (b - a).abs() > tol {
@@ -298,10 +300,7 @@ fn stretch_in(
         Some(b)
     };
     let (out_lo, out_hi) = (outer(rlo, part.lo, -1.0), outer(rhi, part.hi, 1.0));
-    Some((
-        side(w, out_lo, out_lo == part.lo, part.lo_edge),
-        side(w, out_hi, out_hi == part.hi, part.hi_edge),
-    ))
+    Some((side(w, out_lo, part.lo_edge), side(w, out_hi, part.hi_edge)))
 }
 
 /// A point of `[lo, hi]` where the concave `f` exceeds `z`, or `None`
