@@ -34,22 +34,6 @@ pub fn meshes() -> Vec<PathBuf> {
     v
 }
 
-/// Every corpus mesh the reader takes and that has triangles, with its
-/// path, read with the default options; the files it refuses are left out
-/// (the reader's own tests answer for those). `None` when the corpus is
-/// absent: the caller records the skip.
-pub fn read_meshes() -> Option<Vec<(PathBuf, crate::mesh::Mesh)>> {
-    let files = meshes();
-    if files.is_empty() {
-        return None;
-    }
-    let read = files.into_iter().filter_map(|f| {
-        let m = crate::mesh::read_path(&f, &crate::mesh::ReadOptions::default()).ok()?;
-        (!m.mesh.triangles.is_empty()).then_some((f, m.mesh))
-    });
-    Some(read.collect())
-}
-
 /// Every file under `sub` (e.g. `"dxf"`) whose name ends with one of
 /// `exts` (case-insensitive), sorted; empty when the corpus is absent.
 pub fn files(sub: &str, exts: &[&str]) -> Vec<PathBuf> {

@@ -51,7 +51,7 @@ fn compare(name: &str, bvh: &Bvh, pr: &ParallelRays, dir: V3, l: &Lattice) -> us
 
 #[test]
 fn lattice_rays_equal_the_bvh_on_corpus_meshes() {
-    let Some(read) = microcam::corpus::read_meshes() else {
+    let Some(read) = microcam::mesh::read_corpus_meshes() else {
         microcam::corpus::skip("lattice_rays_equal_the_bvh_on_corpus_meshes");
         return;
     };

@@ -368,7 +368,7 @@ fn corpus_meshes_put_every_fibre_crossing_on_a_loop() {
     // scripts/waterline-ocl-check runs them): every loop vertex free, and
     // every place a fibre crosses the boundary (sampled 20 times per edge)
     // a vertex.
-    let Some(meshes) = crate::corpus::read_meshes() else {
+    let Some(meshes) = crate::mesh::read_corpus_meshes() else {
         crate::corpus::skip("corpus_meshes_put_every_fibre_crossing_on_a_loop");
         return;
     };

@@ -431,7 +431,7 @@ fn small_nodes_split_by_the_exact_sweep_keep_every_triangle_once() {
 fn corpus_meshes_build_sound_trees() {
     // The trees of the meshes other programs wrote: long thin facets,
     // stacked and degenerate triangles, the exact sweep's small nodes.
-    let Some(meshes) = crate::corpus::read_meshes() else {
+    let Some(meshes) = crate::mesh::read_corpus_meshes() else {
         crate::corpus::skip("corpus_meshes_build_sound_trees");
         return;
     };

@@ -24,7 +24,7 @@ pub mod solids;
 pub mod topology;
 pub mod weld;
 
-pub use read::{Format, Group, LoadedMesh, MeshError, ReadOptions, Units, read_bytes, read_path};
+pub use read::{Format, Group, LoadedMesh, MeshError, ReadOptions, Units, read_bytes, read_corpus_meshes, read_path};
 
 use crate::geometry::{BBox3, P3, V3};
 

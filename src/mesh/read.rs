@@ -115,6 +115,23 @@ pub enum MeshError {
     Refused(String),
 }
 
+/// Every mesh of the shared test corpus ([`crate::corpus::meshes`]) that
+/// the reader takes and that has triangles, with its path, read with the
+/// default options; the files it refuses are left out (the reader's own
+/// tests answer for those). `None` when the corpus is absent: the caller
+/// records the skip. For tests and benchmarks.
+pub fn read_corpus_meshes() -> Option<Vec<(std::path::PathBuf, Mesh)>> {
+    let files = crate::corpus::meshes();
+    if files.is_empty() {
+        return None;
+    }
+    let read = files.into_iter().filter_map(|f| {
+        let m = read_path(&f, &ReadOptions::default()).ok()?;
+        (!m.mesh.triangles.is_empty()).then_some((f, m.mesh))
+    });
+    Some(read.collect())
+}
+
 /// Read a mesh file; the format from `opts.format`, else the extension
 /// (`.stl`, `.obj`, any case), else the content.
 pub fn read_path(path: &Path, opts: &ReadOptions) -> Result<LoadedMesh, MeshError> {
