@@ -124,6 +124,23 @@ impl Arc3 {
         sweep_angle(&self.c2(), &self.s2(), &self.e2(), self.ccw, self.extra_turns, EPS_LEN)
     }
 
+    /// [`Arc3::start_angle`] and [`Arc3::sweep`] together, bit for bit as
+    /// each gives them, with the start's `atan2` done once: orientation
+    /// and point-in-chain tests take both for every arc of a drawing.
+    pub fn start_angle_and_sweep(&self) -> (f64, f64) {
+        let a0 = self.start_angle();
+        let s = crate::geometry::planar::sweep_from_start_angle(
+            a0,
+            &self.c2(),
+            &self.s2(),
+            &self.e2(),
+            self.ccw,
+            self.extra_turns,
+            EPS_LEN,
+        );
+        (a0, s)
+    }
+
     /// Path length in mm: `sqrt((r·sweep)² + rise²)`, with `r` the mean of the
     /// start and end radii.
     pub fn length(&self) -> f64 {
@@ -629,6 +646,41 @@ mod tests {
     }
 
     proptest::proptest! {
+        /// The start angle and sweep together are bit for bit the two
+        /// asked for apart: on arcs of either turn, full circles (start
+        /// at end), extra turns and planes other than XY.
+        #[test]
+        fn start_angle_and_sweep_are_the_separate_ones(
+            cx in -1e4f64..1e4, cy in -1e4f64..1e4,
+            r in 1e-6f64..1e3,
+            a0 in -7.0f64..7.0,
+            a1 in -7.0f64..7.0,
+            full: bool,
+            ccw: bool,
+            extra_turns in 0u32..3,
+            plane in proptest::sample::select(vec![Plane::Xy, Plane::Xz, Plane::Yz]),
+        ) {
+            let c = P3::new(cx, cy, 1.5);
+            let at = |a: f64| {
+                let mut p = c;
+                let (i, j, _) = plane.axes();
+                p[i] += r * a.cos();
+                p[j] += r * a.sin();
+                p
+            };
+            let a = Arc3 {
+                center: c,
+                start: at(a0),
+                end: if full { at(a0) } else { at(a1) },
+                ccw,
+                plane,
+                extra_turns,
+            };
+            let (s, w) = a.start_angle_and_sweep();
+            proptest::prop_assert_eq!(s.to_bits(), a.start_angle().to_bits());
+            proptest::prop_assert_eq!(w.to_bits(), a.sweep().to_bits());
+        }
+
         /// `ArcFrame::within` is the exact distance's verdict: points
         /// placed at a radial offset of a few tolerances (and right at
         /// the tolerance, either side of it), at angles inside, near and

@@ -17,6 +17,21 @@ use std::f64::consts::TAU;
 /// ```
 pub fn sweep_angle(center: &P2, start: &P2, end: &P2, ccw: bool, extra_turns: u32, tol: f64) -> f64 {
     let a0 = (start - center).y.atan2((start - center).x);
+    sweep_from_start_angle(a0, center, start, end, ccw, extra_turns, tol)
+}
+
+/// [`sweep_angle`] for a caller that has the start's direction `a0`
+/// (`atan2` of start minus centre) already: the same arithmetic, one
+/// `atan2` fewer.
+pub(crate) fn sweep_from_start_angle(
+    a0: f64,
+    center: &P2,
+    start: &P2,
+    end: &P2,
+    ccw: bool,
+    extra_turns: u32,
+    tol: f64,
+) -> f64 {
     let a1 = (end - center).y.atan2((end - center).x);
     let r = (start - center).norm();
     let mut d = a1 - a0;

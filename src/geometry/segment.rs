@@ -455,11 +455,14 @@ impl Segment {
     /// assert!(Segment::line(P3::origin(), P3::origin()).to_arc_xy().is_none());
     /// ```
     pub fn to_arc_xy(&self) -> Option<ArcXy> {
-        self.arc().map(|a| ArcXy {
-            center: a.plane.project(&a.center),
-            radius: a.radius(),
-            start_angle: a.start_angle(),
-            sweep: a.sweep(),
+        self.arc().map(|a| {
+            let (start_angle, sweep) = a.start_angle_and_sweep();
+            ArcXy {
+                center: a.plane.project(&a.center),
+                radius: a.radius(),
+                start_angle,
+                sweep,
+            }
         })
     }
 }
