@@ -115,6 +115,38 @@ fn line_end(b: &[u8], pos: usize) -> usize {
     i
 }
 
+/// The end of the line starting at `pos` (the index of its `\n`, or the
+/// length) and the OR of its bytes before that, bit 7 set when any is not
+/// ASCII. Eight bytes at a time: a word has a `\n` where, XORed with
+/// `\n`s, it has a zero byte, and the lowest byte the zero-byte test
+/// flags is the first zero (it can only flag a false one above a true
+/// one).
+#[inline]
+fn line_end_ascii(b: &[u8], pos: usize) -> (usize, u8) {
+    const ONES: u64 = 0x0101_0101_0101_0101;
+    const HIGHS: u64 = 0x8080_8080_8080_8080;
+    let mut e = pos;
+    let mut acc = 0u64;
+    while e + 8 <= b.len() {
+        let w = u64::from_le_bytes(b[e..e + 8].try_into().unwrap_or([0; 8]));
+        let x = w ^ (ONES * u64::from(b'\n'));
+        let nl = x.wrapping_sub(ONES) & !x & HIGHS;
+        if nl != 0 {
+            let k = nl.trailing_zeros() as usize / 8;
+            acc |= w & ((1u64 << (8 * k)) - 1);
+            return (e + k, if acc & HIGHS != 0 { 0x80 } else { 0 });
+        }
+        acc |= w;
+        e += 8;
+    }
+    let mut high = if acc & HIGHS != 0 { 0x80 } else { 0 };
+    while e < b.len() && b[e] != b'\n' {
+        high |= b[e];
+        e += 1;
+    }
+    (e, high)
+}
+
 /// A line without its `\n` and trailing `\r`s (as `read_until` + pop did).
 #[inline]
 fn strip_eol(b: &[u8]) -> &[u8] {
@@ -368,12 +400,7 @@ pub fn tokenize_into(bytes: Vec<u8>, mut tags: Vec<Tag>) -> TokenBlock {
                 // The line's end and whether it is ASCII in one pass (names,
                 // handles and markers are short: a second pass to check
                 // them cost as much as finding the end).
-                let mut e = pos;
-                let mut high = 0u8;
-                while e < b.len() && b[e] != b'\n' {
-                    high |= b[e];
-                    e += 1;
-                }
+                let (e, high) = line_end_ascii(b, pos);
                 let t = strip_eol(&b[pos..e]);
                 let start = pos;
                 pos = e + 1;
@@ -482,6 +509,30 @@ mod tests {
         }
         for s in ["", ".", "-", "1e5", "1,5", "inf", "+1"] {
             assert!(fast_float(format!("{s}\n").as_bytes(), 0).is_none(), "{s}");
+        }
+    }
+
+    /// The word-at-a-time line end against the byte loop, on lines of
+    /// digits, names, CRs and bytes above 0x7f of every length from 0 to
+    /// 40, so the line ends at each place in a word and in the tail.
+    #[test]
+    fn line_end_ascii_is_the_byte_loop() {
+        let mut rnd = crate::geometry::test_rng::unit_rng(0x5eed_0001);
+        let alphabet = b"0123456789.- \r\nxAe\x80\xc3\xa9/:\t";
+        for _ in 0..20_000 {
+            let n = (rnd() * 40.0) as usize;
+            let line: Vec<u8> = (0..n)
+                .map(|_| alphabet[(rnd() * alphabet.len() as f64) as usize])
+                .collect();
+            let want_end = line.iter().position(|&c| c == b'\n').unwrap_or(line.len());
+            let want_high = line[..want_end].iter().fold(0u8, |h, &c| h | c) & 0x80;
+            let (e, high) = line_end_ascii(&line, 0);
+            assert_eq!(
+                (e, high & 0x80),
+                (want_end, want_high),
+                "{:?}",
+                String::from_utf8_lossy(&line)
+            );
         }
     }
 
