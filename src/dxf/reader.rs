@@ -185,6 +185,7 @@ const AHEAD: usize = 4;
 /// input) already done.
 enum Pending {
     Ready(TokenBlock),
+    Task(std::sync::mpsc::Receiver<std::thread::Result<TokenBlock>>),
     Thread(std::thread::JoinHandle<TokenBlock>),
 }
 
@@ -282,10 +283,24 @@ impl Ascii {
             if self.eof && self.filled == 0 && self.ahead.is_empty() {
                 // The last block and nothing else to wait for: no thread.
                 self.ahead.push_back(Pending::Ready(tokens::tokenize_into(bytes, tags)));
-            } else {
+            } else if rayon::current_thread_index().is_some() {
+                // Read from inside the pool: waiting here for a task queued
+                // behind this very thread could wait for ever.
                 self.ahead.push_back(Pending::Thread(std::thread::spawn(move || {
                     tokens::tokenize_into(bytes, tags)
                 })));
+            } else {
+                // On the pool, idle while a drawing is read: a thread of
+                // its own per block cost a thread's start and stack, 68
+                // times on the mix benchmark.
+                let (tx, rx) = std::sync::mpsc::sync_channel(1);
+                rayon::spawn(move || {
+                    let block =
+                        std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| tokens::tokenize_into(bytes, tags)));
+                    // The reader may have gone (an error ahead): nothing to do.
+                    let _ = tx.send(block);
+                });
+                self.ahead.push_back(Pending::Task(rx));
             }
         }
         Ok(())
@@ -311,6 +326,11 @@ impl Ascii {
             Some(p) => {
                 let b = match p {
                     Pending::Ready(b) => b,
+                    Pending::Task(rx) => rx
+                        .recv()
+                        .ok()
+                        .and_then(Result::ok)
+                        .ok_or_else(|| std::io::Error::other("a tokenizing task failed"))?,
                     Pending::Thread(h) => h
                         .join()
                         .map_err(|_| std::io::Error::other("a tokenizing thread failed"))?,
@@ -749,6 +769,21 @@ mod tests {
         assert_eq!(long.2.len(), BLOCK + 12_345);
         let last_line = whole.iter().rev().find(|x| x.0 == 20).unwrap();
         assert_eq!(last_line.2, format!("{}", -(39_999.0 * 3.0 + 0.5)));
+    }
+
+    #[test]
+    fn reading_from_inside_a_one_thread_pool_finishes() {
+        // The pool's only thread reads: tokenizing tasks queued on that
+        // pool would never run while it waits for them.
+        let mut t = String::from("  0\nSECTION\n  2\nENTITIES\n");
+        for k in 0..60_000 {
+            t += &format!("  0\nPOINT\n 10\n{k}.5\n 20\n1.25\n");
+        }
+        t += "  0\nENDSEC\n  0\nEOF\n";
+        assert!(t.len() > 3 * BLOCK);
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
+        let n = pool.install(|| all_tags(reader(t.as_bytes())).len());
+        assert_eq!(n, 2 + 60_000 * 3 + 2);
     }
 
     #[test]
