@@ -3,7 +3,7 @@
 //! chain's pieces snapped onto its nodes and its repairs gathered.
 
 use super::assign;
-use super::repair::{merge_collinear, remove_duplicates, snap, zero_length};
+use super::repair::{remove_duplicates, snap, zero_length_and_collinear};
 use super::{ChainReport, Chains, Item, Notes, REPORT_GAP, Work, push_num};
 use rayon::prelude::*;
 
@@ -20,10 +20,8 @@ pub(super) fn chain_layer(
 ) {
     let mut notes = Notes::default();
     // 1. Zero-length pieces, collinear overlaps.
-    zero_length(w, tol, report);
-    crate::progress::lap("chain: zero length");
-    merge_collinear(w, &mut notes, tol, report);
-    crate::progress::lap("chain: collinear");
+    zero_length_and_collinear(w, &mut notes, tol, report);
+    crate::progress::lap("chain: zero length, collinear");
 
     // 2. End points to nodes.
     let nodes = assign::assign(w, tol);
