@@ -334,11 +334,15 @@ pub fn build(
 /// copies are at most an eighth of the array. Otherwise the array is
 /// grouped by [`group_by_layer`].
 fn layer_runs(work: &mut Vec<Work>, layer_of: Vec<u32>, n_layers: usize) -> Vec<(u32, usize, usize)> {
-    let n_layers = n_layers.max(layer_of.iter().map(|&l| l as usize + 1).max().unwrap_or(0));
     let mut count = vec![0usize; n_layers];
     for &l in &layer_of {
-        count[l as usize] += 1;
+        let l = l as usize;
+        if l >= count.len() {
+            count.resize(l + 1, 0);
+        }
+        count[l] += 1;
     }
+    let n_layers = count.len();
     let n = work.len();
     let Some(big) = (0..n_layers).max_by_key(|&k| (count[k], std::cmp::Reverse(k))) else {
         return Vec::new();

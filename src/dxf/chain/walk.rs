@@ -61,6 +61,14 @@ pub(super) fn chain_layer(
         }
         cur
     };
+    // Which nodes closed a gap worth a note, read twice per piece by the
+    // walk: a byte per node, made on the pool, instead of the node's gap
+    // looked up through the sides of the clustering.
+    let gappy: Vec<bool> = (0..n_nodes as u32)
+        .into_par_iter()
+        .with_min_len(1 << 12)
+        .map(|n| nodes.gap(n) > REPORT_GAP)
+        .collect();
     let mut run: Vec<(usize, bool)> = Vec::new();
     // Each walked piece's direction of travel: the pieces are snapped onto
     // their nodes after the walk, on the pool (the walk never reads a
@@ -86,7 +94,7 @@ pub(super) fn chain_layer(
                 repairs.append(&mut v);
             }
             for n in [na, nb] {
-                if nodes.gap(n) > REPORT_GAP && !gap_nodes.contains(&n) {
+                if gappy[n as usize] && !gap_nodes.contains(&n) {
                     gap_nodes.push(n);
                 }
             }
@@ -162,6 +170,6 @@ pub(super) fn chain_layer(
     // The layer's graph is some 20 MB in a handful of arrays: unmapping
     // them took 1.5 ms of this thread on the mix benchmark. A worker does
     // it while the next layer, or the orientation, goes on.
-    rayon::spawn(move || drop((nodes, start_idx, adj, used, forward)));
+    rayon::spawn(move || drop((nodes, start_idx, adj, used, forward, gappy)));
     crate::progress::lap("chain: notes and snap");
 }
