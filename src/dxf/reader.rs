@@ -181,17 +181,20 @@ pub struct Reader {
 const BLOCK: usize = 1 << 19;
 const AHEAD: usize = 4;
 
-/// A block being tokenized on its own thread, or (the whole of a small
-/// input) already done.
+/// A block being tokenized, or (the whole of a small input, the last
+/// block) already done.
 enum Pending {
     Ready(TokenBlock),
+    /// On the rayon pool; the result (or the tokenizer's panic) comes back
+    /// over the channel.
     Task(std::sync::mpsc::Receiver<std::thread::Result<TokenBlock>>),
+    /// On a thread of its own, when the reader itself runs on the pool.
     Thread(std::thread::JoinHandle<TokenBlock>),
 }
 
 /// ASCII input: the file is read in blocks of whole lines, each tokenized
-/// on a thread of its own while the caller consumes the earlier ones in
-/// order.
+/// on the pool (or a thread of its own) while the caller consumes the
+/// earlier ones in order.
 struct Ascii {
     /// Bytes read but not yet in a block: `carry[..filled]` (see
     /// [`Ascii::read_block`]).

@@ -705,15 +705,20 @@ mod tests {
         assert!(signed_area(&ch[0].segments) > 0.0);
     }
 
-    #[test]
-    fn layer_runs_give_each_layer_its_alive_pieces_in_order() {
-        let mut x: u64 = 0x9e37_79b9;
-        let mut rnd = |m: u64| {
+    /// Numbers below `m` from a xorshift sequence seeded with `x`: the
+    /// layer tests' drawings.
+    fn below(mut x: u64) -> impl FnMut(u64) -> u64 {
+        move |m: u64| {
             x ^= x << 13;
             x ^= x >> 7;
             x ^= x << 17;
             x % m
-        };
+        }
+    }
+
+    #[test]
+    fn layer_runs_give_each_layer_its_alive_pieces_in_order() {
+        let mut rnd = below(0x9e37_79b9);
         for case in 0..300 {
             let n = rnd(80) as usize;
             let n_layers = 1 + rnd(4) as usize;
@@ -769,13 +774,7 @@ mod tests {
 
     #[test]
     fn grouping_by_layer_is_a_stable_sort() {
-        let mut x: u64 = 0x1234_5678;
-        let mut rnd = |m: u64| {
-            x ^= x << 13;
-            x ^= x >> 7;
-            x ^= x << 17;
-            x % m
-        };
+        let mut rnd = below(0x1234_5678);
         for case in 0..200 {
             let n = rnd(60) as usize;
             let n_layers = 1 + rnd(5) as usize;
