@@ -257,9 +257,8 @@ pub fn build(
             }
         })
         .collect();
-    // Layer by layer, in drawing order within each layer: a stable
-    // counting sort (layers are few), applied in place by cycles so the
-    // 88-byte records are neither sorted by comparison nor copied.
+    // Layer by layer, in drawing order within each layer, without a
+    // comparison sort of the 88-byte records (see `layer_runs`).
     crate::progress::lap("chain: pieces");
     let runs = layer_runs(&mut work, layer_of, layers.len());
     crate::progress::lap("chain: group by layer");
@@ -334,14 +333,7 @@ pub fn build(
 /// copies are at most an eighth of the array. Otherwise the array is
 /// grouped by [`group_by_layer`].
 fn layer_runs(work: &mut Vec<Work>, layer_of: Vec<u32>, n_layers: usize) -> Vec<(u32, usize, usize)> {
-    let mut count = vec![0usize; n_layers];
-    for &l in &layer_of {
-        let l = l as usize;
-        if l >= count.len() {
-            count.resize(l + 1, 0);
-        }
-        count[l] += 1;
-    }
+    let count = layer_counts(&layer_of, n_layers);
     let n_layers = count.len();
     let n = work.len();
     let Some(big) = (0..n_layers).max_by_key(|&k| (count[k], std::cmp::Reverse(k))) else {
@@ -352,7 +344,7 @@ fn layer_runs(work: &mut Vec<Work>, layer_of: Vec<u32>, n_layers: usize) -> Vec<
         return if n == 0 { Vec::new() } else { vec![(big as u32, 0, n)] };
     }
     if rest > n / 8 {
-        return group_by_layer(work, layer_of, n_layers);
+        return group_by_layer(work, layer_of, &count);
     }
     // The other layers' pieces after the array, by layer, in drawing
     // order within each.
@@ -390,6 +382,20 @@ fn layer_runs(work: &mut Vec<Work>, layer_of: Vec<u32>, n_layers: usize) -> Vec<
     runs
 }
 
+/// How many pieces each layer has: `n_layers` entries, more when a piece
+/// names a layer beyond them.
+fn layer_counts(layer_of: &[u32], n_layers: usize) -> Vec<usize> {
+    let mut count = vec![0usize; n_layers];
+    for &l in layer_of {
+        let l = l as usize;
+        if l >= count.len() {
+            count.resize(l + 1, 0);
+        }
+        count[l] += 1;
+    }
+    count
+}
+
 /// Reorder `work` (piece `i` on layer `layer_of[i]`, `order == i`) by
 /// layer, keeping the drawing order within a layer (what sorting by
 /// (layer, order) gives), and return each non-empty layer's range in
@@ -400,12 +406,10 @@ fn layer_runs(work: &mut Vec<Work>, layer_of: Vec<u32>, n_layers: usize) -> Vec<
 /// largest layer's pieces slide (in order, each once) to where their layer
 /// goes, and the others are put back around them. All passes are
 /// sequential; the extra memory is the smaller layers' pieces.
-fn group_by_layer(work: &mut [Work], layer_of: Vec<u32>, n_layers: usize) -> Vec<(u32, usize, usize)> {
-    let n_layers = n_layers.max(layer_of.iter().map(|&l| l as usize + 1).max().unwrap_or(0));
+fn group_by_layer(work: &mut [Work], layer_of: Vec<u32>, count: &[usize]) -> Vec<(u32, usize, usize)> {
+    let n_layers = count.len();
     let mut start = vec![0usize; n_layers + 1];
-    for &l in &layer_of {
-        start[l as usize + 1] += 1;
-    }
+    start[1..].copy_from_slice(count);
     for k in 0..n_layers {
         start[k + 1] += start[k];
     }
@@ -797,7 +801,7 @@ mod tests {
                 .collect();
             let mut want: Vec<u32> = (0..n as u32).collect();
             want.sort_by_key(|&i| layer_of[i as usize]);
-            let runs = group_by_layer(&mut work, layer_of.clone(), n_layers);
+            let runs = group_by_layer(&mut work, layer_of.clone(), &layer_counts(&layer_of, n_layers));
             let got: Vec<u32> = work.iter().map(|w| w.order).collect();
             assert_eq!(got, want, "case {case}: {layer_of:?}");
             for w in &work {
