@@ -30,8 +30,9 @@ static SHOWN: Mutex<Option<ProgressBar>> = Mutex::new(None);
 
 /// When the environment sets `MICROCAM_TIMING`, print to stderr how long
 /// the job spent since the last lap (or since the first call), with the
-/// stage's name: where a tool's wall time goes, for tuning, without a
-/// profiler. Costs one environment lookup, once, when unset.
+/// stage's name, and the process's peak resident memory so far: where a
+/// tool's wall time and memory go, for tuning, without a profiler. Costs one
+/// environment lookup, once, when unset.
 pub fn lap(what: &str) {
     use std::sync::OnceLock;
     static ON: OnceLock<bool> = OnceLock::new();
@@ -39,24 +40,27 @@ pub fn lap(what: &str) {
     if !*ON.get_or_init(|| std::env::var_os("MICROCAM_TIMING").is_some()) {
         return;
     }
-    let now = (Instant::now(), cpu_seconds());
+    let (cpu_now, peak_kib) = cpu_seconds_and_peak_kib();
+    let now = (Instant::now(), cpu_now);
     let mut last = LAST.lock().unwrap_or_else(|e| e.into_inner());
     let (wall, cpu) = last.map_or((0.0, 0.0), |(t, c)| {
         ((now.0 - t).as_secs_f64() * 1e3, (now.1 - c) * 1e3)
     });
     *last = Some(now);
-    eprintln!("timing: {what:<24} {wall:8.2} ms wall {cpu:8.2} ms CPU");
+    let peak_mib = peak_kib as f64 / 1024.0;
+    eprintln!("timing: {what:<24} {wall:8.2} ms wall {cpu:8.2} ms CPU {peak_mib:7.1} MiB peak");
 }
 
-/// The process's CPU time so far (user and system, all threads), seconds.
-fn cpu_seconds() -> f64 {
+/// The process's CPU time so far (user and system, all threads), seconds,
+/// and its peak resident memory so far, KiB (Linux's unit for `ru_maxrss`).
+fn cpu_seconds_and_peak_kib() -> (f64, i64) {
     // SAFETY: getrusage only writes the struct it is given.
     let mut ru: libc::rusage = unsafe { std::mem::zeroed() };
     if unsafe { libc::getrusage(libc::RUSAGE_SELF, &mut ru) } != 0 {
-        return 0.0;
+        return (0.0, 0);
     }
     let t = |v: libc::timeval| v.tv_sec as f64 + v.tv_usec as f64 * 1e-6;
-    t(ru.ru_utime) + t(ru.ru_stime)
+    (t(ru.ru_utime) + t(ru.ru_stime), ru.ru_maxrss as i64)
 }
 
 /// Start counting a new job of `total` units (0 when not known yet).
