@@ -25,7 +25,6 @@
 //! - [`slice`](mod@slice): planar sections of meshes at Z levels as closed, nested chains.
 //! - [`corpus`]: where the shared test corpus lies, for tests and benchmarks.
 //! - [`cli`]: conventions shared by every binary.
-//! - [`hugepages`]: a global allocator asking Linux for huge pages on large blocks.
 
 // Every public item is documented; a new one without a doc comment is a
 // warning, and an error in `make lint` (part of `make test`).
@@ -41,7 +40,6 @@ pub mod feedopt;
 pub mod formats;
 pub mod gcode;
 pub mod geometry;
-pub mod hugepages;
 pub mod laser;
 pub mod machine;
 pub mod mesh;

@@ -12,11 +12,6 @@ use std::io::{BufRead, Read, Write};
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-// Large arrays on huge pages: fewer page faults, 3-4 % less time on the
-// benchmark drawings (docs/dxf.md, "Huge pages").
-#[global_allocator]
-static ALLOC: microcam::hugepages::HugePages = microcam::hugepages::HugePages;
-
 const EXAMPLES: &str = "\
 Examples:
   dxf2chains part.dxf > part.chains                 chains in mm on stdout
