@@ -160,12 +160,22 @@ fn fmt_point(p: &P3) -> String {
 
 impl Sink {
     fn layer_id(&mut self, name: &str) -> u32 {
+        /// Up to this many layers, a name is looked up by comparing.
+        const FEW_LAYERS: usize = 8;
         if let Some(i) = self.last_layer
             && self.layers.get(i as usize).is_some_and(|l| l == name)
         {
             return i;
         }
-        if let Some(&i) = self.layer_ids.get(name) {
+        // A few layers are compared by name, not hashed: drawings of a cut
+        // layer and a mark layer switch between them entity by entity, and
+        // SipHash cost more than the comparisons.
+        let known = if self.layers.len() <= FEW_LAYERS {
+            self.layers.iter().position(|l| l == name).map(|i| i as u32)
+        } else {
+            self.layer_ids.get(name).copied()
+        };
+        if let Some(i) = known {
             self.last_layer = Some(i);
             return i;
         }
@@ -497,10 +507,12 @@ impl Expander<'_> {
     /// mirroring), else biarcs.
     fn place_conic(&self, k: Conic, lid: u32, sink: &mut Sink) {
         let (ux, uy, vx, vy) = (k.u.x, k.u.y, k.v.x, k.v.y);
-        let lu = ux.hypot(uy);
-        let lv = vx.hypot(vy);
-        let cross = ux * vy - uy * vx;
-        let circular = lu > 0.0 && (lu - lv).abs() <= 1e-12 * lu && (ux * vx + uy * vy).abs() <= 1e-12 * lu * lu;
+        let Shadow {
+            lu,
+            lv,
+            cross,
+            circular,
+        } = Shadow::of(&k.u, &k.v);
         if circular {
             let at = |a: f64| {
                 P3::new(
@@ -509,7 +521,13 @@ impl Expander<'_> {
                     k.c.z,
                 )
             };
-            let start = at(k.t0);
+            // A circle starts at angle 0, whose cosine and sine are 1 and 0
+            // exactly: its point is made without the `sincos` call.
+            let start = if k.t0.to_bits() == 0 {
+                P3::new(k.c.x + ux * 1.0 + vx * 0.0, k.c.y + uy * 1.0 + vy * 0.0, k.c.z)
+            } else {
+                at(k.t0)
+            };
             let full = k.sweep >= TAU - 1e-12;
             let end = if full { start } else { at(k.t0 + k.sweep) };
             sink.segments.push((
@@ -593,9 +611,22 @@ impl Expander<'_> {
             let m = P3::from((p0.coords + p1.coords) * 0.5);
             let left = V3::new(-d.y, d.x, 0.0) / chord;
             let c = m + left * (chord / 2.0) * ((1.0 - b * b) / (2.0 * b));
-            let a0 = (p0.y - c.y).atan2(p0.x - c.x);
             // Snap the ends to the vertices exactly: the arc maths is a
             // hair off, and consecutive pieces must share ends.
+            if let Some(k) = circular_bulge(t, &c, r, sweep) {
+                // The usual case, the shadow a circle: the arc is its centre,
+                // turn and the two vertices, so its start angle and the
+                // points at both ends (an `atan2` and two `sincos`, a sixth
+                // of the placer's time on the mix benchmark drawing) would
+                // only be overwritten. Bit for bit what the general path
+                // below gives (unit test).
+                let mut s = Segment::arc_xy(k.center, k.center, k.center, k.ccw);
+                s.set_start(t.apply(&p0));
+                s.set_end(t.apply(&p1));
+                sink.segments.push((s, lid));
+                continue;
+            }
+            let a0 = (p0.y - c.y).atan2(p0.x - c.x);
             let before = sink.segments.len();
             self.conic(t, &c, r, (a0, sweep), lid, sink);
             if sink.segments.len() == before + 1
@@ -604,6 +635,56 @@ impl Expander<'_> {
                 s.set_start(t.apply(&p0));
                 s.set_end(t.apply(&p1));
             }
+        }
+    }
+}
+
+/// What [`Expander::conic`] and [`Expander::place_conic`] make of a bulge's
+/// arc (OCS centre `c`, radius `r`, signed `sweep`) under `t` when they
+/// make one exact arc: its world centre and turn, with the ends left for
+/// the caller to set. `None` where they would do anything else (a radius
+/// that is not positive, a shadow that is not a circle), so the caller
+/// takes the general path.
+struct BulgeArc {
+    center: P3,
+    ccw: bool,
+}
+
+fn circular_bulge(t: &Affine, c: &P3, r: f64, sweep: f64) -> Option<BulgeArc> {
+    if !(r.is_finite() && r > 0.0) {
+        return None;
+    }
+    let center = t.apply(c);
+    let u = t.apply_vec(&V3::new(r, 0.0, 0.0));
+    let v = t.apply_vec(&V3::new(0.0, r, 0.0));
+    let shadow = Shadow::of(&u, &v);
+    shadow.circular.then_some(BulgeArc {
+        center,
+        ccw: (sweep > 0.0) == (shadow.cross > 0.0),
+    })
+}
+
+/// A conic's XY shadow, from its semi-diameters `u` and `v`.
+struct Shadow {
+    /// Lengths of `u` and `v` in XY.
+    lu: f64,
+    lv: f64,
+    /// Their cross product: the sign of the turn.
+    cross: f64,
+    /// A circle: equal lengths, square to each other, within 1e-12 relative.
+    circular: bool,
+}
+
+impl Shadow {
+    fn of(u: &V3, v: &V3) -> Shadow {
+        let (ux, uy, vx, vy) = (u.x, u.y, v.x, v.y);
+        let lu = ux.hypot(uy);
+        let lv = vx.hypot(vy);
+        Shadow {
+            lu,
+            lv,
+            cross: ux * vy - uy * vx,
+            circular: lu > 0.0 && (lu - lv).abs() <= 1e-12 * lu && (ux * vx + uy * vy).abs() <= 1e-12 * lu * lu,
         }
     }
 }
@@ -656,6 +737,90 @@ mod tests {
         assert!((start - P3::new(-11.0, 0.0, 0.0)).norm() < 1e-12);
         assert!((end - P3::new(-10.0, 1.0, 0.0)).norm() < 1e-12);
         assert!(!ccw);
+    }
+
+    /// The bulge arcs' shortcut gives bit for bit what the general path
+    /// (start angle, conic, ends snapped) gives, under rotations, uniform
+    /// and uneven scales, mirrors and tilted extrusions; uneven scales and
+    /// tilts take the general path, the others the shortcut.
+    #[test]
+    fn bulge_arcs_shortcut_is_the_general_path_bit_for_bit() {
+        let x = Expander {
+            blocks: &HashMap::new(),
+            arc_tol: 0.001,
+            layers: &[],
+            max_segments: MAX_SEGMENTS,
+        };
+        let mut state = 0x2545_f491_4f6c_dd1du64;
+        let mut next = || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let (mut shortcut, mut general) = (0, 0);
+        for case in 0..4000 {
+            let (sx, sy) = match case % 4 {
+                0 => (1.0, 1.0),
+                1 => {
+                    let k = 0.01 + 100.0 * next();
+                    (k, k)
+                }
+                2 => (-2.5, 2.5),
+                _ => (0.5 + next(), 0.5 + next()),
+            };
+            let ext = if case % 7 == 0 {
+                V3::new(next() - 0.5, next() - 0.5, 1.0)
+            } else {
+                V3::z()
+            };
+            let t = Affine::translate(V3::new(1e3 * (next() - 0.5), 1e3 * (next() - 0.5), next()))
+                .then_after(&Affine::rotate_z(7.0 * next()))
+                .then_after(&Affine::scale(sx, sy, 1.0))
+                .with_ocs(&ext);
+            let b = match case % 5 {
+                0 => 1.0,
+                1 => -1e-9,
+                2 => 1e13,
+                _ => 4.0 * (next() - 0.5),
+            };
+            let verts = [
+                (1e3 * (next() - 0.5), 1e3 * (next() - 0.5), b),
+                (1e3 * (next() - 0.5), next(), 0.0),
+            ];
+            let z = next();
+            let mut fast = Sink::default();
+            x.poly2(&t, &verts, false, z, 0, &mut fast);
+            // The general path, as it was before the shortcut.
+            let mut slow = Sink::default();
+            let (p0, p1) = (P3::new(verts[0].0, verts[0].1, z), P3::new(verts[1].0, verts[1].1, z));
+            let sweep = 4.0 * b.atan();
+            let d = p1 - p0;
+            let chord = d.xy().norm();
+            let r = chord / (2.0 * (sweep / 2.0).sin().abs());
+            let m = P3::from((p0.coords + p1.coords) * 0.5);
+            let left = V3::new(-d.y, d.x, 0.0) / chord;
+            let c = m + left * (chord / 2.0) * ((1.0 - b * b) / (2.0 * b));
+            let a0 = (p0.y - c.y).atan2(p0.x - c.x);
+            x.conic(&t, &c, r, (a0, sweep), 0, &mut slow);
+            if slow.segments.len() == 1
+                && let Some((s @ Segment::Arc(_), _)) = slow.segments.get_mut(0)
+            {
+                s.set_start(t.apply(&p0));
+                s.set_end(t.apply(&p1));
+            }
+            if circular_bulge(&t, &c, r, sweep).is_some() {
+                shortcut += 1;
+            } else {
+                general += 1;
+            }
+            assert_eq!(
+                format!("{:?}", fast.segments),
+                format!("{:?}", slow.segments),
+                "case {case}"
+            );
+        }
+        assert!(shortcut > 2000 && general > 500, "{shortcut} {general}");
     }
 
     #[test]
