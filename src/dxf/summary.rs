@@ -33,7 +33,7 @@ pub fn lines(imp: &Import, rep: &ChainReport, arc_tol: f64, point_chains: usize,
     if s.used.is_empty() {
         out.push("read no geometry".into());
     } else {
-        out.push(format!("read {}", counts(s.used.iter().map(|(k, v)| (*k, *v)))));
+        out.push(format!("read {}", counts(s.used.iter())));
     }
     if !imp.skipped.is_empty() {
         out.push(format!(
