@@ -647,23 +647,16 @@ impl Expander<'_> {
                 sink.segments.push((Segment::line(t.apply(&p0), t.apply(&p1)), lid));
                 continue;
             }
-            // Bulge = tan(sweep / 4), positive counter-clockwise.
-            let sweep = 4.0 * b.atan();
-            let d = p1 - p0;
-            let chord = d.xy().norm();
-            let r = chord / (2.0 * (sweep / 2.0).sin().abs());
-            let m = P3::from((p0.coords + p1.coords) * 0.5);
-            let left = V3::new(-d.y, d.x, 0.0) / chord;
-            let c = m + left * (chord / 2.0) * ((1.0 - b * b) / (2.0 * b));
+            let (c, r, sweep) = bulge_circle(&p0, &p1, b);
             // Snap the ends to the vertices exactly: the arc maths is a
             // hair off, and consecutive pieces must share ends.
             if let Some(k) = circular_bulge(t, &c, r, sweep) {
                 // The usual case, the shadow a circle: the arc is its centre,
                 // turn and the two vertices, so its start angle and the
-                // points at both ends (an `atan2` and two `sincos`, a sixth
-                // of the placer's time on the mix benchmark drawing) would
-                // only be overwritten. Bit for bit what the general path
-                // below gives (unit test).
+                // points at both ends (an `atan2` and two `sincos`, about a
+                // tenth of the placer's time on the mix benchmark drawing)
+                // would only be overwritten. Bit for bit what the general
+                // path below gives (unit test).
                 let mut s = Segment::arc_xy(k.center, k.center, k.center, k.ccw);
                 s.set_start(t.apply(&p0));
                 s.set_end(t.apply(&p1));
@@ -683,17 +676,32 @@ impl Expander<'_> {
     }
 }
 
+/// The circle of a bulged polyline segment from `p0` to `p1` (OCS):
+/// centre, radius and signed sweep (bulge = tan(sweep / 4), positive
+/// counter-clockwise). `b` is not 0 and the points differ.
+fn bulge_circle(p0: &P3, p1: &P3, b: f64) -> (P3, f64, f64) {
+    let sweep = 4.0 * b.atan();
+    let d = p1 - p0;
+    let chord = d.xy().norm();
+    let r = chord / (2.0 * (sweep / 2.0).sin().abs());
+    let m = P3::from((p0.coords + p1.coords) * 0.5);
+    let left = V3::new(-d.y, d.x, 0.0) / chord;
+    let c = m + left * (chord / 2.0) * ((1.0 - b * b) / (2.0 * b));
+    (c, r, sweep)
+}
+
+/// A bulge's arc in the world: centre and turn (see [`circular_bulge`]).
+struct BulgeArc {
+    center: P3,
+    ccw: bool,
+}
+
 /// What [`Expander::conic`] and [`Expander::place_conic`] make of a bulge's
 /// arc (OCS centre `c`, radius `r`, signed `sweep`) under `t` when they
 /// make one exact arc: its world centre and turn, with the ends left for
 /// the caller to set. `None` where they would do anything else (a radius
 /// that is not positive, a shadow that is not a circle), so the caller
 /// takes the general path.
-struct BulgeArc {
-    center: P3,
-    ccw: bool,
-}
-
 fn circular_bulge(t: &Affine, c: &P3, r: f64, sweep: f64) -> Option<BulgeArc> {
     if !(r.is_finite() && r > 0.0) {
         return None;
@@ -838,13 +846,7 @@ mod tests {
             // The general path, as it was before the shortcut.
             let mut slow = Sink::default();
             let (p0, p1) = (P3::new(verts[0].0, verts[0].1, z), P3::new(verts[1].0, verts[1].1, z));
-            let sweep = 4.0 * b.atan();
-            let d = p1 - p0;
-            let chord = d.xy().norm();
-            let r = chord / (2.0 * (sweep / 2.0).sin().abs());
-            let m = P3::from((p0.coords + p1.coords) * 0.5);
-            let left = V3::new(-d.y, d.x, 0.0) / chord;
-            let c = m + left * (chord / 2.0) * ((1.0 - b * b) / (2.0 * b));
+            let (c, r, sweep) = bulge_circle(&p0, &p1, b);
             let a0 = (p0.y - c.y).atan2(p0.x - c.x);
             x.conic(&t, &c, r, (a0, sweep), 0, &mut slow);
             if slow.segments.len() == 1
