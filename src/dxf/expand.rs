@@ -558,17 +558,13 @@ impl Expander<'_> {
             circular,
         } = Shadow::of(&k.u, &k.v);
         if circular {
-            let at = |a: f64| {
-                P3::new(
-                    k.c.x + ux * a.cos() + vx * a.sin(),
-                    k.c.y + uy * a.cos() + vy * a.sin(),
-                    k.c.z,
-                )
-            };
+            // The point at the angle of cosine `c` and sine `s`.
+            let at_cos_sin = |c: f64, s: f64| P3::new(k.c.x + ux * c + vx * s, k.c.y + uy * c + vy * s, k.c.z);
+            let at = |a: f64| at_cos_sin(a.cos(), a.sin());
             // A circle starts at angle 0, whose cosine and sine are 1 and 0
             // exactly: its point is made without the `sincos` call.
             let start = if k.t0.to_bits() == 0 {
-                P3::new(k.c.x + ux * 1.0 + vx * 0.0, k.c.y + uy * 1.0 + vy * 0.0, k.c.z)
+                at_cos_sin(1.0, 0.0)
             } else {
                 at(k.t0)
             };
@@ -803,13 +799,7 @@ mod tests {
             layers: &[],
             max_segments: MAX_SEGMENTS,
         };
-        let mut state = 0x2545_f491_4f6c_dd1du64;
-        let mut next = || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            (state >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut next = crate::geometry::test_rng::unit_rng(0x2545_f491_4f6c_dd1d);
         let (mut shortcut, mut general) = (0, 0);
         for case in 0..4000 {
             let (sx, sy) = match case % 4 {
