@@ -3,7 +3,7 @@
 //! included, no tessellation).
 
 use super::{ChainReport, Chains, midpoint};
-use crate::geometry::{P3, floor_i64};
+use crate::geometry::{EPS_LEN, P3, Plane, floor_i64};
 use crate::model::chain::Segment;
 use rayon::prelude::*;
 
@@ -49,8 +49,8 @@ fn inside(segs: &[Segment], p: &P3) -> bool {
 pub use crate::geometry::segment::signed_area;
 
 /// The XY box of a closed chain (arcs included exactly: their ends and the
-/// axis extremes they pass) and its signed area, the same arithmetic as
-/// [`signed_area`], with each arc's angles computed once for both.
+/// axis extremes they pass) and its signed area, the arithmetic of
+/// [`signed_area`] with each arc's sweep from one `atan2`.
 /// `quarter` holds (cos, sin) of 0, pi/2, pi and 3 pi/2.
 fn box_and_area(segs: &[Segment], quarter: &[(f64, f64); 4]) -> ((f64, f64), (f64, f64), f64) {
     let mut lo = (f64::INFINITY, f64::INFINITY);
@@ -63,21 +63,122 @@ fn box_and_area(segs: &[Segment], quarter: &[(f64, f64); 4]) -> ((f64, f64), (f6
         lo = (lo.0.min(q.x), lo.1.min(q.y));
         hi = (hi.0.max(q.x), hi.1.max(q.y));
         area += 0.5 * (p.x * q.y - q.x * p.y);
-        if let Some(a) = s.to_arc_xy() {
+        let Segment::Arc(a) = s else { continue };
+        if a.plane != Plane::Xy || a.extra_turns != 0 {
+            let a = s.to_arc_xy().expect("an arc");
             for (k, &(c, sn)) in quarter.iter().enumerate() {
-                let t = k as f64 * std::f64::consts::FRAC_PI_2;
-                if a.contains_angle(t) {
+                if a.contains_angle(k as f64 * std::f64::consts::FRAC_PI_2) {
                     let (x, y) = (a.center.x + a.radius * c, a.center.y + a.radius * sn);
                     lo = (lo.0.min(x), lo.1.min(y));
                     hi = (hi.0.max(x), hi.1.max(y));
                 }
             }
             let (dx, dy) = (p.x - a.center.x, p.y - a.center.y);
-            let r2 = dx * dx + dy * dy;
-            area += 0.5 * r2 * (a.sweep - a.sweep.sin());
+            area += 0.5 * (dx * dx + dy * dy) * (a.sweep - a.sweep.sin());
+            continue;
         }
+        let turn = planar_turn(a);
+        let r = turn.r2.sqrt();
+        for (k, &(c, sn)) in quarter.iter().enumerate() {
+            if turn.passes(k) {
+                let (x, y) = (a.center.x + r * c, a.center.y + r * sn);
+                lo = (lo.0.min(x), lo.1.min(y));
+                hi = (hi.0.max(x), hi.1.max(y));
+            }
+        }
+        area += 0.5 * turn.r2 * (turn.sweep - turn.sweep.sin());
     }
     (lo, hi, area)
+}
+
+/// An arc in the XY plane without extra turns, as the box and the area
+/// need it: the squared radius, the signed sweep and the start and end
+/// radii, with no angle of either end.
+struct PlanarTurn {
+    /// Centre to start, centre to end.
+    u: (f64, f64),
+    v: (f64, f64),
+    ccw: bool,
+    full: bool,
+    r2: f64,
+    /// Signed, in `(0, 2 pi]` counter-clockwise, `[-2 pi, 0)` clockwise, as
+    /// [`crate::geometry::arc::Arc3::sweep`] gives it.
+    sweep: f64,
+}
+
+/// The sweep is the angle between the end radii, `atan2(u x v, u . v)`,
+/// taken the arc's way round: one `atan2` where the start and end angles
+/// took two, and no cancellation on short arcs (the difference of two
+/// nearly equal angles). Start and end within `EPS_LEN` (or a
+/// millionth of a millionth of the radius) make a full turn, as in
+/// `Arc3::sweep`.
+fn planar_turn(a: &crate::geometry::arc::Arc3) -> PlanarTurn {
+    use std::f64::consts::TAU;
+    let u = (a.start.x - a.center.x, a.start.y - a.center.y);
+    let v = (a.end.x - a.center.x, a.end.y - a.center.y);
+    let r2 = u.0 * u.0 + u.1 * u.1;
+    let (ex, ey) = (a.end.x - a.start.x, a.end.y - a.start.y);
+    let full = (ex * ex + ey * ey).sqrt() <= EPS_LEN.max(r2.sqrt() * 1e-12);
+    let cross = u.0 * v.1 - u.1 * v.0;
+    let dot = u.0 * v.0 + u.1 * v.1;
+    let phi = cross.atan2(dot);
+    let mut sweep = if a.ccw {
+        if phi <= 0.0 { phi + TAU } else { phi }
+    } else if phi >= 0.0 {
+        phi - TAU
+    } else {
+        phi
+    };
+    // Opposite ends read as a zero angle by rounding are a whole turn too.
+    let full = full || sweep.abs() >= TAU;
+    if full {
+        sweep = if a.ccw { TAU } else { -TAU };
+    }
+    PlanarTurn {
+        u,
+        v,
+        ccw: a.ccw,
+        full,
+        r2,
+        sweep,
+    }
+}
+
+impl PlanarTurn {
+    /// Does the arc pass the direction `k` quarter turns from +X (ends
+    /// included)? The direction's turn from the arc's first end, the
+    /// way round the arc goes, is compared with the turn to its other end,
+    /// both as pseudo-angles of the same kind (monotonic in the angle, no
+    /// trigonometry).
+    fn passes(&self, k: usize) -> bool {
+        if self.full {
+            return true;
+        }
+        // Travel counter-clockwise from `from` to `to`.
+        let (from, to) = if self.ccw { (self.u, self.v) } else { (self.v, self.u) };
+        // The direction in `from`'s frame: (from . d, from x d).
+        let d = [
+            (from.0, -from.1),
+            (from.1, from.0),
+            (-from.0, from.1),
+            (-from.1, -from.0),
+        ][k];
+        let end = (from.0 * to.0 + from.1 * to.1, from.0 * to.1 - from.1 * to.0);
+        diamond(d.0, d.1) <= diamond(end.0, end.1)
+    }
+}
+
+/// The counter-clockwise angle of `(x, y)` from +X as a number in
+/// `[0, 4)`: 1 a quarter turn, 2 a half; monotonic in the angle, so it
+/// orders directions as the angle does, from one division.
+fn diamond(x: f64, y: f64) -> f64 {
+    if y >= 0.0 {
+        if x > 0.0 { y / (x + y) } else { 1.0 - x / (y - x) }
+    } else if x < 0.0 {
+        2.0 - y / (-x - y)
+    } else {
+        3.0 + x / (x - y)
+    }
 }
 
 /// Orient closed chains by nesting depth: even depth (outer contours)
@@ -223,5 +324,133 @@ pub(super) fn orient(chains: &mut Chains, tol: f64, report: &mut ChainReport) {
     for idx in flip {
         chains.items[idx].reversed = true;
         report.reversed += 1;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::test_rng::unit_rng;
+    use std::f64::consts::{FRAC_PI_2, TAU};
+
+    /// The box and area of one arc the general way: both end angles by
+    /// `atan2`, the quarter directions by `contains_angle`.
+    fn general(s: &Segment) -> ((f64, f64), (f64, f64), f64) {
+        let a = s.to_arc_xy().unwrap();
+        let (p, q) = (s.start(), s.end());
+        let mut lo = (p.x.min(q.x), p.y.min(q.y));
+        let mut hi = (p.x.max(q.x), p.y.max(q.y));
+        for k in 0..4 {
+            let t = k as f64 * FRAC_PI_2;
+            if a.contains_angle(t) {
+                let (x, y) = (a.center.x + a.radius * t.cos(), a.center.y + a.radius * t.sin());
+                lo = (lo.0.min(x), lo.1.min(y));
+                hi = (hi.0.max(x), hi.1.max(y));
+            }
+        }
+        (lo, hi, signed_area(std::slice::from_ref(s)))
+    }
+
+    fn quarter() -> [(f64, f64); 4] {
+        std::array::from_fn(|k| {
+            let t = k as f64 * FRAC_PI_2;
+            (t.cos(), t.sin())
+        })
+    }
+
+    #[test]
+    fn one_atan2_box_and_area_agree_with_the_end_angles() {
+        let mut rnd = unit_rng(0x0_71e47);
+        let q = quarter();
+        for case in 0..20_000 {
+            let c = P3::new(2e3 * rnd() - 1e3, 2e3 * rnd() - 1e3, 0.0);
+            let r = 10f64.powf(6.0 * rnd() - 3.0);
+            // Ends at random angles, a tenth of them on an axis direction
+            // (the box's boundary cases), some a hair apart (short arcs).
+            let pick = |rnd: &mut dyn FnMut() -> f64| {
+                if rnd() < 0.1 {
+                    (rnd() * 4.0).floor() * FRAC_PI_2
+                } else {
+                    TAU * rnd()
+                }
+            };
+            let a0 = pick(&mut rnd);
+            let a1 = if case % 5 == 0 {
+                a0 + 1e-7 * (rnd() - 0.5)
+            } else {
+                pick(&mut rnd)
+            };
+            let s = P3::new(c.x + r * a0.cos(), c.y + r * a0.sin(), 0.0);
+            let e = P3::new(c.x + r * a1.cos(), c.y + r * a1.sin(), 0.0);
+            let seg = Segment::arc_xy(s, e, c, rnd() < 0.5);
+            let (lo, hi, area) = box_and_area(std::slice::from_ref(&seg), &q);
+            let (glo, ghi, garea) = general(&seg);
+            let shoelace = 0.5 * (s.x * e.y - e.x * s.y);
+            // An axis direction at an end is that end up to rounding: the
+            // boxes may differ by the rounding of the radius, no more.
+            let slack = 1e-12 * (r + c.x.abs() + c.y.abs());
+            for (x, y) in [(lo.0, glo.0), (lo.1, glo.1), (hi.0, ghi.0), (hi.1, ghi.1)] {
+                assert!(
+                    (x - y).abs() <= slack,
+                    "case {case}: box {lo:?} {hi:?} against {glo:?} {ghi:?}"
+                );
+            }
+            // The arcs' own area terms, without the shared shoelace term.
+            let (mine, theirs) = (area - shoelace, garea - shoelace);
+            assert!(
+                (mine - theirs).abs() <= 1e-9 * r * r + 1e-12 * theirs.abs(),
+                "case {case}: area {mine} against {theirs} (r {r})"
+            );
+        }
+    }
+
+    #[test]
+    fn full_circles_and_half_turns_keep_their_whole_box_and_area() {
+        let q = quarter();
+        let c = P3::new(3.0, -2.0, 0.0);
+        let s = P3::new(5.0, -2.0, 0.0);
+        for ccw in [true, false] {
+            let (lo, hi, area) = box_and_area(&[Segment::arc_xy(s, s, c, ccw)], &q);
+            assert_eq!((lo, hi), ((1.0, -4.0), (5.0, 0.0)));
+            let want = if ccw {
+                4.0 * std::f64::consts::PI
+            } else {
+                -4.0 * std::f64::consts::PI
+            };
+            assert!((area - want).abs() < 1e-12, "{area}");
+        }
+        // Half a turn from +x to -x: counter-clockwise over the top.
+        let e = P3::new(1.0, -2.0, 0.0);
+        // (The end at -x passes that axis direction too: its point, from
+        // the rounded sine of pi, is the end within 1e-15.)
+        let near = |a: f64, b: f64| (a - b).abs() < 1e-12;
+        let (lo, hi, _) = box_and_area(&[Segment::arc_xy(s, e, c, true)], &q);
+        assert!(near(lo.1, -2.0) && near(hi.1, 0.0), "{lo:?} {hi:?}");
+        let (lo, hi, _) = box_and_area(&[Segment::arc_xy(s, e, c, false)], &q);
+        assert!(near(lo.1, -4.0) && near(hi.1, -2.0), "{lo:?} {hi:?}");
+    }
+
+    #[test]
+    fn diamond_orders_directions_as_the_angle_does() {
+        let mut rnd = unit_rng(0xd1a);
+        let mut v: Vec<(f64, f64)> = (0..2000)
+            .map(|_| {
+                let t = TAU * rnd();
+                let m = 10f64.powf(4.0 * rnd() - 2.0);
+                (t, diamond(m * t.cos(), m * t.sin()))
+            })
+            .collect();
+        v.sort_by(|a, b| a.0.total_cmp(&b.0));
+        assert!(v.windows(2).all(|w| w[0].1 <= w[1].1));
+        assert!(v.iter().all(|x| (0.0..4.0).contains(&x.1)));
+        assert_eq!(
+            [
+                diamond(1.0, 0.0),
+                diamond(0.0, 1.0),
+                diamond(-1.0, 0.0),
+                diamond(0.0, -1.0)
+            ],
+            [0.0, 1.0, 2.0, 3.0]
+        );
     }
 }
