@@ -65,7 +65,7 @@ fn box_and_area(segs: &[Segment], quarter: &[(f64, f64); 4]) -> ((f64, f64), (f6
         area += 0.5 * (p.x * q.y - q.x * p.y);
         let Segment::Arc(a) = s else { continue };
         if a.plane != Plane::Xy || a.extra_turns != 0 {
-            let a = s.to_arc_xy().expect("an arc");
+            let Some(a) = s.to_arc_xy() else { continue };
             for (k, &(c, sn)) in quarter.iter().enumerate() {
                 if a.contains_angle(k as f64 * std::f64::consts::FRAC_PI_2) {
                     let (x, y) = (a.center.x + a.radius * c, a.center.y + a.radius * sn);
