@@ -323,15 +323,20 @@ pub(super) fn adjacency(alive: &[bool], ends: &[(u32, u32)], n_nodes: usize) -> 
         start[k + 1] += start[k];
     }
     let mut adj = vec![0u32; start[n_nodes] as usize];
-    let mut fill = start.clone();
+    // Node n's entries go at start[n], start[n] + 1, ...: `start` itself
+    // is the cursor, which leaves each node's entry at its successor's
+    // start; one move back restores it. A copy of `start` as the cursor
+    // cost a fresh 1.4 MB (350 page faults) on the mix benchmark.
     for (i, &a) in alive.iter().enumerate() {
         if a {
             for n in [ends[i].0, ends[i].1] {
-                adj[fill[n as usize] as usize] = i as u32;
-                fill[n as usize] += 1;
+                adj[start[n as usize] as usize] = i as u32;
+                start[n as usize] += 1;
             }
         }
     }
+    start.copy_within(0..n_nodes, 1);
+    start[0] = 0;
     (start, adj)
 }
 
@@ -446,6 +451,39 @@ pub(super) fn remove_duplicates(
 mod tests {
     use super::*;
     use proptest::prelude::*;
+
+    proptest! {
+        /// The compressed rows against a list per node, filled in piece
+        /// order: the same pieces at every node, in the same order.
+        #[test]
+        fn adjacency_lists_each_nodes_pieces_in_piece_order(
+            n_nodes in 0usize..40,
+            pieces in proptest::collection::vec((0u32..40, 0u32..40, any::<bool>()), 0..120),
+        ) {
+            let pieces: Vec<(u32, u32, bool)> = if n_nodes == 0 {
+                Vec::new()
+            } else {
+                pieces.into_iter().map(|(a, b, l)| (a % n_nodes as u32, b % n_nodes as u32, l)).collect()
+            };
+            let ends: Vec<(u32, u32)> = pieces.iter().map(|&(a, b, _)| (a, b)).collect();
+            let alive: Vec<bool> = pieces.iter().map(|&(_, _, l)| l).collect();
+            let (start, adj) = adjacency(&alive, &ends, n_nodes);
+            let mut want: Vec<Vec<u32>> = vec![Vec::new(); n_nodes];
+            for (i, &(a, b)) in ends.iter().enumerate() {
+                if alive[i] {
+                    want[a as usize].push(i as u32);
+                    want[b as usize].push(i as u32);
+                }
+            }
+            prop_assert_eq!(start.len(), n_nodes + 1);
+            prop_assert_eq!(start[0], 0);
+            for (n, w) in want.iter().enumerate() {
+                // (A piece from a node to itself is in both lists twice.)
+                prop_assert_eq!(&adj[start[n] as usize..start[n + 1] as usize], &w[..], "node {}", n);
+            }
+            prop_assert_eq!(start[n_nodes] as usize, adj.len());
+        }
+    }
 
     /// The neighbourhood by its definition: every key within one direction
     /// bucket (folded round at pi, the offset's sign flipped) and one
