@@ -273,20 +273,23 @@ pub(super) fn orient(chains: &mut Chains, tol: f64, report: &mut ChainReport) {
         start[r + 1] += start[r];
     }
     let mut grid: Vec<(u64, u32)> = vec![(0, 0); pairs];
-    let mut fill = start.clone();
+    // The row starts are the fill cursor (as in `repair::adjacency`): each
+    // ends at the next row's start, and one move back restores them.
     for (k, c) in cells.iter().enumerate() {
         if let Some((x0, x1, y0, y1)) = *c {
             for x in x0..=x1 {
                 for y in y0..=y1 {
                     let key = ckey(x, y);
                     let r = row_of(key);
-                    grid[fill[r] as usize] = (key, k as u32);
-                    fill[r] += 1;
+                    grid[start[r] as usize] = (key, k as u32);
+                    start[r] += 1;
                 }
             }
         }
     }
-    drop((cells, fill));
+    start.copy_within(0..rows, 1);
+    start[0] = 0;
+    drop(cells);
     crate::progress::lap("orient: grid");
     // Each probe's depth is a read-only question: answered on the pool.
     let flip: Vec<usize> = infos
