@@ -20,6 +20,13 @@ pub fn sweep_angle(center: &P2, start: &P2, end: &P2, ccw: bool, extra_turns: u3
     sweep_from_start_angle(a0, center, start, end, ccw, extra_turns, tol)
 }
 
+/// The rule of [`sweep_angle`] for a full turn: start and end of an arc of
+/// radius `r` within `tol`, or within a millionth of a millionth of the
+/// radius (a large circle's ends that differ by rounding only).
+pub(crate) fn ends_close_full_turn(start: &P2, end: &P2, r: f64, tol: f64) -> bool {
+    (end - start).norm() <= tol.max(r * 1e-12)
+}
+
 /// [`sweep_angle`] for a caller that has the start's direction `a0`
 /// (`atan2` of start minus centre) already: the same arithmetic, one
 /// `atan2` fewer.
@@ -51,7 +58,7 @@ pub(crate) fn sweep_from_start_angle(
         }
     }
     // Start and end coincide: a full circle, whatever rounding says.
-    if (end - start).norm() <= tol.max(r * 1e-12) {
+    if ends_close_full_turn(start, end, r, tol) {
         d = if ccw { TAU } else { -TAU };
     }
     let extra = extra_turns as f64 * TAU;

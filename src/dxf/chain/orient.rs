@@ -92,13 +92,14 @@ fn box_and_area(segs: &[Segment], quarter: &[(f64, f64); 4]) -> ((f64, f64), (f6
 }
 
 /// An arc in the XY plane without extra turns, as the box and the area
-/// need it: the squared radius, the signed sweep and the start and end
-/// radii, with no angle of either end.
+/// need it: the squared radius, the signed sweep, and what the quarter
+/// tests need, with no angle of either end.
 struct PlanarTurn {
-    /// Centre to start, centre to end.
-    u: (f64, f64),
-    v: (f64, f64),
-    ccw: bool,
+    /// The radius where counter-clockwise travel round the arc starts
+    /// (the start of a counter-clockwise arc, the end of a clockwise one).
+    from: (f64, f64),
+    /// How far that travel turns, as a [`diamond`] pseudo-angle.
+    reach: f64,
     full: bool,
     r2: f64,
     /// Signed, in `(0, 2 pi]` counter-clockwise, `[-2 pi, 0)` clockwise, as
@@ -109,19 +110,20 @@ struct PlanarTurn {
 /// The sweep is the angle between the end radii, `atan2(u x v, u . v)`,
 /// taken the arc's way round: one `atan2` where the start and end angles
 /// took two, and no cancellation on short arcs (the difference of two
-/// nearly equal angles). Start and end within `EPS_LEN` (or a
-/// millionth of a millionth of the radius) make a full turn, as in
-/// `Arc3::sweep`.
+/// nearly equal angles). The full turn is `Arc3::sweep`'s rule.
 fn planar_turn(a: &crate::geometry::arc::Arc3) -> PlanarTurn {
+    use crate::geometry::P2;
     use std::f64::consts::TAU;
     let u = (a.start.x - a.center.x, a.start.y - a.center.y);
     let v = (a.end.x - a.center.x, a.end.y - a.center.y);
     let r2 = u.0 * u.0 + u.1 * u.1;
-    let (ex, ey) = (a.end.x - a.start.x, a.end.y - a.start.y);
-    let full = (ex * ex + ey * ey).sqrt() <= EPS_LEN.max(r2.sqrt() * 1e-12);
-    let cross = u.0 * v.1 - u.1 * v.0;
-    let dot = u.0 * v.0 + u.1 * v.1;
-    let phi = cross.atan2(dot);
+    let full = crate::geometry::planar::ends_close_full_turn(
+        &P2::new(a.start.x, a.start.y),
+        &P2::new(a.end.x, a.end.y),
+        r2.sqrt(),
+        EPS_LEN,
+    );
+    let phi = (u.0 * v.1 - u.1 * v.0).atan2(u.0 * v.0 + u.1 * v.1);
     let mut sweep = if a.ccw {
         if phi <= 0.0 { phi + TAU } else { phi }
     } else if phi >= 0.0 {
@@ -134,10 +136,13 @@ fn planar_turn(a: &crate::geometry::arc::Arc3) -> PlanarTurn {
     if full {
         sweep = if a.ccw { TAU } else { -TAU };
     }
+    // Travel counter-clockwise from `from` to `to`; `to` in `from`'s
+    // frame is (from . to, from x to).
+    let (from, to) = if a.ccw { (u, v) } else { (v, u) };
+    let reach = diamond(from.0 * to.0 + from.1 * to.1, from.0 * to.1 - from.1 * to.0);
     PlanarTurn {
-        u,
-        v,
-        ccw: a.ccw,
+        from,
+        reach,
         full,
         r2,
         sweep,
@@ -146,25 +151,17 @@ fn planar_turn(a: &crate::geometry::arc::Arc3) -> PlanarTurn {
 
 impl PlanarTurn {
     /// Does the arc pass the direction `k` quarter turns from +X (ends
-    /// included)? The direction's turn from the arc's first end, the
-    /// way round the arc goes, is compared with the turn to its other end,
-    /// both as pseudo-angles of the same kind (monotonic in the angle, no
-    /// trigonometry).
+    /// included)? The direction's turn from `from`, counter-clockwise, is
+    /// compared with the arc's own, both as [`diamond`] pseudo-angles
+    /// (monotonic in the angle, no trigonometry).
     fn passes(&self, k: usize) -> bool {
         if self.full {
             return true;
         }
-        // Travel counter-clockwise from `from` to `to`.
-        let (from, to) = if self.ccw { (self.u, self.v) } else { (self.v, self.u) };
         // The direction in `from`'s frame: (from . d, from x d).
-        let d = [
-            (from.0, -from.1),
-            (from.1, from.0),
-            (-from.0, from.1),
-            (-from.1, -from.0),
-        ][k];
-        let end = (from.0 * to.0 + from.1 * to.1, from.0 * to.1 - from.1 * to.0);
-        diamond(d.0, d.1) <= diamond(end.0, end.1)
+        let f = self.from;
+        let d = [(f.0, -f.1), (f.1, f.0), (-f.0, f.1), (-f.1, -f.0)][k];
+        diamond(d.0, d.1) <= self.reach
     }
 }
 
