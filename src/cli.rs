@@ -15,6 +15,7 @@
 
 pub mod cleanup;
 pub mod generate;
+pub mod threads;
 pub use generate::parse;
 
 use std::fs::File;
@@ -89,8 +90,10 @@ impl From<io::Error> for CliError {
 
 /// Run a tool's body and turn its outcome into an exit status, printing
 /// `tool: message` on stderr for errors. A closed stdout (`| head`) is not
-/// an error worth a message.
+/// an error worth a message. First, the worker pool is set up as the
+/// environment asks ([`threads::init_pool`]).
 pub fn run(tool: &str, body: impl FnOnce() -> Result<(), CliError>) -> ExitCode {
+    threads::init_pool();
     let args: Vec<String> = std::env::args().skip(1).collect();
     if let Err(e) = check_numeric_arguments(&args) {
         eprintln!("{tool}: {}", e.message);

@@ -124,6 +124,29 @@ fn identical_input_gives_identical_output() {
     assert_eq!(pa.stdout, pb.stdout);
 }
 
+/// Pinned workers (`MICROCAM_PIN_THREADS=1`) change where threads run,
+/// never what they compute: the same bytes as with rayon's own pool.
+#[test]
+fn pinned_workers_give_the_same_output() {
+    let dxf = Path::new("testdata/samples/blocks.dxf").to_str().unwrap();
+    let bin = env!("CARGO_BIN_EXE_dxf2chains");
+    let plain = run(bin, &[dxf], None);
+    let pinned = Command::new(bin)
+        .arg(dxf)
+        .env("MICROCAM_PIN_THREADS", "1")
+        .output()
+        .unwrap();
+    assert_eq!(plain.status.code(), Some(0));
+    assert_eq!(
+        pinned.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&pinned.stderr)
+    );
+    assert!(!plain.stdout.is_empty());
+    assert_eq!(plain.stdout, pinned.stdout);
+}
+
 #[test]
 fn iso_to_pmac_and_back_keeps_the_path() {
     let prog = "testdata/gcode/badge.ngc";
