@@ -30,6 +30,8 @@ fn cpu_s() -> f64 {
 }
 
 fn main() {
+    // Workers pinned when MICROCAM_PIN_THREADS=1 asks, as in the tools.
+    microcam::cli::threads::init_pool();
     let args: Vec<String> = std::env::args().collect();
     if args.len() < 3 {
         eprintln!("usage: mesh_bench MESH.stl RAYS.f64 [REPEAT]");

@@ -12,10 +12,15 @@
 //! own CPU makes every wake-up land on that CPU.
 //!
 //! Off by default, because it is a trade: on that machine, idle, a DXF
-//! import took 0.91x-1.02x the time pinned (about 0.95x); with one CPU
-//! taken by another process, 1.13x-1.20x (a pinned worker cannot move off
-//! the busy CPU). docs/dxf.md ("where the idle time goes") has the runs
-//! and the commands.
+//! import took 0.91x-1.02x the time pinned (about 0.95x) and two threads
+//! cast 10-25 % more rays a second; with one CPU taken by another
+//! process, pinned imports took 1.13x-1.20x the time (a pinned worker
+//! cannot move off the busy CPU). Pinning only when the machine looks idle
+//! at start was tried: the kernel's count of runnable threads at that
+//! instant caught the tool's own launcher (a shell, a pipeline's other
+//! tools starting) in two of three idle starts, so the choice would be a
+//! coin toss. docs/dxf.md ("where the idle time goes") has the runs and the
+//! commands.
 
 /// The environment variable that asks for pinned workers: any value but
 /// empty or `0`.
@@ -49,10 +54,11 @@ pub fn init_pool() {
 }
 
 /// A pool builder whose workers pin themselves, one CPU each; `None` where
-/// the CPUs this process may use cannot be read (or off Linux).
+/// the CPUs this process may use cannot be read (or off Linux), or there is
+/// only one.
 pub fn pinned_builder() -> Option<rayon::ThreadPoolBuilder> {
     let cpus = allowed_cpus()?;
-    if cpus.is_empty() {
+    if cpus.len() < 2 {
         return None;
     }
     Some(rayon::ThreadPoolBuilder::new().start_handler(move |i| pin_current_thread(cpus[i % cpus.len()])))
@@ -106,6 +112,10 @@ mod tests {
     fn each_worker_of_a_pinned_pool_runs_on_one_allowed_cpu_of_its_own() {
         let cpus = allowed_cpus().expect("sched_getaffinity works on Linux");
         assert!(!cpus.is_empty());
+        if cpus.len() < 2 {
+            assert!(pinned_builder().is_none(), "one CPU: nothing to pin");
+            return;
+        }
         let n = cpus.len().min(4);
         let pool = pinned_builder().unwrap().num_threads(n).build().unwrap();
         let mut seen: Vec<(usize, Vec<usize>)> = pool.broadcast(|ctx| (ctx.index(), allowed_cpus().unwrap()));
@@ -124,6 +134,9 @@ mod tests {
     #[test]
     fn more_workers_than_cpus_go_round_robin() {
         let cpus = allowed_cpus().unwrap();
+        if cpus.len() < 2 {
+            return; // nothing is pinned (checked above)
+        }
         let n = cpus.len() + 1;
         let pool = pinned_builder().unwrap().num_threads(n).build().unwrap();
         let mut seen: Vec<(usize, Vec<usize>)> = pool.broadcast(|ctx| (ctx.index(), allowed_cpus().unwrap()));
