@@ -7,14 +7,14 @@
 //! `sched_vcpu_pack` of the machine our benchmarks run on). There a rayon
 //! worker woken for a parallel step is queued behind the thread that woke
 //! it while the other CPU idles, often for the 4 ms until the next load
-//! balance; `perf sched timehist` showed such waits of 3 to 7 ms in every
-//! parallel stage of a 0.2 s `dxf2chains` run. Pinning each worker to its
+//! balance; `perf sched timehist` showed such waits of 3 to 7 ms in the
+//! parallel stages of a 0.2 s `dxf2chains` run. Pinning each worker to its
 //! own CPU makes every wake-up land on that CPU.
 //!
 //! Off by default, because it is a trade: on that machine, idle, a DXF
 //! import took 0.91x-1.02x the time pinned (about 0.95x) and two threads
 //! cast 10-25 % more rays a second; with one CPU taken by another
-//! process, pinned imports took 1.13x-1.20x the time (a pinned worker
+//! process, pinned imports took 1.06x-1.20x the time (a pinned worker
 //! cannot move off the busy CPU). Pinning only when the machine looks idle
 //! at start was tried: the kernel's count of runnable threads at that
 //! instant caught the tool's own launcher (a shell, a pipeline's other
