@@ -317,3 +317,98 @@ fn every_corpus_stl_gives_closed_waterlines_or_is_refused() {
         }
     }
 }
+
+/// A trough along x: the circle of radius `rho` about (y, z) = (0, rho)
+/// from -60 to +60 degrees in `m` facets, x from -3 to 3.
+fn trough(rho: f64, m: usize) -> Vec<[[f64; 3]; 3]> {
+    let th_max = 60f64.to_radians();
+    let yz = |k: usize| {
+        let th = -th_max + 2.0 * th_max * k as f64 / m as f64;
+        (rho * th.sin(), rho * (1.0 - th.cos()))
+    };
+    let mut t = Vec::new();
+    for k in 0..m {
+        let ((y0, z0), (y1, z1)) = (yz(k), yz(k + 1));
+        t.push([[-3.0, y0, z0], [3.0, y0, z0], [3.0, y1, z1]]);
+        t.push([[-3.0, y0, z0], [3.0, y1, z1], [-3.0, y1, z1]]);
+    }
+    t
+}
+
+#[test]
+fn five_axis_locations_that_would_gouge_are_lifted_or_reported() {
+    let dir = tempfile::tempdir().unwrap();
+    let stl = dir.path().join("trough.stl");
+    // A trough of radius 2 and a flat end mill of radius 1: along the
+    // surface normal its bottom cuts into the rising sides.
+    write_stl(&stl, &trough(2.0, 41));
+    let s = stl.to_str().unwrap();
+    let run = |extra: &[&str]| {
+        let o = pathgen()
+            .arg("dropcutter")
+            .arg(s)
+            .args([
+                "--tool",
+                "flat:1",
+                "--step-over",
+                "0.4",
+                "--region",
+                "-1,-1.2,1,1.2",
+                "--five-axis",
+                "--lead",
+                "5",
+            ])
+            .args(extra)
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{extra:?}: {}", String::from_utf8_lossy(&o.stderr));
+        (
+            read_cldata(&o.stdout[..]).unwrap(),
+            String::from_utf8(o.stderr).unwrap(),
+        )
+    };
+    let (lifted, e_lift) = run(&[]);
+    let (reported, e_report) = run(&["--gouge", "report"]);
+    let (off, e_off) = run(&["--gouge", "off"]);
+    assert!(
+        e_lift.contains("locations cut into the part") && e_lift.contains("lifted along the axis"),
+        "{e_lift}"
+    );
+    assert!(
+        e_report.contains("locations cut into the part") && e_report.contains("left as they are"),
+        "{e_report}"
+    );
+    assert!(!e_off.contains("gouge"), "{e_off}");
+    assert_eq!(reported.points, off.points);
+    assert_eq!(lifted.points.len(), off.points.len());
+    let mut moved = 0;
+    for i in 0..off.points.len() {
+        let (l, o) = (lifted.points[i], off.points[i]);
+        let axis = (off.axis[i] - o).normalize();
+        let shift = l - o;
+        // A lift moves the tool up its own axis, never down or sideways.
+        let along = shift.dot(&axis);
+        assert!(along >= 0.0 && (shift - axis * along).norm() < 1e-5, "{i}: {shift:?}");
+        assert!(((lifted.axis[i] - l).norm() - 50.0).abs() < 1e-5);
+        if along > 1e-3 {
+            moved += 1;
+        }
+    }
+    assert!(moved * 2 > off.points.len(), "{moved} of {}", off.points.len());
+    // The option belongs to 5-axis output.
+    let o = pathgen()
+        .args([
+            "dropcutter",
+            s,
+            "--tool",
+            "flat:1",
+            "--step-over",
+            "0.4",
+            "--gouge",
+            "report",
+        ])
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(2));
+    assert!(o.stdout.is_empty());
+}

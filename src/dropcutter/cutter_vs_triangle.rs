@@ -218,10 +218,13 @@ fn edge(s: &ContactCutter, x: f64, y: f64, p: [f64; 3], q: [f64; 3], best: &mut 
             (sc, p[2] + m * (u0 + sc) + w / l - radius)
         }
         Cutter::Torus { .. } => {
-            // The line's highest point over the disc bounds any contact
-            // (the underside is never below the tip): skip the solve when
-            // that cannot beat the best so far.
-            if p[2] + m * u0 + m.abs() * w <= *best {
+            // The edge's highest point over the disc, less the underside's
+            // height at the axis's nearest approach to the line (the
+            // profile rises with the distance, which is at least d), bounds
+            // any contact: skip the solve when that cannot beat the best
+            // so far, or when the edge misses the disc's chord.
+            let (s0, s1) = ((u0 - w).max(0.0), (u0 + w).min(len));
+            if s0 > s1 || p[2] + m * if m > 0.0 { s1 } else { s0 } - s.profile(d) <= *best {
                 return;
             }
             let sc = torus_edge_contact(s, d, m.abs(), w) * m.signum();

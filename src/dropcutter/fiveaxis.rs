@@ -15,9 +15,9 @@
 //! on the tangent plane and CL = CC.
 //!
 //! Contacts are on the facet straight below each sampled (x, y) with that
-//! facet's normal: the axis turns in steps at facet edges, and nothing
-//! checks the rest of the tool against the rest of the part (gouges on
-//! concave regions tighter than the tool are not prevented).
+//! facet's normal: the axis turns in steps at facet edges. The location
+//! keeps that facet clear, not the rest of the part; [`super::gouge`]
+//! checks the whole tool against the mesh afterwards.
 
 use super::{DropCutter, DropError};
 use crate::cutter::Cutter;

@@ -11,7 +11,8 @@
 //! On top of the drop: raster and along-chain sampling ([`raster`]),
 //! adaptive refinement to a chordal tolerance ([`adaptive`]), 5-axis
 //! locations along the surface normal in the layout of Singh 2014's
-//! Annexure 2 ([`fiveaxis`]), constant-Z waterlines ([`waterline`]), and
+//! Annexure 2 ([`fiveaxis`]) with a check that the rest of the tool
+//! stays out of the part ([`gouge`]), constant-Z waterlines ([`waterline`]), and
 //! the outputs ([`output`]).
 
 #![warn(missing_docs)]
@@ -20,6 +21,7 @@ pub mod adaptive;
 pub mod cutter_vs_triangle;
 mod fibre;
 pub mod fiveaxis;
+pub mod gouge;
 pub mod index;
 pub mod output;
 pub mod raster;
@@ -56,6 +58,9 @@ pub struct DropCutter {
     tris: Vec<Tri>,
     grid: Grid,
     bbox: BBox3,
+    /// The triangles' 3-D tree, for the 5-axis gouge check's capsule
+    /// queries; built on the first check, never for 3-axis work.
+    bvh: std::sync::OnceLock<crate::mesh::bvh::Bvh>,
 }
 
 impl DropCutter {
@@ -81,6 +86,7 @@ impl DropCutter {
             tris,
             grid,
             bbox: mesh.bbox(),
+            bvh: std::sync::OnceLock::new(),
         })
     }
 

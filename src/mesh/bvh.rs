@@ -285,6 +285,61 @@ impl Bvh {
         }
     }
 
+    /// Visit every triangle that may come within `r` of the segment
+    /// `p0`–`p1` (its index in the mesh and its corners): those in leaves
+    /// whose box, grown by `r` on every side, the segment crosses. A
+    /// superset of the triangles within `r` (the grown box holds the
+    /// rounded one), each visited once; the caller tests them exactly.
+    /// For a tool's swept body (the 5-axis gouge check): a capsule query
+    /// on the 3-D tree, where a grid over the XY plane would list every
+    /// triangle under a steep tool's whole shadow.
+    pub fn for_each_near_segment(&self, p0: P3, p1: P3, r: f64, mut f: impl FnMut(u32, &[P3; 3])) {
+        if self.nodes.is_empty() || r.is_nan() || r < 0.0 {
+            return;
+        }
+        let d = p1 - p0;
+        let meets = |n: &Node| {
+            // Slab test of the segment (parameter 0..1) against the box.
+            let (mut t0, mut t1) = (0.0f64, 1.0f64);
+            for k in 0..3 {
+                let (lo, hi) = (n.min[k] as f64 - r, n.max[k] as f64 + r);
+                if d[k] == 0.0 {
+                    if p0[k] < lo || p0[k] > hi {
+                        return false;
+                    }
+                    continue;
+                }
+                let (a, b) = ((lo - p0[k]) / d[k], (hi - p0[k]) / d[k]);
+                t0 = t0.max(a.min(b));
+                t1 = t1.min(a.max(b));
+                if t0 > t1 {
+                    return false;
+                }
+            }
+            true
+        };
+        let mut stack: Vec<u32> = Vec::with_capacity(64);
+        let mut node = 0u32;
+        loop {
+            let nd = &self.nodes[node as usize];
+            if meets(nd) {
+                if nd.n > 0 {
+                    for i in nd.a..nd.a + nd.n {
+                        f(self.ids[i as usize], &self.tris[i as usize]);
+                    }
+                } else {
+                    stack.push(nd.a);
+                    node += 1;
+                    continue;
+                }
+            }
+            match stack.pop() {
+                Some(n) => node = n,
+                None => return,
+            }
+        }
+    }
+
     /// Work a first-hit query does: (nodes whose children were box-tested,
     /// triangles tested). For benchmarks and docs/mesh.md.
     pub fn first_hit_cost(&self, ray: &Ray) -> (usize, usize) {

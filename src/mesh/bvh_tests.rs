@@ -141,6 +141,38 @@ proptest! {
     #![proptest_config(ProptestConfig::with_cases(64))]
 
     #[test]
+    fn segment_queries_visit_every_triangle_within_reach_once(
+        x0 in -6.0f64..6.0, y0 in -6.0f64..6.0, z0 in -6.0f64..6.0,
+        x1 in -6.0f64..6.0, y1 in -6.0f64..6.0, z1 in -6.0f64..6.0,
+        r in 0.0f64..1.5, seed in 0u32..3,
+    ) {
+        let m = match seed {
+            0 => solids::sphere(P3::new(0.3, 0.0, 0.0), 2.0, 24, 12),
+            1 => solids::torus(P3::origin(), 3.0, 1.0, 24, 12),
+            _ => solids::cylinder(P3::new(0.0, 0.0, -2.0), P3::new(1.0, 2.0, 3.0), 1.5, 20, 4),
+        };
+        let bvh = Bvh::new(&m);
+        let (p0, p1) = (P3::new(x0, y0, z0), P3::new(x1, y1, z1));
+        let mut seen = vec![0u32; m.triangles.len()];
+        bvh.for_each_near_segment(p0, p1, r, |i, c| {
+            seen[i as usize] += 1;
+            let t = m.triangle(i as usize);
+            assert_eq!(*c, [t.a, t.b, t.c]);
+        });
+        prop_assert!(seen.iter().all(|&n| n <= 1));
+        // Points along the segment: a triangle within r of any of them is
+        // within r of the segment, so it must have been visited.
+        for k in 0..=200 {
+            let p = p0 + (p1 - p0) * (k as f64 / 200.0);
+            for (i, t) in m.iter_triangles().enumerate() {
+                if (closest_on_triangle(&p, &t.a, &t.b, &t.c) - p).norm() <= r {
+                    prop_assert!(seen[i] == 1, "triangle {} within {} of {:?} not visited", i, r, p);
+                }
+            }
+        }
+    }
+
+    #[test]
     fn nearest_point_matches_brute_force(x in -6.0f64..6.0, y in -6.0f64..6.0, z in -6.0f64..6.0, seed in 0u32..4) {
         let m = match seed {
             0 => solids::sphere(P3::new(0.3, 0.0, 0.0), 2.0, 24, 12),

@@ -7,6 +7,7 @@ use microcam::cli::{self, CliError, Output};
 use microcam::cutter::Cutter;
 use microcam::dropcutter::adaptive::Adaptive;
 use microcam::dropcutter::fiveaxis::FiveAxis;
+use microcam::dropcutter::gouge::{self, GougeReport, GougeRule};
 use microcam::dropcutter::output::{Feeds, toolpath_records, write_cldata, write_cldata5};
 use microcam::dropcutter::raster::{Direction, Pattern, Raster, chain_passes};
 use microcam::dropcutter::waterline::Waterline;
@@ -29,11 +30,15 @@ Examples:
   pathgen dropcutter part.stl --tool flat:1 --step-over 0.1 --chord-tol 0.001 --gcode iso > part.ngc
   dxf2chains path.dxf | pathgen dropcutter part.stl --tool ball:0.5 --chains - --step-forward 0.02
   pathgen dropcutter part.stl --tool flat:2 --step-over 0.5 --five-axis --lead 5 --tilt 0 > part5.cl
+  pathgen dropcutter part.stl --tool torus:1:0.2 --step-over 0.2 --five-axis --gouge report > raw5.cl
   pathgen dropcutter part.stl --tool ball:1 --waterline-step 0.2 --step-over 0.02 --gcode iso > walls.ngc
 
 The mesh is STL (ASCII or binary) or OBJ in mm unless --units says otherwise.
 CL data rows are 'x y z' (tool tip) or, with --five-axis, 'x y z x1 y1 z1'
 (tip and a point up the tool axis: the layout of Singh 2014, Annexure 2).
+5-axis locations are checked with the whole tool, --axis-length of it: one
+that would cut into the part away from its contact is lifted along its axis
+(--gouge lift, the default), or only reported (--gouge report).
 Passes are joined at the safe Z. Waterlines (--waterline, --waterline-step)
 are closed loops at constant Z round the model, the model on the right of
 the travel (climb milling with M3), found on fibres --step-over apart.
@@ -61,6 +66,17 @@ pub enum FormatArg {
     Cl,
     /// microcam.toolpath/1.
     Toolpath,
+}
+
+/// What the 5-axis gouge check does.
+#[derive(Clone, Copy, ValueEnum, PartialEq)]
+pub enum GougeArg {
+    /// Lift a gouging location along its tool axis until the tool only touches the part.
+    Lift,
+    /// Keep every location as computed; only report the gouges.
+    Report,
+    /// No check.
+    Off,
 }
 
 /// Units of the mesh file.
@@ -144,9 +160,14 @@ pub struct DropcutterArgs {
     /// 5-axis: lean of the axis to the left of the feed direction (degrees).
     #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
     tilt: f64,
-    /// 5-axis: distance from the tip to the second point on the axis (mm).
+    /// 5-axis: distance from the tip to the second point on the axis (mm);
+    /// also the length of tool the gouge check tests against the part.
     #[arg(long, default_value_t = 50.0)]
     axis_length: f64,
+    /// 5-axis: check the whole tool, not only its contact point, against
+    /// the part, and lift or report the locations where it cuts in.
+    #[arg(long, value_enum, default_value_t = GougeArg::Lift, requires = "five_axis")]
+    gouge: GougeArg,
     #[command(flatten)]
     writer: WriterArgs,
     /// Write output here instead of stdout.
@@ -169,6 +190,29 @@ fn parse_region(s: &str) -> Result<[f64; 4], String> {
 
 fn bad(e: DropError) -> CliError {
     CliError::input(e.to_string())
+}
+
+/// One line on what the gouge check found and did.
+fn gouge_summary(r: &GougeReport, rule: GougeRule, length: f64) -> String {
+    let Some(at) = r.deepest_at else {
+        return format!(
+            "gouge check: none of {} locations cuts into the part (tool checked {length} mm up its axis)",
+            r.checked
+        );
+    };
+    format!(
+        "gouge check: {} of {} locations cut into the part (up to {:.6} mm along the tool axis, the deepest with its tip at {:.6} {:.6} {:.6}); {}",
+        r.gouging,
+        r.checked,
+        r.deepest,
+        at.x,
+        at.y,
+        at.z,
+        match rule {
+            GougeRule::Lift => "lifted along the axis until the tool only touches (material is left there)",
+            GougeRule::Report => "left as they are (--gouge report)",
+        }
+    )
 }
 
 fn positive(name: &str, v: f64) -> Result<f64, CliError> {
@@ -267,10 +311,28 @@ pub fn run(a: DropcutterArgs) -> Result<(), CliError> {
             runs.extend(fa.pass(&dc, p).map_err(bad)?);
         }
         n_points = runs.iter().map(Vec::len).sum();
+        let rule = match a.gouge {
+            GougeArg::Lift => Some(GougeRule::Lift),
+            GougeArg::Report => Some(GougeRule::Report),
+            GougeArg::Off => None,
+        };
+        if let Some(rule) = rule {
+            let report = gouge::check(&dc, &mut runs, fa.axis_length, rule);
+            eprintln!(
+                "pathgen: dropcutter: 5-axis: {}",
+                gouge_summary(&report, rule, fa.axis_length)
+            );
+        }
         let mut w = ClWriter::new(&mut out);
         w.comment(&format!(
-            "microcam 5-axis CL data: x y z (tool tip) x1 y1 z1 (point on the tool axis), mm; cutter {cutter}, lead {} deg, tilt {} deg, from {name}",
-            a.lead, a.tilt
+            "microcam 5-axis CL data: x y z (tool tip) x1 y1 z1 (point on the tool axis), mm; cutter {cutter}, lead {} deg, tilt {} deg, gouge check {}, from {name}",
+            a.lead,
+            a.tilt,
+            match a.gouge {
+                GougeArg::Lift => "lift",
+                GougeArg::Report => "report",
+                GougeArg::Off => "off",
+            }
         ))?;
         write_cldata5(&mut w, &runs, safe_z)?;
         w.finish()?;

@@ -1,0 +1,214 @@
+//! The 5-axis gouge check: does the tool, placed at a 5-axis location,
+//! cut into the part anywhere other than at its contact point?
+//!
+//! A 5-axis location ([`super::fiveaxis`]) is made from one contact point
+//! and one facet's normal, so nothing in its construction keeps the rest
+//! of the cutter out of the part: on a concave region tighter than the
+//! tool (a fillet, a trough, the foot of a wall) the flat bottom or the
+//! corner of the cutter sits inside the neighbouring facets. The check
+//! asks, for each location, how far the cutter must move up its own axis
+//! until it only touches the mesh, and that is exactly a drop-cutter
+//! question in the tool's frame: turn the mesh so the axis is vertical,
+//! drop the same cutter on the same triangles at the axis, and the CL
+//! height found above the tip is the depth of the gouge. The contact
+//! formulas are the 3-axis ones ([`super::cutter_vs_triangle`]), so the
+//! answer is exact against every vertex, edge and facet, not sampled.
+//!
+//! What counts as the tool: the cutter's profile from its tip up to
+//! `length` along the axis (pathgen's `--axis-length`, the second point of
+//! Singh 2014's 5-axis row), with the cutter's radius all the way up.
+//! Triangles are cut at that height, so a part of the mesh beyond it (the
+//! far wall of a bowl across the axis) is not a gouge; a holder wider than
+//! the cutter is not modelled.
+//!
+//! A gouging location is either lifted along its axis by the depth found
+//! (the tool then touches the part and leaves material, which the
+//! verification shows as an undercut, instead of cutting into it) or left
+//! as it is and only reported ([`GougeRule`]).
+
+use super::DropCutter;
+use super::cutter_vs_triangle::{Tri, drop_on};
+use super::fiveaxis::Location;
+use crate::geometry::{P3, V3};
+use crate::mesh::bvh::Bvh;
+use crate::mesh::{Mesh, Triangle};
+use rayon::prelude::*;
+
+/// Depths up to this are the round-off of the contact itself, not gouges
+/// (mm): a location's cutter touches its own facet at a height of about
+/// 1e-15 of the coordinates above or below the tip.
+pub const GOUGE_TOL: f64 = 1e-6;
+
+/// What to do with a location whose tool cuts into the part.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum GougeRule {
+    /// Move the tool up its axis until it only touches the part.
+    Lift,
+    /// Leave the location as it is; only count it.
+    Report,
+}
+
+/// What the check found over a set of locations.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct GougeReport {
+    /// Locations checked.
+    pub checked: usize,
+    /// Locations whose tool cut into the part by more than [`GOUGE_TOL`].
+    pub gouging: usize,
+    /// The deepest gouge, along the tool axis (mm); 0 when none.
+    pub deepest: f64,
+    /// The tool tip of the deepest gouge, as it was before any lift.
+    pub deepest_at: Option<P3>,
+}
+
+impl DropCutter {
+    /// How far the cutter with its tip at `tip` and its axis along `axis`
+    /// (towards the holder; any length) must move up that axis so that,
+    /// from the tip to `length` up the axis, it meets the mesh only on its
+    /// surface: 0 when it is clear already (or touches only), else the
+    /// depth of the deepest penetration measured along the axis.
+    pub fn clearance_along(&self, tip: P3, axis: V3, length: f64) -> f64 {
+        let n = axis.norm();
+        let usable = n.is_finite() && n > 0.0 && length > 0.0 && tip.coords.iter().all(|c| c.is_finite());
+        if !usable {
+            return 0.0;
+        }
+        let a = axis / n;
+        let r = self.shape.r;
+        // The part of the axis whose cutter disc can reach the mesh: the
+        // segment clipped to the mesh's box grown by the radius.
+        let Some((s0, s1)) = clip_to_box(
+            tip,
+            a,
+            length,
+            self.bbox.min - V3::repeat(r),
+            self.bbox.max + V3::repeat(r),
+        ) else {
+            return 0.0;
+        };
+        let helper = if a.x.abs() < 0.9 { V3::x() } else { V3::y() };
+        let e1 = (helper - a * helper.dot(&a)).normalize();
+        let e2 = a.cross(&e1);
+        let local = |p: &P3| {
+            let d = p - tip;
+            P3::new(d.dot(&e1), d.dot(&e2), d.dot(&a))
+        };
+        // The triangles near the clipped stretch of the axis: a capsule
+        // query on the mesh's 3-D tree (built on the first check).
+        let bvh = self.bvh.get_or_init(|| {
+            let tris: Vec<Triangle> = self
+                .tris
+                .iter()
+                .map(|t| {
+                    let [a, b, c] = t.v.map(|p| P3::new(p[0], p[1], p[2]));
+                    Triangle::new(a, b, c)
+                })
+                .collect();
+            Bvh::new(&Mesh::from_triangles(&tris))
+        });
+        let mut best = 0.0f64;
+        bvh.for_each_near_segment(tip + a * s0, tip + a * s1, r, |_, c| {
+            let [p, q, w] = [local(&c[0]), local(&c[1]), local(&c[2])];
+            // Wholly beyond the checked length, or wholly below the
+            // deepest contact found: nothing to add.
+            if p.z.min(q.z).min(w.z) > length || p.z.max(q.z).max(w.z) <= best {
+                return;
+            }
+            let (count, parts) = clip_below(Triangle::new(p, q, w), length);
+            for tri in &parts[..count] {
+                let tri = Tri::new(tri);
+                if tri.zmax > best && tri.near(0.0, 0.0, r) {
+                    drop_on(&self.shape, 0.0, 0.0, &tri, &mut best);
+                }
+            }
+        });
+        best
+    }
+}
+
+/// Check every location of `runs` (tools `length` long), lifting the
+/// gouging ones along their axes when `rule` says so; in parallel, and the
+/// same result whatever the thread count.
+pub fn check(dc: &DropCutter, runs: &mut [Vec<Location>], length: f64, rule: GougeRule) -> GougeReport {
+    let depths: Vec<Vec<f64>> = runs
+        .par_iter()
+        .map(|run| {
+            run.par_iter()
+                .map(|l| dc.clearance_along(l.cl, l.axis_point - l.cl, length))
+                .collect()
+        })
+        .collect();
+    let mut report = GougeReport::default();
+    for (run, depths) in runs.iter_mut().zip(&depths) {
+        for (l, &d) in run.iter_mut().zip(depths) {
+            report.checked += 1;
+            if d <= GOUGE_TOL {
+                continue;
+            }
+            report.gouging += 1;
+            if d > report.deepest {
+                report.deepest = d;
+                report.deepest_at = Some(l.cl);
+            }
+            if rule == GougeRule::Lift {
+                let a = (l.axis_point - l.cl).normalize();
+                l.cl += a * d;
+                l.axis_point += a * d;
+            }
+        }
+    }
+    report
+}
+
+/// The parameter range `[s0, s1]` within `[0, length]` of the points
+/// `tip + s a` inside the box `lo..hi`; `None` when there are none.
+fn clip_to_box(tip: P3, a: V3, length: f64, lo: P3, hi: P3) -> Option<(f64, f64)> {
+    let (mut s0, mut s1) = (0.0f64, length);
+    for i in 0..3 {
+        if a[i] == 0.0 {
+            if tip[i] < lo[i] || tip[i] > hi[i] {
+                return None;
+            }
+            continue;
+        }
+        let (t0, t1) = ((lo[i] - tip[i]) / a[i], (hi[i] - tip[i]) / a[i]);
+        s0 = s0.max(t0.min(t1));
+        s1 = s1.min(t0.max(t1));
+    }
+    (s0 <= s1).then_some((s0, s1))
+}
+
+/// The part of triangle `t` at or below height `h` (z), as up to two
+/// triangles (the count, then the triangles).
+fn clip_below(t: Triangle, h: f64) -> (usize, [Triangle; 2]) {
+    let v = [t.a, t.b, t.c];
+    if v.iter().all(|p| p.z <= h) {
+        return (1, [t, t]);
+    }
+    let mut poly = [P3::origin(); 4];
+    let mut n = 0;
+    for i in 0..3 {
+        let (p, q) = (v[i], v[(i + 1) % 3]);
+        if p.z <= h {
+            poly[n] = p;
+            n += 1;
+        }
+        if (p.z <= h) != (q.z <= h) {
+            let s = (h - p.z) / (q.z - p.z);
+            let mut x = p + (q - p) * s;
+            x.z = h;
+            poly[n] = x;
+            n += 1;
+        }
+    }
+    let first = Triangle::new(poly[0], poly[1], poly[2]);
+    match n {
+        3 => (1, [first, first]),
+        4 => (2, [first, Triangle::new(poly[0], poly[2], poly[3])]),
+        _ => (0, [first, first]),
+    }
+}
+
+#[cfg(test)]
+#[path = "gouge_tests.rs"]
+mod tests;

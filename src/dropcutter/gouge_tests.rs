@@ -1,0 +1,245 @@
+//! The gouge check against answers found another way: a brute-force
+//! search along a trough whose cross-section is known, points sampled on
+//! every triangle tested against the lifted tool's solid, and a convex
+//! part on which no 5-axis location can gouge.
+
+use super::*;
+use crate::cutter::Cutter;
+use crate::dropcutter::fiveaxis::FiveAxis;
+use crate::geometry::P2;
+use crate::mesh::Mesh;
+
+/// A trough along x: the circle of radius `rho` about (y, z) = (0, rho),
+/// from -60 to +60 degrees in `m` (odd) facets, so the middle facet is
+/// level; x from -4 to 4 in 8 strips.
+fn trough(rho: f64, m: usize) -> (Mesh, Vec<(f64, f64)>) {
+    assert!(m % 2 == 1);
+    let th_max = 60f64.to_radians();
+    let section: Vec<(f64, f64)> = (0..=m)
+        .map(|k| {
+            let th = -th_max + 2.0 * th_max * k as f64 / m as f64;
+            (rho * th.sin(), rho * (1.0 - th.cos()))
+        })
+        .collect();
+    let mut tris = Vec::new();
+    for i in 0..8 {
+        let (x0, x1) = (-4.0 + i as f64, -3.0 + i as f64);
+        for w in section.windows(2) {
+            let [(y0, z0), (y1, z1)] = [w[0], w[1]];
+            let (a, b, c, d) = (
+                P3::new(x0, y0, z0),
+                P3::new(x1, y0, z0),
+                P3::new(x1, y1, z1),
+                P3::new(x0, y1, z1),
+            );
+            tris.push(Triangle::new(a, b, c));
+            tris.push(Triangle::new(a, c, d));
+        }
+    }
+    (Mesh::from_triangles(&tris), section)
+}
+
+/// Height of the cutter's underside above its tip at distance `u` from
+/// the axis (written out again here, not taken from the drop code).
+fn underside(cutter: Cutter, u: f64) -> f64 {
+    let (r, rc) = (cutter.radius(), cutter.corner_radius());
+    let flat = r - rc;
+    if u <= flat {
+        0.0
+    } else {
+        let w = (u - flat).min(rc);
+        rc - (rc * rc - w * w).sqrt()
+    }
+}
+
+/// The tessellated section's height at `y` (linear between its corners).
+fn section_z(section: &[(f64, f64)], y: f64) -> f64 {
+    let k = section.partition_point(|&(sy, _)| sy <= y).clamp(1, section.len() - 1);
+    let ((y0, z0), (y1, z1)) = (section[k - 1], section[k]);
+    z0 + (z1 - z0) * (y - y0) / (y1 - y0)
+}
+
+#[test]
+fn a_vertical_tool_in_a_trough_rises_to_the_brute_force_height() {
+    let (mesh, section) = trough(2.0, 121);
+    let bottom = section_z(&section, 0.0);
+    for cutter in [
+        Cutter::Flat { radius: 1.0 },
+        Cutter::Torus {
+            radius: 1.0,
+            corner: 0.3,
+        },
+        Cutter::Flat { radius: 0.3 },
+    ] {
+        let dc = DropCutter::new(&mesh, cutter).unwrap();
+        let lift = dc.clearance_along(P3::new(0.3, 0.0, bottom), V3::z(), 50.0);
+        // Brute force over the section (the trough is the same along x,
+        // so the deepest point is straight across the axis): every
+        // corner and a fine grid between.
+        let r = cutter.radius();
+        let mut ys: Vec<f64> = (0..=400_000).map(|i| -r + 2.0 * r * i as f64 / 400_000.0).collect();
+        ys.extend(section.iter().map(|&(y, _)| y).filter(|y| y.abs() <= r));
+        let want = ys
+            .iter()
+            .map(|&y| section_z(&section, y) - underside(cutter, y.abs()) - bottom)
+            .fold(0.0f64, f64::max);
+        assert!((lift - want).abs() < 1e-7, "{cutter:?}: {lift} against {want}");
+        if cutter.radius() == 1.0 && cutter.corner_radius() == 0.0 {
+            // The circle itself: the rim at |y| = 1 under the true arc.
+            let analytic = 2.0 - (4.0f64 - 1.0).sqrt();
+            assert!((lift - analytic).abs() < 2e-4, "{lift} against {analytic}");
+        }
+    }
+    // A tool narrow enough to fit the level facet touches and no more.
+    let dc = DropCutter::new(&mesh, Cutter::Flat { radius: 0.01 }).unwrap();
+    assert!(dc.clearance_along(P3::new(0.3, 0.0, bottom), V3::z(), 50.0) <= GOUGE_TOL);
+}
+
+/// Whether the point `p` lies inside the tool (tip `tip`, unit axis `a`,
+/// `length` long) deeper than `eps`.
+fn inside_tool(cutter: Cutter, tip: P3, a: V3, length: f64, p: P3, eps: f64) -> bool {
+    let d = p - tip;
+    let h = d.dot(&a);
+    let u = (d - a * h).norm();
+    u < cutter.radius() - eps && h > underside(cutter, u) + eps && h < length - eps
+}
+
+#[test]
+fn lifted_locations_leave_every_sampled_point_of_the_part_outside_the_tool() {
+    let (mesh, _) = trough(2.0, 41);
+    let tris: Vec<Triangle> = mesh.iter_triangles().collect();
+    let xy: Vec<P2> = (0..=24).map(|i| P2::new(-1.0, -1.6 + 3.2 * i as f64 / 24.0)).collect();
+    for cutter in [
+        Cutter::Flat { radius: 1.0 },
+        Cutter::Torus {
+            radius: 0.8,
+            corner: 0.2,
+        },
+    ] {
+        let dc = DropCutter::new(&mesh, cutter).unwrap();
+        for (lead, tilt) in [(0.0f64, 0.0f64), (10.0, 0.0), (5.0, -15.0)] {
+            let fa = FiveAxis {
+                lead: lead.to_radians(),
+                tilt: tilt.to_radians(),
+                axis_length: 6.0,
+            };
+            let raw = fa.pass(&dc, &xy).unwrap();
+            let mut lifted = raw.clone();
+            let report = check(&dc, &mut lifted, 6.0, GougeRule::Lift);
+            let mut reported = raw.clone();
+            assert_eq!(check(&dc, &mut reported, 6.0, GougeRule::Report), report);
+            assert_eq!(reported, raw, "Report leaves the locations");
+            assert_eq!(report.checked, 25);
+            assert!(report.gouging >= 10, "{cutter:?} {lead} {tilt}: {report:?}");
+            let mut found_raw_gouge = false;
+            for (l, r0) in lifted.iter().flatten().zip(raw.iter().flatten()) {
+                let a = (l.axis_point - l.cl).normalize();
+                let depth = dc.clearance_along(r0.cl, a, 6.0);
+                for t in &tris {
+                    for i in 0..=12 {
+                        for j in 0..=12 - i {
+                            let (u, v) = (i as f64 / 12.0, j as f64 / 12.0);
+                            let p = t.a + (t.b - t.a) * u + (t.c - t.a) * v;
+                            assert!(
+                                !inside_tool(cutter, l.cl, a, 6.0, p, 1e-7),
+                                "{cutter:?} {lead} {tilt}: {p:?} inside the tool at {:?}",
+                                l.cl
+                            );
+                            found_raw_gouge |= inside_tool(cutter, r0.cl, a, 6.0, p, 1e-3);
+                        }
+                    }
+                }
+                // Lifted just enough: lowered a little it cuts again.
+                let rest = dc.clearance_along(l.cl, a, 6.0);
+                assert!(rest <= GOUGE_TOL, "{rest}");
+                let lower = dc.clearance_along(l.cl - a * 1e-3, a, 6.0);
+                if depth > GOUGE_TOL {
+                    assert!((lower - 1e-3).abs() < 1e-9, "{depth}: {lower}");
+                } else {
+                    assert!(lower <= 1e-3 + 1e-9, "{depth}: {lower}");
+                }
+            }
+            assert!(found_raw_gouge, "the unlifted tool does cut into the trough");
+        }
+    }
+}
+
+#[test]
+fn nothing_gouges_a_convex_part() {
+    let mesh = crate::dropcutter::tests::sphere(5.0, 64, 32);
+    let xy: Vec<Vec<P2>> = (0..=12)
+        .map(|j| {
+            (0..=40)
+                .map(|i| P2::new(-3.5 + 7.0 * i as f64 / 40.0, -3.0 + 0.5 * j as f64))
+                .collect()
+        })
+        .collect();
+    for cutter in [
+        Cutter::Flat { radius: 1.0 },
+        Cutter::Torus {
+            radius: 1.0,
+            corner: 0.25,
+        },
+    ] {
+        let dc = DropCutter::new(&mesh, cutter).unwrap();
+        for (lead, tilt) in [(0.0, 0.0), (5.0f64, -3.0f64), (20.0, 10.0)] {
+            let fa = FiveAxis {
+                lead: lead.to_radians(),
+                tilt: tilt.to_radians(),
+                axis_length: 50.0,
+            };
+            let mut runs = Vec::new();
+            for p in &xy {
+                runs.extend(fa.pass(&dc, p).unwrap());
+            }
+            let before = runs.clone();
+            let report = check(&dc, &mut runs, 50.0, GougeRule::Lift);
+            assert_eq!(report.checked, 13 * 41);
+            assert_eq!(report.gouging, 0, "{cutter:?} {lead} {tilt}: {report:?}");
+            assert_eq!(runs, before);
+        }
+    }
+}
+
+#[test]
+fn the_checked_length_bounds_the_tool() {
+    // A tall block beside a level floor: a tool standing on the floor
+    // next to it, leaning over it, meets the block only above height 2.
+    let mut tris = Vec::new();
+    let floor = crate::mesh::solids::cuboid(P3::new(-5.0, -5.0, -1.0), P3::new(5.0, 5.0, 0.0));
+    tris.extend(floor.iter_triangles());
+    let block = crate::mesh::solids::cuboid(P3::new(2.0, -5.0, 2.0), P3::new(5.0, 5.0, 8.0));
+    tris.extend(block.iter_triangles());
+    let mesh = Mesh::from_triangles(&tris);
+    let dc = DropCutter::new(&mesh, Cutter::Flat { radius: 0.5 }).unwrap();
+    let a = V3::new(1.0, 0.0, 1.0).normalize();
+    // The tip half a radius over the floor, so the leaning bottom clears it.
+    let tip = P3::new(0.0, 0.0, 0.5);
+    // Up to 2 mm along the axis the tool is clear of the block.
+    assert!(dc.clearance_along(tip, a, 2.0) <= GOUGE_TOL);
+    // 10 mm long it runs into the block's underside.
+    assert!(dc.clearance_along(tip, a, 10.0) > 1.0);
+    // A roof sloping down across the axis of a vertical tool: below 1 mm
+    // up the axis it stays beyond the radius, so only a longer tool meets
+    // it (its triangles reach down to 0.5 mm, so they must be cut at the
+    // checked height, not only rejected whole).
+    let roof = |x: f64| 2.5 + 2.0 * x;
+    let (p, q, r, t) = (
+        P3::new(-1.0, -2.0, roof(-1.0)),
+        P3::new(1.0, -2.0, roof(1.0)),
+        P3::new(1.0, 2.0, roof(1.0)),
+        P3::new(-1.0, 2.0, roof(-1.0)),
+    );
+    let mesh = Mesh::from_triangles(&[Triangle::new(p, q, r), Triangle::new(p, r, t)]);
+    let dc = DropCutter::new(&mesh, Cutter::Flat { radius: 0.5 }).unwrap();
+    let up = V3::z();
+    assert!(dc.clearance_along(P3::origin(), up, 1.0) <= GOUGE_TOL);
+    // 2 mm long, the roof up to 2 mm lies in its disc from x = -0.5
+    // (height 1.5) to x = -0.25 (height 2): 2 mm deep along the axis.
+    let two = dc.clearance_along(P3::origin(), up, 2.0);
+    assert!((two - 2.0).abs() < 1e-9, "{two}");
+    // Degenerate queries are clear, not errors.
+    assert_eq!(dc.clearance_along(tip, V3::zeros(), 10.0), 0.0);
+    assert_eq!(dc.clearance_along(P3::new(f64::NAN, 0.0, 0.0), a, 10.0), 0.0);
+    assert_eq!(dc.clearance_along(tip, a, 0.0), 0.0);
+}
