@@ -412,3 +412,62 @@ fn five_axis_locations_that_would_gouge_are_lifted_or_reported() {
     assert_eq!(o.status.code(), Some(2));
     assert!(o.stdout.is_empty());
 }
+
+/// The gouge check seen by the other engine: `stlverify` sweeps the tool
+/// along the 5-axis locations through a dexel stock and compares the
+/// machined top with the design. Unchecked, the tool cuts into every point
+/// of the trough; lifted, nothing is cut below the design and what is left
+/// stays within 0.01 mm.
+#[test]
+fn stlverify_finds_the_unchecked_gouges_and_none_after_the_lift() {
+    let dir = tempfile::tempdir().unwrap();
+    let stl = dir.path().join("trough.stl");
+    write_stl(&stl, &trough(2.0, 41));
+    let verify = |mode: &str| {
+        let cl = dir.path().join(format!("{mode}.cl"));
+        let o = pathgen()
+            .arg("dropcutter")
+            .arg(&stl)
+            .args(["--tool", "flat:1", "--step-over", "0.1", "--region", "-2,-1.2,2,1.2"])
+            .args(["--five-axis", "--lead", "5", "--gouge", mode, "-o"])
+            .arg(&cl)
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let v = Command::new(env!("CARGO_BIN_EXE_stlverify"))
+            .args([
+                "--quiet",
+                "--stock",
+                "-3,-1.7,-1,3,1.7,1",
+                "--tool",
+                "flat:1",
+                "--flute-length",
+                "5",
+            ])
+            .arg("--design")
+            .arg(&stl)
+            .args([
+                "--region",
+                "-1.5,1.5,-1,1",
+                "--step-forward",
+                "0.05",
+                "--step-over",
+                "0.05",
+            ])
+            .args(["--band", "0.01"])
+            .arg(&cl)
+            .output()
+            .unwrap();
+        let r: serde_json::Value = serde_json::from_slice(&v.stdout).unwrap();
+        (v.status.code(), r["verification"].clone())
+    };
+    let (code, off) = verify("off");
+    assert_eq!(code, Some(1));
+    assert_eq!(off["gouge"], off["points"], "{off}");
+    assert!(off["max_gouge_mm"].as_f64().unwrap() > 0.05, "{off}");
+    let (code, lift) = verify("lift");
+    assert_eq!(code, Some(0), "{lift}");
+    assert_eq!(lift["gouge"], 0, "{lift}");
+    assert_eq!(lift["excess"], 0, "{lift}");
+    assert!(lift["max_excess_mm"].as_f64().unwrap() < 0.01, "{lift}");
+}

@@ -61,29 +61,51 @@ pub struct GougeReport {
     pub deepest_at: Option<P3>,
 }
 
-impl DropCutter {
+/// A mesh and cutter prepared for gouge checks: the drop-cutter's
+/// triangles and cutter, and a 3-D tree over the triangles for the
+/// capsule queries (built once here, before any parallel work: a tree
+/// built lazily inside rayon tasks could steal one of those tasks while it
+/// builds and wait on itself).
+pub struct GougeCheck<'a> {
+    dc: &'a DropCutter,
+    bvh: Bvh,
+}
+
+impl<'a> GougeCheck<'a> {
+    /// Prepare checks of `dc`'s cutter against its mesh.
+    pub fn new(dc: &'a DropCutter) -> GougeCheck<'a> {
+        let tris: Vec<Triangle> = dc
+            .tris
+            .iter()
+            .map(|t| {
+                let [a, b, c] = t.v.map(|p| P3::new(p[0], p[1], p[2]));
+                Triangle::new(a, b, c)
+            })
+            .collect();
+        GougeCheck {
+            dc,
+            bvh: Bvh::new(&Mesh::from_triangles(&tris)),
+        }
+    }
+
     /// How far the cutter with its tip at `tip` and its axis along `axis`
     /// (towards the holder; any length) must move up that axis so that,
     /// from the tip to `length` up the axis, it meets the mesh only on its
     /// surface: 0 when it is clear already (or touches only), else the
     /// depth of the deepest penetration measured along the axis.
-    pub fn clearance_along(&self, tip: P3, axis: V3, length: f64) -> f64 {
+    pub fn clearance(&self, tip: P3, axis: V3, length: f64) -> f64 {
+        let dc = self.dc;
         let n = axis.norm();
         let usable = n.is_finite() && n > 0.0 && length > 0.0 && tip.coords.iter().all(|c| c.is_finite());
         if !usable {
             return 0.0;
         }
         let a = axis / n;
-        let r = self.shape.r;
+        let r = dc.shape.r;
         // The part of the axis whose cutter disc can reach the mesh: the
         // segment clipped to the mesh's box grown by the radius.
-        let Some((s0, s1)) = clip_to_box(
-            tip,
-            a,
-            length,
-            self.bbox.min - V3::repeat(r),
-            self.bbox.max + V3::repeat(r),
-        ) else {
+        let Some((s0, s1)) = clip_to_box(tip, a, length, dc.bbox.min - V3::repeat(r), dc.bbox.max + V3::repeat(r))
+        else {
             return 0.0;
         };
         let helper = if a.x.abs() < 0.9 { V3::x() } else { V3::y() };
@@ -94,20 +116,9 @@ impl DropCutter {
             P3::new(d.dot(&e1), d.dot(&e2), d.dot(&a))
         };
         // The triangles near the clipped stretch of the axis: a capsule
-        // query on the mesh's 3-D tree (built on the first check).
-        let bvh = self.bvh.get_or_init(|| {
-            let tris: Vec<Triangle> = self
-                .tris
-                .iter()
-                .map(|t| {
-                    let [a, b, c] = t.v.map(|p| P3::new(p[0], p[1], p[2]));
-                    Triangle::new(a, b, c)
-                })
-                .collect();
-            Bvh::new(&Mesh::from_triangles(&tris))
-        });
+        // query on the mesh's 3-D tree.
         let mut best = 0.0f64;
-        bvh.for_each_near_segment(tip + a * s0, tip + a * s1, r, |_, c| {
+        self.bvh.for_each_near_segment(tip + a * s0, tip + a * s1, r, |_, c| {
             let [p, q, w] = [local(&c[0]), local(&c[1]), local(&c[2])];
             // Wholly beyond the checked length, or wholly below the
             // deepest contact found: nothing to add.
@@ -118,46 +129,46 @@ impl DropCutter {
             for tri in &parts[..count] {
                 let tri = Tri::new(tri);
                 if tri.zmax > best && tri.near(0.0, 0.0, r) {
-                    drop_on(&self.shape, 0.0, 0.0, &tri, &mut best);
+                    drop_on(&dc.shape, 0.0, 0.0, &tri, &mut best);
                 }
             }
         });
         best
     }
-}
 
-/// Check every location of `runs` (tools `length` long), lifting the
-/// gouging ones along their axes when `rule` says so; in parallel, and the
-/// same result whatever the thread count.
-pub fn check(dc: &DropCutter, runs: &mut [Vec<Location>], length: f64, rule: GougeRule) -> GougeReport {
-    let depths: Vec<Vec<f64>> = runs
-        .par_iter()
-        .map(|run| {
-            run.par_iter()
-                .map(|l| dc.clearance_along(l.cl, l.axis_point - l.cl, length))
-                .collect()
-        })
-        .collect();
-    let mut report = GougeReport::default();
-    for (run, depths) in runs.iter_mut().zip(&depths) {
-        for (l, &d) in run.iter_mut().zip(depths) {
-            report.checked += 1;
-            if d <= GOUGE_TOL {
-                continue;
-            }
-            report.gouging += 1;
-            if d > report.deepest {
-                report.deepest = d;
-                report.deepest_at = Some(l.cl);
-            }
-            if rule == GougeRule::Lift {
-                let a = (l.axis_point - l.cl).normalize();
-                l.cl += a * d;
-                l.axis_point += a * d;
+    /// Check every location of `runs` (tools `length` long), lifting the
+    /// gouging ones along their axes when `rule` says so; in parallel, and the
+    /// same result whatever the thread count.
+    pub fn check(&self, runs: &mut [Vec<Location>], length: f64, rule: GougeRule) -> GougeReport {
+        let depths: Vec<Vec<f64>> = runs
+            .par_iter()
+            .map(|run| {
+                run.par_iter()
+                    .map(|l| self.clearance(l.cl, l.axis_point - l.cl, length))
+                    .collect()
+            })
+            .collect();
+        let mut report = GougeReport::default();
+        for (run, depths) in runs.iter_mut().zip(&depths) {
+            for (l, &d) in run.iter_mut().zip(depths) {
+                report.checked += 1;
+                if d <= GOUGE_TOL {
+                    continue;
+                }
+                report.gouging += 1;
+                if d > report.deepest {
+                    report.deepest = d;
+                    report.deepest_at = Some(l.cl);
+                }
+                if rule == GougeRule::Lift {
+                    let a = (l.axis_point - l.cl).normalize();
+                    l.cl += a * d;
+                    l.axis_point += a * d;
+                }
             }
         }
+        report
     }
-    report
 }
 
 /// The parameter range `[s0, s1]` within `[0, length]` of the points

@@ -72,7 +72,8 @@ fn a_vertical_tool_in_a_trough_rises_to_the_brute_force_height() {
         Cutter::Flat { radius: 0.3 },
     ] {
         let dc = DropCutter::new(&mesh, cutter).unwrap();
-        let lift = dc.clearance_along(P3::new(0.3, 0.0, bottom), V3::z(), 50.0);
+        let gc = GougeCheck::new(&dc);
+        let lift = gc.clearance(P3::new(0.3, 0.0, bottom), V3::z(), 50.0);
         // Brute force over the section (the trough is the same along x,
         // so the deepest point is straight across the axis): every
         // corner and a fine grid between.
@@ -92,7 +93,8 @@ fn a_vertical_tool_in_a_trough_rises_to_the_brute_force_height() {
     }
     // A tool narrow enough to fit the level facet touches and no more.
     let dc = DropCutter::new(&mesh, Cutter::Flat { radius: 0.01 }).unwrap();
-    assert!(dc.clearance_along(P3::new(0.3, 0.0, bottom), V3::z(), 50.0) <= GOUGE_TOL);
+    let gc = GougeCheck::new(&dc);
+    assert!(gc.clearance(P3::new(0.3, 0.0, bottom), V3::z(), 50.0) <= GOUGE_TOL);
 }
 
 /// Whether the point `p` lies inside the tool (tip `tip`, unit axis `a`,
@@ -117,6 +119,7 @@ fn lifted_locations_leave_every_sampled_point_of_the_part_outside_the_tool() {
         },
     ] {
         let dc = DropCutter::new(&mesh, cutter).unwrap();
+        let gc = GougeCheck::new(&dc);
         for (lead, tilt) in [(0.0f64, 0.0f64), (10.0, 0.0), (5.0, -15.0)] {
             let fa = FiveAxis {
                 lead: lead.to_radians(),
@@ -125,16 +128,16 @@ fn lifted_locations_leave_every_sampled_point_of_the_part_outside_the_tool() {
             };
             let raw = fa.pass(&dc, &xy).unwrap();
             let mut lifted = raw.clone();
-            let report = check(&dc, &mut lifted, 6.0, GougeRule::Lift);
+            let report = gc.check(&mut lifted, 6.0, GougeRule::Lift);
             let mut reported = raw.clone();
-            assert_eq!(check(&dc, &mut reported, 6.0, GougeRule::Report), report);
+            assert_eq!(gc.check(&mut reported, 6.0, GougeRule::Report), report);
             assert_eq!(reported, raw, "Report leaves the locations");
             assert_eq!(report.checked, 25);
             assert!(report.gouging >= 10, "{cutter:?} {lead} {tilt}: {report:?}");
             let mut found_raw_gouge = false;
             for (l, r0) in lifted.iter().flatten().zip(raw.iter().flatten()) {
                 let a = (l.axis_point - l.cl).normalize();
-                let depth = dc.clearance_along(r0.cl, a, 6.0);
+                let depth = gc.clearance(r0.cl, a, 6.0);
                 for t in &tris {
                     for i in 0..=12 {
                         for j in 0..=12 - i {
@@ -150,9 +153,9 @@ fn lifted_locations_leave_every_sampled_point_of_the_part_outside_the_tool() {
                     }
                 }
                 // Lifted just enough: lowered a little it cuts again.
-                let rest = dc.clearance_along(l.cl, a, 6.0);
+                let rest = gc.clearance(l.cl, a, 6.0);
                 assert!(rest <= GOUGE_TOL, "{rest}");
-                let lower = dc.clearance_along(l.cl - a * 1e-3, a, 6.0);
+                let lower = gc.clearance(l.cl - a * 1e-3, a, 6.0);
                 if depth > GOUGE_TOL {
                     assert!((lower - 1e-3).abs() < 1e-9, "{depth}: {lower}");
                 } else {
@@ -182,6 +185,7 @@ fn nothing_gouges_a_convex_part() {
         },
     ] {
         let dc = DropCutter::new(&mesh, cutter).unwrap();
+        let gc = GougeCheck::new(&dc);
         for (lead, tilt) in [(0.0, 0.0), (5.0f64, -3.0f64), (20.0, 10.0)] {
             let fa = FiveAxis {
                 lead: lead.to_radians(),
@@ -193,7 +197,7 @@ fn nothing_gouges_a_convex_part() {
                 runs.extend(fa.pass(&dc, p).unwrap());
             }
             let before = runs.clone();
-            let report = check(&dc, &mut runs, 50.0, GougeRule::Lift);
+            let report = gc.check(&mut runs, 50.0, GougeRule::Lift);
             assert_eq!(report.checked, 13 * 41);
             assert_eq!(report.gouging, 0, "{cutter:?} {lead} {tilt}: {report:?}");
             assert_eq!(runs, before);
@@ -212,13 +216,14 @@ fn the_checked_length_bounds_the_tool() {
     tris.extend(block.iter_triangles());
     let mesh = Mesh::from_triangles(&tris);
     let dc = DropCutter::new(&mesh, Cutter::Flat { radius: 0.5 }).unwrap();
+    let gc = GougeCheck::new(&dc);
     let a = V3::new(1.0, 0.0, 1.0).normalize();
     // The tip half a radius over the floor, so the leaning bottom clears it.
     let tip = P3::new(0.0, 0.0, 0.5);
     // Up to 2 mm along the axis the tool is clear of the block.
-    assert!(dc.clearance_along(tip, a, 2.0) <= GOUGE_TOL);
+    assert!(gc.clearance(tip, a, 2.0) <= GOUGE_TOL);
     // 10 mm long it runs into the block's underside.
-    assert!(dc.clearance_along(tip, a, 10.0) > 1.0);
+    assert!(gc.clearance(tip, a, 10.0) > 1.0);
     // A roof sloping down across the axis of a vertical tool: below 1 mm
     // up the axis it stays beyond the radius, so only a longer tool meets
     // it (its triangles reach down to 0.5 mm, so they must be cut at the
@@ -232,14 +237,15 @@ fn the_checked_length_bounds_the_tool() {
     );
     let mesh = Mesh::from_triangles(&[Triangle::new(p, q, r), Triangle::new(p, r, t)]);
     let dc = DropCutter::new(&mesh, Cutter::Flat { radius: 0.5 }).unwrap();
+    let gc = GougeCheck::new(&dc);
     let up = V3::z();
-    assert!(dc.clearance_along(P3::origin(), up, 1.0) <= GOUGE_TOL);
+    assert!(gc.clearance(P3::origin(), up, 1.0) <= GOUGE_TOL);
     // 2 mm long, the roof up to 2 mm lies in its disc from x = -0.5
     // (height 1.5) to x = -0.25 (height 2): 2 mm deep along the axis.
-    let two = dc.clearance_along(P3::origin(), up, 2.0);
+    let two = gc.clearance(P3::origin(), up, 2.0);
     assert!((two - 2.0).abs() < 1e-9, "{two}");
     // Degenerate queries are clear, not errors.
-    assert_eq!(dc.clearance_along(tip, V3::zeros(), 10.0), 0.0);
-    assert_eq!(dc.clearance_along(P3::new(f64::NAN, 0.0, 0.0), a, 10.0), 0.0);
-    assert_eq!(dc.clearance_along(tip, a, 0.0), 0.0);
+    assert_eq!(gc.clearance(tip, V3::zeros(), 10.0), 0.0);
+    assert_eq!(gc.clearance(P3::new(f64::NAN, 0.0, 0.0), a, 10.0), 0.0);
+    assert_eq!(gc.clearance(tip, a, 0.0), 0.0);
 }

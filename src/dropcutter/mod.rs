@@ -58,9 +58,6 @@ pub struct DropCutter {
     tris: Vec<Tri>,
     grid: Grid,
     bbox: BBox3,
-    /// The triangles' 3-D tree, for the 5-axis gouge check's capsule
-    /// queries; built on the first check, never for 3-axis work.
-    bvh: std::sync::OnceLock<crate::mesh::bvh::Bvh>,
 }
 
 impl DropCutter {
@@ -86,7 +83,6 @@ impl DropCutter {
             tris,
             grid,
             bbox: mesh.bbox(),
-            bvh: std::sync::OnceLock::new(),
         })
     }
 

@@ -7,7 +7,7 @@ use microcam::cli::{self, CliError, Output};
 use microcam::cutter::Cutter;
 use microcam::dropcutter::adaptive::Adaptive;
 use microcam::dropcutter::fiveaxis::FiveAxis;
-use microcam::dropcutter::gouge::{self, GougeReport, GougeRule};
+use microcam::dropcutter::gouge::{GougeCheck, GougeReport, GougeRule};
 use microcam::dropcutter::output::{Feeds, toolpath_records, write_cldata, write_cldata5};
 use microcam::dropcutter::raster::{Direction, Pattern, Raster, chain_passes};
 use microcam::dropcutter::waterline::Waterline;
@@ -317,7 +317,7 @@ pub fn run(a: DropcutterArgs) -> Result<(), CliError> {
             GougeArg::Off => None,
         };
         if let Some(rule) = rule {
-            let report = gouge::check(&dc, &mut runs, fa.axis_length, rule);
+            let report = GougeCheck::new(&dc).check(&mut runs, fa.axis_length, rule);
             eprintln!(
                 "pathgen: dropcutter: 5-axis: {}",
                 gouge_summary(&report, rule, fa.axis_length)
