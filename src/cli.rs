@@ -96,7 +96,7 @@ pub fn run(tool: &str, body: impl FnOnce() -> Result<(), CliError>) -> ExitCode 
     threads::init_pool();
     let args: Vec<String> = std::env::args().skip(1).collect();
     if let Err(e) = check_numeric_arguments(&args) {
-        eprintln!("{tool}: {}", e.message);
+        crate::diag!("{tool}: {}", e.message);
         return ExitCode::from(e.status);
     }
     /// Drops whatever is still staged when the body fails or unwinds, so
@@ -119,7 +119,7 @@ pub fn run(tool: &str, body: impl FnOnce() -> Result<(), CliError>) -> ExitCode 
         Ok(()) => ExitCode::SUCCESS,
         Err(e) if e.broken_pipe => ExitCode::from(e.status),
         Err(e) => {
-            eprintln!("{tool}: {}", e.message);
+            crate::diag!("{tool}: {}", e.message);
             ExitCode::from(e.status)
         }
     }
@@ -398,6 +398,18 @@ fn release(outputs: Vec<Staged>) -> Result<(), CliError> {
         s.release()?;
     }
     Ok(())
+}
+
+/// Write one line (a report, a summary) on stdout and flush it, returning
+/// the error instead of panicking as `println!` does when stdout is a pipe
+/// whose reader has gone: [`run`] then ends the tool quietly (a closed
+/// stdout is not worth a message), and a caller with more to say (a safety
+/// message after a stopped upload) can ignore the error and go on.
+pub fn print_line(line: &str) -> io::Result<()> {
+    let mut out = io::stdout().lock();
+    out.write_all(line.as_bytes())?;
+    out.write_all(b"\n")?;
+    out.flush()
 }
 
 /// True when this process was started with stdout closed (`tool >&-`).

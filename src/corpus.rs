@@ -69,7 +69,7 @@ pub fn record(name: &str, cases: usize) {
 
 /// Record that test `name` skipped its corpus cases, and say why on stderr.
 pub fn skip(name: &str) {
-    eprintln!("{name}: skipped, no corpus (set MICROCAM_CORPUS or put shared/corpus beside the checkout)");
+    crate::diag!("{name}: skipped, no corpus (set MICROCAM_CORPUS or put shared/corpus beside the checkout)");
     let d = tally_dir();
     let _ = std::fs::create_dir_all(&d);
     let _ = std::fs::write(d.join(format!("{name}.skipped")), "0\n");

@@ -29,6 +29,23 @@
 // Every public item is documented; a new one without a doc comment is a
 // warning, and an error in `make lint` (part of `make test`).
 #![warn(missing_docs)]
+// Diagnostics go through `diag!` (below) and data through the writers:
+// `eprintln!`/`println!` panic when stderr or stdout is a closed pipe.
+// Tests may print.
+#![cfg_attr(not(test), deny(clippy::print_stderr, clippy::print_stdout))]
+
+/// `eprintln!` that never panics. A diagnostic that cannot be written
+/// (stderr closed with `2>&-`, or a pipe whose reader has gone, as in
+/// `2>&1 | head -1`) is dropped, and the tool's data and exit status stay
+/// what they would have been: `eprintln!` panics on a failed write, which
+/// ended such a run with status 101 and its output discarded.
+#[macro_export]
+macro_rules! diag {
+    ($($arg:tt)*) => {{
+        use ::std::io::Write as _;
+        let _ = ::std::writeln!(::std::io::stderr(), $($arg)*);
+    }};
+}
 
 pub mod cli;
 pub mod corpus;

@@ -48,7 +48,7 @@ pub fn lap(what: &str) {
     });
     *last = Some(now);
     let peak_mib = peak_kib as f64 / 1024.0;
-    eprintln!("timing: {what:<24} {wall:8.2} ms wall {cpu:8.2} ms CPU {peak_mib:7.1} MiB peak");
+    crate::diag!("timing: {what:<24} {wall:8.2} ms wall {cpu:8.2} ms CPU {peak_mib:7.1} MiB peak");
 }
 
 /// The process's CPU time so far (user and system, all threads), seconds,
@@ -101,8 +101,8 @@ pub fn set(done: u64) {
 pub fn note(line: &str) {
     let bar = SHOWN.lock().unwrap_or_else(|e| e.into_inner()).clone();
     match bar {
-        Some(b) => b.suspend(|| eprintln!("{line}")),
-        None => eprintln!("{line}"),
+        Some(b) => b.suspend(|| crate::diag!("{line}")),
+        None => crate::diag!("{line}"),
     }
 }
 
@@ -221,7 +221,7 @@ fn run(tool: &'static str, what: &'static str, terminal: bool, stop: &AtomicBool
         loop {
             let (stage, done, total) = snapshot();
             let what = stage.unwrap_or(what);
-            eprintln!("{}", plain_line(tool, what, done, total, started.elapsed()));
+            crate::diag!("{}", plain_line(tool, what, done, total, started.elapsed()));
             if !wait(PLAIN_EVERY, stop) {
                 return;
             }

@@ -111,6 +111,58 @@ fn devices_and_symlinks_are_written_in_place() {
     }
 }
 
+/// Diagnostics are not data: a tool whose stderr cannot be written (a pipe
+/// whose reader has gone, as in `2>&1 | head -1`) still writes its output
+/// and exits 0. `eprintln!` panics on a failed write, which ended such
+/// runs with status 101 and nothing written.
+#[test]
+fn a_closed_stderr_does_not_stop_a_run() {
+    let dir = tempfile::tempdir().unwrap();
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let dome = root.join("testdata/samples/dome.stl");
+    let part = root.join("testdata/samples/part.dxf");
+    let cl = dir.path().join("dome.cl");
+    let chains = dir.path().join("part.jsonl");
+    let runs: Vec<(&str, Vec<&std::ffi::OsStr>, &Path)> = vec![
+        (
+            PATHGEN,
+            [
+                "dropcutter",
+                "--tool",
+                "flat:1",
+                "--step-over",
+                "0.5",
+                "--five-axis",
+                "-o",
+            ]
+            .iter()
+            .map(std::ffi::OsStr::new)
+            .chain([cl.as_os_str(), dome.as_os_str()])
+            .collect(),
+            &cl,
+        ),
+        (
+            env!("CARGO_BIN_EXE_dxf2chains"),
+            vec![part.as_os_str(), "-o".as_ref(), chains.as_os_str()],
+            &chains,
+        ),
+    ];
+    for (bin, args, out) in runs {
+        let mut child = Command::new(bin)
+            .args(&args)
+            .stdin(Stdio::null())
+            .stdout(Stdio::null())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        // Close the read end before the tool writes a word.
+        drop(child.stderr.take());
+        let status = child.wait().unwrap();
+        assert_eq!(status.code(), Some(0), "{bin} {args:?}");
+        assert!(std::fs::metadata(out).unwrap().len() > 100, "{bin}: {}", out.display());
+    }
+}
+
 #[test]
 fn identical_input_gives_identical_output() {
     let prog = Path::new("testdata/gcode/encoder-disc.ngc").to_str().unwrap();

@@ -1,6 +1,11 @@
 //! dxf2chains: a DXF drawing to oriented chains of exact lines and arcs
 //! (microcam.chains/1 JSON Lines).
 
+// Diagnostics go through `microcam::diag!` and data through the
+// library's writers: `eprintln!`/`println!` panic when stderr or stdout
+// is a closed pipe.
+#![deny(clippy::print_stderr, clippy::print_stdout)]
+
 use clap::Parser;
 use microcam::cli::{self, CliError, Output};
 use microcam::dxf::transform::{Mirror, Transforms, count, parse_numbers};
@@ -278,7 +283,7 @@ fn run(args: Args) -> Result<(), CliError> {
     // Warnings appear even with --quiet.
     for line in summary::lines(&imp, &report, args.arc_tol, chains.point_chains(), &args.layers) {
         if !args.quiet || line.starts_with("warning") {
-            eprintln!("dxf2chains: {name}: {line}");
+            microcam::diag!("dxf2chains: {name}: {line}");
         }
     }
     if let Some(o) = svg_out {

@@ -1,5 +1,10 @@
 //! feedopt: new feeds for a milling program from its simulated chip volume.
 
+// Diagnostics go through `microcam::diag!` and data through the
+// library's writers: `eprintln!`/`println!` panic when stderr or stdout
+// is a closed pipe.
+#![deny(clippy::print_stderr, clippy::print_stdout)]
+
 use clap::{Parser, ValueEnum};
 use microcam::cli::{self, CliError, Output};
 use microcam::cutter::Cutter;
@@ -257,7 +262,7 @@ fn run(a: Args) -> Result<(), CliError> {
         files.push(o);
     }
     for n in &out.report.notes {
-        eprintln!("feedopt: {n}");
+        microcam::diag!("feedopt: {n}");
     }
     for f in files {
         f.commit()?;

@@ -1,6 +1,11 @@
 //! gsim: interpret and simulate a program (G-code of either dialect, or
 //! toolpath JSON Lines).
 
+// Diagnostics go through `microcam::diag!` and data through the
+// library's writers: `eprintln!`/`println!` panic when stderr or stdout
+// is a closed pipe.
+#![deny(clippy::print_stderr, clippy::print_stdout)]
+
 use clap::Parser;
 use microcam::cli::{self, CliError, Output};
 use microcam::cutter::Cutter;
@@ -279,7 +284,7 @@ fn run(args: Args) -> Result<(), CliError> {
     let notes = opts.notes.clone();
     let print_notes = || {
         for (line, text) in notes.take() {
-            eprintln!("gsim: {title}:{line}: note: {text}");
+            microcam::diag!("gsim: {title}:{line}: note: {text}");
         }
     };
     let r = simulate(&args, source, start, &title, tool_table.as_deref());

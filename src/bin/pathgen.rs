@@ -1,5 +1,10 @@
 //! pathgen: toolpaths, and G-code from toolpaths.
 
+// Diagnostics go through `microcam::diag!` and data through the
+// library's writers: `eprintln!`/`println!` panic when stderr or stdout
+// is a closed pipe.
+#![deny(clippy::print_stderr, clippy::print_stdout)]
+
 use clap::{Parser, Subcommand};
 use microcam::cli;
 use std::process::ExitCode;

@@ -1,6 +1,11 @@
 //! plough2d: chip and ploughing area per cutter step of a micro flat end
 //! mill along a program (Bayesteh 2013, chapter 5).
 
+// Diagnostics go through `microcam::diag!` and data through the
+// library's writers: `eprintln!`/`println!` panic when stderr or stdout
+// is a closed pipe.
+#![deny(clippy::print_stderr, clippy::print_stdout)]
+
 use clap::{Parser, ValueEnum};
 use microcam::cli::{self, CliError, Output};
 use microcam::gcode::{Dialect, ReadOptions};

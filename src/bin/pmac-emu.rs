@@ -1,6 +1,11 @@
 //! pmac-emu: a Turbo PMAC emulator on loopback, for running and testing
 //! pmac-send (and any other client) with no hardware.
 
+// Diagnostics go through `microcam::diag!` and data through the
+// library's writers: `eprintln!`/`println!` panic when stderr or stdout
+// is a closed pipe.
+#![deny(clippy::print_stderr, clippy::print_stdout)]
+
 use clap::Parser;
 use microcam::cli::{self, CliError};
 use microcam::pmac::controller::{Clock, Config, Emulator};
@@ -119,7 +124,7 @@ fn run(args: Args) -> Result<(), CliError> {
     if !args.bind.is_loopback() {
         // An emulator reachable from the network could be mistaken for the
         // machine's controller by a real client.
-        eprintln!("pmac-emu: warning: listening on {}, not loopback", args.bind);
+        microcam::diag!("pmac-emu: warning: listening on {}, not loopback", args.bind);
     }
     let log: Option<Box<dyn Write + Send>> = match &args.log {
         Some(p) => Some(Box::new(std::io::BufWriter::new(
@@ -146,9 +151,8 @@ fn run(args: Args) -> Result<(), CliError> {
     let server = Server::start(SocketAddr::new(args.bind, args.port), ctl, faults)
         .map_err(|e| CliError::failure(format!("cannot listen on {}:{}: {e}", args.bind, args.port)))?;
     let addr = server.addr();
-    println!("{}", addr.port());
-    std::io::stdout().flush()?;
-    eprintln!("pmac-emu: listening on {addr}");
+    microcam::cli::print_line(&addr.port().to_string())?;
+    microcam::diag!("pmac-emu: listening on {addr}");
     match args.duration {
         Some(s) => std::thread::sleep(Duration::from_secs_f64(s)),
         None => loop {

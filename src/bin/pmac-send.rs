@@ -1,6 +1,11 @@
 //! pmac-send: upload a program to a Turbo PMAC and run it, whole, in
 //! chunks cut where the beam is off, or streamed through a rotary buffer.
 
+// Diagnostics go through `microcam::diag!` and data through the
+// library's writers: `eprintln!`/`println!` panic when stderr or stdout
+// is a closed pipe.
+#![deny(clippy::print_stderr, clippy::print_stdout)]
+
 use clap::{Parser, ValueEnum};
 use microcam::cli::{self, CliError};
 use microcam::pmac::client::{Client, Transport};
@@ -317,8 +322,8 @@ fn run(args: Args) -> Result<(), CliError> {
     };
     state.budget = budget;
     if state.next_move > state.moves {
-        eprintln!("pmac-send: nothing to resume: all {} moves have executed", state.moves);
-        println!("{}", SendSummary::finished(&state).to_json(true));
+        microcam::diag!("pmac-send: nothing to resume: all {} moves have executed", state.moves);
+        cli::print_line(&SendSummary::finished(&state).to_json(true).to_string())?;
         return Ok(());
     }
     let rest = job.rest(state.next_move, state.resume_point()).ok_or_else(|| {
@@ -341,7 +346,7 @@ fn run(args: Args) -> Result<(), CliError> {
             )));
         }
     }
-    eprintln!(
+    microcam::diag!(
         "pmac-send: {} mode, {} chunk(s), {} lines, starting at move {} of {}{}",
         mode.name(),
         chunks.len(),
@@ -367,11 +372,12 @@ fn run(args: Args) -> Result<(), CliError> {
     meter.finish();
     match ran {
         Ok(summary) => {
-            println!("{}", summary.to_json(true));
+            cli::print_line(&summary.to_json(true).to_string())?;
             Ok(())
         }
         Err(f) => {
-            println!("{}", f.to_json());
+            // Stdout gone or not, the safety message below must follow.
+            let _ = cli::print_line(&f.to_json().to_string());
             let safety = match &f.safe_stop {
                 Ok(()) => format!(
                     "shutter closed ({}=0) and &1 aborted",
@@ -448,9 +454,6 @@ fn dry_run(
     for p in stale {
         std::fs::remove_file(&p).map_err(|e| CliError::failure(format!("{}: {e}", p.display())))?;
     }
-    println!(
-        "{}",
-        serde_json::json!({"dry_run": dir.display().to_string(), "chunks": files.len()})
-    );
+    cli::print_line(&serde_json::json!({"dry_run": dir.display().to_string(), "chunks": files.len()}).to_string())?;
     Ok(())
 }

@@ -1,6 +1,11 @@
 //! probescan: automated scanning with a rotating wire probe against a
 //! simulated part, and the measurements it gives (Bayesteh 2013, ch. 4).
 
+// Diagnostics go through `microcam::diag!` and data through the
+// library's writers: `eprintln!`/`println!` panic when stderr or stdout
+// is a closed pipe.
+#![deny(clippy::print_stderr, clippy::print_stdout)]
+
 use clap::{Parser, ValueEnum};
 use microcam::cli::{self, CliError, Output};
 use microcam::formats::read_chains;
@@ -283,7 +288,7 @@ fn run(a: Args) -> Result<(), CliError> {
         )));
     }
     if !closed && !gauge_done {
-        eprintln!("probescan: warning: {}", out.scan.stop.message());
+        microcam::diag!("probescan: warning: {}", out.scan.stop.message());
     }
     let cov = &out.coverage;
     if let Some(l) = cov
@@ -291,7 +296,7 @@ fn run(a: Args) -> Result<(), CliError> {
         .iter()
         .max_by(|x, y| x.length_mm.total_cmp(&y.length_mm))
     {
-        eprintln!(
+        microcam::diag!(
             "probescan: {} stretch(es) of the design are out of reach of a {} mm probe (corners and gaps narrower than D_e); longest {:.4} mm from ({:.4}, {:.4}) to ({:.4}, {:.4})",
             cov.unreachable.len(),
             probe.effective_diameter_mm,
@@ -303,7 +308,7 @@ fn run(a: Args) -> Result<(), CliError> {
         );
     }
     if !cov.missed.is_empty() && closed {
-        eprintln!(
+        microcam::diag!(
             "probescan: warning: {} design piece(s) longer than R_s got no contact: {:?}",
             cov.missed.len(),
             cov.missed

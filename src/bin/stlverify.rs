@@ -1,6 +1,11 @@
 //! stlverify: simulate 3- or 5-axis cutter locations on a tri-dexel stock,
 //! write the machined part, and verify it against the design (Singh 2014).
 
+// Diagnostics go through `microcam::diag!` and data through the
+// library's writers: `eprintln!`/`println!` panic when stderr or stdout
+// is a closed pipe.
+#![deny(clippy::print_stderr, clippy::print_stdout)]
+
 use clap::{Parser, ValueEnum};
 use microcam::cli::{self, CliError, Output};
 use microcam::cutter::Cutter;

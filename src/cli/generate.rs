@@ -60,7 +60,7 @@ pub fn answer(cmd: Command, argv: &[OsString]) -> Option<i32> {
         },
         _ => return None,
     };
-    eprintln!("{name}: {msg}");
+    crate::diag!("{name}: {msg}");
     Some(status)
 }
 

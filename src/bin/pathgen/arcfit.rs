@@ -94,7 +94,7 @@ pub(crate) fn arcfit_cmd(a: ArcfitArgs) -> Result<(), CliError> {
         w.finish()?;
     }
     if dev > tol {
-        eprintln!("pathgen: warning: arcfit: deviation {dev} mm exceeds the tolerance {tol} mm");
+        microcam::diag!("pathgen: warning: arcfit: deviation {dev} mm exceeds the tolerance {tol} mm");
     }
     out.commit()
 }

@@ -69,7 +69,7 @@ pub(crate) fn audit_cmd(a: AuditArgs) -> Result<(), CliError> {
     });
     let au = microcam::laser::audit::audit_at(&records, &m, P3::origin(), precision);
     meter.finish();
-    println!("{}", au.report_json(&m, precision));
+    microcam::cli::print_line(&au.report_json(&m, precision))?;
     let ok = au.passes(&m, precision);
     if ok {
         Ok(())

@@ -357,10 +357,10 @@ pub(crate) const MAX_WARNINGS: usize = 20;
 
 pub(crate) fn warn_all(warnings: &[Warning]) {
     for w in warnings.iter().take(MAX_WARNINGS) {
-        eprintln!("pathgen: warning: chain {}: {}", w.chain, w.message);
+        microcam::diag!("pathgen: warning: chain {}: {}", w.chain, w.message);
     }
     if warnings.len() > MAX_WARNINGS {
-        eprintln!(
+        microcam::diag!(
             "pathgen: warning: {} more warnings not shown",
             warnings.len() - MAX_WARNINGS
         );
@@ -371,7 +371,7 @@ pub(crate) fn warn_all(warnings: &[Warning]) {
 /// stretch to its least TA (shorter than 1 ms at V).
 pub(crate) fn short_note(short: usize, total: usize, m: &LaserSetup) {
     if short > 0 {
-        eprintln!(
+        microcam::diag!(
             "pathgen: note: {short} of {total} feed moves last less than 1 ms at V ({:.6} mm); a Turbo PMAC \
              stretches them to its least TA and slows down there",
             m.min_block()

@@ -147,7 +147,7 @@ pub(crate) fn contour_cmd(a: ContourArgs) -> Result<(), CliError> {
     cleanup_note(&cleanup, &m, &o);
     short_note(short, total, &m);
     if timing {
-        eprintln!(
+        microcam::diag!(
             "pathgen: timing: read {:.3} s, plan and write {:.3} s",
             (t1 - t0).as_secs_f64(),
             t1.elapsed().as_secs_f64()
@@ -160,7 +160,7 @@ pub(crate) fn contour_cmd(a: ContourArgs) -> Result<(), CliError> {
 pub(crate) fn cleanup_note(st: &microcam::laser::cleanup::CleanStats, m: &LaserSetup, o: &ContourOptions) {
     let fixed = st.short - st.left;
     if fixed > 0 {
-        eprintln!(
+        microcam::diag!(
             "pathgen: cleanup: {fixed} piece(s) shorter than the least block at V ({:.6} mm) merged into their \
              neighbours or refitted ({} pieces -> {}); largest deviation {:.3e} mm (--cleanup-tol {} mm)",
             m.min_block(),
@@ -171,7 +171,7 @@ pub(crate) fn cleanup_note(st: &microcam::laser::cleanup::CleanStats, m: &LaserS
         );
     }
     if st.left > 0 {
-        eprintln!(
+        microcam::diag!(
             "pathgen: warning: {} piece(s) shorter than the least block at V ({:.6} mm) could not be removed \
              within --cleanup-tol {} mm",
             st.left,
@@ -215,11 +215,12 @@ pub(crate) fn warn_travel(chains: &[Chain], machine: &str) {
         ),
     };
     if size[0] > limit[0] || size[1] > limit[1] {
-        eprintln!(
+        microcam::diag!(
             "pathgen: warning: the drawing is {:.3} x {:.3} mm, larger than {whose}; chains are in mm, \
              converted by dxf2chains from the DXF's unit ($INSUNITS, millimetres when absent): if the drawing \
              is in another unit, give it with `dxf2chains --units`",
-            size[0], size[1]
+            size[0],
+            size[1]
         );
     }
 }

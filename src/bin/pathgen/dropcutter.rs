@@ -262,7 +262,7 @@ pub fn run(a: DropcutterArgs) -> Result<(), CliError> {
         return Err(CliError::input("--floor and --safe-z must be finite"));
     }
     if safe_z < bb.max.z {
-        eprintln!(
+        microcam::diag!(
             "pathgen: warning: dropcutter: safe Z {safe_z} is below the mesh top {}",
             bb.max.z
         );
@@ -318,7 +318,7 @@ pub fn run(a: DropcutterArgs) -> Result<(), CliError> {
         };
         if let Some(rule) = rule {
             let report = GougeCheck::new(&dc).check(&mut runs, fa.axis_length, rule);
-            eprintln!(
+            microcam::diag!(
                 "pathgen: dropcutter: 5-axis: {}",
                 gouge_summary(&report, rule, fa.axis_length)
             );
@@ -382,7 +382,7 @@ pub fn run(a: DropcutterArgs) -> Result<(), CliError> {
         write_passes(&a, cutter, &cl, safe_z, feeds, &name, &mut out)?;
     }
     out.commit()?;
-    eprintln!(
+    microcam::diag!(
         "pathgen: dropcutter: {} triangles, {} passes, {n_points} CL points",
         loaded.mesh.triangles.len(),
         passes.len(),
@@ -500,7 +500,7 @@ fn run_waterlines(
     let mut out = Output::new(a.output.as_deref());
     write_passes(a, dc.cutter(), &cl, safe_z, feeds, name, &mut out)?;
     out.commit()?;
-    eprintln!(
+    microcam::diag!(
         "pathgen: dropcutter: {} waterline levels, {} loops, {} CL points",
         levels.len(),
         cl.len(),

@@ -172,10 +172,10 @@ pub(crate) fn finish_pattern(paths: Vec<Tagged>, m: &LaserSetup, out: &GenOutput
     let written = write_generated(&records, out, Some(what.to_string()), m, true);
     meter.finish();
     if records.is_empty() {
-        eprintln!("pathgen: warning: {what}: nothing to cut with these sizes");
+        microcam::diag!("pathgen: warning: {what}: nothing to cut with these sizes");
     }
     for w in warnings.iter().take(MAX_WARNINGS) {
-        eprintln!("pathgen: warning: {what}: {}", w.message);
+        microcam::diag!("pathgen: warning: {what}: {}", w.message);
     }
     let (short, total) = written?;
     short_note(short, total, m);
@@ -284,7 +284,9 @@ pub(crate) fn cone_cmd(a: ConeArgs) -> Result<(), CliError> {
     for (z, d) in patterns::cone_levels(z0, d1, d2, h, levels) {
         let r = 0.5 * d - 0.5 * beam;
         if r <= step {
-            eprintln!("pathgen: warning: cone: section at z={z} (diameter {d}) is narrower than the beam; skipped");
+            microcam::diag!(
+                "pathgen: warning: cone: section at z={z} (diameter {d}) is narrower than the beam; skipped"
+            );
             continue;
         }
         let c = P3::new(a.center.0, a.center.1, z);

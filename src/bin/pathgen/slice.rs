@@ -174,12 +174,13 @@ pub fn slice_cmd(a: SliceArgs) -> Result<(), CliError> {
     };
     let (name, _m, p) = load(&a.input)?;
     for r in &p.repairs {
-        eprintln!("pathgen: slice: {name}: repaired: {r}");
+        microcam::diag!("pathgen: slice: {name}: repaired: {r}");
     }
     if !p.after.watertight {
-        eprintln!(
+        microcam::diag!(
             "pathgen: slice: {name}: warning: the mesh is not watertight ({} boundary, {} non-manifold edges): sections may have gaps",
-            p.after.boundary_edges, p.after.non_manifold_edges
+            p.after.boundary_edges,
+            p.after.non_manifold_edges
         );
     }
     let levels = match a.z_step {
@@ -218,7 +219,7 @@ pub fn slice_cmd(a: SliceArgs) -> Result<(), CliError> {
     meter.finish();
     for s in &sections {
         for w in &s.warnings {
-            eprintln!("pathgen: slice: {name}: z {}: warning: {w}", s.z);
+            microcam::diag!("pathgen: slice: {name}: z {}: warning: {w}", s.z);
         }
     }
     let chains: Vec<_> = sections
