@@ -395,6 +395,27 @@ fn five_axis_locations_that_would_gouge_are_lifted_or_reported() {
         }
     }
     assert!(moved * 2 > off.points.len(), "{moved} of {}", off.points.len());
+    let (_, e_tilt) = run(&["--gouge", "tilt", "--max-turn", "20", "--turn-step", "10"]);
+    assert!(e_tilt.contains("turned to clear it"), "{e_tilt}");
+    for bad in [["--max-turn", "100"], ["--turn-step", "0"]] {
+        let o = pathgen()
+            .args([
+                "dropcutter",
+                s,
+                "--tool",
+                "flat:1",
+                "--step-over",
+                "0.4",
+                "--five-axis",
+                "--gouge",
+                "tilt",
+            ])
+            .args(bad)
+            .output()
+            .unwrap();
+        assert_eq!(o.status.code(), Some(2), "{bad:?}");
+        assert!(o.stdout.is_empty());
+    }
     // The option belongs to 5-axis output.
     let o = pathgen()
         .args([
@@ -470,4 +491,12 @@ fn stlverify_finds_the_unchecked_gouges_and_none_after_the_lift() {
     assert_eq!(lift["gouge"], 0, "{lift}");
     assert_eq!(lift["excess"], 0, "{lift}");
     assert!(lift["max_excess_mm"].as_f64().unwrap() < 0.01, "{lift}");
+    // Turned instead of lifted: clear too, and closer to the design.
+    let (code, tilt) = verify("tilt");
+    assert_eq!(code, Some(0), "{tilt}");
+    assert_eq!(tilt["gouge"], 0, "{tilt}");
+    assert!(
+        tilt["max_excess_mm"].as_f64().unwrap() < lift["max_excess_mm"].as_f64().unwrap(),
+        "{tilt} {lift}"
+    );
 }

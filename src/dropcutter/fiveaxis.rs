@@ -44,21 +44,51 @@ pub struct Location {
     pub axis_point: P3,
 }
 
+/// Where a 5-axis location touches the part: the contact point, the unit
+/// normal of the facet it lies on, and the direction of travel there (any
+/// length; zero for a single point).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Contact {
+    /// The contact point (CC), mm.
+    pub cc: P3,
+    /// Unit upward normal of the facet at the contact.
+    pub normal: V3,
+    /// Direction of travel.
+    pub feed: V3,
+}
+
 impl FiveAxis {
     /// Locations along one XY pass; points off the mesh end a run, so the
     /// result is one run per stretch of the pass that lies on the mesh.
     pub fn pass(&self, dc: &DropCutter, xy: &[P2]) -> Result<Vec<Vec<Location>>, DropError> {
-        let (r, rc) = match dc.cutter() {
-            Cutter::Flat { radius } => (radius, 0.0),
-            Cutter::Torus { radius, corner } => (radius, corner),
-            Cutter::Ball { .. } => {
-                return Err(DropError::Option(
-                    "5-axis needs a flat or torus cutter (a ball's contact does not depend on its axis)".into(),
-                ));
-            }
-        };
+        let (r, rc) = Self::radii(dc)?;
+        Ok(Self::contacts(dc, xy)
+            .iter()
+            .map(|run| {
+                run.iter()
+                    .map(|c| self.location(c.cc, c.normal, c.feed, r, rc))
+                    .collect()
+            })
+            .collect())
+    }
+
+    /// The cutter's radius and corner radius; a ball is refused.
+    pub fn radii(dc: &DropCutter) -> Result<(f64, f64), DropError> {
+        match dc.cutter() {
+            Cutter::Flat { radius } => Ok((radius, 0.0)),
+            Cutter::Torus { radius, corner } => Ok((radius, corner)),
+            Cutter::Ball { .. } => Err(DropError::Option(
+                "5-axis needs a flat or torus cutter (a ball's contact does not depend on its axis)".into(),
+            )),
+        }
+    }
+
+    /// The contacts along one XY pass, in runs as [`FiveAxis::pass`] has
+    /// them: the highest mesh point below each sample, its facet's normal,
+    /// and the travel direction from the neighbouring samples.
+    pub fn contacts(dc: &DropCutter, xy: &[P2]) -> Vec<Vec<Contact>> {
         let mut runs = Vec::new();
-        let mut run: Vec<Location> = Vec::new();
+        let mut run: Vec<Contact> = Vec::new();
         for (i, p) in xy.iter().enumerate() {
             let Some((z, n)) = dc.surface_point(p.x, p.y) else {
                 if !run.is_empty() {
@@ -66,17 +96,19 @@ impl FiveAxis {
                 }
                 continue;
             };
-            // Feed direction from the neighbouring samples.
             let prev = xy[i.saturating_sub(1)];
             let next = xy[(i + 1).min(xy.len() - 1)];
             let d = next - prev;
-            let feed = V3::new(d.x, d.y, 0.0);
-            run.push(self.location(P3::new(p.x, p.y, z), V3::new(n[0], n[1], n[2]), feed, r, rc));
+            run.push(Contact {
+                cc: P3::new(p.x, p.y, z),
+                normal: V3::new(n[0], n[1], n[2]),
+                feed: V3::new(d.x, d.y, 0.0),
+            });
         }
         if !run.is_empty() {
             runs.push(run);
         }
-        Ok(runs)
+        runs
     }
 
     /// The location for contact `cc` with unit surface normal `n`, travel

@@ -6,8 +6,8 @@ use clap::{Args as ClapArgs, ValueEnum};
 use microcam::cli::{self, CliError, Output};
 use microcam::cutter::Cutter;
 use microcam::dropcutter::adaptive::Adaptive;
-use microcam::dropcutter::fiveaxis::FiveAxis;
-use microcam::dropcutter::gouge::{GougeCheck, GougeReport, GougeRule};
+use microcam::dropcutter::fiveaxis::{Contact, FiveAxis, Location};
+use microcam::dropcutter::gouge::{GougeCheck, GougeReport, GougeRule, TiltReport};
 use microcam::dropcutter::output::{Feeds, toolpath_records, write_cldata, write_cldata5};
 use microcam::dropcutter::raster::{Direction, Pattern, Raster, chain_passes};
 use microcam::dropcutter::waterline::Waterline;
@@ -38,7 +38,9 @@ CL data rows are 'x y z' (tool tip) or, with --five-axis, 'x y z x1 y1 z1'
 (tip and a point up the tool axis: the layout of Singh 2014, Annexure 2).
 5-axis locations are checked with the whole tool, --axis-length of it: one
 that would cut into the part away from its contact is lifted along its axis
-(--gouge lift, the default), or only reported (--gouge report).
+(--gouge lift, the default), turned to another lead or tilt that clears the
+part (--gouge tilt, lifted where none within --max-turn does), or only
+reported (--gouge report).
 Passes are joined at the safe Z. Waterlines (--waterline, --waterline-step)
 are closed loops at constant Z round the model, the model on the right of
 the travel (climb milling with M3), found on fibres --step-over apart.
@@ -75,6 +77,9 @@ pub enum GougeArg {
     Lift,
     /// Keep every location as computed; only report the gouges.
     Report,
+    /// Try other orientations first: lead or tilt changed in steps of
+    /// --turn-step up to --max-turn; lift where none clears the part.
+    Tilt,
     /// No check.
     Off,
 }
@@ -168,6 +173,13 @@ pub struct DropcutterArgs {
     /// the part, and lift or report the locations where it cuts in.
     #[arg(long, value_enum, default_value_t = GougeArg::Lift, requires = "five_axis")]
     gouge: GougeArg,
+    /// 5-axis, --gouge tilt: the largest change of lead or tilt tried
+    /// (degrees).
+    #[arg(long, default_value_t = 30.0, requires = "five_axis")]
+    max_turn: f64,
+    /// 5-axis, --gouge tilt: the step of the changes tried (degrees).
+    #[arg(long, default_value_t = 5.0, requires = "five_axis")]
+    turn_step: f64,
     #[command(flatten)]
     writer: WriterArgs,
     /// Write output here instead of stdout.
@@ -212,6 +224,22 @@ fn gouge_summary(r: &GougeReport, rule: GougeRule, length: f64) -> String {
             GougeRule::Lift => "lifted along the axis until the tool only touches (material is left there)",
             GougeRule::Report => "left as they are (--gouge report)",
         }
+    )
+}
+
+/// One line on what the tilt search found and did.
+fn tilt_summary(r: &GougeReport, t: &TiltReport, length: f64) -> String {
+    if r.gouging == 0 {
+        return gouge_summary(r, GougeRule::Lift, length);
+    }
+    format!(
+        "gouge check: {} of {} locations cut into the part (up to {:.6} mm along the tool axis); {} turned to clear it (lead or tilt changed by up to {:.1} deg), {} lifted along the axis where no turn within reach cleared it",
+        r.gouging,
+        r.checked,
+        r.deepest,
+        t.tilted,
+        t.largest_turn.to_degrees(),
+        t.lifted
     )
 }
 
@@ -306,22 +334,41 @@ pub fn run(a: DropcutterArgs) -> Result<(), CliError> {
             tilt: a.tilt.to_radians(),
             axis_length: positive("axis-length", a.axis_length)?,
         };
-        let mut runs = Vec::new();
-        for p in &passes {
-            runs.extend(fa.pass(&dc, p).map_err(bad)?);
-        }
+        let (r, rc) = FiveAxis::radii(&dc).map_err(bad)?;
+        let contacts: Vec<Vec<Contact>> = passes.iter().flat_map(|p| FiveAxis::contacts(&dc, p)).collect();
+        let mut runs: Vec<Vec<Location>> = contacts
+            .iter()
+            .map(|run| run.iter().map(|c| fa.location(c.cc, c.normal, c.feed, r, rc)).collect())
+            .collect();
         n_points = runs.iter().map(Vec::len).sum();
-        let rule = match a.gouge {
-            GougeArg::Lift => Some(GougeRule::Lift),
-            GougeArg::Report => Some(GougeRule::Report),
+        let summary = match a.gouge {
             GougeArg::Off => None,
+            GougeArg::Lift | GougeArg::Report => {
+                let rule = if a.gouge == GougeArg::Lift {
+                    GougeRule::Lift
+                } else {
+                    GougeRule::Report
+                };
+                let report = GougeCheck::new(&dc).check(&mut runs, fa.axis_length, rule);
+                Some(gouge_summary(&report, rule, fa.axis_length))
+            }
+            GougeArg::Tilt => {
+                let max = a.max_turn;
+                let step = a.turn_step;
+                let in_range = (0.0..=90.0).contains(&max) && step > 0.0 && step <= 90.0;
+                if !in_range {
+                    return Err(CliError::input(format!(
+                        "--max-turn {max} and --turn-step {step}: degrees, 0 to 90 and above 0 to 90"
+                    )));
+                }
+                let (report, tilt) = GougeCheck::new(&dc)
+                    .check_tilting(&fa, &contacts, &mut runs, max.to_radians(), step.to_radians())
+                    .map_err(bad)?;
+                Some(tilt_summary(&report, &tilt, fa.axis_length))
+            }
         };
-        if let Some(rule) = rule {
-            let report = GougeCheck::new(&dc).check(&mut runs, fa.axis_length, rule);
-            microcam::diag!(
-                "pathgen: dropcutter: 5-axis: {}",
-                gouge_summary(&report, rule, fa.axis_length)
-            );
+        if let Some(line) = summary {
+            microcam::diag!("pathgen: dropcutter: 5-axis: {line}");
         }
         let mut w = ClWriter::new(&mut out);
         w.comment(&format!(
@@ -329,9 +376,10 @@ pub fn run(a: DropcutterArgs) -> Result<(), CliError> {
             a.lead,
             a.tilt,
             match a.gouge {
-                GougeArg::Lift => "lift",
-                GougeArg::Report => "report",
-                GougeArg::Off => "off",
+                GougeArg::Lift => "lift".to_string(),
+                GougeArg::Report => "report".to_string(),
+                GougeArg::Off => "off".to_string(),
+                GougeArg::Tilt => format!("tilt up to {} deg in steps of {} deg", a.max_turn, a.turn_step),
             }
         ))?;
         write_cldata5(&mut w, &runs, safe_z)?;
