@@ -61,6 +61,32 @@ pub struct GougeReport {
     pub deepest_at: Option<P3>,
 }
 
+impl GougeReport {
+    /// Count one checked location whose tool is `depth` into the part;
+    /// true when that is a gouge.
+    fn record(&mut self, l: &Location, depth: f64) -> bool {
+        self.checked += 1;
+        if depth <= GOUGE_TOL {
+            return false;
+        }
+        self.gouging += 1;
+        if depth > self.deepest {
+            self.deepest = depth;
+            self.deepest_at = Some(l.cl);
+        }
+        true
+    }
+}
+
+/// `l` moved `depth` up its own axis.
+fn lifted(l: &Location, depth: f64) -> Location {
+    let a = (l.axis_point - l.cl).normalize();
+    Location {
+        cl: l.cl + a * depth,
+        axis_point: l.axis_point + a * depth,
+    }
+}
+
 /// A mesh and cutter prepared for gouge checks: the drop-cutter's
 /// triangles and cutter, and a 3-D tree over the triangles for the
 /// capsule queries (built once here, before any parallel work: a tree
@@ -144,26 +170,19 @@ impl<'a> GougeCheck<'a> {
             .par_iter()
             .map(|run| {
                 run.par_iter()
-                    .map(|l| self.clearance(l.cl, l.axis_point - l.cl, length))
+                    .map(|l| {
+                        let d = self.clearance(l.cl, l.axis_point - l.cl, length);
+                        crate::progress::advance(1);
+                        d
+                    })
                     .collect()
             })
             .collect();
         let mut report = GougeReport::default();
         for (run, depths) in runs.iter_mut().zip(&depths) {
             for (l, &d) in run.iter_mut().zip(depths) {
-                report.checked += 1;
-                if d <= GOUGE_TOL {
-                    continue;
-                }
-                report.gouging += 1;
-                if d > report.deepest {
-                    report.deepest = d;
-                    report.deepest_at = Some(l.cl);
-                }
-                if rule == GougeRule::Lift {
-                    let a = (l.axis_point - l.cl).normalize();
-                    l.cl += a * d;
-                    l.axis_point += a * d;
+                if report.record(l, d) && rule == GougeRule::Lift {
+                    *l = lifted(l, d);
                 }
             }
         }
@@ -187,7 +206,7 @@ pub struct TiltReport {
 enum Outcome {
     Clear,
     Tilted(Location, f64),
-    Lifted(f64),
+    Lifted,
 }
 
 impl GougeCheck<'_> {
@@ -230,6 +249,7 @@ impl GougeCheck<'_> {
                 run.par_iter()
                     .zip(cs.par_iter())
                     .map(|(l, c)| {
+                        crate::progress::advance(1);
                         let d = self.clearance(l.cl, l.axis_point - l.cl, length);
                         if d <= GOUGE_TOL {
                             return (d, Outcome::Clear);
@@ -245,7 +265,7 @@ impl GougeCheck<'_> {
                                 return (d, Outcome::Tilted(t, dl.abs().max(dt.abs())));
                             }
                         }
-                        (d, Outcome::Lifted(d))
+                        (d, Outcome::Lifted)
                     })
                     .collect()
             })
@@ -254,15 +274,7 @@ impl GougeCheck<'_> {
         let mut tilt = TiltReport::default();
         for (run, outs) in runs.iter_mut().zip(outcomes) {
             for (l, (d, out)) in run.iter_mut().zip(outs) {
-                report.checked += 1;
-                if matches!(out, Outcome::Clear) {
-                    continue;
-                }
-                report.gouging += 1;
-                if d > report.deepest {
-                    report.deepest = d;
-                    report.deepest_at = Some(l.cl);
-                }
+                report.record(l, d);
                 match out {
                     Outcome::Clear => {}
                     Outcome::Tilted(t, turn) => {
@@ -270,10 +282,8 @@ impl GougeCheck<'_> {
                         tilt.tilted += 1;
                         tilt.largest_turn = tilt.largest_turn.max(turn);
                     }
-                    Outcome::Lifted(d) => {
-                        let a = (l.axis_point - l.cl).normalize();
-                        l.cl += a * d;
-                        l.axis_point += a * d;
+                    Outcome::Lifted => {
+                        *l = lifted(l, d);
                         tilt.lifted += 1;
                     }
                 }

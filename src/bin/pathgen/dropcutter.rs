@@ -174,12 +174,13 @@ pub struct DropcutterArgs {
     #[arg(long, value_enum, default_value_t = GougeArg::Lift, requires = "five_axis")]
     gouge: GougeArg,
     /// 5-axis, --gouge tilt: the largest change of lead or tilt tried
-    /// (degrees).
-    #[arg(long, default_value_t = 30.0, requires = "five_axis")]
-    max_turn: f64,
-    /// 5-axis, --gouge tilt: the step of the changes tried (degrees).
-    #[arg(long, default_value_t = 5.0, requires = "five_axis")]
-    turn_step: f64,
+    /// (degrees; default 30).
+    #[arg(long, requires = "five_axis")]
+    max_turn: Option<f64>,
+    /// 5-axis, --gouge tilt: the step of the changes tried (degrees;
+    /// default 5).
+    #[arg(long, requires = "five_axis")]
+    turn_step: Option<f64>,
     #[command(flatten)]
     writer: WriterArgs,
     /// Write output here instead of stdout.
@@ -341,6 +342,22 @@ pub fn run(a: DropcutterArgs) -> Result<(), CliError> {
             .map(|run| run.iter().map(|c| fa.location(c.cc, c.normal, c.feed, r, rc)).collect())
             .collect();
         n_points = runs.iter().map(Vec::len).sum();
+        if a.gouge != GougeArg::Tilt && (a.max_turn.is_some() || a.turn_step.is_some()) {
+            return Err(CliError::input("--max-turn and --turn-step go with --gouge tilt"));
+        }
+        let (max_turn, turn_step) = (a.max_turn.unwrap_or(30.0), a.turn_step.unwrap_or(5.0));
+        let in_range = (0.0..=90.0).contains(&max_turn) && turn_step > 0.0 && turn_step <= 90.0;
+        if !in_range {
+            return Err(CliError::input(format!(
+                "--max-turn {max_turn} and --turn-step {turn_step}: degrees, 0 to 90 and above 0 to 90"
+            )));
+        }
+        let meter = Meter::start(
+            "pathgen",
+            "checking the tool against the part",
+            if a.gouge == GougeArg::Off { 0 } else { n_points as u64 },
+            Show::from_flags(a.quiet, false),
+        );
         let summary = match a.gouge {
             GougeArg::Off => None,
             GougeArg::Lift | GougeArg::Report => {
@@ -353,20 +370,13 @@ pub fn run(a: DropcutterArgs) -> Result<(), CliError> {
                 Some(gouge_summary(&report, rule, fa.axis_length))
             }
             GougeArg::Tilt => {
-                let max = a.max_turn;
-                let step = a.turn_step;
-                let in_range = (0.0..=90.0).contains(&max) && step > 0.0 && step <= 90.0;
-                if !in_range {
-                    return Err(CliError::input(format!(
-                        "--max-turn {max} and --turn-step {step}: degrees, 0 to 90 and above 0 to 90"
-                    )));
-                }
                 let (report, tilt) = GougeCheck::new(&dc)
-                    .check_tilting(&fa, &contacts, &mut runs, max.to_radians(), step.to_radians())
+                    .check_tilting(&fa, &contacts, &mut runs, max_turn.to_radians(), turn_step.to_radians())
                     .map_err(bad)?;
                 Some(tilt_summary(&report, &tilt, fa.axis_length))
             }
         };
+        meter.finish();
         if let Some(line) = summary {
             microcam::diag!("pathgen: dropcutter: 5-axis: {line}");
         }
@@ -379,7 +389,7 @@ pub fn run(a: DropcutterArgs) -> Result<(), CliError> {
                 GougeArg::Lift => "lift".to_string(),
                 GougeArg::Report => "report".to_string(),
                 GougeArg::Off => "off".to_string(),
-                GougeArg::Tilt => format!("tilt up to {} deg in steps of {} deg", a.max_turn, a.turn_step),
+                GougeArg::Tilt => format!("tilt up to {max_turn} deg in steps of {turn_step} deg"),
             }
         ))?;
         write_cldata5(&mut w, &runs, safe_z)?;
