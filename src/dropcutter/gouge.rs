@@ -130,8 +130,7 @@ impl<'a> GougeCheck<'a> {
         let r = dc.shape.r;
         // The part of the axis whose cutter disc can reach the mesh: the
         // segment clipped to the mesh's box grown by the radius.
-        let Some((s0, s1)) = clip_to_box(tip, a, length, dc.bbox.min - V3::repeat(r), dc.bbox.max + V3::repeat(r))
-        else {
+        let Some((s0, s1)) = dc.bbox.clip_line(&tip, &a, (0.0, length), r) else {
             return 0.0;
         };
         let helper = if a.x.abs() < 0.9 { V3::x() } else { V3::y() };
@@ -291,24 +290,6 @@ impl GougeCheck<'_> {
         }
         Ok((report, tilt))
     }
-}
-
-/// The parameter range `[s0, s1]` within `[0, length]` of the points
-/// `tip + s a` inside the box `lo..hi`; `None` when there are none.
-fn clip_to_box(tip: P3, a: V3, length: f64, lo: P3, hi: P3) -> Option<(f64, f64)> {
-    let (mut s0, mut s1) = (0.0f64, length);
-    for i in 0..3 {
-        if a[i] == 0.0 {
-            if tip[i] < lo[i] || tip[i] > hi[i] {
-                return None;
-            }
-            continue;
-        }
-        let (t0, t1) = ((lo[i] - tip[i]) / a[i], (hi[i] - tip[i]) / a[i]);
-        s0 = s0.max(t0.min(t1));
-        s1 = s1.min(t0.max(t1));
-    }
-    (s0 <= s1).then_some((s0, s1))
 }
 
 /// The part of triangle `t` at or below height `h` (z), as up to two

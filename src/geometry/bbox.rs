@@ -119,6 +119,30 @@ impl BBox3 {
         }
     }
 
+    /// The parameters `[t0, t1]` within `span` of the points `p + t d`
+    /// inside the box grown by `grow` on every side (the slab test);
+    /// `None` when there are none. A zero component of `d` keeps the line
+    /// in its slab or out of it whole.
+    pub fn clip_line(&self, p: &P3, d: &V3, span: (f64, f64), grow: f64) -> Option<(f64, f64)> {
+        let (mut t0, mut t1) = span;
+        for k in 0..3 {
+            let (lo, hi) = (self.min[k] - grow, self.max[k] + grow);
+            if d[k] == 0.0 {
+                if p[k] < lo || p[k] > hi {
+                    return None;
+                }
+                continue;
+            }
+            let (a, b) = ((lo - p[k]) / d[k], (hi - p[k]) / d[k]);
+            t0 = t0.max(a.min(b));
+            t1 = t1.min(a.max(b));
+            if t0 > t1 {
+                return None;
+            }
+        }
+        Some((t0, t1))
+    }
+
     /// The centre of the box; `None` for the empty box.
     pub fn center(&self) -> Option<P3> {
         if self.is_empty() {
@@ -144,6 +168,25 @@ mod tests {
         assert!(!b.is_empty());
         assert_eq!(e.union(&b), b);
         assert_eq!(b.union(&e), b);
+    }
+
+    #[test]
+    fn lines_are_clipped_to_the_grown_box() {
+        let b = BBox3::from_points(&[P3::new(0.0, 0.0, 0.0), P3::new(2.0, 1.0, 1.0)]);
+        let (p, d) = (P3::new(-1.0, 0.5, 0.5), V3::new(1.0, 0.0, 0.0));
+        assert_eq!(b.clip_line(&p, &d, (0.0, 10.0), 0.0), Some((1.0, 3.0)));
+        assert_eq!(b.clip_line(&p, &d, (0.0, 10.0), 0.5), Some((0.5, 3.5)));
+        assert_eq!(b.clip_line(&p, &d, (0.0, 0.9), 0.0), None);
+        assert_eq!(b.clip_line(&p, &d, (2.0, 2.5), 0.0), Some((2.0, 2.5)));
+        // Parallel to a slab: inside it whole, or out of it whole.
+        assert_eq!(b.clip_line(&P3::new(-1.0, 1.2, 0.5), &d, (0.0, 10.0), 0.0), None);
+        assert_eq!(
+            b.clip_line(&P3::new(-1.0, 1.2, 0.5), &d, (0.0, 10.0), 0.25),
+            Some((0.75, 3.25))
+        );
+        // Oblique, through a corner region.
+        let q = b.clip_line(&P3::new(-1.0, -1.0, -1.0), &V3::new(1.0, 1.0, 1.0), (0.0, 10.0), 0.0);
+        assert_eq!(q, Some((1.0, 2.0)));
     }
 
     #[test]

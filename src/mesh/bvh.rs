@@ -31,7 +31,7 @@
 
 use rayon::prelude::*;
 
-use crate::geometry::{P3, V3};
+use crate::geometry::{BBox3, P3, V3};
 
 #[path = "bvh_build.rs"]
 mod build;
@@ -299,24 +299,11 @@ impl Bvh {
         }
         let d = p1 - p0;
         let meets = |n: &Node| {
-            // Slab test of the segment (parameter 0..1) against the box.
-            let (mut t0, mut t1) = (0.0f64, 1.0f64);
-            for k in 0..3 {
-                let (lo, hi) = (n.min[k] as f64 - r, n.max[k] as f64 + r);
-                if d[k] == 0.0 {
-                    if p0[k] < lo || p0[k] > hi {
-                        return false;
-                    }
-                    continue;
-                }
-                let (a, b) = ((lo - p0[k]) / d[k], (hi - p0[k]) / d[k]);
-                t0 = t0.max(a.min(b));
-                t1 = t1.min(a.max(b));
-                if t0 > t1 {
-                    return false;
-                }
-            }
-            true
+            let b = BBox3 {
+                min: P3::new(n.min[0] as f64, n.min[1] as f64, n.min[2] as f64),
+                max: P3::new(n.max[0] as f64, n.max[1] as f64, n.max[2] as f64),
+            };
+            b.clip_line(&p0, &d, (0.0, 1.0), r).is_some()
         };
         let mut stack: Vec<u32> = Vec::with_capacity(64);
         let mut node = 0u32;
