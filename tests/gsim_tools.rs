@@ -97,3 +97,24 @@ fn a_tool_without_a_cutter_is_an_error_naming_its_line() {
     assert_eq!(o.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&o.stderr).contains("--stock needs a cutter"));
 }
+
+/// A stock that ends inside the cutter's reach: on rows where the move's
+/// chord starts past the stock's last cell the run of cells is empty. It
+/// used to start beyond the row (a panic, exit 101) for a level move whose
+/// reach only just overlapped the stock (the extreme-numbers test found
+/// it with the stock's far side at 1e-12).
+#[test]
+fn a_stock_ending_under_the_cutter_is_cut_without_a_panic() {
+    let slot = Path::new(env!("CARGO_MANIFEST_DIR")).join("testdata/sim/microslot.ngc");
+    for tool in ["flat:1", "ball:1", "torus:1:0.2"] {
+        for stock in ["-6,-6,-1,1e-12,6,0", "-6,-6,-1,0,6,0", "-6,-6,-1,0.3,6,0"] {
+            let o = Command::new(env!("CARGO_BIN_EXE_gsim"))
+                .arg(&slot)
+                .args(["--stock", stock, "--tool", tool])
+                .output()
+                .unwrap();
+            let v = removed(&o);
+            assert!(v.is_finite() && v >= 0.0, "{tool} {stock}: {v}");
+        }
+    }
+}

@@ -372,7 +372,10 @@ fn cut_row_body(
     let (ia, ib) = if q.level {
         match stadium_chord(a, b, r, py) {
             Some((xl, xr)) => {
-                let ia = ((xl - x0) / c - 0.5).ceil().max(q.i0 as f64) as usize;
+                // Both ends within the move's reach: on a stock a few
+                // cells wide the chord's rounded start can pass the row's
+                // end (the start index then lay beyond the slice).
+                let ia = ((xl - x0) / c - 0.5).ceil().max(q.i0 as f64).min(q.i1 as f64) as usize;
                 let ib = (((xr - x0) / c - 0.5).floor() + 1.0).clamp(0.0, q.i1 as f64) as usize;
                 (ia, ib.max(ia))
             }
