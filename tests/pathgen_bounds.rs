@@ -102,7 +102,7 @@ fn the_limit_is_where_the_estimate_says() {
             "--radius",
             "2",
             "--arc-tol",
-            "1e-12",
+            "1e-6",
             "--max-moves",
             "3000",
         ],
@@ -145,6 +145,11 @@ fn non_finite_negative_and_zero_parameters_are_refused() {
         ("--min-exposure", bad_nonneg),
         ("--tangent-tol", bad_nonneg),
         ("--cut-ta-ms", bad_positive),
+        // Ramps of a minute and more (the planner ran for minutes at 1e6).
+        ("--cut-ta-ms", &["60001", "1e9"]),
+        ("--ta-ms", &["1e9"]),
+        ("--td-ms", &["1e9"]),
+        ("--ts-ms", &["1e9"]),
     ];
     let mut cases: Vec<(&[&str], &str, &[&str])> = vec![
         (helix, "--radius", bad_positive),
@@ -155,6 +160,8 @@ fn non_finite_negative_and_zero_parameters_are_refused() {
         (spiral, "--radius", bad_positive),
         (spiral, "--inner", bad_nonneg),
         (spiral, "--arc-tol", bad_positive),
+        // Below a nanometre (1e-12 made a cone of 2.4 million moves).
+        (spiral, "--arc-tol", &["1e-7", "1e-12"]),
         (spiral, "--z", nonfinite),
         (square, "--size", bad_positive),
         (zigzag, "--length", bad_positive),
@@ -169,6 +176,7 @@ fn non_finite_negative_and_zero_parameters_are_refused() {
         (cone, "--step", bad_positive),
         (cone, "--beam-diameter", bad_nonneg),
         (cone, "--arc-tol", bad_positive),
+        (cone, "--arc-tol", &["1e-7", "1e-12"]),
         (cone, "--z", nonfinite),
         (cone, "--center", &["nan,0", "0,-inf"]),
         (contour, "--beam-diameter", bad_nonneg),

@@ -168,3 +168,14 @@ fn corpus_meshes_slice_or_are_refused() {
     }
     microcam::corpus::record("corpus_meshes_slice_or_are_refused", files.len());
 }
+
+/// A weld tolerance that joins every corner into one point leaves nothing
+/// to report: exit 2 naming the flag, nothing on stdout.
+#[test]
+fn mesh_info_refuses_a_weld_that_joins_everything() {
+    let dome = concat!(env!("CARGO_MANIFEST_DIR"), "/testdata/samples/dome.stl");
+    let o = run(&["mesh-info", "--weld-tol", "1e9", dome]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(o.stdout.is_empty());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("--weld-tol"));
+}

@@ -25,7 +25,16 @@ pub enum SetupError {
     /// tolerance.
     #[error("{0} must be a finite number >= 0, got {1}")]
     Negative(&'static str, f64),
+    /// A ramp time (TA, TD, the cut TA, TS) beyond [`MAX_RAMP_MS`].
+    #[error("{0} of {1} ms is beyond {max} ms: no stage ramps its moves for that long", max = MAX_RAMP_MS)]
+    TooLong(&'static str, f64),
 }
+
+/// Longest ramp time (TA, TD, TS, the cut TA) a setup may ask, ms. Real
+/// ramps last milliseconds to a second; a minute is already absurd, and far
+/// beyond it the planner's block merging (blocks at V last at least the
+/// cut TA) ran for minutes on a drawing of a few thousand moves.
+pub const MAX_RAMP_MS: f64 = 60_000.0;
 
 /// Stage and shutter parameters. Times in ms (as PMAC TA/TS are given),
 /// lengths in mm, speeds in mm/s.
@@ -115,6 +124,16 @@ impl LaserSetup {
         ] {
             if !(v.is_finite() && v >= 0.0) {
                 return Err(SetupError::Negative(name, v));
+            }
+        }
+        for (name, v) in [
+            ("TA", self.ta_ms),
+            ("TD", self.td_ms),
+            ("cut TA", self.cut_ta_ms),
+            ("TS", self.ts_ms),
+        ] {
+            if v > MAX_RAMP_MS {
+                return Err(SetupError::TooLong(name, v));
             }
         }
         Ok(())

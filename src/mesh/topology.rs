@@ -110,7 +110,9 @@ pub fn report(m: &Mesh) -> TopologyReport {
         }
     }
     let components = components(m, &e).1;
-    let watertight = boundary == 0 && nonman == 0 && incons == 0 && !m.triangles.is_empty();
+    // Closed needs a surface: a mesh of degenerate triangles only has no
+    // edges, so none open, and was called watertight with a volume of 0.
+    let watertight = boundary == 0 && nonman == 0 && incons == 0 && degenerate < m.triangles.len();
     let volume = watertight.then(|| signed_volume(m, None));
     let mut used = vec![false; m.vertices.len()];
     for t in &m.triangles {
@@ -131,7 +133,8 @@ pub fn report(m: &Mesh) -> TopologyReport {
         components,
         watertight,
         volume_mm3: volume,
-        area_mm2: m.iter_triangles().map(|t| t.area()).sum(),
+        // `+ 0.0`: an empty sum of floats is -0.0, printed as "-0.0".
+        area_mm2: m.iter_triangles().map(|t| t.area()).sum::<f64>() + 0.0,
         bbox_mm: if b.is_empty() {
             [0.0; 6]
         } else {
@@ -418,6 +421,27 @@ mod tests {
             vec!["turned 1 closed parts inside out (their volume was negative)".to_string()]
         );
         assert!(report(&fixed).volume_mm3.unwrap() > 0.0);
+    }
+
+    #[test]
+    fn degenerate_only_and_empty_meshes_are_not_closed() {
+        // Every corner welded into one point (a huge --weld-tol): no edges
+        // at all, so none open, but no surface either.
+        let p = P3::new(1.0, 2.0, 3.0);
+        let m = Mesh {
+            vertices: vec![p],
+            triangles: vec![[0, 0, 0]; 4],
+        };
+        let r = report(&m);
+        assert_eq!(r.degenerate_triangles, 4);
+        assert!(!r.watertight && r.volume_mm3.is_none(), "{r:?}");
+        let empty = report(&Mesh {
+            vertices: vec![],
+            triangles: vec![],
+        });
+        assert!(!empty.watertight);
+        // 0.0, not the -0.0 of an empty float sum ("-0.0" in the JSON).
+        assert!(empty.area_mm2 == 0.0 && empty.area_mm2.is_sign_positive());
     }
 
     #[test]

@@ -198,7 +198,7 @@ pub(crate) fn helix_cmd(a: HelixArgs) -> Result<(), CliError> {
 pub(crate) fn spiral_cmd(a: SpiralArgs) -> Result<(), CliError> {
     let m = a.out.setup(&a.machine)?;
     let step = positive("step", a.step)?;
-    let tol = positive("arc-tol", a.tolerance)?;
+    let tol = arc_tol(a.tolerance)?;
     let c = P3::new(a.center.0, a.center.1, finite("z", a.z)?);
     let path = if a.kind == "square" {
         let size = positive(
@@ -262,13 +262,27 @@ pub(crate) fn zigzag_cmd(a: ZigzagArgs) -> Result<(), CliError> {
     finish_pattern(vec![path], &m, &a.out, "zigzag")
 }
 
+/// `--arc-tol` of a generated pattern (mm): positive, and not below 1 nm.
+/// The pieces grow as the square root of 1/tol, and below a nanometre
+/// they buy nothing a stage or the program's decimals can show: 1e-12 mm
+/// made a cone of 2.4 million moves and 0.7 GB.
+fn arc_tol(t: f64) -> Result<f64, CliError> {
+    let t = positive("arc-tol", t)?;
+    if t < 1e-6 {
+        return Err(CliError::input(format!(
+            "--arc-tol {t}: below 1e-6 mm (1 nm), finer than any stage moves or a program's decimals"
+        )));
+    }
+    Ok(t)
+}
+
 pub(crate) fn cone_cmd(a: ConeArgs) -> Result<(), CliError> {
     let m = a.out.setup(&a.machine)?;
     let h = positive("height", a.height)?;
     let (d1, d2) = (positive("d1", a.d1)?, positive("d2", a.d2)?);
     let beam = non_negative("beam-diameter", a.beam_diameter)?;
     let step = positive("step", a.step.unwrap_or(beam))?;
-    let tol = positive("arc-tol", a.tolerance)?;
+    let tol = arc_tol(a.tolerance)?;
     let levels = at_least_one("levels", a.levels)?;
     let z0 = finite("z", a.z)?;
     // At least the widest section's spiral on every level.

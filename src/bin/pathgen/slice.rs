@@ -239,6 +239,12 @@ pub fn slice_cmd(a: SliceArgs) -> Result<(), CliError> {
 
 pub fn mesh_info_cmd(a: MeshInfoArgs) -> Result<(), CliError> {
     let (name, m, p) = load(&a.input)?;
+    if p.weld.vertices_in >= 3 && p.weld.vertices_out < 3 {
+        return Err(CliError::input(format!(
+            "{name}: --weld-tol {} mm joins all {} corners into {}: no triangle is left to report on",
+            a.input.weld_tol, p.weld.vertices_in, p.weld.vertices_out
+        )));
+    }
     #[derive(serde::Serialize)]
     struct GroupInfo<'a> {
         name: &'a str,
