@@ -106,11 +106,31 @@ fn inside_tool(cutter: Cutter, tip: P3, a: V3, length: f64, p: P3, eps: f64) -> 
     u < cutter.radius() - eps && h > underside(cutter, u) + eps && h < length - eps
 }
 
+/// The trough of the 5-axis tests and one pass across it at x = -1.
+fn trough_pass() -> (Mesh, Vec<P2>) {
+    let (mesh, _) = trough(2.0, 41);
+    let xy = (0..=24).map(|i| P2::new(-1.0, -1.6 + 3.2 * i as f64 / 24.0)).collect();
+    (mesh, xy)
+}
+
+/// Points on a barycentric grid of `n` steps a side on every triangle.
+fn samples(mesh: &Mesh, n: usize) -> Vec<P3> {
+    let mut out = Vec::new();
+    for t in mesh.iter_triangles() {
+        for i in 0..=n {
+            for j in 0..=n - i {
+                let (u, v) = (i as f64 / n as f64, j as f64 / n as f64);
+                out.push(t.a + (t.b - t.a) * u + (t.c - t.a) * v);
+            }
+        }
+    }
+    out
+}
+
 #[test]
 fn lifted_locations_leave_every_sampled_point_of_the_part_outside_the_tool() {
-    let (mesh, _) = trough(2.0, 41);
-    let tris: Vec<Triangle> = mesh.iter_triangles().collect();
-    let xy: Vec<P2> = (0..=24).map(|i| P2::new(-1.0, -1.6 + 3.2 * i as f64 / 24.0)).collect();
+    let (mesh, xy) = trough_pass();
+    let points = samples(&mesh, 12);
     for cutter in [
         Cutter::Flat { radius: 1.0 },
         Cutter::Torus {
@@ -138,19 +158,13 @@ fn lifted_locations_leave_every_sampled_point_of_the_part_outside_the_tool() {
             for (l, r0) in lifted.iter().flatten().zip(raw.iter().flatten()) {
                 let a = (l.axis_point - l.cl).normalize();
                 let depth = gc.clearance(r0.cl, a, 6.0);
-                for t in &tris {
-                    for i in 0..=12 {
-                        for j in 0..=12 - i {
-                            let (u, v) = (i as f64 / 12.0, j as f64 / 12.0);
-                            let p = t.a + (t.b - t.a) * u + (t.c - t.a) * v;
-                            assert!(
-                                !inside_tool(cutter, l.cl, a, 6.0, p, 1e-7),
-                                "{cutter:?} {lead} {tilt}: {p:?} inside the tool at {:?}",
-                                l.cl
-                            );
-                            found_raw_gouge |= inside_tool(cutter, r0.cl, a, 6.0, p, 1e-3);
-                        }
-                    }
+                for &p in &points {
+                    assert!(
+                        !inside_tool(cutter, l.cl, a, 6.0, p, 1e-7),
+                        "{cutter:?} {lead} {tilt}: {p:?} inside the tool at {:?}",
+                        l.cl
+                    );
+                    found_raw_gouge |= inside_tool(cutter, r0.cl, a, 6.0, p, 1e-3);
                 }
                 // Lifted just enough: lowered a little it cuts again.
                 let rest = gc.clearance(l.cl, a, 6.0);
@@ -252,9 +266,8 @@ fn the_checked_length_bounds_the_tool() {
 
 #[test]
 fn tilting_clears_the_trough_with_the_tool_still_on_its_contact() {
-    let (mesh, _) = trough(2.0, 41);
-    let tris: Vec<Triangle> = mesh.iter_triangles().collect();
-    let xy: Vec<P2> = (0..=24).map(|i| P2::new(-1.0, -1.6 + 3.2 * i as f64 / 24.0)).collect();
+    let (mesh, xy) = trough_pass();
+    let points = samples(&mesh, 8);
     for cutter in [
         Cutter::Flat { radius: 0.6 },
         Cutter::Torus {
@@ -323,14 +336,8 @@ fn tilting_clears_the_trough_with_the_tool_still_on_its_contact() {
                 c.cc,
                 t.cl
             );
-            for tri in &tris {
-                for i in 0..=8 {
-                    for j in 0..=8 - i {
-                        let (u, v) = (i as f64 / 8.0, j as f64 / 8.0);
-                        let p = tri.a + (tri.b - tri.a) * u + (tri.c - tri.a) * v;
-                        assert!(!inside_tool(cutter, t.cl, a, 6.0, p, 1e-7), "{p:?}");
-                    }
-                }
+            for &p in &points {
+                assert!(!inside_tool(cutter, t.cl, a, 6.0, p, 1e-7), "{p:?}");
             }
         }
     }
