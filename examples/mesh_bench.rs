@@ -93,7 +93,7 @@ fn main() {
         ct += b;
     }
     eprintln!(
-        "per ray: {:.1} interior nodes, {:.1} triangle tests",
+        "per ray: {:.1} quads box-tested, {:.1} triangle tests",
         cn as f64 / rays.len() as f64,
         ct as f64 / rays.len() as f64
     );

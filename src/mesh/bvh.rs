@@ -125,6 +125,22 @@ struct Quad {
 const EMPTY: u32 = u32::MAX;
 
 impl Quad {
+    /// Bit c set when child c is a leaf.
+    #[inline(always)]
+    fn leaf_mask(&self) -> u32 {
+        // `&`, not `&&`: no branches, the four lanes compared at once.
+        let c = &self.count;
+        let leaf = |i: usize| ((c[i] != 0) & (c[i] != EMPTY)) as u32;
+        leaf(0) | leaf(1) << 1 | leaf(2) << 2 | leaf(3) << 3
+    }
+
+    /// Bit c set when child c is an interior quad.
+    #[inline(always)]
+    fn inner_mask(&self) -> u32 {
+        let c = &self.count;
+        (c[0] == 0) as u32 | ((c[1] == 0) as u32) << 1 | ((c[2] == 0) as u32) << 2 | ((c[3] == 0) as u32) << 3
+    }
+
     const NONE: Quad = Quad {
         b: [
             [f32::INFINITY; 4],
@@ -176,12 +192,14 @@ impl Bvh {
         self.traverse(
             ray,
             |_| t_max.get(),
-            |bvh, i, pre| {
-                if let Some(h) = bvh.hit_tri(i, ray, pre, t_max.get(), Edges::Closed)
-                    && best.is_none_or(|b| h.t < b.t || (h.t == b.t && h.triangle < b.triangle))
-                {
-                    t_max.set(h.t);
-                    best = Some(h);
+            |bvh, leaf, pre| {
+                for i in leaf {
+                    if let Some(h) = bvh.hit_tri(i, ray, pre, t_max.get(), Edges::Closed)
+                        && best.is_none_or(|b| h.t < b.t || (h.t == b.t && h.triangle < b.triangle))
+                    {
+                        t_max.set(h.t);
+                        best = Some(h);
+                    }
                 }
             },
         );
@@ -196,9 +214,11 @@ impl Bvh {
         self.traverse(
             ray,
             |_| ray.t_max,
-            |bvh, i, pre| {
-                if let Some(h) = bvh.hit_tri(i, ray, pre, ray.t_max, Edges::TopLeft) {
-                    out.push(h);
+            |bvh, leaf, pre| {
+                for i in leaf {
+                    if let Some(h) = bvh.hit_tri(i, ray, pre, ray.t_max, Edges::TopLeft) {
+                        out.push(h);
+                    }
                 }
             },
         );
@@ -212,8 +232,10 @@ impl Bvh {
         self.traverse(
             ray,
             |_| ray.t_max,
-            |bvh, i, pre| {
-                n += bvh.hit_tri(i, ray, pre, ray.t_max, Edges::TopLeft).is_some() as usize;
+            |bvh, leaf, pre| {
+                for i in leaf {
+                    n += bvh.hit_tri(i, ray, pre, ray.t_max, Edges::TopLeft).is_some() as usize;
+                }
             },
         );
         n
@@ -335,14 +357,16 @@ impl Bvh {
         let nodes = std::cell::Cell::new(0usize);
         self.traverse(
             ray,
-            |_| {
-                nodes.set(nodes.get() + 1);
+            |box_test| {
+                nodes.set(nodes.get() + box_test as usize);
                 t_max.get()
             },
-            |bvh, i, pre| {
-                tris.set(tris.get() + 1);
-                if let Some(h) = bvh.hit_tri(i, ray, pre, t_max.get(), Edges::Closed) {
-                    t_max.set(h.t);
+            |bvh, leaf, pre| {
+                for i in leaf {
+                    tris.set(tris.get() + 1);
+                    if let Some(h) = bvh.hit_tri(i, ray, pre, t_max.get(), Edges::Closed) {
+                        t_max.set(h.t);
+                    }
                 }
             },
         );
@@ -363,10 +387,14 @@ impl Bvh {
             return rays.par_iter().with_min_len(256).map(|r| self.first_hit(r)).collect();
         }
         let order = self.ray_order(rays);
-        let sorted: Vec<Option<Hit>> = order
+        // The rays gathered into their cast order first: read in a tight
+        // loop, their cache misses overlap one another, where read at the
+        // start of each walk they stall it.
+        let gathered: Vec<Ray> = order.par_iter().with_min_len(4096).map(|&i| rays[i as usize]).collect();
+        let sorted: Vec<Option<Hit>> = gathered
             .par_iter()
             .with_min_len(1024)
-            .map(|&i| self.first_hit(&rays[i as usize]))
+            .map(|r| self.first_hit(r))
             .collect();
         let mut rank = vec![0u32; rays.len()];
         for (p, &i) in order.iter().enumerate() {
@@ -436,22 +464,26 @@ impl Bvh {
 
     /// Visit every leaf triangle whose node box the ray enters before the
     /// current `t_max` (asked again at each step, so first-hit queries
-    /// shrink it), nearer child first.
+    /// shrink it; with `true` when asked for a quad's box test, so a
+    /// benchmark can count them), nearer child first.
     #[inline]
-    fn traverse(&self, ray: &Ray, mut t_max: impl FnMut(()) -> f64, mut leaf: impl FnMut(&Bvh, usize, &Pre)) {
+    fn traverse(
+        &self,
+        ray: &Ray,
+        mut t_max: impl FnMut(bool) -> f64,
+        mut leaf: impl FnMut(&Bvh, std::ops::Range<usize>, &Pre),
+    ) {
         if self.nodes.is_empty() {
             return;
         }
         let Some(pre) = Pre::new(ray) else { return };
         let t0 = ray.t_min as f32;
         let root = &self.nodes[0];
-        if pre.slab(root, t0, t_max(()) as f32).is_none() {
+        if pre.slab(root, t0, t_max(false) as f32).is_none() {
             return;
         }
         if root.n > 0 {
-            for i in root.a..root.a + root.n {
-                leaf(self, i as usize, &pre);
-            }
+            leaf(self, root.a as usize..(root.a + root.n) as usize, &pre);
             return;
         }
         let mut stack = Stack::new();
@@ -459,52 +491,64 @@ impl Bvh {
         let slack = 1.0 + 4.0 * f32::EPSILON;
         loop {
             let q = &self.quads[node as usize];
-            let (e, hit) = pre.slab4(q, t0, t_max(()) as f32);
-            // The children the ray enters, nearest first.
-            let mut kids = [(0f32, 0u32); 4];
-            let mut k = 0;
-            for c in 0..4 {
-                if hit[c] && q.count[c] != EMPTY {
-                    let mut j = k;
-                    while j > 0 && kids[j - 1].0 > e[c] {
-                        kids[j] = kids[j - 1];
-                        j -= 1;
+            let (e, entered) = pre.slab4(q, t0, t_max(true) as f32);
+            // Bit c set: the ray enters child c. Leaves are tested at once
+            // (they shrink t_max); interior children go down nearest first.
+            let mut inner = entered & q.inner_mask();
+            let mut leaves = entered & q.leaf_mask();
+            while leaves != 0 {
+                let c = leaves.trailing_zeros() as usize;
+                leaves &= leaves - 1;
+                leaf(self, q.child[c] as usize..(q.child[c] + q.count[c]) as usize, &pre);
+            }
+            let limit = t_max(false) as f32 * slack;
+            // The common cases without a sort: one child entered, or two.
+            let next = match inner.count_ones() {
+                0 => None,
+                1 => {
+                    let c = inner.trailing_zeros() as usize;
+                    (e[c] <= limit).then_some(q.child[c])
+                }
+                2 => {
+                    let c0 = inner.trailing_zeros() as usize;
+                    let c1 = (inner & (inner - 1)).trailing_zeros() as usize;
+                    let (near, far) = if e[c1] < e[c0] { (c1, c0) } else { (c0, c1) };
+                    if e[far] <= limit {
+                        stack.push((q.child[far], e[far]));
                     }
-                    kids[j] = (e[c], c as u32);
-                    k += 1;
+                    (e[near] <= limit).then_some(q.child[near])
                 }
-            }
-            // Leaves now (they shrink t_max); interior children onto the
-            // stack farthest first, and down into the nearest.
-            let mut down = None;
-            for &(entry, c) in kids[..k].iter().rev() {
-                let c = c as usize;
-                if q.count[c] > 0 {
-                    continue;
-                }
-                if let Some(d) = down {
-                    stack.push(d);
-                }
-                down = Some((q.child[c], entry));
-            }
-            for &(_, c) in &kids[..k] {
-                let c = c as usize;
-                if q.count[c] > 0 {
-                    for i in q.child[c]..q.child[c] + q.count[c] {
-                        leaf(self, i as usize, &pre);
+                _ => {
+                    // Three or four: farthest pushed first, nearest taken.
+                    let mut kids = [(0f32, 0u32); 4];
+                    let mut k = 0;
+                    while inner != 0 {
+                        let c = inner.trailing_zeros() as usize;
+                        inner &= inner - 1;
+                        let mut j = k;
+                        while j > 0 && kids[j - 1].0 < e[c] {
+                            kids[j] = kids[j - 1];
+                            j -= 1;
+                        }
+                        kids[j] = (e[c], q.child[c]);
+                        k += 1;
                     }
+                    for &(entry, n) in &kids[..k - 1] {
+                        if entry <= limit {
+                            stack.push((n, entry));
+                        }
+                    }
+                    (kids[k - 1].0 <= limit).then_some(kids[k - 1].1)
                 }
-            }
-            if let Some((n, entry)) = down
-                && entry <= t_max(()) as f32 * slack
-            {
+            };
+            if let Some(n) = next {
                 node = n;
                 continue;
             }
             // Pop the next node the ray still enters before t_max.
             loop {
                 let Some((n, entry)) = stack.pop() else { return };
-                if entry <= t_max(()) as f32 * slack {
+                if entry <= t_max(false) as f32 * slack {
                     node = n;
                     break;
                 }
@@ -512,7 +556,7 @@ impl Bvh {
         }
     }
 
-    #[inline]
+    #[inline(always)]
     fn hit_tri(&self, i: usize, ray: &Ray, pre: &Pre, t_max: f64, edges: Edges) -> Option<Hit> {
         intersect(&self.tris[i], self.ids[i], ray, &pre.sh, t_max, edges)
     }
@@ -547,9 +591,9 @@ impl Pre {
     }
 
     /// Entry parameters of the ray into the four child boxes of a quad
-    /// within `[t0, t1]`, and which it enters at all.
+    /// within `[t0, t1]`, and which it enters at all (bit c for child c).
     #[inline(always)]
-    fn slab4(&self, q: &Quad, t0: f32, t1: f32) -> ([f32; 4], [bool; 4]) {
+    fn slab4(&self, q: &Quad, t0: f32, t1: f32) -> ([f32; 4], u32) {
         let mut lo = [t0; 4];
         let mut hi = [t1 * (1.0 + 4.0 * f32::EPSILON); 4];
         for k in 0..3 {
@@ -564,7 +608,11 @@ impl Pre {
                 hi[c] = if b < hi[c] { b } else { hi[c] };
             }
         }
-        (lo, [lo[0] <= hi[0], lo[1] <= hi[1], lo[2] <= hi[2], lo[3] <= hi[3]])
+        let mask = (lo[0] <= hi[0]) as u32
+            | ((lo[1] <= hi[1]) as u32) << 1
+            | ((lo[2] <= hi[2]) as u32) << 2
+            | ((lo[3] <= hi[3]) as u32) << 3;
+        (lo, mask)
     }
 
     /// Entry parameter of the ray into the node box within `[t0, t1]`.
