@@ -397,10 +397,17 @@ fn five_axis_locations_that_would_gouge_are_lifted_or_reported() {
     assert!(moved * 2 > off.points.len(), "{moved} of {}", off.points.len());
     let (_, e_tilt) = run(&["--gouge", "tilt", "--max-turn", "20", "--turn-step", "10"]);
     assert!(e_tilt.contains("turned to clear it"), "{e_tilt}");
+    assert!(e_tilt.contains("more turned part way to ease the axis"), "{e_tilt}");
+    // Not eased: the turned locations only.
+    let (_, e_sharp) = run(&["--gouge", "tilt", "--turn-ramp", "0"]);
+    assert!(e_sharp.contains("; 0 more turned part way"), "{e_sharp}");
     // Bad usage: exit 2, nothing written.
     for bad in [
         &["--five-axis", "--gouge", "tilt", "--max-turn", "100"][..],
         &["--five-axis", "--gouge", "tilt", "--turn-step", "0"],
+        &["--five-axis", "--gouge", "tilt", "--turn-ramp", "-1"],
+        &["--five-axis", "--gouge", "tilt", "--turn-ramp", "nan"],
+        &["--five-axis", "--gouge", "lift", "--turn-ramp", "1"],
         // The turns go with the tilt search, the check with 5-axis output.
         &["--five-axis", "--max-turn", "10"],
         &["--gouge", "report"],

@@ -24,11 +24,12 @@
 //! A gouging location is either lifted along its axis by the depth found
 //! (the tool then touches the part and leaves material, which the
 //! verification shows as an undercut, instead of cutting into it) or left
-//! as it is and only reported ([`GougeRule`]).
+//! as it is and only reported ([`GougeRule`]); [`super::tilt`] first
+//! tries other orientations for the same contact.
 
 use super::DropCutter;
 use super::cutter_vs_triangle::{Tri, drop_on};
-use super::fiveaxis::{Contact, FiveAxis, Location};
+use super::fiveaxis::Location;
 use crate::geometry::{P3, V3};
 use crate::mesh::bvh::Bvh;
 use crate::mesh::{Mesh, Triangle};
@@ -64,7 +65,7 @@ pub struct GougeReport {
 impl GougeReport {
     /// Count one checked location whose tool is `depth` into the part;
     /// true when that is a gouge.
-    fn record(&mut self, l: &Location, depth: f64) -> bool {
+    pub(super) fn record(&mut self, l: &Location, depth: f64) -> bool {
         self.checked += 1;
         if depth <= GOUGE_TOL {
             return false;
@@ -79,7 +80,7 @@ impl GougeReport {
 }
 
 /// `l` moved `depth` up its own axis.
-fn lifted(l: &Location, depth: f64) -> Location {
+pub(super) fn lifted(l: &Location, depth: f64) -> Location {
     let a = (l.axis_point - l.cl).normalize();
     Location {
         cl: l.cl + a * depth,
@@ -112,6 +113,11 @@ impl<'a> GougeCheck<'a> {
             dc,
             bvh: Bvh::new(&Mesh::from_triangles(&tris)),
         }
+    }
+
+    /// The drop-cutter (mesh and cutter) the checks run against.
+    pub(super) fn drop_cutter(&self) -> &DropCutter {
+        self.dc
     }
 
     /// How far the cutter with its tip at `tip` and its axis along `axis`
@@ -189,109 +195,6 @@ impl<'a> GougeCheck<'a> {
     }
 }
 
-/// What the tilt search did with the gouging locations
-/// ([`GougeCheck::check_tilting`]).
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
-pub struct TiltReport {
-    /// Gouging locations given another orientation that clears the part.
-    pub tilted: usize,
-    /// Gouging locations no orientation within reach cleared: lifted.
-    pub lifted: usize,
-    /// The largest change of lead or tilt taken (radians).
-    pub largest_turn: f64,
-}
-
-/// One location's outcome in the tilt search.
-enum Outcome {
-    Clear,
-    Tilted(Location, f64),
-    Lifted,
-}
-
-impl GougeCheck<'_> {
-    /// As [`GougeCheck::check`] with [`GougeRule::Lift`], but a gouging
-    /// location first tries other orientations for the same contact: the
-    /// lead or the tilt changed by `step`, then `2 step`, ... up to `max`
-    /// (radians), one angle at a time, both ways, in that order (tilt
-    /// before lead at each size); the first that clears the part is taken.
-    /// When none does, the location is lifted. `contacts` are the runs'
-    /// contacts ([`FiveAxis::contacts`]), `fa` the orientation asked for.
-    ///
-    /// Each location is searched alone: neighbours may take different
-    /// orientations, so the axis can turn by a step between two
-    /// locations where the part forces it.
-    pub fn check_tilting(
-        &self,
-        fa: &FiveAxis,
-        contacts: &[Vec<Contact>],
-        runs: &mut [Vec<Location>],
-        max: f64,
-        step: f64,
-    ) -> Result<(GougeReport, TiltReport), super::DropError> {
-        let (r, rc) = FiveAxis::radii(self.dc)?;
-        let length = fa.axis_length;
-        let sizes = if step > 0.0 && max > 0.0 {
-            ((max / step) + 1e-9).floor() as usize
-        } else {
-            0
-        };
-        let turns: Vec<(f64, f64)> = (1..=sizes)
-            .flat_map(|k| {
-                let a = step * k as f64;
-                [(0.0, a), (0.0, -a), (a, 0.0), (-a, 0.0)]
-            })
-            .collect();
-        let outcomes: Vec<Vec<(f64, Outcome)>> = runs
-            .par_iter()
-            .zip(contacts.par_iter())
-            .map(|(run, cs)| {
-                run.par_iter()
-                    .zip(cs.par_iter())
-                    .map(|(l, c)| {
-                        crate::progress::advance(1);
-                        let d = self.clearance(l.cl, l.axis_point - l.cl, length);
-                        if d <= GOUGE_TOL {
-                            return (d, Outcome::Clear);
-                        }
-                        for &(dl, dt) in &turns {
-                            let other = FiveAxis {
-                                lead: fa.lead + dl,
-                                tilt: fa.tilt + dt,
-                                axis_length: length,
-                            };
-                            let t = other.location(c.cc, c.normal, c.feed, r, rc);
-                            if self.clearance(t.cl, t.axis_point - t.cl, length) <= GOUGE_TOL {
-                                return (d, Outcome::Tilted(t, dl.abs().max(dt.abs())));
-                            }
-                        }
-                        (d, Outcome::Lifted)
-                    })
-                    .collect()
-            })
-            .collect();
-        let mut report = GougeReport::default();
-        let mut tilt = TiltReport::default();
-        for (run, outs) in runs.iter_mut().zip(outcomes) {
-            for (l, (d, out)) in run.iter_mut().zip(outs) {
-                report.record(l, d);
-                match out {
-                    Outcome::Clear => {}
-                    Outcome::Tilted(t, turn) => {
-                        *l = t;
-                        tilt.tilted += 1;
-                        tilt.largest_turn = tilt.largest_turn.max(turn);
-                    }
-                    Outcome::Lifted => {
-                        *l = lifted(l, d);
-                        tilt.lifted += 1;
-                    }
-                }
-            }
-        }
-        Ok((report, tilt))
-    }
-}
-
 /// The part of triangle `t` at or below height `h` (z), as up to two
 /// triangles (the count, then the triangles).
 fn clip_below(t: Triangle, h: f64) -> (usize, [Triangle; 2]) {
@@ -325,4 +228,4 @@ fn clip_below(t: Triangle, h: f64) -> (usize, [Triangle; 2]) {
 
 #[cfg(test)]
 #[path = "gouge_tests.rs"]
-mod tests;
+pub(crate) mod tests;

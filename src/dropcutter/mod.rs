@@ -25,6 +25,7 @@ pub mod gouge;
 pub mod index;
 pub mod output;
 pub mod raster;
+pub mod tilt;
 pub mod waterline;
 
 use crate::cutter::Cutter;

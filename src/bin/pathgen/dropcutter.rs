@@ -7,9 +7,10 @@ use microcam::cli::{self, CliError, Output};
 use microcam::cutter::Cutter;
 use microcam::dropcutter::adaptive::Adaptive;
 use microcam::dropcutter::fiveaxis::{Contact, FiveAxis, Location};
-use microcam::dropcutter::gouge::{GougeCheck, GougeReport, GougeRule, TiltReport};
+use microcam::dropcutter::gouge::{GougeCheck, GougeReport, GougeRule};
 use microcam::dropcutter::output::{Feeds, toolpath_records, write_cldata, write_cldata5};
 use microcam::dropcutter::raster::{Direction, Pattern, Raster, chain_passes};
+use microcam::dropcutter::tilt::{TiltReport, TiltSearch};
 use microcam::dropcutter::waterline::Waterline;
 use microcam::dropcutter::{DropCutter, DropError};
 use microcam::formats::cldata::ClWriter;
@@ -181,6 +182,11 @@ pub struct DropcutterArgs {
     /// default 5).
     #[arg(long, requires = "five_axis")]
     turn_step: Option<f64>,
+    /// 5-axis, --gouge tilt: ease each turn in and out over this distance
+    /// along the pass, so the axis turns gradually (mm; default the
+    /// cutter's diameter; 0 turns only the locations that need it).
+    #[arg(long, value_name = "MM", requires = "five_axis")]
+    turn_ramp: Option<f64>,
     #[command(flatten)]
     writer: WriterArgs,
     /// Write output here instead of stdout.
@@ -234,13 +240,15 @@ fn tilt_summary(r: &GougeReport, t: &TiltReport, length: f64) -> String {
         return gouge_summary(r, GougeRule::Lift, length);
     }
     format!(
-        "gouge check: {} of {} locations cut into the part (up to {:.6} mm along the tool axis); {} turned to clear it (lead or tilt changed by up to {:.1} deg), {} lifted along the axis where no turn within reach cleared it",
+        "gouge check: {} of {} locations cut into the part (up to {:.6} mm along the tool axis); {} turned to clear it (lead or tilt changed by up to {:.1} deg), {} lifted along the axis where no turn within reach cleared it; {} more turned part way to ease the axis in and out (the turn changes by at most {:.1} deg between neighbours)",
         r.gouging,
         r.checked,
         r.deepest,
         t.tilted,
         t.largest_turn.to_degrees(),
-        t.lifted
+        t.lifted,
+        t.eased,
+        t.largest_jump.to_degrees()
     )
 }
 
@@ -342,8 +350,14 @@ pub fn run(a: DropcutterArgs) -> Result<(), CliError> {
             .map(|run| run.iter().map(|c| fa.location(c.cc, c.normal, c.feed, r, rc)).collect())
             .collect();
         n_points = runs.iter().map(Vec::len).sum();
-        if a.gouge != GougeArg::Tilt && (a.max_turn.is_some() || a.turn_step.is_some()) {
-            return Err(CliError::input("--max-turn and --turn-step go with --gouge tilt"));
+        if a.gouge != GougeArg::Tilt && (a.max_turn.is_some() || a.turn_step.is_some() || a.turn_ramp.is_some()) {
+            return Err(CliError::input(
+                "--max-turn, --turn-step and --turn-ramp go with --gouge tilt",
+            ));
+        }
+        let turn_ramp = a.turn_ramp.unwrap_or(2.0 * cutter.radius());
+        if !(turn_ramp.is_finite() && turn_ramp >= 0.0) {
+            return Err(CliError::input(format!("--turn-ramp {turn_ramp}: mm, 0 or more")));
         }
         let (max_turn, turn_step) = (a.max_turn.unwrap_or(30.0), a.turn_step.unwrap_or(5.0));
         let in_range = (0.0..=90.0).contains(&max_turn) && turn_step > 0.0 && turn_step <= 90.0;
@@ -371,7 +385,16 @@ pub fn run(a: DropcutterArgs) -> Result<(), CliError> {
             }
             GougeArg::Tilt => {
                 let (report, tilt) = GougeCheck::new(&dc)
-                    .check_tilting(&fa, &contacts, &mut runs, max_turn.to_radians(), turn_step.to_radians())
+                    .check_tilting(
+                        &fa,
+                        &contacts,
+                        &mut runs,
+                        &TiltSearch {
+                            max: max_turn.to_radians(),
+                            step: turn_step.to_radians(),
+                            ramp: turn_ramp,
+                        },
+                    )
                     .map_err(bad)?;
                 Some(tilt_summary(&report, &tilt, fa.axis_length))
             }
@@ -389,7 +412,9 @@ pub fn run(a: DropcutterArgs) -> Result<(), CliError> {
                 GougeArg::Lift => "lift".to_string(),
                 GougeArg::Report => "report".to_string(),
                 GougeArg::Off => "off".to_string(),
-                GougeArg::Tilt => format!("tilt up to {max_turn} deg in steps of {turn_step} deg"),
+                GougeArg::Tilt => format!(
+                    "tilt up to {max_turn} deg in steps of {turn_step} deg, eased over {turn_ramp} mm"
+                ),
             }
         ))?;
         write_cldata5(&mut w, &runs, safe_z)?;

@@ -1,0 +1,249 @@
+//! The tilt search of the 5-axis gouge check: a location whose tool cuts
+//! into the part tries other leads and tilts for the same contact before
+//! it is lifted, and the turns it takes are eased in and out along its
+//! pass so the rotary axes do not jump.
+//!
+//! Why the easing: each location is searched alone, so a location that
+//! needs 15 degrees more tilt to clear a fillet sits between neighbours
+//! that need none. Written as it is, the axis turns 15 degrees between two
+//! CL points a few hundredths of a millimetre apart, which a trunnion can
+//! only follow by stopping the feed (and which marks the surface). With a
+//! ramp length `L`, every location within `L` of a turned one (measured
+//! along the pass through the contact points) is offered that turn scaled
+//! by `1 - d / L`, so the turn grows linearly into the stretch that needs
+//! it and falls away after; the offer is taken only where it keeps the
+//! tool clear of the part (checked like any other orientation), and
+//! never where the location's own turn is larger.
+
+use super::DropError;
+use super::fiveaxis::{Contact, FiveAxis, Location};
+use super::gouge::{GOUGE_TOL, GougeCheck, GougeReport, lifted};
+use rayon::prelude::*;
+
+/// How far the tilt search goes (all angles in radians, lengths in mm).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TiltSearch {
+    /// The largest change of lead or tilt tried.
+    pub max: f64,
+    /// The step between the changes tried.
+    pub step: f64,
+    /// The distance along a pass over which a turn is eased in and out
+    /// (0: no easing).
+    pub ramp: f64,
+}
+
+/// What the tilt search did with the gouging locations
+/// ([`GougeCheck::check_tilting`]).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct TiltReport {
+    /// Gouging locations given another orientation that clears the part.
+    pub tilted: usize,
+    /// Gouging locations no orientation within reach cleared: lifted.
+    pub lifted: usize,
+    /// The largest change of lead or tilt taken (radians).
+    pub largest_turn: f64,
+    /// Locations that did not gouge, turned part way to ease the axis
+    /// into and out of a turned stretch.
+    pub eased: usize,
+    /// The largest change of the turn (lead or tilt) between two
+    /// consecutive locations of a pass (radians).
+    pub largest_jump: f64,
+}
+
+/// One location's outcome: the turn taken (lead, tilt; radians) and how.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Outcome {
+    /// The tool clears the part as asked.
+    Clear,
+    /// Turned to clear the part.
+    Tilted(Location, [f64; 2]),
+    /// No turn within reach clears it: lifted by this depth.
+    Lifted(f64),
+    /// Cleared as asked, turned part way anyway to ease the axis.
+    Eased(Location, [f64; 2]),
+}
+
+impl Outcome {
+    fn turn(&self) -> [f64; 2] {
+        match *self {
+            Outcome::Tilted(_, t) | Outcome::Eased(_, t) => t,
+            Outcome::Clear | Outcome::Lifted(_) => [0.0; 2],
+        }
+    }
+}
+
+/// The larger of a turn's two angles, by size.
+fn size(t: [f64; 2]) -> f64 {
+    t[0].abs().max(t[1].abs())
+}
+
+impl GougeCheck<'_> {
+    /// As [`GougeCheck::check`] with [`super::gouge::GougeRule::Lift`], but
+    /// a gouging location first tries other orientations for the same
+    /// contact: the lead or the tilt changed by `step`, then `2 step`, ...
+    /// up to `max`, one angle at a time, both ways, in that order (tilt
+    /// before lead at each size); the first that clears the part is taken.
+    /// When none does, the location is lifted. Then the turns are eased
+    /// in and out over `ramp` along each pass (the module's doc).
+    /// `contacts` are the runs' contacts ([`FiveAxis::contacts`]), `fa` the
+    /// orientation asked for.
+    pub fn check_tilting(
+        &self,
+        fa: &FiveAxis,
+        contacts: &[Vec<Contact>],
+        runs: &mut [Vec<Location>],
+        search: &TiltSearch,
+    ) -> Result<(GougeReport, TiltReport), DropError> {
+        let (r, rc) = FiveAxis::radii(self.drop_cutter())?;
+        let length = fa.axis_length;
+        let turned = |c: &Contact, t: [f64; 2]| {
+            FiveAxis {
+                lead: fa.lead + t[0],
+                tilt: fa.tilt + t[1],
+                axis_length: length,
+            }
+            .location(c.cc, c.normal, c.feed, r, rc)
+        };
+        let clears = |l: &Location| self.clearance(l.cl, l.axis_point - l.cl, length) <= GOUGE_TOL;
+        let sizes = if search.step > 0.0 && search.max > 0.0 {
+            ((search.max / search.step) + 1e-9).floor() as usize
+        } else {
+            0
+        };
+        let turns: Vec<[f64; 2]> = (1..=sizes)
+            .flat_map(|k| {
+                let a = search.step * k as f64;
+                [[0.0, a], [0.0, -a], [a, 0.0], [-a, 0.0]]
+            })
+            .collect();
+        let outcomes: Vec<Vec<(f64, Outcome)>> = runs
+            .par_iter()
+            .zip(contacts.par_iter())
+            .map(|(run, cs)| {
+                let own: Vec<(f64, Outcome)> = run
+                    .par_iter()
+                    .zip(cs.par_iter())
+                    .map(|(l, c)| {
+                        crate::progress::advance(1);
+                        let d = self.clearance(l.cl, l.axis_point - l.cl, length);
+                        if d <= GOUGE_TOL {
+                            return (d, Outcome::Clear);
+                        }
+                        for &t in &turns {
+                            let other = turned(c, t);
+                            if clears(&other) {
+                                return (d, Outcome::Tilted(other, t));
+                            }
+                        }
+                        (d, Outcome::Lifted(d))
+                    })
+                    .collect();
+                ease(own, cs, search.ramp, |c, t| {
+                    let l = turned(c, t);
+                    clears(&l).then_some(l)
+                })
+            })
+            .collect();
+        let mut report = GougeReport::default();
+        let mut tilt = TiltReport::default();
+        for (run, outs) in runs.iter_mut().zip(outcomes) {
+            let mut last: Option<[f64; 2]> = None;
+            for (l, (d, out)) in run.iter_mut().zip(outs) {
+                report.record(l, d);
+                let t = out.turn();
+                if let Some(p) = last {
+                    tilt.largest_jump = tilt.largest_jump.max(size([t[0] - p[0], t[1] - p[1]]));
+                }
+                last = Some(t);
+                match out {
+                    Outcome::Clear => {}
+                    Outcome::Tilted(to, t) => {
+                        *l = to;
+                        tilt.tilted += 1;
+                        tilt.largest_turn = tilt.largest_turn.max(size(t));
+                    }
+                    Outcome::Eased(to, _) => {
+                        *l = to;
+                        tilt.eased += 1;
+                    }
+                    Outcome::Lifted(d) => {
+                        *l = lifted(l, d);
+                        tilt.lifted += 1;
+                    }
+                }
+            }
+        }
+        Ok((report, tilt))
+    }
+}
+
+/// Ease one pass's turns in and out over `ramp` (mm along the contacts):
+/// each location within `ramp` of a turned one is offered that turn times
+/// `1 - d / ramp`, the largest offer of all its turned neighbours, where
+/// that is larger than its own turn; `place` gives the location at an
+/// offered turn when it clears the part (the offer is dropped otherwise).
+/// A gouging location that takes an offer is tilted (it needed a turn); a
+/// clear one is eased.
+fn ease(
+    own: Vec<(f64, Outcome)>,
+    contacts: &[Contact],
+    ramp: f64,
+    place: impl Fn(&Contact, [f64; 2]) -> Option<Location> + Sync,
+) -> Vec<(f64, Outcome)> {
+    if ramp.is_nan() || ramp <= 0.0 || !own.iter().any(|(_, o)| matches!(o, Outcome::Tilted(..))) {
+        return own;
+    }
+    // Distance along the pass at each contact.
+    let mut s = Vec::with_capacity(contacts.len());
+    let mut acc = 0.0;
+    for (i, c) in contacts.iter().enumerate() {
+        if i > 0 {
+            acc += (c.cc - contacts[i - 1].cc).norm();
+        }
+        s.push(acc);
+    }
+    let mut offer: Vec<Option<[f64; 2]>> = vec![None; own.len()];
+    for (i, (_, o)) in own.iter().enumerate() {
+        let Outcome::Tilted(_, t) = *o else { continue };
+        let mut visit = |j: usize| {
+            let d = (s[j] - s[i]).abs();
+            if d >= ramp {
+                return false;
+            }
+            let w = 1.0 - d / ramp;
+            let cand = [t[0] * w, t[1] * w];
+            let mine = own[j].1.turn();
+            let best = offer[j].map_or(size(mine), size);
+            if size(cand) > best {
+                offer[j] = Some(cand);
+            }
+            true
+        };
+        for j in (0..i).rev() {
+            if !visit(j) {
+                break;
+            }
+        }
+        for j in i + 1..own.len() {
+            if !visit(j) {
+                break;
+            }
+        }
+    }
+    own.into_par_iter()
+        .zip(offer.into_par_iter())
+        .zip(contacts.par_iter())
+        .map(|(((d, o), off), c)| {
+            let Some(t) = off else { return (d, o) };
+            match (place(c, t), o) {
+                (None, _) => (d, o),
+                (Some(l), Outcome::Clear) => (d, Outcome::Eased(l, t)),
+                (Some(l), _) => (d, Outcome::Tilted(l, t)),
+            }
+        })
+        .collect()
+}
+
+#[cfg(test)]
+#[path = "tilt_tests.rs"]
+mod tests;

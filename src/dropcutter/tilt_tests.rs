@@ -1,0 +1,236 @@
+//! The tilt search against the gouge check's own answers: turned tools
+//! clear the trough of the gouge tests and still touch their contact, and
+//! eased turns keep the part clear while the axis turns gradually.
+
+use super::*;
+use crate::cutter::Cutter;
+use crate::dropcutter::DropCutter;
+use crate::dropcutter::gouge::GougeRule;
+use crate::dropcutter::gouge::tests::{inside_tool, samples, trough_pass};
+use crate::geometry::V3;
+
+/// A search in degrees (max, step) with a ramp in mm.
+fn search(max_deg: f64, step_deg: f64, ramp: f64) -> TiltSearch {
+    TiltSearch {
+        max: max_deg.to_radians(),
+        step: step_deg.to_radians(),
+        ramp,
+    }
+}
+
+#[test]
+fn tilting_clears_the_trough_with_the_tool_still_on_its_contact() {
+    let (mesh, xy) = trough_pass();
+    let points = samples(&mesh, 8);
+    for cutter in [
+        Cutter::Flat { radius: 0.6 },
+        Cutter::Torus {
+            radius: 0.8,
+            corner: 0.2,
+        },
+    ] {
+        let dc = DropCutter::new(&mesh, cutter).unwrap();
+        let gc = GougeCheck::new(&dc);
+        let fa = FiveAxis {
+            lead: 5f64.to_radians(),
+            tilt: 0.0,
+            axis_length: 6.0,
+        };
+        let contacts = FiveAxis::contacts(&dc, &xy);
+        let raw = fa.pass(&dc, &xy).unwrap();
+        // No turn allowed: exactly the lift.
+        let mut lifted = raw.clone();
+        let lift_report = gc.check(&mut lifted, 6.0, GougeRule::Lift);
+        let mut none = raw.clone();
+        let (r0, t0) = gc
+            .check_tilting(&fa, &contacts, &mut none, &search(0.0, 5.0, 0.0))
+            .unwrap();
+        assert_eq!((r0, none.clone()), (lift_report, lifted.clone()));
+        assert_eq!((t0.tilted, t0.lifted), (0, lift_report.gouging));
+        // Turns up to 30 degrees in steps of 5.
+        let mut turned = raw.clone();
+        let (report, tilt) = gc
+            .check_tilting(&fa, &contacts, &mut turned, &search(30.0, 5.0, 0.0))
+            .unwrap();
+        assert_eq!(report, lift_report, "the same gouges found");
+        assert_eq!(tilt.tilted + tilt.lifted, report.gouging);
+        assert!(tilt.tilted > report.gouging / 2, "{cutter:?}: {tilt:?}");
+        assert!(tilt.largest_turn <= 30f64.to_radians() + 1e-12);
+        let steps = tilt.largest_turn / 5f64.to_radians();
+        assert!((steps - steps.round()).abs() < 1e-9);
+        for ((t, l), c) in turned
+            .iter()
+            .flatten()
+            .zip(lifted.iter().flatten())
+            .zip(contacts.iter().flatten())
+        {
+            let a = (t.axis_point - t.cl).normalize();
+            assert!(gc.clearance(t.cl, a, 6.0) <= GOUGE_TOL);
+            if t == l {
+                continue;
+            }
+            // A turned tool still touches the part: lowered along its axis
+            // by 1e-3 mm it is 1e-3 mm deep.
+            let lower = gc.clearance(t.cl - a * 1e-3, a, 6.0);
+            assert!((lower - 1e-3).abs() < 1e-9, "{lower}");
+            // ... at its contact: the contact point lies on the tool's
+            // underside (the flat bottom, or the corner's tube).
+            let (r, rc) = (cutter.radius(), cutter.corner_radius());
+            let d = c.cc - t.cl;
+            let h = d.dot(&a);
+            let w = d - a * h;
+            let on_bottom = h.abs() < 1e-9 && w.norm() <= r - rc + 1e-9;
+            let on_tube = rc > 0.0 && {
+                let ring = t.cl + a * rc + w.normalize() * (r - rc);
+                ((c.cc - ring).norm() - rc).abs() < 1e-9 && h <= rc + 1e-9
+            };
+            assert!(
+                on_bottom || on_tube,
+                "{cutter:?}: contact {:?} off the tool at {:?}",
+                c.cc,
+                t.cl
+            );
+            for &p in &points {
+                assert!(!inside_tool(cutter, t.cl, a, 6.0, p, 1e-7), "{p:?}");
+            }
+        }
+    }
+}
+
+#[test]
+fn eased_turns_keep_the_part_clear_and_shrink_the_jumps() {
+    // A pass across the trough, sampled finely so a turned stretch has
+    // neighbours within a ramp of a millimetre.
+    let (mesh, _) = trough_pass();
+    let xy: Vec<crate::geometry::P2> = (0..=96)
+        .map(|i| crate::geometry::P2::new(-1.0, -1.6 + 3.2 * i as f64 / 96.0))
+        .collect();
+    let points = samples(&mesh, 8);
+    let cutter = Cutter::Flat { radius: 0.6 };
+    let dc = DropCutter::new(&mesh, cutter).unwrap();
+    let gc = GougeCheck::new(&dc);
+    let fa = FiveAxis {
+        lead: 5f64.to_radians(),
+        tilt: 0.0,
+        axis_length: 6.0,
+    };
+    let contacts = FiveAxis::contacts(&dc, &xy);
+    let raw = fa.pass(&dc, &xy).unwrap();
+    let mut sharp = raw.clone();
+    let (r_sharp, t_sharp) = gc
+        .check_tilting(&fa, &contacts, &mut sharp, &search(30.0, 5.0, 0.0))
+        .unwrap();
+    let mut eased = raw.clone();
+    let (r_eased, t_eased) = gc
+        .check_tilting(&fa, &contacts, &mut eased, &search(30.0, 5.0, 1.0))
+        .unwrap();
+    assert_eq!(r_sharp, r_eased, "the same gouges found");
+    assert!(t_sharp.tilted > 0 && t_sharp.eased == 0, "{t_sharp:?}");
+    assert!(t_eased.eased > 0, "{t_eased:?}");
+    // Every turned location needed its turn or is within the ramp; no
+    // location gouges, none lies deeper in the part than the sharp search
+    // allowed (every sampled point of the part outside every tool).
+    assert!(
+        t_eased.largest_jump < t_sharp.largest_jump,
+        "eased {:.2} deg, sharp {:.2} deg",
+        t_eased.largest_jump.to_degrees(),
+        t_sharp.largest_jump.to_degrees()
+    );
+    // The jumps, measured here from the locations themselves: the angle
+    // between consecutive tool axes, against the same from the sharp run.
+    let angles = |run: &[Vec<Location>]| -> f64 {
+        let axes: Vec<V3> = run
+            .iter()
+            .flatten()
+            .map(|l| (l.axis_point - l.cl).normalize())
+            .collect();
+        axes.windows(2)
+            .map(|w| w[0].dot(&w[1]).clamp(-1.0, 1.0).acos())
+            .fold(0.0, f64::max)
+    };
+    assert!(angles(&eased) < angles(&sharp), "{} {}", angles(&eased), angles(&sharp));
+    let mut changed = 0;
+    for ((e, s), c) in eased
+        .iter()
+        .flatten()
+        .zip(sharp.iter().flatten())
+        .zip(contacts.iter().flatten())
+    {
+        let a = (e.axis_point - e.cl).normalize();
+        assert!(gc.clearance(e.cl, a, 6.0) <= GOUGE_TOL);
+        for &p in &points {
+            assert!(!inside_tool(cutter, e.cl, a, 6.0, p, 1e-7), "{p:?}");
+        }
+        if e != s {
+            changed += 1;
+            // An eased or re-turned tool still touches its contact: on the
+            // flat bottom's rim or face.
+            let d = c.cc - e.cl;
+            assert!(d.dot(&a).abs() < 1e-9 && (d - a * d.dot(&a)).norm() <= 0.6 + 1e-9);
+        }
+    }
+    assert!(changed >= t_eased.eased, "{changed} {t_eased:?}");
+    // No turned location farther than the ramp from one that needed it:
+    // with a ramp shorter than the spacing, nothing is eased.
+    let mut short = raw.clone();
+    let (_, t_short) = gc
+        .check_tilting(&fa, &contacts, &mut short, &search(30.0, 5.0, 1e-3))
+        .unwrap();
+    assert_eq!((t_short.eased, &short), (0, &sharp));
+}
+
+#[test]
+fn ease_offers_the_largest_neighbouring_turn_scaled_by_distance() {
+    // Five contacts a millimetre apart on a line; the middle one turned
+    // 10 degrees of tilt. A 2.5 mm ramp offers 6 deg at 1 mm and 2 deg
+    // at 2 mm; `place` records the offers and accepts all but the last.
+    let contacts: Vec<Contact> = (0..5)
+        .map(|i| Contact {
+            cc: crate::geometry::P3::new(i as f64, 0.0, 0.0),
+            normal: V3::z(),
+            feed: V3::x(),
+        })
+        .collect();
+    let at = |x: f64| Location {
+        cl: crate::geometry::P3::new(x, 0.0, 0.0),
+        axis_point: crate::geometry::P3::new(x, 0.0, 1.0),
+    };
+    let ten = 10f64.to_radians();
+    let own: Vec<(f64, Outcome)> = (0..5)
+        .map(|i| {
+            if i == 2 {
+                (0.1, Outcome::Tilted(at(2.0), [0.0, ten]))
+            } else if i == 1 {
+                // Its own smaller lead turn loses to the 6 degree offer.
+                (0.05, Outcome::Tilted(at(1.0), [3f64.to_radians(), 0.0]))
+            } else {
+                (0.0, Outcome::Clear)
+            }
+        })
+        .collect();
+    let out = ease(own, &contacts, 2.5, |c, t| {
+        (c.cc.x < 4.0).then(|| at(c.cc.x + 100.0 * t[1]))
+    });
+    let turns: Vec<[f64; 2]> = out.iter().map(|(_, o)| o.turn()).collect();
+    let deg = |t: [f64; 2]| [t[0].to_degrees(), t[1].to_degrees()];
+    let close = |a: [f64; 2], b: [f64; 2]| (a[0] - b[0]).abs() < 1e-9 && (a[1] - b[1]).abs() < 1e-9;
+    assert!(close(deg(turns[0]), [0.0, 2.0]), "{:?}", deg(turns[0]));
+    assert!(close(deg(turns[1]), [0.0, 6.0]), "{:?}", deg(turns[1]));
+    assert!(close(deg(turns[2]), [0.0, 10.0]));
+    assert!(close(deg(turns[3]), [0.0, 6.0]));
+    // The last offer (2 deg) was refused by `place`: it stays clear.
+    assert_eq!(out[4].1, Outcome::Clear);
+    assert!(matches!(out[0].1, Outcome::Eased(..)));
+    assert!(
+        matches!(out[1].1, Outcome::Tilted(..)),
+        "a gouging location stays tilted"
+    );
+    // The depths are the locations' own, whatever they were turned to.
+    assert_eq!(
+        out.iter().map(|o| o.0).collect::<Vec<_>>(),
+        vec![0.0, 0.05, 0.1, 0.0, 0.0]
+    );
+    // No ramp: nothing changes.
+    let own2 = out.clone();
+    assert_eq!(ease(own2.clone(), &contacts, 0.0, |_, _| None), own2);
+}
