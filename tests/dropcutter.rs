@@ -422,6 +422,105 @@ fn five_axis_locations_that_would_gouge_are_lifted_or_reported() {
     }
 }
 
+/// A floor with a block standing on it, 5 mm tall, its near face at
+/// x = 1 (the 5-axis holder tests).
+fn floor_and_wall() -> Vec<[[f64; 3]; 3]> {
+    let mut t = Vec::new();
+    let mut quad = |a: [f64; 3], b: [f64; 3], c: [f64; 3], d: [f64; 3]| {
+        t.push([a, b, c]);
+        t.push([a, c, d]);
+    };
+    quad([-3.0, -3.0, 0.0], [1.0, -3.0, 0.0], [1.0, 3.0, 0.0], [-3.0, 3.0, 0.0]);
+    quad([1.0, -3.0, 5.0], [2.0, -3.0, 5.0], [2.0, 3.0, 5.0], [1.0, 3.0, 5.0]);
+    quad([1.0, -3.0, 0.0], [1.0, 3.0, 0.0], [1.0, 3.0, 5.0], [1.0, -3.0, 5.0]);
+    t
+}
+
+/// `--holder`: a holder 3 mm across from 2 mm up a 1 mm end mill hits the
+/// wall where the cutter does not; lifted, the holder's face rises above
+/// the wall's top; turned, most locations clear it by leaning away.
+#[test]
+fn the_holder_is_checked_against_the_part() {
+    let dir = tempfile::tempdir().unwrap();
+    let stl = dir.path().join("wall.stl");
+    write_stl(&stl, &floor_and_wall());
+    let s = stl.to_str().unwrap();
+    let run = |extra: &[&str]| {
+        let o = pathgen()
+            .args([
+                "dropcutter",
+                s,
+                "--tool",
+                "flat:1",
+                "--step-over",
+                "0.25",
+                "--region",
+                "-2,-1,0.4,1",
+            ])
+            .args(["--five-axis", "--axis-length", "10"])
+            .args(extra)
+            .output()
+            .unwrap();
+        assert_eq!(
+            o.status.code(),
+            Some(0),
+            "{extra:?}: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+        (
+            read_cldata(o.stdout.as_slice()).unwrap(),
+            String::from_utf8_lossy(&o.stderr).into_owned(),
+        )
+    };
+    let (plain, e_plain) = run(&["--gouge", "report"]);
+    assert!(e_plain.contains("none of"), "{e_plain}");
+    let (reported, e_rep) = run(&["--gouge", "report", "--holder", "3:2"]);
+    assert!(!e_rep.contains("none of"), "{e_rep}");
+    assert_eq!(reported.points, plain.points, "report leaves the locations");
+    let (lifted, e_lift) = run(&["--holder", "3:2"]);
+    assert!(e_lift.contains("lifted"), "{e_lift}");
+    // Lifted where the holder reaches the wall (x > -1.5 + 0.5 on the
+    // floor): its face at 2 mm rises to the top at 5 mm.
+    let mut rose = 0;
+    for (l, p) in lifted.points.iter().zip(&plain.points) {
+        let up = l.z - p.z;
+        assert!(up.abs() < 1e-9 || (up - 3.0).abs() < 1e-5, "{p:?} -> {l:?}");
+        if up > 1.0 {
+            assert!(p.x > -0.5 - 1e-9, "{p:?}");
+            rose += 1;
+        }
+    }
+    assert!(rose > 0);
+    let (_, e_tilt) = run(&["--gouge", "tilt", "--holder", "3:2"]);
+    assert!(e_tilt.contains("turned to clear it"), "{e_tilt}");
+    // Bad usage: exit 2, nothing written.
+    for bad in [
+        &["--holder", "0.5:2"][..],
+        &["--holder", "3"],
+        &["--holder", "3:-1"],
+        &["--holder", "3:10"],
+        &["--holder", "3:2", "--gouge", "off"],
+    ] {
+        let o = pathgen()
+            .args([
+                "dropcutter",
+                s,
+                "--tool",
+                "flat:1",
+                "--step-over",
+                "0.4",
+                "--five-axis",
+                "--axis-length",
+                "10",
+            ])
+            .args(bad)
+            .output()
+            .unwrap();
+        assert_eq!(o.status.code(), Some(2), "{bad:?}");
+        assert!(o.stdout.is_empty(), "{bad:?}");
+    }
+}
+
 /// The gouge check seen by the other engine: `stlverify` sweeps the tool
 /// along the 5-axis locations through a dexel stock and compares the
 /// machined top with the design. Unchecked, the tool cuts into every point

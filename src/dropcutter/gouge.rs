@@ -16,10 +16,13 @@
 //!
 //! What counts as the tool: the cutter's profile from its tip up to
 //! `length` along the axis (pathgen's `--axis-length`, the second point of
-//! Singh 2014's 5-axis row), with the cutter's radius all the way up.
-//! Triangles are cut at that height, so a part of the mesh beyond it (the
-//! far wall of a bowl across the axis) is not a gouge; a holder wider than
-//! the cutter is not modelled.
+//! Singh 2014's 5-axis row), with the cutter's radius all the way up, and,
+//! when given ([`Holder`]), a wider cylinder from the holder's height up.
+//! Triangles are cut at `length`, so a part of the mesh beyond it (the
+//! far wall of a bowl across the axis) is not a gouge. The holder's
+//! clearance is a drop too: a flat cutter of the holder's radius dropped
+//! on the same turned triangles finds the highest point within that
+//! radius, and the holder's face must rise above it.
 //!
 //! A gouging location is either lifted along its axis by the depth found
 //! (the tool then touches the part and leaves material, which the
@@ -28,7 +31,7 @@
 //! tries other orientations for the same contact.
 
 use super::DropCutter;
-use super::cutter_vs_triangle::{Tri, drop_on};
+use super::cutter_vs_triangle::{ContactCutter, Tri, drop_on};
 use super::fiveaxis::Location;
 use crate::geometry::{P3, V3};
 use crate::mesh::bvh::Bvh;
@@ -96,6 +99,20 @@ pub(super) fn lifted(l: &Location, depth: f64) -> Location {
 pub struct GougeCheck<'a> {
     dc: &'a DropCutter,
     bvh: Bvh,
+    /// The holder, and a flat cutter of its radius to drop.
+    holder: Option<(Holder, ContactCutter)>,
+}
+
+/// A tool holder (or a shank wider than the cutter): a cylinder about the
+/// tool axis from `height` above the tip up to the checked length. Below
+/// it the tool is the cutter, its radius all the way up.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Holder {
+    /// Radius (mm), at least the cutter's.
+    pub radius: f64,
+    /// Distance from the tool tip up the axis to the holder's face (mm):
+    /// the tool's stick-out.
+    pub height: f64,
 }
 
 impl<'a> GougeCheck<'a> {
@@ -112,7 +129,24 @@ impl<'a> GougeCheck<'a> {
         GougeCheck {
             dc,
             bvh: Bvh::new(&Mesh::from_triangles(&tris)),
+            holder: None,
         }
+    }
+
+    /// Check the holder too: the tool is the cutter up to `h.height` and a
+    /// cylinder of `h.radius` above. A holder narrower than the cutter, or
+    /// not above the tip, is refused.
+    pub fn with_holder(mut self, h: Holder) -> Result<Self, super::DropError> {
+        let r = self.dc.shape.r;
+        if !(h.radius.is_finite() && h.radius >= r && h.height.is_finite() && h.height > 0.0) {
+            return Err(super::DropError::Option(format!(
+                "holder of radius {} at {} mm up the tool: needs a radius of at least the cutter's ({r} mm) and a height above 0",
+                h.radius, h.height
+            )));
+        }
+        let flat = ContactCutter::new(crate::cutter::Cutter::Flat { radius: h.radius });
+        self.holder = Some((h, flat));
+        Ok(self)
     }
 
     /// The drop-cutter (mesh and cutter) the checks run against.
@@ -164,7 +198,50 @@ impl<'a> GougeCheck<'a> {
                 }
             }
         });
+        if let Some((h, flat)) = &self.holder {
+            best = best.max(self.holder_clearance(h, flat, tip, a, length, local, best));
+        }
         best
+    }
+
+    /// How far the tool must rise for its holder's face to clear the part:
+    /// the highest point of the mesh within the holder's radius, up to the
+    /// checked length (a flat cutter of that radius dropped in the tool's
+    /// frame), less the holder's height; at least `floor`.
+    #[allow(clippy::too_many_arguments)]
+    fn holder_clearance(
+        &self,
+        h: &Holder,
+        flat: &ContactCutter,
+        tip: P3,
+        a: V3,
+        length: f64,
+        local: impl Fn(&P3) -> P3,
+        floor: f64,
+    ) -> f64 {
+        if h.height >= length {
+            return floor;
+        }
+        let Some((s0, s1)) = self.dc.bbox.clip_line(&tip, &a, (h.height, length), h.radius) else {
+            return floor;
+        };
+        // The face must rise above the highest point: z - height > floor.
+        let mut top = floor + h.height;
+        self.bvh
+            .for_each_near_segment(tip + a * s0, tip + a * s1, h.radius, |_, c| {
+                let [p, q, w] = [local(&c[0]), local(&c[1]), local(&c[2])];
+                if p.z.min(q.z).min(w.z) > length || p.z.max(q.z).max(w.z) <= top {
+                    return;
+                }
+                let (count, parts) = clip_below(Triangle::new(p, q, w), length);
+                for tri in &parts[..count] {
+                    let tri = Tri::new(tri);
+                    if tri.zmax > top && tri.near(0.0, 0.0, h.radius) {
+                        drop_on(flat, 0.0, 0.0, &tri, &mut top);
+                    }
+                }
+            });
+        top - h.height
     }
 
     /// Check every location of `runs` (tools `length` long), lifting the

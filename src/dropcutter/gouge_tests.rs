@@ -263,3 +263,129 @@ fn the_checked_length_bounds_the_tool() {
     assert_eq!(gc.clearance(P3::new(f64::NAN, 0.0, 0.0), a, 10.0), 0.0);
     assert_eq!(gc.clearance(tip, a, 0.0), 0.0);
 }
+
+/// A floor (z = 0, 10 mm square about the origin) and a block standing on
+/// it: x from 1 to 1.5, y from -3 to 3, 5 mm tall; turned by `rot` and
+/// moved by `shift`.
+fn floor_and_wall(rot: nalgebra::Rotation3<f64>, shift: V3) -> Mesh {
+    let p = |x: f64, y: f64, z: f64| rot * P3::new(x, y, z) + shift;
+    let quad = |t: &mut Vec<Triangle>, a: P3, b: P3, c: P3, d: P3| {
+        t.push(Triangle::new(a, b, c));
+        t.push(Triangle::new(a, c, d));
+    };
+    let mut t = Vec::new();
+    quad(&mut t, p(-5., -5., 0.), p(5., -5., 0.), p(5., 5., 0.), p(-5., 5., 0.));
+    let (x0, x1, y0, y1, h) = (1.0, 1.5, -3.0, 3.0, 5.0);
+    quad(&mut t, p(x0, y0, h), p(x1, y0, h), p(x1, y1, h), p(x0, y1, h));
+    quad(&mut t, p(x0, y0, 0.), p(x0, y1, 0.), p(x0, y1, h), p(x0, y0, h));
+    quad(&mut t, p(x1, y0, 0.), p(x1, y1, 0.), p(x1, y1, h), p(x1, y0, h));
+    quad(&mut t, p(x0, y0, 0.), p(x1, y0, 0.), p(x1, y0, h), p(x0, y0, h));
+    quad(&mut t, p(x0, y1, 0.), p(x1, y1, 0.), p(x1, y1, h), p(x0, y1, h));
+    Mesh::from_triangles(&t)
+}
+
+#[test]
+fn a_holder_rises_above_a_wall_its_cutter_clears() {
+    let cutter = Cutter::Flat { radius: 0.5 };
+    let holder = |radius: f64, height: f64| Holder { radius, height };
+    // The same scene in place and turned and moved: the answers must not
+    // depend on the frame.
+    let rot = nalgebra::Rotation3::from_euler_angles(0.3, -0.5, 1.1);
+    let shift = V3::new(3.0, -2.0, 7.0);
+    for (r, s) in [(nalgebra::Rotation3::identity(), V3::zeros()), (rot, shift)] {
+        let mesh = floor_and_wall(r, s);
+        let dc = DropCutter::new(&mesh, cutter).unwrap();
+        let tip = r * P3::origin() + s;
+        let up = r * V3::z();
+        let depth = |h: Option<Holder>, axis: V3, length: f64| {
+            let gc = GougeCheck::new(&dc);
+            let gc = match h {
+                Some(h) => gc.with_holder(h).unwrap(),
+                None => gc,
+            };
+            gc.clearance(tip, axis, length)
+        };
+        let close = |a: f64, b: f64| (a - b).abs() < 1e-9;
+        // The cutter stands on the floor a millimetre from the wall.
+        assert!(close(depth(None, up, 10.0), 0.0));
+        // A holder reaching the wall from 2 mm up: it rises until its face
+        // is level with the wall's top (5 mm).
+        assert!(close(depth(Some(holder(1.5, 2.0)), up, 10.0), 3.0));
+        // The wall's top cut at the checked length (4 mm).
+        assert!(close(depth(Some(holder(1.5, 2.0)), up, 4.0), 2.0));
+        // A face above the wall, a holder that does not reach it, a
+        // holder beyond the checked length: clear.
+        assert!(close(depth(Some(holder(1.5, 6.0)), up, 10.0), 0.0));
+        assert!(close(depth(Some(holder(0.99, 2.0)), up, 10.0), 0.0));
+        assert!(close(depth(Some(holder(1.5, 12.0)), up, 10.0), 0.0));
+        // Tilted 20 degrees away from the wall the holder clears it: the
+        // depth is the cutter's alone (its rim in the floor, r tan 20
+        // deg); towards the wall the holder goes deeper than upright.
+        let (sin, cos) = 20f64.to_radians().sin_cos();
+        let away = r * V3::new(-sin, 0.0, cos);
+        let towards = r * V3::new(sin, 0.0, cos);
+        let rim = 0.5 * sin / cos;
+        assert!(close(depth(None, away, 10.0), rim));
+        assert!(close(depth(Some(holder(1.5, 2.0)), away, 10.0), rim));
+        assert!(depth(Some(holder(1.5, 2.0)), towards, 10.0) > 3.0);
+    }
+    // A holder narrower than the cutter, or at the tip, is refused.
+    let mesh = floor_and_wall(nalgebra::Rotation3::identity(), V3::zeros());
+    let dc = DropCutter::new(&mesh, cutter).unwrap();
+    for h in [
+        holder(0.4, 2.0),
+        holder(1.0, 0.0),
+        holder(f64::NAN, 2.0),
+        holder(1.0, -1.0),
+    ] {
+        assert!(GougeCheck::new(&dc).with_holder(h).is_err(), "{h:?}");
+    }
+}
+
+#[test]
+fn a_lifted_tool_with_its_holder_leaves_every_sampled_point_outside() {
+    // Tools around the wall at many tilts: lifted by the clearance found,
+    // no sampled point of the part is inside the cutter or the holder;
+    // lowered by 1e-3 mm, the tool is 1e-3 mm deep again (the lift is no
+    // larger than needed).
+    let mesh = floor_and_wall(nalgebra::Rotation3::identity(), V3::zeros());
+    let points = samples(&mesh, 40);
+    let cutter = Cutter::Flat { radius: 0.5 };
+    let h = Holder {
+        radius: 1.25,
+        height: 1.5,
+    };
+    let dc = DropCutter::new(&mesh, cutter).unwrap();
+    let gc = GougeCheck::new(&dc).with_holder(h).unwrap();
+    let bare = GougeCheck::new(&dc);
+    let length = 8.0;
+    let mut by_holder = 0;
+    let inside = |tip: P3, a: V3, p: P3, eps: f64| {
+        let d = p - tip;
+        let along = d.dot(&a);
+        let u = (d - a * along).norm();
+        let in_holder = u < h.radius - eps && along > h.height + eps && along < length - eps;
+        in_holder || inside_tool(cutter, tip, a, length, p, eps)
+    };
+    let mut binding = 0;
+    for i in 0..12 {
+        for j in 0..5 {
+            let tip = P3::new(-0.2 + 0.08 * i as f64, 0.3 * j as f64 - 0.6, 0.0);
+            let (th, ph) = (0.35 * (j as f64 - 2.0), 0.7 * i as f64);
+            let a = V3::new(th.sin() * ph.cos(), th.sin() * ph.sin(), th.cos());
+            let d = gc.clearance(tip, a, length);
+            let lifted = tip + a * d;
+            for &p in &points {
+                assert!(!inside(lifted, a, p, 1e-7), "tip {tip:?} axis {a:?}: {p:?} inside");
+            }
+            if d > 1e-3 {
+                let again = gc.clearance(lifted - a * 1e-3, a, length);
+                assert!((again - 1e-3).abs() < 1e-9, "tip {tip:?} axis {a:?}: {again}");
+                binding += 1;
+            }
+            by_holder += (d > bare.clearance(tip, a, length) + 1e-6) as usize;
+        }
+    }
+    assert!(binding > 10, "{binding}");
+    assert!(by_holder > 5, "{by_holder}");
+}

@@ -7,7 +7,7 @@ use microcam::cli::{self, CliError, Output};
 use microcam::cutter::Cutter;
 use microcam::dropcutter::adaptive::Adaptive;
 use microcam::dropcutter::fiveaxis::{Contact, FiveAxis, Location};
-use microcam::dropcutter::gouge::{GougeCheck, GougeReport, GougeRule};
+use microcam::dropcutter::gouge::{GougeCheck, GougeReport, GougeRule, Holder};
 use microcam::dropcutter::output::{Feeds, toolpath_records, write_cldata, write_cldata5};
 use microcam::dropcutter::raster::{Direction, Pattern, Raster, chain_passes};
 use microcam::dropcutter::tilt::{TiltReport, TiltSearch};
@@ -187,11 +187,31 @@ pub struct DropcutterArgs {
     /// cutter's diameter; 0 turns only the locations that need it).
     #[arg(long, value_name = "MM", requires = "five_axis")]
     turn_ramp: Option<f64>,
+    /// 5-axis: check the tool holder too, a cylinder of diameter D whose
+    /// face is H mm up the axis from the tool tip (the stick-out), up to
+    /// --axis-length (D:H, mm; D at least the cutter's).
+    #[arg(long, value_name = "D:H", value_parser = parse_holder, requires = "five_axis")]
+    holder: Option<Holder>,
     #[command(flatten)]
     writer: WriterArgs,
     /// Write output here instead of stdout.
     #[arg(short, long)]
     output: Option<PathBuf>,
+}
+
+fn parse_holder(s: &str) -> Result<Holder, String> {
+    let v: Vec<f64> = s
+        .split(':')
+        .map(|t| t.trim().parse::<f64>().ok().filter(|v| v.is_finite() && *v > 0.0))
+        .collect::<Option<_>>()
+        .ok_or_else(|| format!("expected D:H, two positive lengths in mm, got '{s}'"))?;
+    match v[..] {
+        [d, h] => Ok(Holder {
+            radius: d / 2.0,
+            height: h,
+        }),
+        _ => Err(format!("expected D:H, two positive lengths in mm, got '{s}'")),
+    }
 }
 
 fn parse_region(s: &str) -> Result<[f64; 4], String> {
@@ -372,6 +392,21 @@ pub fn run(a: DropcutterArgs) -> Result<(), CliError> {
             if a.gouge == GougeArg::Off { 0 } else { n_points as u64 },
             Show::from_flags(a.quiet, false),
         );
+        if a.gouge == GougeArg::Off && a.holder.is_some() {
+            return Err(CliError::input("--holder goes with the gouge check (not --gouge off)"));
+        }
+        let gouge_check = match a.holder {
+            Some(h) if h.height >= fa.axis_length => {
+                return Err(CliError::input(format!(
+                    "--holder: its face at {} mm is not below --axis-length {} (the length of tool checked)",
+                    h.height, fa.axis_length
+                )));
+            }
+            Some(h) => GougeCheck::new(&dc)
+                .with_holder(h)
+                .map_err(|e| CliError::input(format!("--holder: {e}")))?,
+            None => GougeCheck::new(&dc),
+        };
         let summary = match a.gouge {
             GougeArg::Off => None,
             GougeArg::Lift | GougeArg::Report => {
@@ -380,11 +415,11 @@ pub fn run(a: DropcutterArgs) -> Result<(), CliError> {
                 } else {
                     GougeRule::Report
                 };
-                let report = GougeCheck::new(&dc).check(&mut runs, fa.axis_length, rule);
+                let report = gouge_check.check(&mut runs, fa.axis_length, rule);
                 Some(gouge_summary(&report, rule, fa.axis_length))
             }
             GougeArg::Tilt => {
-                let (report, tilt) = GougeCheck::new(&dc)
+                let (report, tilt) = gouge_check
                     .check_tilting(
                         &fa,
                         &contacts,
@@ -405,7 +440,7 @@ pub fn run(a: DropcutterArgs) -> Result<(), CliError> {
         }
         let mut w = ClWriter::new(&mut out);
         w.comment(&format!(
-            "microcam 5-axis CL data: x y z (tool tip) x1 y1 z1 (point on the tool axis), mm; cutter {cutter}, lead {} deg, tilt {} deg, gouge check {}, from {name}",
+            "microcam 5-axis CL data: x y z (tool tip) x1 y1 z1 (point on the tool axis), mm; cutter {cutter}, lead {} deg, tilt {} deg, gouge check {}{}, from {name}",
             a.lead,
             a.tilt,
             match a.gouge {
@@ -415,7 +450,12 @@ pub fn run(a: DropcutterArgs) -> Result<(), CliError> {
                 GougeArg::Tilt => format!(
                     "tilt up to {max_turn} deg in steps of {turn_step} deg, eased over {turn_ramp} mm"
                 ),
-            }
+            },
+            a.holder.map_or(String::new(), |h| format!(
+                " with a holder of {} mm diameter from {} mm up the axis",
+                2.0 * h.radius,
+                h.height
+            ))
         ))?;
         write_cldata5(&mut w, &runs, safe_z)?;
         w.finish()?;
