@@ -115,32 +115,19 @@ struct Node {
 struct Quad {
     /// Child boxes: rows min x, y, z, max x, y, z; columns the children.
     b: [[f32; 4]; 6],
-    /// Child: quad index (count 0) or first triangle (count > 0).
+    /// Child: quad index (interior) or first triangle (leaf).
     child: [u32; 4],
-    /// 0 for an interior child, the triangle count of a leaf, EMPTY for
-    /// an unused slot.
-    count: [u32; 4],
+    /// A leaf child's triangle count (at most `MAX_LEAF`); 0 otherwise.
+    count: [u8; 4],
+    /// Bit c set when child c is a leaf.
+    leaves: u8,
+    /// Bit c set when child c is an interior quad (neither bit: an unused
+    /// slot). Kept here, not derived from the counts: the walk reads them
+    /// at every quad, and deriving them took 40-odd instructions there.
+    inner: u8,
 }
 
-const EMPTY: u32 = u32::MAX;
-
 impl Quad {
-    /// Bit c set when child c is a leaf.
-    #[inline(always)]
-    fn leaf_mask(&self) -> u32 {
-        // `&`, not `&&`: no branches, the four lanes compared at once.
-        let c = &self.count;
-        let leaf = |i: usize| ((c[i] != 0) & (c[i] != EMPTY)) as u32;
-        leaf(0) | leaf(1) << 1 | leaf(2) << 2 | leaf(3) << 3
-    }
-
-    /// Bit c set when child c is an interior quad.
-    #[inline(always)]
-    fn inner_mask(&self) -> u32 {
-        let c = &self.count;
-        (c[0] == 0) as u32 | ((c[1] == 0) as u32) << 1 | ((c[2] == 0) as u32) << 2 | ((c[3] == 0) as u32) << 3
-    }
-
     const NONE: Quad = Quad {
         b: [
             [f32::INFINITY; 4],
@@ -151,7 +138,9 @@ impl Quad {
             [f32::NEG_INFINITY; 4],
         ],
         child: [0; 4],
-        count: [EMPTY; 4],
+        count: [0; 4],
+        leaves: 0,
+        inner: 0,
     };
 }
 
@@ -494,12 +483,12 @@ impl Bvh {
             let (e, entered) = pre.slab4(q, t0, t_max(true) as f32);
             // Bit c set: the ray enters child c. Leaves are tested at once
             // (they shrink t_max); interior children go down nearest first.
-            let mut inner = entered & q.inner_mask();
-            let mut leaves = entered & q.leaf_mask();
+            let mut inner = entered & q.inner as u32;
+            let mut leaves = entered & q.leaves as u32;
             while leaves != 0 {
                 let c = leaves.trailing_zeros() as usize;
                 leaves &= leaves - 1;
-                leaf(self, q.child[c] as usize..(q.child[c] + q.count[c]) as usize, &pre);
+                leaf(self, q.child[c] as usize..q.child[c] as usize + q.count[c] as usize, &pre);
             }
             let limit = t_max(false) as f32 * slack;
             // The common cases without a sort: one child entered, or two.

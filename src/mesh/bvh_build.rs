@@ -207,10 +207,12 @@ fn quads_of(nodes: &[Node]) -> Vec<Quad> {
             }
             if ch.n > 0 {
                 q.child[c] = ch.a;
-                q.count[c] = ch.n;
+                // Leaves hold at most MAX_LEAF (4) triangles.
+                q.count[c] = ch.n as u8;
+                q.leaves |= 1 << c;
             } else {
                 q.child[c] = out.len() as u32;
-                q.count[c] = 0;
+                q.inner |= 1 << c;
                 out.push(Quad::NONE);
                 todo.push((j, q.child[c] as usize));
             }
