@@ -202,31 +202,44 @@ fn ease(
         }
         s.push(acc);
     }
-    let mut offer: Vec<Option<[f64; 2]>> = vec![None; own.len()];
-    for (i, (_, o)) in own.iter().enumerate() {
-        let Outcome::Tilted(_, t) = *o else { continue };
-        let mut visit = |j: usize| {
-            let d = (s[j] - s[i]).abs();
-            if d >= ramp {
-                return false;
-            }
-            let w = 1.0 - d / ramp;
-            let cand = [t[0] * w, t[1] * w];
-            let mine = own[j].1.turn();
-            let best = offer[j].map_or(size(mine), size);
-            if size(cand) > best {
-                offer[j] = Some(cand);
-            }
-            true
-        };
-        for j in (0..i).rev() {
-            if !visit(j) {
-                break;
-            }
-        }
-        for j in i + 1..own.len() {
-            if !visit(j) {
-                break;
+    // The offers at each location are the upper envelope of one tent per
+    // turned location. Tents of one size fall at one slope, so along the
+    // pass the nearest one of a size behind a location is the best of that
+    // size: one pass each way per size present (a handful: the search's
+    // turns are whole steps), not a walk over every pair within the ramp,
+    // which a long ramp on a long pass made quadratic.
+    let mut sizes: Vec<f64> = own
+        .iter()
+        .filter(|(_, o)| matches!(o, Outcome::Tilted(..)))
+        .map(|(_, o)| size(o.turn()))
+        .collect();
+    sizes.sort_by(f64::total_cmp);
+    sizes.dedup();
+    let n = own.len();
+    let mut offer: Vec<Option<[f64; 2]>> = vec![None; n];
+    let mut best: Vec<f64> = own.iter().map(|(_, o)| size(o.turn())).collect();
+    for &class in &sizes {
+        for forward in [true, false] {
+            let mut seed: Option<(f64, [f64; 2])> = None;
+            for k in 0..n {
+                let j = if forward { k } else { n - 1 - k };
+                if let Outcome::Tilted(_, t) = own[j].1
+                    && size(t) == class
+                {
+                    seed = Some((s[j], t));
+                }
+                let Some((si, t)) = seed else { continue };
+                let d = (s[j] - si).abs();
+                if d >= ramp {
+                    seed = None;
+                    continue;
+                }
+                let w = 1.0 - d / ramp;
+                let cand = [t[0] * w, t[1] * w];
+                if size(cand) > best[j] {
+                    best[j] = size(cand);
+                    offer[j] = Some(cand);
+                }
             }
         }
     }

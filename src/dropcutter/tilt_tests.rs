@@ -234,3 +234,74 @@ fn ease_offers_the_largest_neighbouring_turn_scaled_by_distance() {
     let own2 = out.clone();
     assert_eq!(ease(own2.clone(), &contacts, 0.0, |_, _| None), own2);
 }
+
+#[test]
+fn the_envelope_of_offers_is_the_best_of_every_pair() {
+    // Random passes: contacts at random spacings on a line, some turned by
+    // whole steps in one of the four ways. The offers found by the
+    // per-size passes equal a search over every (turned, location) pair.
+    let mut seed = 0x2545_f491_4f6c_dd1du64;
+    let mut rnd = || {
+        seed ^= seed << 13;
+        seed ^= seed >> 7;
+        seed ^= seed << 17;
+        (seed >> 11) as f64 / (1u64 << 53) as f64
+    };
+    let step = 5f64.to_radians();
+    for case in 0..200 {
+        let n = 1 + (rnd() * 60.0) as usize;
+        let ramp = 0.05 + rnd() * 3.0;
+        let mut x = 0.0;
+        let contacts: Vec<Contact> = (0..n)
+            .map(|_| {
+                x += rnd() * 0.4;
+                Contact {
+                    cc: crate::geometry::P3::new(x, 0.0, 0.0),
+                    normal: V3::z(),
+                    feed: V3::x(),
+                }
+            })
+            .collect();
+        let at = |c: &Contact| Location {
+            cl: c.cc,
+            axis_point: c.cc + V3::z(),
+        };
+        let own: Vec<(f64, Outcome)> = contacts
+            .iter()
+            .map(|c| {
+                if rnd() < 0.3 {
+                    let a = step * (1 + (rnd() * 6.0) as usize) as f64;
+                    let t = [[0.0, a], [0.0, -a], [a, 0.0], [-a, 0.0]][(rnd() * 4.0) as usize];
+                    (0.1, Outcome::Tilted(at(c), t))
+                } else {
+                    (0.0, Outcome::Clear)
+                }
+            })
+            .collect();
+        let s: Vec<f64> = contacts.iter().map(|c| c.cc.x).collect();
+        let mut expect: Vec<[f64; 2]> = own.iter().map(|(_, o)| o.turn()).collect();
+        for j in 0..n {
+            let mut best = size(expect[j]);
+            for i in 0..n {
+                let Outcome::Tilted(_, t) = own[i].1 else { continue };
+                let d = (s[j] - s[i]).abs();
+                if d < ramp {
+                    let w = 1.0 - d / ramp;
+                    let cand = [t[0] * w, t[1] * w];
+                    if size(cand) > best {
+                        best = size(cand);
+                        expect[j] = cand;
+                    }
+                }
+            }
+        }
+        let got = ease(own, &contacts, ramp, |c, _| Some(at(c)));
+        for (j, ((_, o), e)) in got.iter().zip(&expect).enumerate() {
+            let t = o.turn();
+            assert!(
+                (t[0] - e[0]).abs() < 1e-12 && (t[1] - e[1]).abs() < 1e-12,
+                "case {case}, location {j}: {t:?} against {e:?}"
+            );
+        }
+    }
+}

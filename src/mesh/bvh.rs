@@ -488,7 +488,11 @@ impl Bvh {
             while leaves != 0 {
                 let c = leaves.trailing_zeros() as usize;
                 leaves &= leaves - 1;
-                leaf(self, q.child[c] as usize..q.child[c] as usize + q.count[c] as usize, &pre);
+                leaf(
+                    self,
+                    q.child[c] as usize..q.child[c] as usize + q.count[c] as usize,
+                    &pre,
+                );
             }
             let limit = t_max(false) as f32 * slack;
             // The common cases without a sort: one child entered, or two.
