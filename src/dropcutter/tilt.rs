@@ -83,6 +83,10 @@ impl GougeCheck<'_> {
     /// contact: the lead or the tilt changed by `step`, then `2 step`, ...
     /// up to `max`, one angle at a time, both ways, in that order (tilt
     /// before lead at each size); the first that clears the part is taken.
+    /// (Both angles together were tried: fewer locations are lifted, but
+    /// neighbours then alternate between a turn of both and a slightly
+    /// larger turn of one, and the axis swings 10-20 degrees between
+    /// them; docs/dropcutter.md.)
     /// When none does, the location is lifted. Then the turns are eased
     /// in and out over `ramp` along each pass (the module's doc).
     /// `contacts` are the runs' contacts ([`FiveAxis::contacts`]), `fa` the
@@ -180,7 +184,10 @@ impl GougeCheck<'_> {
 /// Ease one pass's turns in and out over `ramp` (mm along the contacts):
 /// each location within `ramp` of a turned one is offered that turn times
 /// `1 - d / ramp`, the largest offer of all its turned neighbours, where
-/// that is larger than its own turn; `place` gives the location at an
+/// that is larger than its own turn (whichever way it leans: the stretch
+/// around a large turn takes that turn's way, and the change of way moves
+/// out to where the offers are as small as the turns they replace);
+/// `place` gives the location at an
 /// offered turn when it clears the part (the offer is dropped otherwise).
 /// A gouging location that takes an offer is tilted (it needed a turn); a
 /// clear one is eased.
@@ -203,28 +210,34 @@ fn ease(
         s.push(acc);
     }
     // The offers at each location are the upper envelope of one tent per
-    // turned location. Tents of one size fall at one slope, so along the
-    // pass the nearest one of a size behind a location is the best of that
-    // size: one pass each way per size present (a handful: the search's
+    // turned location. Tents of one turn fall at one slope, so along the
+    // pass the nearest one of a turn behind a location is the best of that
+    // turn: one pass each way per turn present (a handful: the search's
     // turns are whole steps), not a walk over every pair within the ramp,
     // which a long ramp on a long pass made quadratic.
-    let mut sizes: Vec<f64> = own
+    // Classes: one per turn (size and way) present.
+    let mut classes: Vec<[f64; 2]> = own
         .iter()
         .filter(|(_, o)| matches!(o, Outcome::Tilted(..)))
-        .map(|(_, o)| size(o.turn()))
+        .map(|(_, o)| o.turn())
         .collect();
-    sizes.sort_by(f64::total_cmp);
-    sizes.dedup();
+    classes.sort_by(|a, b| {
+        size(*a)
+            .total_cmp(&size(*b))
+            .then(a[0].total_cmp(&b[0]))
+            .then(a[1].total_cmp(&b[1]))
+    });
+    classes.dedup();
     let n = own.len();
     let mut offer: Vec<Option<[f64; 2]>> = vec![None; n];
     let mut best: Vec<f64> = own.iter().map(|(_, o)| size(o.turn())).collect();
-    for &class in &sizes {
+    for &class in &classes {
         for forward in [true, false] {
             let mut seed: Option<(f64, [f64; 2])> = None;
             for k in 0..n {
                 let j = if forward { k } else { n - 1 - k };
                 if let Outcome::Tilted(_, t) = own[j].1
-                    && size(t) == class
+                    && t == class
                 {
                     seed = Some((s[j], t));
                 }

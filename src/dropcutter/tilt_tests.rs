@@ -183,7 +183,8 @@ fn eased_turns_keep_the_part_clear_and_shrink_the_jumps() {
 fn ease_offers_the_largest_neighbouring_turn_scaled_by_distance() {
     // Five contacts a millimetre apart on a line; the middle one turned
     // 10 degrees of tilt. A 2.5 mm ramp offers 6 deg at 1 mm and 2 deg
-    // at 2 mm; `place` records the offers and accepts all but the last.
+    // at 2 mm; `place` records the offers and accepts all but the last
+    // location's.
     let contacts: Vec<Contact> = (0..5)
         .map(|i| Contact {
             cc: crate::geometry::P3::new(i as f64, 0.0, 0.0),
@@ -201,8 +202,12 @@ fn ease_offers_the_largest_neighbouring_turn_scaled_by_distance() {
             if i == 2 {
                 (0.1, Outcome::Tilted(at(2.0), [0.0, ten]))
             } else if i == 1 {
-                // Its own smaller lead turn loses to the 6 degree offer.
-                (0.05, Outcome::Tilted(at(1.0), [3f64.to_radians(), 0.0]))
+                // Its own smaller tilt gives way to the 6 degree offer.
+                (0.05, Outcome::Tilted(at(1.0), [0.0, 3f64.to_radians()]))
+            } else if i == 3 {
+                // And its own lead: the larger offer is taken whichever
+                // way it turns.
+                (0.05, Outcome::Tilted(at(3.0), [3f64.to_radians(), 0.0]))
             } else {
                 (0.0, Outcome::Clear)
             }
@@ -217,7 +222,7 @@ fn ease_offers_the_largest_neighbouring_turn_scaled_by_distance() {
     assert!(close(deg(turns[0]), [0.0, 2.0]), "{:?}", deg(turns[0]));
     assert!(close(deg(turns[1]), [0.0, 6.0]), "{:?}", deg(turns[1]));
     assert!(close(deg(turns[2]), [0.0, 10.0]));
-    assert!(close(deg(turns[3]), [0.0, 6.0]));
+    assert!(close(deg(turns[3]), [0.0, 6.0]), "{:?}", deg(turns[3]));
     // The last offer (2 deg) was refused by `place`: it stays clear.
     assert_eq!(out[4].1, Outcome::Clear);
     assert!(matches!(out[0].1, Outcome::Eased(..)));
@@ -228,7 +233,7 @@ fn ease_offers_the_largest_neighbouring_turn_scaled_by_distance() {
     // The depths are the locations' own, whatever they were turned to.
     assert_eq!(
         out.iter().map(|o| o.0).collect::<Vec<_>>(),
-        vec![0.0, 0.05, 0.1, 0.0, 0.0]
+        vec![0.0, 0.05, 0.1, 0.05, 0.0]
     );
     // No ramp: nothing changes.
     let own2 = out.clone();
@@ -271,7 +276,18 @@ fn the_envelope_of_offers_is_the_best_of_every_pair() {
             .map(|c| {
                 if rnd() < 0.3 {
                     let a = step * (1 + (rnd() * 6.0) as usize) as f64;
-                    let t = [[0.0, a], [0.0, -a], [a, 0.0], [-a, 0.0]][(rnd() * 4.0) as usize];
+                    let ways = [
+                        [0., 1.],
+                        [0., -1.],
+                        [1., 0.],
+                        [-1., 0.],
+                        [1., 1.],
+                        [1., -1.],
+                        [-1., 1.],
+                        [-1., -1.],
+                    ];
+                    let w = ways[(rnd() * 8.0) as usize];
+                    let t = [w[0] * a, w[1] * a];
                     (0.1, Outcome::Tilted(at(c), t))
                 } else {
                     (0.0, Outcome::Clear)
