@@ -376,14 +376,23 @@ impl Bvh {
             return rays.par_iter().with_min_len(256).map(|r| self.first_hit(r)).collect();
         }
         let order = self.ray_order(rays);
-        // The rays gathered into their cast order first: read in a tight
-        // loop, their cache misses overlap one another, where read at the
-        // start of each walk they stall it.
-        let gathered: Vec<Ray> = order.par_iter().with_min_len(4096).map(|&i| rays[i as usize]).collect();
-        let sorted: Vec<Option<Hit>> = gathered
-            .par_iter()
-            .with_min_len(1024)
-            .map(|r| self.first_hit(r))
+        // The rays gathered into their cast order a block at a time first:
+        // read in a tight loop, their cache misses overlap one another,
+        // where read at the start of each walk they stall it; a block (128
+        // KB) stays in cache and its buffer is reused, where one copy of
+        // all the rays would cost a page fault every 64 of them.
+        const BLOCK: usize = 2048;
+        let sorted: Vec<Option<Hit>> = order
+            .par_chunks(BLOCK)
+            .map_init(
+                || Vec::with_capacity(BLOCK),
+                |buf: &mut Vec<Ray>, block| {
+                    buf.clear();
+                    buf.extend(block.iter().map(|&i| rays[i as usize]));
+                    buf.iter().map(|r| self.first_hit(r)).collect::<Vec<_>>()
+                },
+            )
+            .flatten_iter()
             .collect();
         let mut rank = vec![0u32; rays.len()];
         for (p, &i) in order.iter().enumerate() {
@@ -424,13 +433,11 @@ impl Bvh {
                         c[k] = q((o[k] + d[k] * t0 - lo[k]) / ext[k]);
                         c[k + 3] = q(0.5 + 0.5 * d[k] / len);
                     }
-                    let mut m = 0u32;
-                    for bit in (0..5).rev() {
-                        for ck in c {
-                            m = (m << 1) | ((ck >> bit) & 1);
-                        }
-                    }
-                    m
+                    // Bit b of component k lands at 6 b + 5 - k: the six
+                    // components interleaved, most significant bits first.
+                    c.iter()
+                        .enumerate()
+                        .fold(0u32, |m, (k, &ck)| m | SPREAD6[ck as usize] << (5 - k))
                 } else {
                     u32::MAX
                 };
@@ -624,19 +631,37 @@ impl Pre {
     }
 }
 
-/// Sort by the high 32 bits (LSD radix, 4 passes of 8 bits; stable, so
-/// equal keys keep the order of the low bits' index).
-fn radix_sort_high32(v: &mut Vec<u64>) {
-    let mut tmp = vec![0u64; v.len()];
-    for pass in 0..4 {
-        let shift = 32 + 8 * pass;
-        let mut count = [0usize; 257];
-        for &x in v.iter() {
-            count[((x >> shift) & 255) as usize + 1] += 1;
+/// The five bits of a Morton component spread six apart (bit b at 6 b).
+const SPREAD6: [u32; 32] = {
+    let mut t = [0u32; 32];
+    let mut x = 0;
+    while x < 32 {
+        let mut b = 0;
+        while b < 5 {
+            t[x] |= ((x as u32 >> b) & 1) << (6 * b);
+            b += 1;
         }
+        x += 1;
+    }
+    t
+};
+
+/// Sort by the high 32 bits (LSD radix, 4 passes of 8 bits; stable, so
+/// equal keys keep the order of the low bits' index). The counts of all
+/// four passes are taken in one read of the keys.
+fn radix_sort_high32(v: &mut Vec<u64>) {
+    let mut count = [[0usize; 257]; 4];
+    for &x in v.iter() {
+        for (pass, c) in count.iter_mut().enumerate() {
+            c[((x >> (32 + 8 * pass)) & 255) as usize + 1] += 1;
+        }
+    }
+    let mut tmp = vec![0u64; v.len()];
+    for (pass, count) in count.iter_mut().enumerate() {
         if count.contains(&v.len()) {
             continue;
         }
+        let shift = 32 + 8 * pass;
         for i in 1..257 {
             count[i] += count[i - 1];
         }

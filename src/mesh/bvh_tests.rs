@@ -473,3 +473,40 @@ fn corpus_meshes_build_sound_trees() {
     assert!(!meshes.is_empty(), "no corpus mesh was read");
     crate::corpus::record("corpus_meshes_build_sound_trees", meshes.len());
 }
+
+#[test]
+fn the_ray_order_keys_interleave_and_sort_as_written_out_again() {
+    // SPREAD6 against the bit-by-bit interleave it replaces.
+    let mut x = 0x9e37_79b9_7f4a_7c15u64;
+    for _ in 0..2000 {
+        x ^= x << 13;
+        x ^= x >> 7;
+        x ^= x << 17;
+        let c: [u32; 6] = std::array::from_fn(|k| ((x >> (5 * k)) & 31) as u32);
+        let mut slow = 0u32;
+        for bit in (0..5).rev() {
+            for ck in c {
+                slow = (slow << 1) | ((ck >> bit) & 1);
+            }
+        }
+        let fast = c
+            .iter()
+            .enumerate()
+            .fold(0u32, |m, (k, &ck)| m | super::SPREAD6[ck as usize] << (5 - k));
+        assert_eq!(fast, slow, "{c:?}");
+    }
+    // The radix sort against a stable sort of the high 32 bits, with
+    // keys that leave some passes constant and some not.
+    for n in [0usize, 1, 7, 5000] {
+        let mut v: Vec<u64> = (0..n as u64)
+            .map(|i| {
+                let h = i.wrapping_mul(0x9e37_79b9_7f4a_7c15) >> 40;
+                ((h & 0x3ff_0f0f) << 32) | i
+            })
+            .collect();
+        let mut expect = v.clone();
+        expect.sort_by_key(|x| x >> 32);
+        super::radix_sort_high32(&mut v);
+        assert_eq!(v, expect, "{n}");
+    }
+}
