@@ -160,88 +160,52 @@ impl<'a> GougeCheck<'a> {
     /// surface: 0 when it is clear already (or touches only), else the
     /// depth of the deepest penetration measured along the axis.
     pub fn clearance(&self, tip: P3, axis: V3, length: f64) -> f64 {
-        let dc = self.dc;
         let n = axis.norm();
         let usable = n.is_finite() && n > 0.0 && length > 0.0 && tip.coords.iter().all(|c| c.is_finite());
         if !usable {
             return 0.0;
         }
-        let a = axis / n;
-        let r = dc.shape.r;
-        // The part of the axis whose cutter disc can reach the mesh: the
-        // segment clipped to the mesh's box grown by the radius.
-        let Some((s0, s1)) = dc.bbox.clip_line(&tip, &a, (0.0, length), r) else {
-            return 0.0;
-        };
-        let helper = if a.x.abs() < 0.9 { V3::x() } else { V3::y() };
-        let e1 = (helper - a * helper.dot(&a)).normalize();
-        let e2 = a.cross(&e1);
-        let local = |p: &P3| {
-            let d = p - tip;
-            P3::new(d.dot(&e1), d.dot(&e2), d.dot(&a))
-        };
-        // The triangles near the clipped stretch of the axis: a capsule
-        // query on the mesh's 3-D tree.
-        let mut best = 0.0f64;
-        self.bvh.for_each_near_segment(tip + a * s0, tip + a * s1, r, |_, c| {
-            let [p, q, w] = [local(&c[0]), local(&c[1]), local(&c[2])];
-            // Wholly beyond the checked length, or wholly below the
-            // deepest contact found: nothing to add.
-            if p.z.min(q.z).min(w.z) > length || p.z.max(q.z).max(w.z) <= best {
-                return;
+        let frame = ToolFrame::new(tip, axis / n, length);
+        let cutter = self.drop_in(&frame, &self.dc.shape, 0.0, 0.0);
+        match &self.holder {
+            // The holder's face must rise above the highest point within
+            // its radius (a flat cutter of that radius, dropped): by that
+            // height less the face's.
+            Some((h, flat)) if h.height < length => {
+                cutter.max(self.drop_in(&frame, flat, h.height, cutter + h.height) - h.height)
             }
-            let (count, parts) = clip_below(Triangle::new(p, q, w), length);
-            for tri in &parts[..count] {
-                let tri = Tri::new(tri);
-                if tri.zmax > best && tri.near(0.0, 0.0, r) {
-                    drop_on(&dc.shape, 0.0, 0.0, &tri, &mut best);
-                }
-            }
-        });
-        if let Some((h, flat)) = &self.holder {
-            best = best.max(self.holder_clearance(h, flat, tip, a, length, local, best));
+            _ => cutter,
         }
-        best
     }
 
-    /// How far the tool must rise for its holder's face to clear the part:
-    /// the highest point of the mesh within the holder's radius, up to the
-    /// checked length (a flat cutter of that radius dropped in the tool's
-    /// frame), less the holder's height; at least `floor`.
-    #[allow(clippy::too_many_arguments)]
-    fn holder_clearance(
-        &self,
-        h: &Holder,
-        flat: &ContactCutter,
-        tip: P3,
-        a: V3,
-        length: f64,
-        local: impl Fn(&P3) -> P3,
-        floor: f64,
-    ) -> f64 {
-        if h.height >= length {
-            return floor;
-        }
-        let Some((s0, s1)) = self.dc.bbox.clip_line(&tip, &a, (h.height, length), h.radius) else {
+    /// The height, in the tool's frame, at which `shape` dropped down the
+    /// axis rests on the mesh's triangles from `from` up the axis to the
+    /// frame's length (cut there); `floor` when that is higher. The
+    /// candidates come from a capsule query on the mesh's 3-D tree along
+    /// the stretch of the axis that can reach the mesh.
+    fn drop_in(&self, f: &ToolFrame, shape: &ContactCutter, from: f64, floor: f64) -> f64 {
+        let (r, length) = (shape.r, f.length);
+        let Some((s0, s1)) = self.dc.bbox.clip_line(&f.tip, &f.a, (from, length), r) else {
             return floor;
         };
-        // The face must rise above the highest point: z - height > floor.
-        let mut top = floor + h.height;
+        let mut best = floor;
         self.bvh
-            .for_each_near_segment(tip + a * s0, tip + a * s1, h.radius, |_, c| {
-                let [p, q, w] = [local(&c[0]), local(&c[1]), local(&c[2])];
-                if p.z.min(q.z).min(w.z) > length || p.z.max(q.z).max(w.z) <= top {
+            .for_each_near_segment(f.tip + f.a * s0, f.tip + f.a * s1, r, |_, c| {
+                let [p, q, w] = [f.local(&c[0]), f.local(&c[1]), f.local(&c[2])];
+                // Wholly beyond the checked length, or wholly below the
+                // highest contact found: nothing to add.
+                if p.z.min(q.z).min(w.z) > length || p.z.max(q.z).max(w.z) <= best {
                     return;
                 }
                 let (count, parts) = clip_below(Triangle::new(p, q, w), length);
                 for tri in &parts[..count] {
                     let tri = Tri::new(tri);
-                    if tri.zmax > top && tri.near(0.0, 0.0, h.radius) {
-                        drop_on(flat, 0.0, 0.0, &tri, &mut top);
+                    if tri.zmax > best && tri.near(0.0, 0.0, r) {
+                        drop_on(shape, 0.0, 0.0, &tri, &mut best);
                     }
                 }
             });
-        top - h.height
+        best
     }
 
     /// Check every location of `runs` (tools `length` long), lifting the
@@ -269,6 +233,31 @@ impl<'a> GougeCheck<'a> {
             }
         }
         report
+    }
+}
+
+/// A tool's frame: the tip at the origin, the unit axis `a` as z, and the
+/// length of tool checked.
+struct ToolFrame {
+    tip: P3,
+    a: V3,
+    e1: V3,
+    e2: V3,
+    length: f64,
+}
+
+impl ToolFrame {
+    fn new(tip: P3, a: V3, length: f64) -> ToolFrame {
+        let helper = if a.x.abs() < 0.9 { V3::x() } else { V3::y() };
+        let e1 = (helper - a * helper.dot(&a)).normalize();
+        let e2 = a.cross(&e1);
+        ToolFrame { tip, a, e1, e2, length }
+    }
+
+    /// `p` in the frame.
+    fn local(&self, p: &P3) -> P3 {
+        let d = p - self.tip;
+        P3::new(d.dot(&self.e1), d.dot(&self.e2), d.dot(&self.a))
     }
 }
 
