@@ -18,6 +18,17 @@ fn search(max_deg: f64, step_deg: f64, ramp: f64) -> TiltSearch {
     }
 }
 
+/// The tests' 5-axis job along `xy`: lead 5 degrees, 6 mm of tool
+/// checked; its orientation, contacts and unchecked locations.
+fn lead_5_job(dc: &DropCutter, xy: &[crate::geometry::P2]) -> (FiveAxis, Vec<Vec<Contact>>, Vec<Vec<Location>>) {
+    let fa = FiveAxis {
+        lead: 5f64.to_radians(),
+        tilt: 0.0,
+        axis_length: 6.0,
+    };
+    (fa, FiveAxis::contacts(dc, xy), fa.pass(dc, xy).unwrap())
+}
+
 #[test]
 fn tilting_clears_the_trough_with_the_tool_still_on_its_contact() {
     let (mesh, xy) = trough_pass();
@@ -31,13 +42,7 @@ fn tilting_clears_the_trough_with_the_tool_still_on_its_contact() {
     ] {
         let dc = DropCutter::new(&mesh, cutter).unwrap();
         let gc = GougeCheck::new(&dc);
-        let fa = FiveAxis {
-            lead: 5f64.to_radians(),
-            tilt: 0.0,
-            axis_length: 6.0,
-        };
-        let contacts = FiveAxis::contacts(&dc, &xy);
-        let raw = fa.pass(&dc, &xy).unwrap();
+        let (fa, contacts, raw) = lead_5_job(&dc, &xy);
         // No turn allowed: exactly the lift.
         let mut lifted = raw.clone();
         let lift_report = gc.check(&mut lifted, 6.0, GougeRule::Lift);
@@ -109,13 +114,7 @@ fn eased_turns_keep_the_part_clear_and_shrink_the_jumps() {
     let cutter = Cutter::Flat { radius: 0.6 };
     let dc = DropCutter::new(&mesh, cutter).unwrap();
     let gc = GougeCheck::new(&dc);
-    let fa = FiveAxis {
-        lead: 5f64.to_radians(),
-        tilt: 0.0,
-        axis_length: 6.0,
-    };
-    let contacts = FiveAxis::contacts(&dc, &xy);
-    let raw = fa.pass(&dc, &xy).unwrap();
+    let (fa, contacts, raw) = lead_5_job(&dc, &xy);
     let mut sharp = raw.clone();
     let (r_sharp, t_sharp) = gc
         .check_tilting(&fa, &contacts, &mut sharp, &search(30.0, 5.0, 0.0))
