@@ -375,7 +375,9 @@ impl Bvh {
         if rays.len() < SORT_MIN || self.nodes.is_empty() {
             return rays.par_iter().with_min_len(256).map(|r| self.first_hit(r)).collect();
         }
+        crate::progress::lap("before the rays");
         let order = self.ray_order(rays);
+        crate::progress::lap("rays: order");
         // The rays gathered into their cast order a block at a time first:
         // read in a tight loop, their cache misses overlap one another,
         // where read at the start of each walk they stall it; a block (128
@@ -394,14 +396,18 @@ impl Bvh {
             )
             .flatten_iter()
             .collect();
+        crate::progress::lap("rays: gather and cast");
         let mut rank = vec![0u32; rays.len()];
         for (p, &i) in order.iter().enumerate() {
             rank[i as usize] = p as u32;
         }
-        rank.par_iter()
+        let answers = rank
+            .par_iter()
             .with_min_len(4096)
             .map(|&p| sorted[p as usize])
-            .collect()
+            .collect();
+        crate::progress::lap("rays: answers in order");
+        answers
     }
 
     /// The indices of `rays` sorted by a 30-bit Morton code of where each
