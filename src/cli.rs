@@ -133,8 +133,9 @@ pub const MAX_ARGUMENT_MAGNITUDE: f64 = 1e12;
 
 /// Refuse, for every tool at once, command-line values that are numbers no
 /// computation can use: NaN, infinities, and magnitudes beyond
-/// [`MAX_ARGUMENT_MAGNITUDE`], alone or inside a comma/semicolon list
-/// (`--stock 0,0,nan,1,1,1`). Rust's float parser accepts `nan`, `inf` and
+/// [`MAX_ARGUMENT_MAGNITUDE`], alone or inside a comma, semicolon or colon
+/// list (`--stock 0,0,nan,1,1,1`, `--holder 1e308:20`; a tool spec such as
+/// `torus:2:0.5` has a name in it and is left to its own parser). Rust's float parser accepts `nan`, `inf` and
 /// `1e999`, so without this each flag would need its own guard; flags that
 /// need a tighter range (a step that must be positive, a count of moves)
 /// still check it where they are used.
@@ -150,7 +151,7 @@ pub fn check_numeric_arguments(args: &[String]) -> Result<(), CliError> {
             _ => (flag, a.as_str()),
         };
         flag = None;
-        let pieces: Vec<&str> = value.split([',', ';']).map(str::trim).collect();
+        let pieces: Vec<&str> = value.split([',', ';', ':']).map(str::trim).collect();
         let numbers: Vec<f64> = pieces.iter().filter_map(|p| p.parse::<f64>().ok()).collect();
         if numbers.len() != pieces.len() || numbers.is_empty() {
             continue; // not a number (a path, a name, a tool spec)
@@ -580,6 +581,10 @@ mod numeric_argument_tests {
                 "0,0,-1,4,3,0",
                 "--tool",
                 "ball:2",
+                "--holder",
+                "6:20",
+                "--host",
+                "127.0.0.1:1025",
                 "part.ngc"
             ])
             .is_ok()
@@ -607,6 +612,8 @@ mod numeric_argument_tests {
             (&["--duration=1e308"][..], "--duration"),
             (&["--turns", "1e999"][..], "--turns"),
             (&["--z", "-1e13"][..], "--z"),
+            (&["--holder", "1e308:20"][..], "--holder"),
+            (&["--holder", "6:nan"][..], "--holder"),
         ] {
             let e = check(args).unwrap_err();
             assert!(e.contains(flag), "{e}");
