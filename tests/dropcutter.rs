@@ -445,19 +445,22 @@ fn the_holder_is_checked_against_the_part() {
     let stl = dir.path().join("wall.stl");
     write_stl(&stl, &floor_and_wall());
     let s = stl.to_str().unwrap();
+    let job = || {
+        let mut c = pathgen();
+        c.args([
+            "dropcutter",
+            s,
+            "--tool",
+            "flat:1",
+            "--five-axis",
+            "--axis-length",
+            "10",
+        ]);
+        c
+    };
     let run = |extra: &[&str]| {
-        let o = pathgen()
-            .args([
-                "dropcutter",
-                s,
-                "--tool",
-                "flat:1",
-                "--step-over",
-                "0.25",
-                "--region",
-                "-2,-1,0.4,1",
-            ])
-            .args(["--five-axis", "--axis-length", "10"])
+        let o = job()
+            .args(["--step-over", "0.25", "--region", "-2,-1,0.4,1"])
             .args(extra)
             .output()
             .unwrap();
@@ -507,21 +510,7 @@ fn the_holder_is_checked_against_the_part() {
         &["--holder", "3:10"],
         &["--holder", "3:2", "--gouge", "off"],
     ] {
-        let o = pathgen()
-            .args([
-                "dropcutter",
-                s,
-                "--tool",
-                "flat:1",
-                "--step-over",
-                "0.4",
-                "--five-axis",
-                "--axis-length",
-                "10",
-            ])
-            .args(bad)
-            .output()
-            .unwrap();
+        let o = job().args(["--step-over", "0.4"]).args(bad).output().unwrap();
         assert_eq!(o.status.code(), Some(2), "{bad:?}");
         assert!(o.stdout.is_empty(), "{bad:?}");
     }
@@ -613,11 +602,26 @@ fn every_corpus_stl_gets_its_five_axis_locations_checked() {
     let off: Vec<_> = on_every_corpus_stl("gouge_corpus_off", &[&base[..], &["--gouge", "off"]].concat());
     let lift = on_every_corpus_stl("gouge_corpus_lift", &base);
     let tilt = on_every_corpus_stl("gouge_corpus_tilt", &[&base[..], &["--gouge", "tilt"]].concat());
-    for ((f, o), ((_, l), (_, t))) in off.iter().zip(lift.iter().zip(&tilt)) {
+    // With a holder 3 mm across from 2 mm up: lifted along the axes only,
+    // at least as far as without it.
+    let held = on_every_corpus_stl("gouge_corpus_holder", &[&base[..], &["--holder", "3:2"]].concat());
+    for (((f, o), ((_, l), (_, t))), (_, h)) in off.iter().zip(lift.iter().zip(&tilt)).zip(&held) {
         assert_eq!(o.status.code(), l.status.code(), "{f:?}");
         assert_eq!(o.status.code(), t.status.code(), "{f:?}");
+        assert_eq!(o.status.code(), h.status.code(), "{f:?}");
         if o.status.code() != Some(0) {
             continue;
+        }
+        let (lc, hc) = (read_cldata(&l.stdout[..]).unwrap(), read_cldata(&h.stdout[..]).unwrap());
+        assert_eq!(lc.points.len(), hc.points.len(), "{f:?}");
+        for i in 0..lc.points.len() {
+            let axis = (lc.axis[i] - lc.points[i]).normalize();
+            let shift = hc.points[i] - lc.points[i];
+            let along = shift.dot(&axis);
+            assert!(
+                along >= -1e-6 && (shift - axis * along).norm() < 1e-5,
+                "{f:?} {i}: {shift:?}"
+            );
         }
         let (o, l, err) = (
             read_cldata(&o.stdout[..]).unwrap(),
