@@ -605,12 +605,31 @@ fn every_corpus_stl_gets_its_five_axis_locations_checked() {
     // With a holder 3 mm across from 2 mm up: lifted along the axes only,
     // at least as far as without it.
     let held = on_every_corpus_stl("gouge_corpus_holder", &[&base[..], &["--holder", "3:2"]].concat());
-    for (((f, o), ((_, l), (_, t))), (_, h)) in off.iter().zip(lift.iter().zip(&tilt)).zip(&held) {
+    // With smoothed normals: the same locations, each tool set down on the
+    // part, and the check then finds nothing left in it.
+    let smooth = on_every_corpus_stl("gouge_corpus_smooth", &[&base[..], &["--normals", "smooth"]].concat());
+    for ((((f, o), ((_, l), (_, t))), (_, h)), (_, s)) in off.iter().zip(lift.iter().zip(&tilt)).zip(&held).zip(&smooth)
+    {
         assert_eq!(o.status.code(), l.status.code(), "{f:?}");
         assert_eq!(o.status.code(), t.status.code(), "{f:?}");
         assert_eq!(o.status.code(), h.status.code(), "{f:?}");
+        assert_eq!(o.status.code(), s.status.code(), "{f:?}");
         if o.status.code() != Some(0) {
             continue;
+        }
+        let (sc, serr) = (read_cldata(&s.stdout[..]).unwrap(), String::from_utf8_lossy(&s.stderr));
+        assert_eq!(
+            sc.points.len(),
+            read_cldata(&l.stdout[..]).unwrap().points.len(),
+            "{f:?}"
+        );
+        assert!(
+            serr.contains("set down on the part") && serr.contains("gouge check: none of"),
+            "{f:?}: {serr}"
+        );
+        for (p, q) in sc.points.iter().zip(&sc.axis) {
+            // The default --axis-length, to the CL data's decimals.
+            assert!(((q - p).norm() - 50.0).abs() < 1e-4, "{f:?}: {p:?} {q:?}");
         }
         let (lc, hc) = (read_cldata(&l.stdout[..]).unwrap(), read_cldata(&h.stdout[..]).unwrap());
         assert_eq!(lc.points.len(), hc.points.len(), "{f:?}");
@@ -650,5 +669,125 @@ fn every_corpus_stl_gets_its_five_axis_locations_checked() {
         // show as moved; none moves that was not counted.
         assert!(moved <= counted, "{f:?}: {moved} moved, {counted} counted");
         assert!(String::from_utf8_lossy(&t.stderr).contains("gouge check:"), "{f:?}");
+    }
+}
+
+/// `--normals smooth` on a coarse hemisphere: the tool axes follow the
+/// sphere's own normals far more closely than the facets' do, and turn
+/// between neighbours about as the sphere's normals do; every tool is set
+/// down on the mesh (the summary says so), and the flags are checked.
+#[test]
+fn smoothed_normals_follow_the_surface_and_the_tools_rest_on_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let stl = dir.path().join("dome.stl");
+    write_stl(&stl, &hemisphere(10.0, 48, 12));
+    let run = |extra: &[&str]| {
+        let o = pathgen()
+            .arg("dropcutter")
+            .arg(&stl)
+            .args([
+                "--tool",
+                "flat:1",
+                "--step-over",
+                "0.5",
+                "--step-forward",
+                "0.1",
+                "--region",
+                "-6,-6,6,6",
+                "--five-axis",
+            ])
+            .args(extra)
+            .output()
+            .unwrap();
+        assert_eq!(
+            o.status.code(),
+            Some(0),
+            "{extra:?}: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+        (
+            read_cldata(o.stdout.as_slice()).unwrap(),
+            String::from_utf8_lossy(&o.stderr).into_owned(),
+        )
+    };
+    let (facet, _) = run(&[]);
+    let (smooth, err) = run(&["--normals", "smooth"]);
+    assert!(err.contains("locations set down on the part along their axes"), "{err}");
+    assert!(err.contains("none of"), "nothing left in the part: {err}");
+    assert_eq!(facet.points.len(), smooth.points.len());
+    // How far each axis is from the sphere's normal at its tip (the tip
+    // is on the tool's contact, lead and tilt 0), and how much the axis
+    // turns between neighbours on a pass.
+    let stats = |cl: &microcam::formats::cldata::ClData| {
+        let mut off = Vec::new();
+        let mut turn = Vec::new();
+        for i in 0..cl.points.len() {
+            let a = (cl.axis[i] - cl.points[i]).normalize();
+            let n = cl.points[i].coords.normalize();
+            off.push(a.dot(&n).clamp(-1.0, 1.0).acos().to_degrees());
+            if i > 0 && (cl.points[i] - cl.points[i - 1]).norm() < 0.3 {
+                let b = (cl.axis[i - 1] - cl.points[i - 1]).normalize();
+                turn.push(a.dot(&b).clamp(-1.0, 1.0).acos().to_degrees());
+            }
+        }
+        let med = |mut v: Vec<f64>| {
+            v.sort_by(f64::total_cmp);
+            v[v.len() / 2]
+        };
+        let big = turn.iter().filter(|&&t| t > 2.0).count();
+        (med(off), big, turn.len())
+    };
+    let (f_off, f_big, n) = stats(&facet);
+    let (s_off, s_big, _) = stats(&smooth);
+    // Facets 7.5 degrees apart: the facet normals are off by a few
+    // degrees and jump at each edge; a step of 0.1 mm on a 10 mm sphere
+    // turns its normal by 0.6 degrees.
+    assert!(
+        f_off > 1.0 && s_off < f_off / 4.0,
+        "median off the sphere's normal: facet {f_off}, smooth {s_off}"
+    );
+    assert!(
+        f_big > n / 20 && s_big == 0,
+        "turns over 2 degrees: facet {f_big}, smooth {s_big} of {n}"
+    );
+    // The header says how the axes were made.
+    let text = String::from_utf8(
+        pathgen()
+            .arg("dropcutter")
+            .arg(&stl)
+            .args([
+                "--tool",
+                "flat:1",
+                "--step-over",
+                "2",
+                "--five-axis",
+                "--normals",
+                "smooth",
+                "--crease",
+                "45",
+            ])
+            .output()
+            .unwrap()
+            .stdout,
+    )
+    .unwrap();
+    assert!(text.contains("axes from smoothed normals (crease 45 deg)"), "{text}");
+    for bad in [
+        vec!["--five-axis", "--crease", "30"],
+        vec!["--five-axis", "--normals", "smooth", "--gouge", "tilt"],
+        vec!["--five-axis", "--normals", "smooth", "--crease", "200"],
+        vec!["--five-axis", "--normals", "smooth", "--crease", "nan"],
+        vec!["--five-axis", "--normals", "round"],
+        vec!["--normals", "smooth"],
+    ] {
+        let o = pathgen()
+            .arg("dropcutter")
+            .arg(&stl)
+            .args(["--tool", "flat:1", "--step-over", "2"])
+            .args(&bad)
+            .output()
+            .unwrap();
+        assert_eq!(o.status.code(), Some(2), "{bad:?}");
+        assert!(o.stdout.is_empty(), "{bad:?}");
     }
 }

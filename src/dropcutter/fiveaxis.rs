@@ -14,11 +14,16 @@
 //! CL = CC + rc·n − rc·a − (R − rc)·w. With λ = τ = 0 the flat bottom sits
 //! on the tangent plane and CL = CC.
 //!
-//! Contacts are on the facet straight below each sampled (x, y) with that
-//! facet's normal: the axis turns in steps at facet edges. The location
-//! keeps that facet clear, not the rest of the part; [`super::gouge`]
-//! checks the whole tool against the mesh afterwards.
+//! Contacts are on the facet straight below each sampled (x, y), with
+//! that facet's normal (the axis then turns in steps at facet edges, and
+//! the location keeps that facet clear) or with a normal interpolated
+//! across it ([`super::normals`]: the axis turns smoothly, and the tool,
+//! tangent to the smooth surface rather than the facet, is then set down
+//! on the mesh along its axis, [`super::gouge::GougeCheck::settle`]).
+//! Either way [`super::gouge`] checks the whole tool against the mesh
+//! afterwards.
 
+use super::normals::SmoothNormals;
 use super::{DropCutter, DropError};
 use crate::cutter::Cutter;
 use crate::geometry::{P2, P3, V3};
@@ -45,13 +50,14 @@ pub struct Location {
 }
 
 /// Where a 5-axis location touches the part: the contact point, the unit
-/// normal of the facet it lies on, and the direction of travel there (any
-/// length; zero for a single point).
+/// surface normal there (the facet's, or a smoothed one), and the
+/// direction of travel there (any length; zero for a single point).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Contact {
     /// The contact point (CC), mm.
     pub cc: P3,
-    /// Unit upward normal of the facet at the contact.
+    /// Unit upward surface normal at the contact: its facet's, or
+    /// interpolated across the facet ([`SmoothNormals`]).
     pub normal: V3,
     /// Direction of travel.
     pub feed: V3,
@@ -87,21 +93,36 @@ impl FiveAxis {
     /// them: the highest mesh point below each sample, its facet's normal,
     /// and the travel direction from the neighbouring samples.
     pub fn contacts(dc: &DropCutter, xy: &[P2]) -> Vec<Vec<Contact>> {
+        Self::contacts_with(dc, xy, None)
+    }
+
+    /// [`FiveAxis::contacts`] with the normal at each contact taken from
+    /// `smooth` (interpolated across the facet) when given, else the
+    /// facet's own.
+    pub fn contacts_with(dc: &DropCutter, xy: &[P2], smooth: Option<&SmoothNormals>) -> Vec<Vec<Contact>> {
         let mut runs = Vec::new();
         let mut run: Vec<Contact> = Vec::new();
         for (i, p) in xy.iter().enumerate() {
-            let Some((z, n)) = dc.surface_point(p.x, p.y) else {
+            let Some((z, t)) = dc.surface_contact(p.x, p.y) else {
                 if !run.is_empty() {
                     runs.push(std::mem::take(&mut run));
                 }
                 continue;
             };
+            let cc = P3::new(p.x, p.y, z);
+            let normal = match smooth {
+                Some(s) => dc.smooth_normal_at(s, t, cc),
+                None => {
+                    let n = dc.tris[t].n;
+                    V3::new(n[0], n[1], n[2])
+                }
+            };
             let prev = xy[i.saturating_sub(1)];
             let next = xy[(i + 1).min(xy.len() - 1)];
             let d = next - prev;
             run.push(Contact {
-                cc: P3::new(p.x, p.y, z),
-                normal: V3::new(n[0], n[1], n[2]),
+                cc,
+                normal,
                 feed: V3::new(d.x, d.y, 0.0),
             });
         }

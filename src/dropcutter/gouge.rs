@@ -82,6 +82,19 @@ impl GougeReport {
     }
 }
 
+/// What [`GougeCheck::settle`] did.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct SettleReport {
+    /// Locations set down on the part.
+    pub settled: usize,
+    /// Locations with no part within reach below (left as they were).
+    pub nothing_below: usize,
+    /// Locations moved up by more than [`GOUGE_TOL`].
+    pub raised: usize,
+    /// The largest move up (mm; 0 when none).
+    pub highest: f64,
+}
+
 /// `l` moved `depth` up its own axis.
 pub(super) fn lifted(l: &Location, depth: f64) -> Location {
     let a = (l.axis_point - l.cl).normalize();
@@ -176,6 +189,64 @@ impl<'a> GougeCheck<'a> {
             }
             _ => cutter,
         }
+    }
+
+    /// How far the cutter with its tip at `tip` and its axis along `axis`
+    /// must move along that axis (up positive, down negative) to rest on
+    /// the mesh: touching it, nowhere in it, from the tip to `length` up
+    /// the axis. Contacts down to at least `below` mm under the tip are
+    /// found; `None` when there is none. The cutter only: the holder is
+    /// the gouge check's.
+    pub fn rest_height(&self, tip: P3, axis: V3, length: f64, below: f64) -> Option<f64> {
+        let n = axis.norm();
+        let usable = n.is_finite()
+            && n > 0.0
+            && length > 0.0
+            && below >= 0.0
+            && below.is_finite()
+            && tip.coords.iter().all(|c| c.is_finite());
+        if !usable {
+            return None;
+        }
+        let a = axis / n;
+        let frame = ToolFrame::new(tip - a * below, a, length + below);
+        let h = self.drop_in(&frame, &self.dc.shape, 0.0, f64::NEG_INFINITY);
+        (h > f64::NEG_INFINITY).then_some(h - below)
+    }
+
+    /// Set each location of `runs` down on the part along its own axis
+    /// ([`GougeCheck::rest_height`], from the cutter's radius below its
+    /// tip), in parallel. For 5-axis locations tangent to a smoothed
+    /// surface ([`super::normals`]) rather than to their facets: such a
+    /// tool touches its contact point but dips into the facets around it
+    /// (by about its radius times the angle between the two normals), and
+    /// where the part is tighter than the tool it cuts in as any location
+    /// does; both are lifted out here, so the tool rests on the mesh. A
+    /// location with nothing within reach below stays where it is.
+    pub fn settle(&self, runs: &mut [Vec<Location>], length: f64) -> SettleReport {
+        let below = self.dc.shape.r;
+        let moves: Vec<Vec<Option<f64>>> = runs
+            .par_iter()
+            .map(|run| {
+                run.par_iter()
+                    .map(|l| self.rest_height(l.cl, l.axis_point - l.cl, length, below))
+                    .collect()
+            })
+            .collect();
+        let mut report = SettleReport::default();
+        for (run, moves) in runs.iter_mut().zip(&moves) {
+            for (l, m) in run.iter_mut().zip(moves) {
+                let Some(m) = *m else {
+                    report.nothing_below += 1;
+                    continue;
+                };
+                report.settled += 1;
+                report.raised += (m > GOUGE_TOL) as usize;
+                report.highest = report.highest.max(m);
+                *l = lifted(l, m);
+            }
+        }
+        report
     }
 
     /// The height, in the tool's frame, at which `shape` dropped down the

@@ -389,3 +389,97 @@ fn a_lifted_tool_with_its_holder_leaves_every_sampled_point_outside() {
     assert!(binding > 10, "{binding}");
     assert!(by_holder > 5, "{by_holder}");
 }
+
+/// Locations along `xy` on `dc` with axes from smoothed normals, as
+/// pathgen makes them before settling.
+fn smooth_pass(dc: &DropCutter, fa: &FiveAxis, xy: &[P2]) -> Vec<Vec<crate::dropcutter::fiveaxis::Location>> {
+    let (r, rc) = FiveAxis::radii(dc).unwrap();
+    let normals = dc.smooth_normals(crate::dropcutter::normals::DEFAULT_CREASE_DEG.to_radians());
+    FiveAxis::contacts_with(dc, xy, Some(&normals))
+        .iter()
+        .map(|run| run.iter().map(|c| fa.location(c.cc, c.normal, c.feed, r, rc)).collect())
+        .collect()
+}
+
+#[test]
+fn settled_tools_touch_the_part_and_are_nowhere_in_it() {
+    // A coarse sphere: the smoothed tangent planes are well off the
+    // facets, so unsettled tools sit in the part or above it.
+    let mesh = crate::dropcutter::tests::sphere(5.0, 24, 12);
+    let points = samples(&mesh, 8);
+    let xy: Vec<P2> = (0..=30).map(|i| P2::new(-3.0 + 6.0 * i as f64 / 30.0, 0.7)).collect();
+    for cutter in [
+        Cutter::Flat { radius: 1.0 },
+        Cutter::Torus {
+            radius: 1.0,
+            corner: 0.3,
+        },
+    ] {
+        let dc = DropCutter::new(&mesh, cutter).unwrap();
+        let gc = GougeCheck::new(&dc);
+        for (lead, tilt) in [(0.0f64, 0.0f64), (8.0, -4.0)] {
+            let fa = FiveAxis {
+                lead: lead.to_radians(),
+                tilt: tilt.to_radians(),
+                axis_length: 20.0,
+            };
+            let raw = smooth_pass(&dc, &fa, &xy);
+            let mut runs = raw.clone();
+            let report = gc.settle(&mut runs, fa.axis_length);
+            assert_eq!(report.settled, 31, "{report:?}");
+            assert_eq!(report.nothing_below, 0);
+            // A tool touches its own contact point, so it never comes
+            // down; it rises out of the facets around it.
+            assert!(
+                report.raised > 10 && report.highest > 1e-4,
+                "{cutter:?} {lead}: {report:?}"
+            );
+            let mut was_in = false;
+            for (l, r0) in runs.iter().flatten().zip(raw.iter().flatten()) {
+                let a = (l.axis_point - l.cl).normalize();
+                // Moved along its own axis only.
+                let shift = l.cl - r0.cl;
+                assert!((shift - a * shift.dot(&a)).norm() < 1e-12);
+                assert!(shift.dot(&a) > -1e-9, "{shift:?}");
+                // Touching: clear where it is, 1e-4 into the part lowered by 1e-4.
+                assert!(gc.clearance(l.cl, a, fa.axis_length) <= GOUGE_TOL);
+                let lower = gc.clearance(l.cl - a * 1e-4, a, fa.axis_length);
+                assert!((lower - 1e-4).abs() < 1e-9, "{cutter:?} {lead}: {lower}");
+                for &p in &points {
+                    assert!(
+                        !inside_tool(cutter, l.cl, a, fa.axis_length, p, 1e-7),
+                        "{p:?} in the tool at {l:?}"
+                    );
+                    was_in |= inside_tool(cutter, r0.cl, a, fa.axis_length, p, 1e-4);
+                }
+            }
+            assert!(was_in, "{cutter:?} {lead}: the unsettled tools cut into the facets");
+        }
+    }
+}
+
+#[test]
+fn a_tool_with_no_part_within_reach_is_left_where_it_is() {
+    let mesh = crate::dropcutter::tests::sphere(5.0, 24, 12);
+    let dc = DropCutter::new(&mesh, Cutter::Flat { radius: 1.0 }).unwrap();
+    let gc = GougeCheck::new(&dc);
+    // Beside the sphere, pointing up: nothing below within the radius.
+    assert_eq!(gc.rest_height(P3::new(9.0, 0.0, 0.0), V3::z(), 10.0, 1.0), None);
+    // Above the top: comes down by the gap (searched from far enough).
+    let h = gc.rest_height(P3::new(0.0, 0.0, 5.5), V3::z(), 10.0, 1.0).unwrap();
+    assert!(h < -0.4 && h > -0.6, "{h}");
+    // Farther above than the search reaches (the radius below the
+    // searched stretch): nothing.
+    assert_eq!(gc.rest_height(P3::new(0.0, 0.0, 8.5), V3::z(), 10.0, 1.0), None);
+    for bad in [f64::NAN, -1.0] {
+        assert_eq!(gc.rest_height(P3::new(0.0, 0.0, 5.5), V3::z(), 10.0, bad), None);
+    }
+    let mut runs = vec![vec![crate::dropcutter::fiveaxis::Location {
+        cl: P3::new(9.0, 0.0, 0.0),
+        axis_point: P3::new(9.0, 0.0, 10.0),
+    }]];
+    let before = runs.clone();
+    let r = gc.settle(&mut runs, 10.0);
+    assert_eq!((r.settled, r.nothing_below), (0, 1));
+    assert_eq!(runs, before);
+}

@@ -23,6 +23,7 @@ mod fibre;
 pub mod fiveaxis;
 pub mod gouge;
 pub mod index;
+pub mod normals;
 pub mod output;
 pub mod raster;
 pub mod tilt;
@@ -146,7 +147,15 @@ impl DropCutter {
     /// upward normal of the facet it lies on; `None` off the mesh. (The
     /// contact point for a zero-radius tool, used by 5-axis.)
     pub fn surface_point(&self, x: f64, y: f64) -> Option<(f64, [f64; 3])> {
-        let mut best: Option<(f64, [f64; 3])> = None;
+        self.surface_contact(x, y).map(|(z, t)| (z, self.tris[t].n))
+    }
+
+    /// The highest point of the mesh straight below (x, y): its height
+    /// and the index of the triangle it lies on (of the highest, the
+    /// first met); `None` off the mesh.
+    pub fn surface_contact(&self, x: f64, y: f64) -> Option<(f64, usize)> {
+        let mut best: Option<(f64, usize)> = None;
+        let base = self.tris.as_ptr() as usize;
         self.grid.query(&self.tris, x, y, 0.0, |t| {
             if best.is_some_and(|(z, _)| t.zmax <= z) {
                 return false;
@@ -154,12 +163,27 @@ impl DropCutter {
             if t.n[2] > 1e-12 && t.contains_xy(x, y) {
                 let z = t.plane_z(x, y);
                 if best.is_none_or(|(b, _)| z > b) {
-                    best = Some((z, t.n));
+                    // The grid hands out references into `tris`: the
+                    // index is the offset.
+                    let i = (t as *const Tri as usize - base) / std::mem::size_of::<Tri>();
+                    best = Some((z, i));
                 }
             }
             true
         });
         best
+    }
+
+    /// Smooth normals over this mesh's triangles, facets within `crease`
+    /// radians of one another averaged ([`normals::SmoothNormals`]).
+    pub fn smooth_normals(&self, crease: f64) -> normals::SmoothNormals {
+        normals::SmoothNormals::new(&self.tris, crease)
+    }
+
+    /// The smoothed normal at (x, y) on triangle `t` (as
+    /// [`DropCutter::surface_contact`] gives them) under `normals`.
+    pub fn smooth_normal_at(&self, normals: &normals::SmoothNormals, t: usize, p: P3) -> crate::geometry::V3 {
+        normals.at(&self.tris, t, p)
     }
 }
 

@@ -7,7 +7,8 @@ use microcam::cli::{self, CliError, Output};
 use microcam::cutter::Cutter;
 use microcam::dropcutter::adaptive::Adaptive;
 use microcam::dropcutter::fiveaxis::{Contact, FiveAxis, Location};
-use microcam::dropcutter::gouge::{GougeCheck, GougeReport, GougeRule, Holder};
+use microcam::dropcutter::gouge::{GougeCheck, GougeReport, GougeRule, Holder, SettleReport};
+use microcam::dropcutter::normals::DEFAULT_CREASE_DEG;
 use microcam::dropcutter::output::{Feeds, toolpath_records, write_cldata, write_cldata5};
 use microcam::dropcutter::raster::{Direction, Pattern, Raster, chain_passes};
 use microcam::dropcutter::tilt::{TiltReport, TiltSearch};
@@ -32,6 +33,7 @@ Examples:
   dxf2chains path.dxf | pathgen dropcutter part.stl --tool ball:0.5 --chains - --step-forward 0.02
   pathgen dropcutter part.stl --tool flat:2 --step-over 0.5 --five-axis --lead 5 --tilt 0 > part5.cl
   pathgen dropcutter part.stl --tool torus:1:0.2 --step-over 0.2 --five-axis --gouge report > raw5.cl
+  pathgen dropcutter part.stl --tool flat:1 --step-over 0.1 --five-axis --lead 3 --normals smooth > smooth5.cl
   pathgen dropcutter part.stl --tool ball:1 --waterline-step 0.2 --step-over 0.02 --gcode iso > walls.ngc
 
 The mesh is STL (ASCII or binary) or OBJ in mm unless --units says otherwise.
@@ -41,7 +43,9 @@ CL data rows are 'x y z' (tool tip) or, with --five-axis, 'x y z x1 y1 z1'
 that would cut into the part away from its contact is lifted along its axis
 (--gouge lift, the default), turned to another lead or tilt that clears the
 part (--gouge tilt, lifted where none within --max-turn does), or only
-reported (--gouge report).
+reported (--gouge report). The axis follows each facet's normal, or with
+--normals smooth vertex normals interpolated across the facets (no steps
+at facet edges), each tool then set down on the mesh along its axis.
 Passes are joined at the safe Z. Waterlines (--waterline, --waterline-step)
 are closed loops at constant Z round the model, the model on the right of
 the travel (climb milling with M3), found on fibres --step-over apart.
@@ -69,6 +73,15 @@ pub enum FormatArg {
     Cl,
     /// microcam.toolpath/1.
     Toolpath,
+}
+
+/// Which surface normal a 5-axis axis follows.
+#[derive(Clone, Copy, ValueEnum, PartialEq)]
+pub enum NormalsArg {
+    /// The normal of the facet under the contact.
+    Facet,
+    /// Vertex normals interpolated across the facet (creases kept).
+    Smooth,
 }
 
 /// What the 5-axis gouge check does.
@@ -192,6 +205,17 @@ pub struct DropcutterArgs {
     /// --axis-length (D:H, mm; D at least the cutter's).
     #[arg(long, value_name = "D:H", value_parser = parse_holder, requires = "five_axis")]
     holder: Option<Holder>,
+    /// 5-axis: the surface normal the axis follows: each facet's own
+    /// (the axis turns in steps at facet edges), or one interpolated
+    /// across each facet from its corners' vertex normals (the axis turns
+    /// smoothly; each tool is then set down on the mesh along its axis).
+    #[arg(long, value_enum, default_value_t = NormalsArg::Facet, requires = "five_axis")]
+    normals: NormalsArg,
+    /// 5-axis, --normals smooth: facets meeting at more than this angle
+    /// keep their own normals along their edge (degrees, 0 to 180;
+    /// default 30).
+    #[arg(long, value_name = "DEG", requires = "five_axis")]
+    crease: Option<f64>,
     #[command(flatten)]
     writer: WriterArgs,
     /// Write output here instead of stdout.
@@ -229,6 +253,18 @@ fn parse_region(s: &str) -> Result<[f64; 4], String> {
 
 fn bad(e: DropError) -> CliError {
     CliError::input(e.to_string())
+}
+
+/// One line on how the smooth-normal locations were set down on the part.
+fn settle_summary(r: &SettleReport, crease_deg: f64) -> String {
+    let mut line = format!(
+        "axes from smoothed normals (crease {crease_deg} deg): {} locations set down on the part along their axes, {} of them raised out of it (up to {:.6} mm: the facets under a smoothed tangent plane, and where the part is tighter than the tool)",
+        r.settled, r.raised, r.highest
+    );
+    if r.nothing_below > 0 {
+        line.push_str(&format!("; {} with no part below left as they were", r.nothing_below));
+    }
+    line
 }
 
 /// One line on what the gouge check found and did.
@@ -364,7 +400,26 @@ pub fn run(a: DropcutterArgs) -> Result<(), CliError> {
             axis_length: positive("axis-length", a.axis_length)?,
         };
         let (r, rc) = FiveAxis::radii(&dc).map_err(bad)?;
-        let contacts: Vec<Vec<Contact>> = passes.iter().flat_map(|p| FiveAxis::contacts(&dc, p)).collect();
+        let smooth = match (a.normals, a.crease) {
+            (NormalsArg::Facet, Some(_)) => return Err(CliError::input("--crease goes with --normals smooth")),
+            (NormalsArg::Facet, None) => None,
+            (NormalsArg::Smooth, _) if a.gouge == GougeArg::Tilt => {
+                return Err(CliError::input(
+                    "--normals smooth sets each tool down on the part along its axis; the tilt search (--gouge tilt) works with --normals facet",
+                ));
+            }
+            (NormalsArg::Smooth, crease) => {
+                let deg = crease.unwrap_or(DEFAULT_CREASE_DEG);
+                if !(0.0..=180.0).contains(&deg) {
+                    return Err(CliError::input(format!("--crease {deg}: degrees, 0 to 180")));
+                }
+                Some((dc.smooth_normals(deg.to_radians()), deg))
+            }
+        };
+        let contacts: Vec<Vec<Contact>> = passes
+            .iter()
+            .flat_map(|p| FiveAxis::contacts_with(&dc, p, smooth.as_ref().map(|(n, _)| n)))
+            .collect();
         let mut runs: Vec<Vec<Location>> = contacts
             .iter()
             .map(|run| run.iter().map(|c| fa.location(c.cc, c.normal, c.feed, r, rc)).collect())
@@ -407,6 +462,12 @@ pub fn run(a: DropcutterArgs) -> Result<(), CliError> {
                 .map_err(|e| CliError::input(format!("--holder: {e}")))?,
             None => GougeCheck::new(&dc),
         };
+        if let Some((_, deg)) = &smooth {
+            // Tangent to the smoothed surface, the tool sits a little in
+            // or above the facets: set down on the mesh itself first.
+            let settled = gouge_check.settle(&mut runs, fa.axis_length);
+            microcam::diag!("pathgen: dropcutter: 5-axis: {}", settle_summary(&settled, *deg));
+        }
         let summary = match a.gouge {
             GougeArg::Off => None,
             GougeArg::Lift | GougeArg::Report => {
@@ -440,7 +501,7 @@ pub fn run(a: DropcutterArgs) -> Result<(), CliError> {
         }
         let mut w = ClWriter::new(&mut out);
         w.comment(&format!(
-            "microcam 5-axis CL data: x y z (tool tip) x1 y1 z1 (point on the tool axis), mm; cutter {cutter}, lead {} deg, tilt {} deg, gouge check {}{}, from {name}",
+            "microcam 5-axis CL data: x y z (tool tip) x1 y1 z1 (point on the tool axis), mm; cutter {cutter}, lead {} deg, tilt {} deg, gouge check {}{}{}, from {name}",
             a.lead,
             a.tilt,
             match a.gouge {
@@ -455,6 +516,9 @@ pub fn run(a: DropcutterArgs) -> Result<(), CliError> {
                 " with a holder of {} mm diameter from {} mm up the axis",
                 2.0 * h.radius,
                 h.height
+            )),
+            smooth.as_ref().map_or(String::new(), |(_, deg)| format!(
+                ", axes from smoothed normals (crease {deg} deg)"
             ))
         ))?;
         write_cldata5(&mut w, &runs, safe_z)?;
