@@ -59,6 +59,8 @@ pub struct Contact {
     /// Unit upward surface normal at the contact: its facet's, or
     /// interpolated across the facet ([`SmoothNormals`]).
     pub normal: V3,
+    /// Unit upward normal of the facet the contact lies on.
+    pub facet: V3,
     /// Direction of travel.
     pub feed: V3,
 }
@@ -110,12 +112,13 @@ impl FiveAxis {
                 continue;
             };
             let cc = P3::new(p.x, p.y, z);
+            let facet = {
+                let n = dc.tris[t].n;
+                V3::new(n[0], n[1], n[2])
+            };
             let normal = match smooth {
                 Some(s) => dc.smooth_normal_at(s, t, cc),
-                None => {
-                    let n = dc.tris[t].n;
-                    V3::new(n[0], n[1], n[2])
-                }
+                None => facet,
             };
             let prev = xy[i.saturating_sub(1)];
             let next = xy[(i + 1).min(xy.len() - 1)];
@@ -123,6 +126,7 @@ impl FiveAxis {
             run.push(Contact {
                 cc,
                 normal,
+                facet,
                 feed: V3::new(d.x, d.y, 0.0),
             });
         }

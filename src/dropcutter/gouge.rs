@@ -32,7 +32,7 @@
 
 use super::DropCutter;
 use super::cutter_vs_triangle::{ContactCutter, Tri, drop_on};
-use super::fiveaxis::Location;
+use super::fiveaxis::{Contact, Location};
 use crate::geometry::{P3, V3};
 use crate::mesh::bvh::Bvh;
 use crate::mesh::{Mesh, Triangle};
@@ -82,7 +82,7 @@ impl GougeReport {
     }
 }
 
-/// What [`GougeCheck::settle`] did.
+/// What [`GougeCheck::check_settling`] did in setting the locations down.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct SettleReport {
     /// Locations set down on the part.
@@ -93,6 +93,34 @@ pub struct SettleReport {
     pub raised: usize,
     /// The largest move up (mm; 0 when none).
     pub highest: f64,
+}
+
+/// One location set down on the part ([`GougeCheck::settle_one`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Settled {
+    /// Where the tool rests.
+    pub location: Location,
+    /// How far it moved up its axis to get there; `None` when nothing of
+    /// the part was within reach (it stays where it was).
+    pub raise: Option<f64>,
+    /// How deep it was in the part beyond its own facet's plane (or its
+    /// holder's clearance, when more): a gouge when above [`GOUGE_TOL`].
+    pub depth: f64,
+    /// How far its holder still has to rise to clear the part (0 without
+    /// a holder).
+    pub holder: f64,
+}
+
+impl SettleReport {
+    pub(super) fn record(&mut self, s: &Settled) {
+        let Some(m) = s.raise else {
+            self.nothing_below += 1;
+            return;
+        };
+        self.settled += 1;
+        self.raised += (m > GOUGE_TOL) as usize;
+        self.highest = self.highest.max(m);
+    }
 }
 
 /// `l` moved `depth` up its own axis.
@@ -214,39 +242,102 @@ impl<'a> GougeCheck<'a> {
         (h > f64::NEG_INFINITY).then_some(h - below)
     }
 
-    /// Set each location of `runs` down on the part along its own axis
-    /// ([`GougeCheck::rest_height`], from the cutter's radius below its
-    /// tip), in parallel. For 5-axis locations tangent to a smoothed
-    /// surface ([`super::normals`]) rather than to their facets: such a
-    /// tool touches its contact point but dips into the facets around it
-    /// (by about its radius times the angle between the two normals), and
-    /// where the part is tighter than the tool it cuts in as any location
-    /// does; both are lifted out here, so the tool rests on the mesh. A
-    /// location with nothing within reach below stays where it is.
-    pub fn settle(&self, runs: &mut [Vec<Location>], length: f64) -> SettleReport {
-        let below = self.dc.shape.r;
-        let moves: Vec<Vec<Option<f64>>> = runs
+    /// A 5-axis location made tangent to a smoothed surface
+    /// ([`super::normals`]) rather than to its facet, set down on the
+    /// mesh along its own axis ([`GougeCheck::rest_height`], searched
+    /// from the cutter's radius below its tip). Such a tool touches its
+    /// contact point but dips into the facets round it; where the part is
+    /// tighter than the tool it also cuts in as any location does. Both
+    /// are lifted out here, so the tool rests on the mesh; the depth
+    /// reported is the second only: how much higher the tool had to rise
+    /// than out of its own facet's plane (or the holder's clearance, when
+    /// that is more). `c` is the location's contact.
+    pub fn settle_one(&self, l: &Location, c: &Contact, length: f64) -> Settled {
+        let axis = l.axis_point - l.cl;
+        let raise = self.rest_height(l.cl, axis, length, self.dc.shape.r);
+        let location = lifted(l, raise.unwrap_or(0.0));
+        let own = self.plane_rise(l, c.cc, c.facet);
+        let holder = if self.holder.is_some() {
+            self.clearance(location.cl, axis, length)
+        } else {
+            0.0
+        };
+        Settled {
+            location,
+            raise,
+            depth: (raise.unwrap_or(0.0) - own).max(holder),
+            holder,
+        }
+    }
+
+    /// How far the tool of `l` must move up its axis to clear the plane
+    /// through `p` with unit normal `n` (the side it points to is
+    /// outside): the lowest point of its cutter towards the plane, raised
+    /// onto it. 0 where the axis does not rise away from the plane (no
+    /// move along it clears the plane).
+    pub(super) fn plane_rise(&self, l: &Location, p: P3, n: V3) -> f64 {
+        let a = (l.axis_point - l.cl).normalize();
+        let rise_per_mm = a.dot(&n);
+        // (NaN from a degenerate axis falls here too.)
+        if rise_per_mm.is_nan() || rise_per_mm <= 1e-9 {
+            return 0.0;
+        }
+        // The cutter's underside is its flat disc (radius R - rc, at rc up
+        // the axis) grown by the corner radius rc: its lowest point
+        // towards the plane is the disc's rim point farthest along -n's
+        // part across the axis, then rc along -n.
+        let s = &self.dc.shape;
+        let down = -n;
+        let across = down - a * down.dot(&a);
+        let rim = if across.norm() > 1e-12 {
+            across.normalize() * s.a
+        } else {
+            V3::zeros()
+        };
+        let lowest = l.cl + a * s.rc + rim + down * s.rc;
+        ((p - lowest).dot(&n) / rise_per_mm).max(0.0)
+    }
+
+    /// Set every location of `runs` (with their `contacts`) down on the
+    /// part ([`GougeCheck::settle_one`]), in parallel, and check them: the
+    /// report counts the locations that had to rise beyond their own
+    /// facets (or whose holder meets the part). With
+    /// [`GougeRule::Lift`] a location whose holder meets the part is
+    /// lifted further until it clears; with [`GougeRule::Report`] it is
+    /// left set down on the part, its holder in it.
+    pub fn check_settling(
+        &self,
+        contacts: &[Vec<Contact>],
+        runs: &mut [Vec<Location>],
+        length: f64,
+        rule: GougeRule,
+    ) -> (GougeReport, SettleReport) {
+        let settled: Vec<Vec<Settled>> = runs
             .par_iter()
-            .map(|run| {
+            .zip(contacts.par_iter())
+            .map(|(run, cs)| {
                 run.par_iter()
-                    .map(|l| self.rest_height(l.cl, l.axis_point - l.cl, length, below))
+                    .zip(cs.par_iter())
+                    .map(|(l, c)| {
+                        crate::progress::advance(1);
+                        self.settle_one(l, c, length)
+                    })
                     .collect()
             })
             .collect();
-        let mut report = SettleReport::default();
-        for (run, moves) in runs.iter_mut().zip(&moves) {
-            for (l, m) in run.iter_mut().zip(moves) {
-                let Some(m) = *m else {
-                    report.nothing_below += 1;
-                    continue;
+        let (mut gouges, mut settling) = (GougeReport::default(), SettleReport::default());
+        for (run, settled) in runs.iter_mut().zip(settled) {
+            for (l, s) in run.iter_mut().zip(settled) {
+                settling.record(&s);
+                let gouging = gouges.record(l, s.depth);
+                *l = if gouging && rule == GougeRule::Lift && s.holder > GOUGE_TOL {
+                    lifted(&s.location, s.holder)
+                } else {
+                    s.location
                 };
-                report.settled += 1;
-                report.raised += (m > GOUGE_TOL) as usize;
-                report.highest = report.highest.max(m);
-                *l = lifted(l, m);
             }
         }
-        report
+        (gouges, settling)
     }
 
     /// The height, in the tool's frame, at which `shape` dropped down the

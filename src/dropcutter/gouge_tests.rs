@@ -5,7 +5,7 @@
 
 use super::*;
 use crate::cutter::Cutter;
-use crate::dropcutter::fiveaxis::FiveAxis;
+use crate::dropcutter::fiveaxis::{FiveAxis, Location};
 use crate::geometry::P2;
 use crate::mesh::Mesh;
 
@@ -390,15 +390,21 @@ fn a_lifted_tool_with_its_holder_leaves_every_sampled_point_outside() {
     assert!(by_holder > 5, "{by_holder}");
 }
 
-/// Locations along `xy` on `dc` with axes from smoothed normals, as
-/// pathgen makes them before settling.
-fn smooth_pass(dc: &DropCutter, fa: &FiveAxis, xy: &[P2]) -> Vec<Vec<crate::dropcutter::fiveaxis::Location>> {
+/// Contacts along `xy` on `dc` with smoothed normals, and the locations
+/// made from them, as pathgen makes them before setting them down.
+pub(crate) fn smooth_pass(
+    dc: &DropCutter,
+    fa: &FiveAxis,
+    xy: &[P2],
+) -> (Vec<Vec<crate::dropcutter::fiveaxis::Contact>>, Vec<Vec<Location>>) {
     let (r, rc) = FiveAxis::radii(dc).unwrap();
     let normals = dc.smooth_normals(crate::dropcutter::normals::DEFAULT_CREASE_DEG.to_radians());
-    FiveAxis::contacts_with(dc, xy, Some(&normals))
+    let contacts = FiveAxis::contacts_with(dc, xy, Some(&normals));
+    let runs = contacts
         .iter()
         .map(|run| run.iter().map(|c| fa.location(c.cc, c.normal, c.feed, r, rc)).collect())
-        .collect()
+        .collect();
+    (contacts, runs)
 }
 
 #[test]
@@ -423,9 +429,11 @@ fn settled_tools_touch_the_part_and_are_nowhere_in_it() {
                 tilt: tilt.to_radians(),
                 axis_length: 20.0,
             };
-            let raw = smooth_pass(&dc, &fa, &xy);
+            let (contacts, raw) = smooth_pass(&dc, &fa, &xy);
             let mut runs = raw.clone();
-            let report = gc.settle(&mut runs, fa.axis_length);
+            let (gouges, report) = gc.check_settling(&contacts, &mut runs, fa.axis_length, GougeRule::Lift);
+            // A convex part: nothing rose beyond its own facet's plane.
+            assert_eq!(gouges.gouging, 0, "{cutter:?} {lead}: {gouges:?}");
             assert_eq!(report.settled, 31, "{report:?}");
             assert_eq!(report.nothing_below, 0);
             // A tool touches its own contact point, so it never comes
@@ -474,12 +482,102 @@ fn a_tool_with_no_part_within_reach_is_left_where_it_is() {
     for bad in [f64::NAN, -1.0] {
         assert_eq!(gc.rest_height(P3::new(0.0, 0.0, 5.5), V3::z(), 10.0, bad), None);
     }
-    let mut runs = vec![vec![crate::dropcutter::fiveaxis::Location {
+    let mut runs = vec![vec![Location {
         cl: P3::new(9.0, 0.0, 0.0),
         axis_point: P3::new(9.0, 0.0, 10.0),
     }]];
+    let contacts = vec![vec![crate::dropcutter::fiveaxis::Contact {
+        cc: P3::new(9.0, 0.0, 0.0),
+        normal: V3::z(),
+        facet: V3::z(),
+        feed: V3::x(),
+    }]];
     let before = runs.clone();
-    let r = gc.settle(&mut runs, 10.0);
+    let (_, r) = gc.check_settling(&contacts, &mut runs, 10.0, GougeRule::Lift);
     assert_eq!((r.settled, r.nothing_below), (0, 1));
     assert_eq!(runs, before);
+}
+
+#[test]
+fn the_rise_out_of_a_facets_plane_is_exact() {
+    // A tilted plane; tools touching it (made by the facet-normal rule at
+    // several leads and tilts) rise 0 out of it, and the same tools
+    // lowered by 0.3 mm along their axes rise 0.3.
+    let n = V3::new(0.2, -0.3, 1.0).normalize();
+    let plane = |x: f64, y: f64| (0.0 - n.x * x - n.y * y) / n.z;
+    let mesh = crate::dropcutter::tests::surface(4.0, 4, plane);
+    for cutter in [
+        Cutter::Flat { radius: 1.0 },
+        Cutter::Torus {
+            radius: 1.0,
+            corner: 0.4,
+        },
+    ] {
+        let dc = DropCutter::new(&mesh, cutter).unwrap();
+        let gc = GougeCheck::new(&dc);
+        let (r, rc) = FiveAxis::radii(&dc).unwrap();
+        for (lead, tilt) in [(0.0f64, 0.0f64), (10.0, 0.0), (5.0, -20.0), (-30.0, 15.0)] {
+            let fa = FiveAxis {
+                lead: lead.to_radians(),
+                tilt: tilt.to_radians(),
+                axis_length: 10.0,
+            };
+            let cc = P3::new(0.3, -0.2, plane(0.3, -0.2));
+            let l = fa.location(cc, n, V3::new(1.0, 0.4, 0.0), r, rc);
+            let rise = gc.plane_rise(&l, cc, n);
+            assert!(rise.abs() < 1e-12, "{cutter:?} {lead} {tilt}: {rise}");
+            // On the plane itself the drop agrees.
+            let a = (l.axis_point - l.cl).normalize();
+            assert!(gc.clearance(l.cl, a, 10.0) <= GOUGE_TOL);
+            let low = lifted(&l, -0.3);
+            let rise = gc.plane_rise(&low, cc, n);
+            assert!((rise - 0.3).abs() < 1e-12, "{cutter:?} {lead} {tilt}: {rise}");
+            assert!((gc.clearance(low.cl, a, 10.0) - 0.3).abs() < 1e-9);
+        }
+    }
+}
+
+#[test]
+fn smoothed_locations_in_a_trough_are_turned_or_lifted_clear() {
+    // The trough is tighter than the tool: set down, many locations rise
+    // beyond their facets (gouges); the tilt search turns them clear.
+    let (mesh, xy) = trough_pass();
+    let points = samples(&mesh, 12);
+    let cutter = Cutter::Flat { radius: 1.0 };
+    let dc = DropCutter::new(&mesh, cutter).unwrap();
+    let gc = GougeCheck::new(&dc);
+    let fa = FiveAxis {
+        lead: 0.0,
+        tilt: 0.0,
+        axis_length: 6.0,
+    };
+    let (contacts, raw) = smooth_pass(&dc, &fa, &xy);
+    let mut lifted_runs = raw.clone();
+    let (lift, _) = gc.check_settling(&contacts, &mut lifted_runs, 6.0, GougeRule::Lift);
+    assert!(lift.gouging >= 10, "{lift:?}");
+    let mut turned = raw.clone();
+    let search = crate::dropcutter::tilt::TiltSearch {
+        max: 30f64.to_radians(),
+        step: 5f64.to_radians(),
+        ramp: 2.0,
+    };
+    let (report, tilt, settling) = gc.check_tilting(&fa, &contacts, &mut turned, &search, true).unwrap();
+    assert_eq!(report.gouging, lift.gouging);
+    assert_eq!(settling.settled, 25);
+    assert!(tilt.tilted > 0, "{tilt:?}");
+    for l in turned.iter().flatten().chain(lifted_runs.iter().flatten()) {
+        let a = (l.axis_point - l.cl).normalize();
+        assert!(gc.clearance(l.cl, a, 6.0) <= GOUGE_TOL, "{l:?}");
+        for &p in &points {
+            assert!(
+                !inside_tool(cutter, l.cl, a, 6.0, p, 1e-7),
+                "{p:?} in the tool at {l:?}"
+            );
+        }
+    }
+    // Turned tools stay on the part: lowered 1e-4 they are in it.
+    for l in turned.iter().flatten() {
+        let a = (l.axis_point - l.cl).normalize();
+        assert!(gc.clearance(l.cl - a * 1e-4, a, 6.0) > 0.5e-4, "{l:?}");
+    }
 }

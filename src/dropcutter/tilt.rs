@@ -17,7 +17,7 @@
 
 use super::DropError;
 use super::fiveaxis::{Contact, FiveAxis, Location};
-use super::gouge::{GOUGE_TOL, GougeCheck, GougeReport, lifted};
+use super::gouge::{GOUGE_TOL, GougeCheck, GougeReport, SettleReport, lifted};
 use rayon::prelude::*;
 
 /// How far the tilt search goes (all angles in radians, lengths in mm).
@@ -90,14 +90,19 @@ impl GougeCheck<'_> {
     /// When none does, the location is lifted. Then the turns are eased
     /// in and out over `ramp` along each pass (the module's doc).
     /// `contacts` are the runs' contacts ([`FiveAxis::contacts`]), `fa` the
-    /// orientation asked for.
+    /// orientation asked for. With `settle` (contacts with smoothed
+    /// normals) every location, as asked or turned, is set down on the
+    /// part ([`GougeCheck::settle_one`]) and counts as gouging when it had
+    /// to rise beyond its own facet's plane; the second report says how
+    /// the locations as asked were set down.
     pub fn check_tilting(
         &self,
         fa: &FiveAxis,
         contacts: &[Vec<Contact>],
         runs: &mut [Vec<Location>],
         search: &TiltSearch,
-    ) -> Result<(GougeReport, TiltReport), DropError> {
+        settle: bool,
+    ) -> Result<(GougeReport, TiltReport, SettleReport), DropError> {
         let (r, rc) = FiveAxis::radii(self.drop_cutter())?;
         let length = fa.axis_length;
         let turned = |c: &Contact, t: [f64; 2]| {
@@ -108,7 +113,61 @@ impl GougeCheck<'_> {
             }
             .location(c.cc, c.normal, c.feed, r, rc)
         };
-        let clears = |l: &Location| self.clearance(l.cl, l.axis_point - l.cl, length) <= GOUGE_TOL;
+        // A location as placed for a contact (set down on the part with
+        // `settle`), how deep in the part it is, and how far it would be
+        // lifted to clear it.
+        let place = |l: &Location, c: &Contact| -> (Location, f64, f64) {
+            if settle {
+                let s = self.settle_one(l, c, length);
+                (s.location, s.depth, s.holder)
+            } else {
+                let d = self.clearance(l.cl, l.axis_point - l.cl, length);
+                (*l, d, d)
+            }
+        };
+        // A turned location, where it clears the part.
+        let clear_turn = |c: &Contact, t: [f64; 2]| {
+            let (l, d, _) = place(&turned(c, t), c);
+            (d <= GOUGE_TOL).then_some(l)
+        };
+        // The locations as asked, placed, with their depths and lifts.
+        let mut settling = SettleReport::default();
+        let own_placed: Vec<Vec<(f64, f64)>> = if settle {
+            let settled: Vec<Vec<_>> = runs
+                .par_iter()
+                .zip(contacts.par_iter())
+                .map(|(run, cs)| {
+                    run.par_iter()
+                        .zip(cs.par_iter())
+                        .map(|(l, c)| self.settle_one(l, c, length))
+                        .collect()
+                })
+                .collect();
+            runs.iter_mut()
+                .zip(settled)
+                .map(|(run, ss)| {
+                    run.iter_mut()
+                        .zip(ss)
+                        .map(|(l, s)| {
+                            settling.record(&s);
+                            *l = s.location;
+                            (s.depth, s.holder)
+                        })
+                        .collect()
+                })
+                .collect()
+        } else {
+            runs.par_iter()
+                .map(|run| {
+                    run.par_iter()
+                        .map(|l| {
+                            let d = self.clearance(l.cl, l.axis_point - l.cl, length);
+                            (d, d)
+                        })
+                        .collect()
+                })
+                .collect()
+        };
         let sizes = if search.step > 0.0 && search.max > 0.0 {
             ((search.max / search.step) + 1e-9).floor() as usize
         } else {
@@ -120,32 +179,27 @@ impl GougeCheck<'_> {
                 [[0.0, a], [0.0, -a], [a, 0.0], [-a, 0.0]]
             })
             .collect();
-        let outcomes: Vec<Vec<(f64, Outcome)>> = runs
+        let outcomes: Vec<Vec<(f64, Outcome)>> = own_placed
             .par_iter()
             .zip(contacts.par_iter())
-            .map(|(run, cs)| {
-                let own: Vec<(f64, Outcome)> = run
+            .map(|(placed, cs)| {
+                let own: Vec<(f64, Outcome)> = placed
                     .par_iter()
                     .zip(cs.par_iter())
-                    .map(|(l, c)| {
+                    .map(|(&(d, lift), c)| {
                         crate::progress::advance(1);
-                        let d = self.clearance(l.cl, l.axis_point - l.cl, length);
                         if d <= GOUGE_TOL {
                             return (d, Outcome::Clear);
                         }
                         for &t in &turns {
-                            let other = turned(c, t);
-                            if clears(&other) {
+                            if let Some(other) = clear_turn(c, t) {
                                 return (d, Outcome::Tilted(other, t));
                             }
                         }
-                        (d, Outcome::Lifted(d))
+                        (d, Outcome::Lifted(lift))
                     })
                     .collect();
-                ease(own, cs, search.ramp, |c, t| {
-                    let l = turned(c, t);
-                    clears(&l).then_some(l)
-                })
+                ease(own, cs, search.ramp, clear_turn)
             })
             .collect();
         let mut report = GougeReport::default();
@@ -177,7 +231,7 @@ impl GougeCheck<'_> {
                 }
             }
         }
-        Ok((report, tilt))
+        Ok((report, tilt, settling))
     }
 }
 

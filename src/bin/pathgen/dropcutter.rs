@@ -403,11 +403,6 @@ pub fn run(a: DropcutterArgs) -> Result<(), CliError> {
         let smooth = match (a.normals, a.crease) {
             (NormalsArg::Facet, Some(_)) => return Err(CliError::input("--crease goes with --normals smooth")),
             (NormalsArg::Facet, None) => None,
-            (NormalsArg::Smooth, _) if a.gouge == GougeArg::Tilt => {
-                return Err(CliError::input(
-                    "--normals smooth sets each tool down on the part along its axis; the tilt search (--gouge tilt) works with --normals facet",
-                ));
-            }
             (NormalsArg::Smooth, crease) => {
                 let deg = crease.unwrap_or(DEFAULT_CREASE_DEG);
                 if !(0.0..=180.0).contains(&deg) {
@@ -462,25 +457,31 @@ pub fn run(a: DropcutterArgs) -> Result<(), CliError> {
                 .map_err(|e| CliError::input(format!("--holder: {e}")))?,
             None => GougeCheck::new(&dc),
         };
-        if let Some((_, deg)) = &smooth {
-            // Tangent to the smoothed surface, the tool sits a little in
-            // or above the facets: set down on the mesh itself first.
-            let settled = gouge_check.settle(&mut runs, fa.axis_length);
-            microcam::diag!("pathgen: dropcutter: 5-axis: {}", settle_summary(&settled, *deg));
-        }
-        let summary = match a.gouge {
-            GougeArg::Off => None,
+        // With smoothed normals every location is set down on the part
+        // (tangent to the smoothed surface, a tool dips into the facets
+        // round its contact); the gouges are then what lies beyond that.
+        let settling = smooth.is_some();
+        let rule = if a.gouge == GougeArg::Lift {
+            GougeRule::Lift
+        } else {
+            GougeRule::Report
+        };
+        let (summary, settled) = match a.gouge {
+            GougeArg::Off if settling => {
+                let (_, s) = gouge_check.check_settling(&contacts, &mut runs, fa.axis_length, GougeRule::Report);
+                (None, Some(s))
+            }
+            GougeArg::Off => (None, None),
+            GougeArg::Lift | GougeArg::Report if settling => {
+                let (report, s) = gouge_check.check_settling(&contacts, &mut runs, fa.axis_length, rule);
+                (Some(gouge_summary(&report, rule, fa.axis_length)), Some(s))
+            }
             GougeArg::Lift | GougeArg::Report => {
-                let rule = if a.gouge == GougeArg::Lift {
-                    GougeRule::Lift
-                } else {
-                    GougeRule::Report
-                };
                 let report = gouge_check.check(&mut runs, fa.axis_length, rule);
-                Some(gouge_summary(&report, rule, fa.axis_length))
+                (Some(gouge_summary(&report, rule, fa.axis_length)), None)
             }
             GougeArg::Tilt => {
-                let (report, tilt) = gouge_check
+                let (report, tilt, s) = gouge_check
                     .check_tilting(
                         &fa,
                         &contacts,
@@ -490,11 +491,18 @@ pub fn run(a: DropcutterArgs) -> Result<(), CliError> {
                             step: turn_step.to_radians(),
                             ramp: turn_ramp,
                         },
+                        settling,
                     )
                     .map_err(bad)?;
-                Some(tilt_summary(&report, &tilt, fa.axis_length))
+                (
+                    Some(tilt_summary(&report, &tilt, fa.axis_length)),
+                    settling.then_some(s),
+                )
             }
         };
+        if let (Some(s), Some((_, deg))) = (settled, &smooth) {
+            microcam::diag!("pathgen: dropcutter: 5-axis: {}", settle_summary(&s, *deg));
+        }
         meter.finish();
         if let Some(line) = summary {
             microcam::diag!("pathgen: dropcutter: 5-axis: {line}");
