@@ -19,7 +19,7 @@
 //! the location keeps that facet clear) or with a normal interpolated
 //! across it ([`super::normals`]: the axis turns smoothly, and the tool,
 //! tangent to the smooth surface rather than the facet, is then set down
-//! on the mesh along its axis, [`super::gouge::GougeCheck::settle`]).
+//! on the mesh along its axis, [`super::gouge::GougeCheck::settle_one`]).
 //! Either way [`super::gouge`] checks the whole tool against the mesh
 //! afterwards.
 
