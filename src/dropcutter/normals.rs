@@ -23,7 +23,7 @@
 
 use super::cutter_vs_triangle::Tri;
 use crate::geometry::{P3, V3};
-use std::collections::HashMap;
+use rayon::prelude::*;
 
 /// The default crease angle (degrees): facets meeting at more than this
 /// keep their own normals along the shared edge.
@@ -44,60 +44,113 @@ impl SmoothNormals {
     /// Corner normals of `tris` with facets averaged within `crease`
     /// radians of one another (0 gives each facet its own normal).
     pub fn new(tris: &[Tri], crease: f64) -> SmoothNormals {
-        let facet: Vec<V3> = tris.iter().map(|t| V3::new(t.n[0], t.n[1], t.n[2])).collect();
-        // Each corner's vertex id, corners at the same coordinates sharing
-        // one (+0 and -0 taken as the same).
-        let mut ids: HashMap<[u64; 3], u32> = HashMap::with_capacity(tris.len());
-        let vertex: Vec<[u32; 3]> = tris
+        let facet: Vec<V3> = tris.par_iter().map(|t| V3::new(t.n[0], t.n[1], t.n[2])).collect();
+        // Each corner's weight: its interior angle.
+        let angle: Vec<[f64; 3]> = tris
+            .par_iter()
+            .map(|t| std::array::from_fn(|k| corner_angle(t, k)))
+            .collect();
+        // The corners (3 t + c) grouped by position, +0 and -0 the same:
+        // sorted, so a vertex's corners are one run (a sort, where a hash
+        // map of positions took most of the time on a million triangles).
+        let key = |i: u32| tris[i as usize / 3].v[i as usize % 3].map(|x| (x + 0.0).to_bits());
+        // Sorted by a Morton code of the position in the mesh's box (21
+        // bits an axis): equal positions fall together, and neighbouring
+        // runs are neighbouring vertices, whose triangles a mesh file
+        // mostly holds near one another, so the reads below stay in cache
+        // (a hash of the position scattered them: three times the time on
+        // a million triangles). Different positions in one cell are told
+        // apart below.
+        let (lo, hi) = tris
             .iter()
-            .map(|t| {
-                t.v.map(|p| {
-                    let key = p.map(|c| (c + 0.0).to_bits());
-                    let next = ids.len() as u32;
-                    *ids.entry(key).or_insert(next)
-                })
-            })
-            .collect();
-        // The corners at each vertex, in compressed rows.
-        let n_vertices = ids.len();
-        let mut start = vec![0usize; n_vertices + 1];
-        for v in vertex.iter().flatten() {
-            start[*v as usize + 1] += 1;
-        }
-        for k in 0..n_vertices {
-            start[k + 1] += start[k];
-        }
-        let mut fill = start.clone();
-        let mut at = vec![(0u32, 0u8); start[n_vertices]];
-        for (t, vs) in vertex.iter().enumerate() {
-            for (c, v) in vs.iter().enumerate() {
-                at[fill[*v as usize]] = (t as u32, c as u8);
-                fill[*v as usize] += 1;
+            .fold(([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]), |(mut lo, mut hi), t| {
+                for p in &t.v {
+                    for k in 0..3 {
+                        lo[k] = lo[k].min(p[k]);
+                        hi[k] = hi[k].max(p[k]);
+                    }
+                }
+                (lo, hi)
+            });
+        let scale: [f64; 3] = std::array::from_fn(|k| {
+            let ext = hi[k] - lo[k];
+            if ext > 0.0 && ext.is_finite() {
+                ((1u64 << 21) - 1) as f64 / ext
+            } else {
+                0.0
             }
-        }
+        });
+        let spread = |x: u64| {
+            // Bit b of x to bit 3 b.
+            let mut x = x & 0x1f_ffff;
+            x = (x | x << 32) & 0x1f_0000_0000_ffff;
+            x = (x | x << 16) & 0x1f_0000_ff00_00ff;
+            x = (x | x << 8) & 0x100f_00f0_0f00_f00f;
+            x = (x | x << 4) & 0x10c3_0c30_c30c_30c3;
+            (x | x << 2) & 0x1249_2492_4924_9249
+        };
+        let morton = |i: u32| {
+            let p = tris[i as usize / 3].v[i as usize % 3];
+            (0..3).fold(0u64, |m, k| {
+                let q = ((p[k] - lo[k]) * scale[k]).clamp(0.0, ((1u64 << 21) - 1) as f64) as u64;
+                m | spread(q) << k
+            })
+        };
+        let n = tris.len() * 3;
+        let mut sorted: Vec<(u64, u32)> = (0..n as u32).into_par_iter().map(|i| (morton(i), i)).collect();
+        sorted.par_sort_unstable();
+        // Run starts, and where each corner sits in `sorted`.
+        let mut starts: Vec<u32> = (0..n as u32)
+            .into_par_iter()
+            .filter(|&k| k == 0 || sorted[k as usize].0 != sorted[k as usize - 1].0)
+            .collect();
+        starts.push(n as u32);
         let cos_crease = crease.clamp(0.0, std::f64::consts::PI).cos();
-        let corners = (0..tris.len())
-            .map(|t| {
-                let own = facet[t];
-                std::array::from_fn(|c| {
-                    if own == V3::zeros() {
-                        return own;
-                    }
-                    let v = vertex[t][c] as usize;
-                    let mut sum = V3::zeros();
-                    for &(u, k) in &at[start[v]..start[v + 1]] {
-                        let n = facet[u as usize];
-                        // The facet itself always counts, whatever round-off
-                        // makes of its dot product with itself.
-                        if u as usize == t || (n != V3::zeros() && n.dot(&own) >= cos_crease) {
-                            sum += n * corner_angle(&tris[u as usize], k as usize);
+        // Each run's corners' normals, in the sorted order: a run's
+        // facets (normal, weighted normal, position) read once into a
+        // buffer, then each corner sums those within the crease of its own
+        // facet. Runs in chunks, one buffer per chunk.
+        let runs: Vec<u32> = (0..starts.len() as u32 - 1).collect();
+        let by_sorted: Vec<V3> = runs
+            .par_chunks(4096)
+            .flat_map_iter(|chunk| {
+                let mut out = Vec::new();
+                let mut here: Vec<(V3, V3, [u64; 3], usize)> = Vec::new();
+                for &r in chunk {
+                    let run = &sorted[starts[r as usize] as usize..starts[r as usize + 1] as usize];
+                    here.clear();
+                    here.extend(run.iter().map(|&(_, j)| {
+                        let (u, k) = (j as usize / 3, j as usize % 3);
+                        (facet[u], facet[u] * angle[u][k], key(j), u)
+                    }));
+                    for &(own, _, pos, t) in &here {
+                        if own == V3::zeros() {
+                            out.push(own);
+                            continue;
                         }
+                        let mut sum = V3::zeros();
+                        for &(n, weighted, p, u) in &here {
+                            // Another position in the run (in the same
+                            // cell of the code) is another vertex. The facet itself
+                            // always counts, whatever round-off makes of
+                            // its dot product with itself.
+                            if p == pos && (u == t || (n != V3::zeros() && n.dot(&own) >= cos_crease)) {
+                                sum += weighted;
+                            }
+                        }
+                        let len = sum.norm();
+                        out.push(if len > 0.0 && len.is_finite() { sum / len } else { own });
                     }
-                    let len = sum.norm();
-                    if len > 0.0 && len.is_finite() { sum / len } else { own }
-                })
+                }
+                out
             })
             .collect();
+        // Back in triangle order.
+        let mut corners = vec![[V3::zeros(); 3]; tris.len()];
+        for (k, &(_, i)) in sorted.iter().enumerate() {
+            corners[i as usize / 3][i as usize % 3] = by_sorted[k];
+        }
+        crate::progress::lap("smooth normals");
         SmoothNormals { corners, crease }
     }
 

@@ -148,3 +148,30 @@ fn a_degenerate_facet_and_its_neighbours_get_finite_unit_normals() {
     let n = dc.smooth_normal_at(&smooth, 1, P3::new(1.0, 0.0, 0.0));
     assert!(n.iter().all(|c| c.is_finite()), "{n:?}");
 }
+
+#[test]
+fn corners_a_hair_apart_are_not_one_vertex() {
+    // Two facets leaning different ways whose nearest corners are 1e-9
+    // apart (one cell of the sort's code on a 10 mm mesh) but not equal:
+    // each keeps its own normal there; with the corners equal they share.
+    let mesh_with = |gap: f64| {
+        let a = crate::mesh::Triangle::new(P3::new(0.0, 0.0, 0.0), P3::new(5.0, 0.0, 1.0), P3::new(0.0, 5.0, 0.0));
+        let b = crate::mesh::Triangle::new(P3::new(gap, 0.0, 0.0), P3::new(0.0, -5.0, 0.5), P3::new(5.0, -5.0, 1.5));
+        Mesh::from_triangles(&[
+            a,
+            b,
+            crate::mesh::Triangle::new(
+                P3::new(10.0, 10.0, 0.0),
+                P3::new(9.0, 10.0, 0.0),
+                P3::new(10.0, 9.0, 0.0),
+            ),
+        ])
+    };
+    for (gap, shared) in [(1e-9, false), (0.0, true)] {
+        let dc = DropCutter::new(&mesh_with(gap), Cutter::Flat { radius: 0.5 }).unwrap();
+        let smooth = dc.smooth_normals(std::f64::consts::PI);
+        let n0 = dc.smooth_normal_at(&smooth, 0, P3::new(0.0, 0.0, 0.0));
+        let own = V3::new(dc.tris[0].n[0], dc.tris[0].n[1], dc.tris[0].n[2]);
+        assert_eq!((n0 - own).norm() > 1e-6, shared, "gap {gap}: {n0:?} {own:?}");
+    }
+}
