@@ -82,6 +82,19 @@ impl GougeReport {
     }
 }
 
+/// How a 5-axis location sits on the part before the gouge check judges
+/// it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Placement {
+    /// Tangent to its contact's facet, as made (facet normals): the check
+    /// measures how far it is in the part.
+    Tangent,
+    /// Set down on the mesh along its axis first (smoothed normals,
+    /// [`GougeCheck::settle_one`]): the check measures how far it had to
+    /// rise beyond its own facet's plane.
+    SetDown,
+}
+
 /// What [`GougeCheck::check_settling`] did in setting the locations down.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct SettleReport {

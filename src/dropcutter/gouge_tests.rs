@@ -561,7 +561,9 @@ fn smoothed_locations_in_a_trough_are_turned_or_lifted_clear() {
         step: 5f64.to_radians(),
         ramp: 2.0,
     };
-    let (report, tilt, settling) = gc.check_tilting(&fa, &contacts, &mut turned, &search, true).unwrap();
+    let (report, tilt, settling) = gc
+        .check_tilting(&fa, &contacts, &mut turned, &search, Placement::SetDown)
+        .unwrap();
     assert_eq!(report.gouging, lift.gouging);
     assert_eq!(settling.settled, 25);
     assert!(tilt.tilted > 0, "{tilt:?}");

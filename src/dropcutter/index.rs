@@ -119,11 +119,23 @@ impl Grid {
         self.query_box(tris, [x - r, y - r, x + r, y + r], f);
     }
 
+    /// [`Grid::query`] handing `f` each triangle's index in `tris` too.
+    #[inline]
+    pub fn query_indexed<'a>(&self, tris: &'a [Tri], x: f64, y: f64, r: f64, f: impl FnMut(usize, &'a Tri) -> bool) {
+        self.query_box_indexed(tris, [x - r, y - r, x + r, y + r], f);
+    }
+
     /// Visit each triangle whose box may meet the box `[x0, y0, x1, y1]`
     /// once, in each cell from the highest top down; `f` returns false to
     /// skip the rest of a cell.
     #[inline]
     pub fn query_box<'a>(&self, tris: &'a [Tri], q: [f64; 4], mut f: impl FnMut(&'a Tri) -> bool) {
+        self.query_box_indexed(tris, q, |_, t| f(t));
+    }
+
+    /// [`Grid::query_box`] handing `f` each triangle's index in `tris` too.
+    #[inline]
+    pub fn query_box_indexed<'a>(&self, tris: &'a [Tri], q: [f64; 4], mut f: impl FnMut(usize, &'a Tri) -> bool) {
         let [qx0, qy0, qx1, qy1] = q;
         if qx1 < self.x0
             || qy1 < self.y0
@@ -145,7 +157,7 @@ impl Grid {
                     if (i0 < i && self.col(t.bb[0].max(qx0)) != i) || (j0 < j && self.row(t.bb[1].max(qy0)) != j) {
                         continue;
                     }
-                    if !f(t) {
+                    if !f(k as usize, t) {
                         break;
                     }
                 }

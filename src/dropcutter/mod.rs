@@ -155,17 +155,13 @@ impl DropCutter {
     /// first met); `None` off the mesh.
     pub fn surface_contact(&self, x: f64, y: f64) -> Option<(f64, usize)> {
         let mut best: Option<(f64, usize)> = None;
-        let base = self.tris.as_ptr() as usize;
-        self.grid.query(&self.tris, x, y, 0.0, |t| {
+        self.grid.query_indexed(&self.tris, x, y, 0.0, |i, t| {
             if best.is_some_and(|(z, _)| t.zmax <= z) {
                 return false;
             }
             if t.n[2] > 1e-12 && t.contains_xy(x, y) {
                 let z = t.plane_z(x, y);
                 if best.is_none_or(|(b, _)| z > b) {
-                    // The grid hands out references into `tris`: the
-                    // index is the offset.
-                    let i = (t as *const Tri as usize - base) / std::mem::size_of::<Tri>();
                     best = Some((z, i));
                 }
             }

@@ -17,7 +17,7 @@
 
 use super::DropError;
 use super::fiveaxis::{Contact, FiveAxis, Location};
-use super::gouge::{GOUGE_TOL, GougeCheck, GougeReport, SettleReport, lifted};
+use super::gouge::{GOUGE_TOL, GougeCheck, GougeReport, Placement, SettleReport, lifted};
 use rayon::prelude::*;
 
 /// How far the tilt search goes (all angles in radians, lengths in mm).
@@ -90,19 +90,21 @@ impl GougeCheck<'_> {
     /// When none does, the location is lifted. Then the turns are eased
     /// in and out over `ramp` along each pass (the module's doc).
     /// `contacts` are the runs' contacts ([`FiveAxis::contacts`]), `fa` the
-    /// orientation asked for. With `settle` (contacts with smoothed
-    /// normals) every location, as asked or turned, is set down on the
-    /// part ([`GougeCheck::settle_one`]) and counts as gouging when it had
-    /// to rise beyond its own facet's plane; the second report says how
-    /// the locations as asked were set down.
+    /// orientation asked for. With [`Placement::SetDown`] (contacts with
+    /// smoothed normals) every location, as asked or turned, is set down
+    /// on the part ([`GougeCheck::settle_one`]) and counts as gouging when
+    /// it had to rise beyond its own facet's plane; the third report says
+    /// how the locations as asked were set down (empty with
+    /// [`Placement::Tangent`]).
     pub fn check_tilting(
         &self,
         fa: &FiveAxis,
         contacts: &[Vec<Contact>],
         runs: &mut [Vec<Location>],
         search: &TiltSearch,
-        settle: bool,
+        placement: Placement,
     ) -> Result<(GougeReport, TiltReport, SettleReport), DropError> {
+        let settle = placement == Placement::SetDown;
         let (r, rc) = FiveAxis::radii(self.drop_cutter())?;
         let length = fa.axis_length;
         let turned = |c: &Contact, t: [f64; 2]| {

@@ -48,14 +48,14 @@ fn tilting_clears_the_trough_with_the_tool_still_on_its_contact() {
         let lift_report = gc.check(&mut lifted, 6.0, GougeRule::Lift);
         let mut none = raw.clone();
         let (r0, t0, _) = gc
-            .check_tilting(&fa, &contacts, &mut none, &search(0.0, 5.0, 0.0), false)
+            .check_tilting(&fa, &contacts, &mut none, &search(0.0, 5.0, 0.0), Placement::Tangent)
             .unwrap();
         assert_eq!((r0, none.clone()), (lift_report, lifted.clone()));
         assert_eq!((t0.tilted, t0.lifted), (0, lift_report.gouging));
         // Turns up to 30 degrees in steps of 5.
         let mut turned = raw.clone();
         let (report, tilt, _) = gc
-            .check_tilting(&fa, &contacts, &mut turned, &search(30.0, 5.0, 0.0), false)
+            .check_tilting(&fa, &contacts, &mut turned, &search(30.0, 5.0, 0.0), Placement::Tangent)
             .unwrap();
         assert_eq!(report, lift_report, "the same gouges found");
         assert_eq!(tilt.tilted + tilt.lifted, report.gouging);
@@ -117,11 +117,11 @@ fn eased_turns_keep_the_part_clear_and_shrink_the_jumps() {
     let (fa, contacts, raw) = lead_5_job(&dc, &xy);
     let mut sharp = raw.clone();
     let (r_sharp, t_sharp, _) = gc
-        .check_tilting(&fa, &contacts, &mut sharp, &search(30.0, 5.0, 0.0), false)
+        .check_tilting(&fa, &contacts, &mut sharp, &search(30.0, 5.0, 0.0), Placement::Tangent)
         .unwrap();
     let mut eased = raw.clone();
     let (r_eased, t_eased, _) = gc
-        .check_tilting(&fa, &contacts, &mut eased, &search(30.0, 5.0, 1.0), false)
+        .check_tilting(&fa, &contacts, &mut eased, &search(30.0, 5.0, 1.0), Placement::Tangent)
         .unwrap();
     assert_eq!(r_sharp, r_eased, "the same gouges found");
     assert!(t_sharp.tilted > 0 && t_sharp.eased == 0, "{t_sharp:?}");
@@ -173,7 +173,7 @@ fn eased_turns_keep_the_part_clear_and_shrink_the_jumps() {
     // with a ramp shorter than the spacing, nothing is eased.
     let mut short = raw.clone();
     let (_, t_short, _) = gc
-        .check_tilting(&fa, &contacts, &mut short, &search(30.0, 5.0, 1e-3), false)
+        .check_tilting(&fa, &contacts, &mut short, &search(30.0, 5.0, 1e-3), Placement::Tangent)
         .unwrap();
     assert_eq!((t_short.eased, &short), (0, &sharp));
 }

@@ -7,7 +7,7 @@ use microcam::cli::{self, CliError, Output};
 use microcam::cutter::Cutter;
 use microcam::dropcutter::adaptive::Adaptive;
 use microcam::dropcutter::fiveaxis::{Contact, FiveAxis, Location};
-use microcam::dropcutter::gouge::{GougeCheck, GougeReport, GougeRule, Holder, SettleReport};
+use microcam::dropcutter::gouge::{GougeCheck, GougeReport, GougeRule, Holder, Placement, SettleReport};
 use microcam::dropcutter::normals::DEFAULT_CREASE_DEG;
 use microcam::dropcutter::output::{Feeds, toolpath_records, write_cldata, write_cldata5};
 use microcam::dropcutter::raster::{Direction, Pattern, Raster, chain_passes};
@@ -491,7 +491,11 @@ pub fn run(a: DropcutterArgs) -> Result<(), CliError> {
                             step: turn_step.to_radians(),
                             ramp: turn_ramp,
                         },
-                        settling,
+                        if settling {
+                            Placement::SetDown
+                        } else {
+                            Placement::Tangent
+                        },
                     )
                     .map_err(bad)?;
                 (
