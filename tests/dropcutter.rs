@@ -26,6 +26,22 @@ fn write_stl(path: &Path, tris: &[[[f64; 3]; 3]]) {
     std::fs::write(path, b).unwrap();
 }
 
+/// Run a `pathgen dropcutter` job that must succeed: its CL data and its
+/// stderr (`what` names the run in a failure).
+fn cl_run(mut job: Command, what: &str) -> (microcam::formats::cldata::ClData, String) {
+    let o = job.output().unwrap();
+    assert_eq!(
+        o.status.code(),
+        Some(0),
+        "{what}: {}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    (
+        read_cldata(o.stdout.as_slice()).unwrap(),
+        String::from_utf8_lossy(&o.stderr).into_owned(),
+    )
+}
+
 /// Upper half of a UV sphere of radius `r` about the origin.
 fn hemisphere(r: f64, nu: usize, nv: usize) -> Vec<[[f64; 3]; 3]> {
     let p = |i: usize, j: usize| {
@@ -459,21 +475,9 @@ fn the_holder_is_checked_against_the_part() {
         c
     };
     let run = |extra: &[&str]| {
-        let o = job()
-            .args(["--step-over", "0.25", "--region", "-2,-1,0.4,1"])
-            .args(extra)
-            .output()
-            .unwrap();
-        assert_eq!(
-            o.status.code(),
-            Some(0),
-            "{extra:?}: {}",
-            String::from_utf8_lossy(&o.stderr)
-        );
-        (
-            read_cldata(o.stdout.as_slice()).unwrap(),
-            String::from_utf8_lossy(&o.stderr).into_owned(),
-        )
+        let mut c = job();
+        c.args(["--step-over", "0.25", "--region", "-2,-1,0.4,1"]).args(extra);
+        cl_run(c, &format!("{extra:?}"))
     };
     let (plain, e_plain) = run(&["--gouge", "report"]);
     assert!(e_plain.contains("none of"), "{e_plain}");
@@ -711,8 +715,8 @@ fn smoothed_normals_follow_the_surface_and_the_tools_rest_on_it() {
     let stl = dir.path().join("dome.stl");
     write_stl(&stl, &hemisphere(10.0, 48, 12));
     let run = |extra: &[&str]| {
-        let o = pathgen()
-            .arg("dropcutter")
+        let mut c = pathgen();
+        c.arg("dropcutter")
             .arg(&stl)
             .args([
                 "--tool",
@@ -725,19 +729,8 @@ fn smoothed_normals_follow_the_surface_and_the_tools_rest_on_it() {
                 "-6,-6,6,6",
                 "--five-axis",
             ])
-            .args(extra)
-            .output()
-            .unwrap();
-        assert_eq!(
-            o.status.code(),
-            Some(0),
-            "{extra:?}: {}",
-            String::from_utf8_lossy(&o.stderr)
-        );
-        (
-            read_cldata(o.stdout.as_slice()).unwrap(),
-            String::from_utf8_lossy(&o.stderr).into_owned(),
-        )
+            .args(extra);
+        cl_run(c, &format!("{extra:?}"))
     };
     let (facet, _) = run(&[]);
     let (smooth, err) = run(&["--normals", "smooth"]);

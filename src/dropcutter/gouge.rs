@@ -311,6 +311,28 @@ impl<'a> GougeCheck<'a> {
         ((p - lowest).dot(&n) / rise_per_mm).max(0.0)
     }
 
+    /// [`GougeCheck::settle_one`] for every location of `runs` (with
+    /// their `contacts`), in parallel, counted on the progress meter.
+    pub(super) fn settle_all(
+        &self,
+        contacts: &[Vec<Contact>],
+        runs: &[Vec<Location>],
+        length: f64,
+    ) -> Vec<Vec<Settled>> {
+        runs.par_iter()
+            .zip(contacts.par_iter())
+            .map(|(run, cs)| {
+                run.par_iter()
+                    .zip(cs.par_iter())
+                    .map(|(l, c)| {
+                        crate::progress::advance(1);
+                        self.settle_one(l, c, length)
+                    })
+                    .collect()
+            })
+            .collect()
+    }
+
     /// Set every location of `runs` (with their `contacts`) down on the
     /// part ([`GougeCheck::settle_one`]), in parallel, and check them: the
     /// report counts the locations that had to rise beyond their own
@@ -325,19 +347,7 @@ impl<'a> GougeCheck<'a> {
         length: f64,
         rule: GougeRule,
     ) -> (GougeReport, SettleReport) {
-        let settled: Vec<Vec<Settled>> = runs
-            .par_iter()
-            .zip(contacts.par_iter())
-            .map(|(run, cs)| {
-                run.par_iter()
-                    .zip(cs.par_iter())
-                    .map(|(l, c)| {
-                        crate::progress::advance(1);
-                        self.settle_one(l, c, length)
-                    })
-                    .collect()
-            })
-            .collect();
+        let settled = self.settle_all(contacts, runs, length);
         let (mut gouges, mut settling) = (GougeReport::default(), SettleReport::default());
         for (run, settled) in runs.iter_mut().zip(settled) {
             for (l, s) in run.iter_mut().zip(settled) {

@@ -135,16 +135,7 @@ impl GougeCheck<'_> {
         // The locations as asked, placed, with their depths and lifts.
         let mut settling = SettleReport::default();
         let own_placed: Vec<Vec<(f64, f64)>> = if settle {
-            let settled: Vec<Vec<_>> = runs
-                .par_iter()
-                .zip(contacts.par_iter())
-                .map(|(run, cs)| {
-                    run.par_iter()
-                        .zip(cs.par_iter())
-                        .map(|(l, c)| self.settle_one(l, c, length))
-                        .collect()
-                })
-                .collect();
+            let settled = self.settle_all(contacts, runs, length);
             runs.iter_mut()
                 .zip(settled)
                 .map(|(run, ss)| {

@@ -439,7 +439,15 @@ pub fn run(a: DropcutterArgs) -> Result<(), CliError> {
         let meter = Meter::start(
             "pathgen",
             "checking the tool against the part",
-            if a.gouge == GougeArg::Off { 0 } else { n_points as u64 },
+            // Setting down (smoothed normals) and checking count a
+            // location each; the tilt search with smoothed normals does
+            // both.
+            n_points as u64
+                * match (a.gouge, smooth.is_some()) {
+                    (GougeArg::Off, false) => 0,
+                    (GougeArg::Tilt, true) => 2,
+                    _ => 1,
+                },
             Show::from_flags(a.quiet, false),
         );
         if a.gouge == GougeArg::Off && a.holder.is_some() {
