@@ -486,6 +486,18 @@ fn the_holder_is_checked_against_the_part() {
     assert_eq!(reported.points, plain.points, "report leaves the locations");
     let (lifted, e_lift) = run(&["--holder", "3:2"]);
     assert!(e_lift.contains("lifted"), "{e_lift}");
+    // With smoothed normals the floor's stay upright (the crease keeps
+    // the wall's apart), the tools set down where they were, and the
+    // holder lifts the same ones by the same amount.
+    let (smooth, e_smooth) = run(&["--holder", "3:2", "--normals", "smooth"]);
+    assert!(
+        e_smooth.contains("set down on the part") && e_smooth.contains("lifted"),
+        "{e_smooth}"
+    );
+    assert_eq!(smooth.points.len(), lifted.points.len());
+    for (s, l) in smooth.points.iter().zip(&lifted.points) {
+        assert!((s - l).norm() < 1e-6, "{s:?} {l:?}");
+    }
     // Lifted where the holder reaches the wall (x > -1.5 + 0.5 on the
     // floor): its face at 2 mm rises to the top at 5 mm.
     let mut rose = 0;
