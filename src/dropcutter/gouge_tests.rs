@@ -583,3 +583,63 @@ fn smoothed_locations_in_a_trough_are_turned_or_lifted_clear() {
         assert!(gc.clearance(l.cl - a * 1e-4, a, 6.0) > 0.5e-4, "{l:?}");
     }
 }
+
+#[test]
+fn on_every_corpus_mesh_set_down_tools_touch_it_and_are_nowhere_in_it() {
+    // The meshes other programs wrote (open, non-manifold, degenerate
+    // triangles, vertices written more than once): smoothed-normal
+    // locations on passes across each, a torus of 5 % of the part, set
+    // down. Each one clears the part, and each one that found the part
+    // below touches it (lowered a little, it is in it).
+    let Some(meshes) = crate::mesh::read_corpus_meshes() else {
+        crate::corpus::skip("corpus_meshes_set_down_tools_touch_them");
+        return;
+    };
+    let mut checked = 0;
+    for (f, mesh) in &meshes {
+        let bb = mesh.bbox();
+        let size = (bb.max.x - bb.min.x).max(bb.max.y - bb.min.y);
+        if size <= 0.0 || !size.is_finite() {
+            continue;
+        }
+        let cutter = Cutter::Torus {
+            radius: 0.05 * size,
+            corner: 0.01 * size,
+        };
+        let Ok(dc) = DropCutter::new(mesh, cutter) else {
+            continue;
+        };
+        let gc = GougeCheck::new(&dc);
+        let length = 2.0 * size + (bb.max.z - bb.min.z);
+        let fa = FiveAxis {
+            lead: 5f64.to_radians(),
+            tilt: -3f64.to_radians(),
+            axis_length: length,
+        };
+        let eps = 1e-4 * size;
+        for frac in [0.3, 0.5, 0.7] {
+            let y = bb.min.y + frac * (bb.max.y - bb.min.y);
+            let xy: Vec<P2> = (0..=40)
+                .map(|i| P2::new(bb.min.x + (bb.max.x - bb.min.x) * i as f64 / 40.0, y))
+                .collect();
+            let (contacts, runs) = smooth_pass(&dc, &fa, &xy);
+            for (run, settled) in runs.iter().zip(gc.settle_all(&contacts, &runs, length)) {
+                for (l, s) in run.iter().zip(settled) {
+                    let a = (l.axis_point - l.cl).normalize();
+                    let at = s.location;
+                    assert!(
+                        gc.clearance(at.cl, a, length) <= GOUGE_TOL * size.max(1.0),
+                        "{f:?}: {at:?}"
+                    );
+                    if s.raise.is_some() {
+                        let lower = gc.clearance(at.cl - a * eps, a, length);
+                        assert!(lower > 0.5 * eps, "{f:?}: {at:?} lowered {eps} is {lower} in the part");
+                    }
+                    checked += 1;
+                }
+            }
+        }
+    }
+    crate::corpus::record("corpus_meshes_set_down_tools_touch_them", checked);
+    assert!(checked > 100, "{checked}");
+}
