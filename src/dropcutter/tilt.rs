@@ -151,11 +151,13 @@ impl GougeCheck<'_> {
                 .collect()
         } else {
             runs.par_iter()
-                .map(|run| {
+                .zip(contacts.par_iter())
+                .map(|(run, cs)| {
                     run.par_iter()
-                        .map(|l| {
-                            let d = self.clearance(l.cl, l.axis_point - l.cl, length);
-                            (d, d)
+                        .zip(cs.par_iter())
+                        .map(|(l, c)| {
+                            let (_, d, lift) = place(l, c);
+                            (d, lift)
                         })
                         .collect()
                 })
