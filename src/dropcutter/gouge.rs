@@ -29,6 +29,13 @@
 //! verification shows as an undercut, instead of cutting into it) or left
 //! as it is and only reported ([`GougeRule`]); [`super::tilt`] first
 //! tries other orientations for the same contact.
+//!
+//! A location oriented by a smoothed normal ([`super::normals`]) is not
+//! tangent to its facet: it touches its contact but dips into the facets
+//! round it. Such locations are first set down on the mesh along their
+//! axes ([`GougeCheck::settle_one`], the same drop), and what counts as a
+//! gouge is then the rise beyond the dip into the contact facet's own
+//! plane ([`Placement::SetDown`]): the question the facet rule asks.
 
 use super::DropCutter;
 use super::cutter_vs_triangle::{ContactCutter, Tri, drop_on};
