@@ -453,17 +453,24 @@ pub fn run(a: DropcutterArgs) -> Result<(), CliError> {
         if a.gouge == GougeArg::Off && a.holder.is_some() {
             return Err(CliError::input("--holder goes with the gouge check (not --gouge off)"));
         }
-        let gouge_check = match a.holder {
+        let holder = match a.holder {
             Some(h) if h.height >= fa.axis_length => {
                 return Err(CliError::input(format!(
                     "--holder: its face at {} mm is not below --axis-length {} (the length of tool checked)",
                     h.height, fa.axis_length
                 )));
             }
-            Some(h) => GougeCheck::new(&dc)
-                .with_holder(h)
-                .map_err(|e| CliError::input(format!("--holder: {e}")))?,
-            None => GougeCheck::new(&dc),
+            h => h,
+        };
+        // Built only when a check or a setting down runs: its 3-D tree
+        // takes a quarter of a second on a million triangles.
+        let checker = || -> Result<GougeCheck, CliError> {
+            match holder {
+                Some(h) => GougeCheck::new(&dc)
+                    .with_holder(h)
+                    .map_err(|e| CliError::input(format!("--holder: {e}"))),
+                None => Ok(GougeCheck::new(&dc)),
+            }
         };
         // With smoothed normals every location is set down on the part
         // (tangent to the smoothed surface, a tool dips into the facets
@@ -476,20 +483,20 @@ pub fn run(a: DropcutterArgs) -> Result<(), CliError> {
         };
         let (summary, settled) = match a.gouge {
             GougeArg::Off if settling => {
-                let (_, s) = gouge_check.check_settling(&contacts, &mut runs, fa.axis_length, GougeRule::Report);
+                let (_, s) = checker()?.check_settling(&contacts, &mut runs, fa.axis_length, GougeRule::Report);
                 (None, Some(s))
             }
             GougeArg::Off => (None, None),
             GougeArg::Lift | GougeArg::Report if settling => {
-                let (report, s) = gouge_check.check_settling(&contacts, &mut runs, fa.axis_length, rule);
+                let (report, s) = checker()?.check_settling(&contacts, &mut runs, fa.axis_length, rule);
                 (Some(gouge_summary(&report, rule, fa.axis_length)), Some(s))
             }
             GougeArg::Lift | GougeArg::Report => {
-                let report = gouge_check.check(&mut runs, fa.axis_length, rule);
+                let report = checker()?.check(&mut runs, fa.axis_length, rule);
                 (Some(gouge_summary(&report, rule, fa.axis_length)), None)
             }
             GougeArg::Tilt => {
-                let (report, tilt, s) = gouge_check
+                let (report, tilt, s) = checker()?
                     .check_tilting(
                         &fa,
                         &contacts,
