@@ -615,6 +615,20 @@ fn stlverify_finds_the_unchecked_gouges_and_none_after_the_lift() {
     let (code, s_tilt) = verify("smooth-tilt");
     assert_eq!((code, &s_tilt["gouge"]), (Some(0), &serde_json::json!(0)), "{s_tilt}");
     let f = |v: &serde_json::Value, k: &str| v[k].as_f64().unwrap();
+    // The figures docs/dropcutter.md quotes (`-- --nocapture` shows them).
+    for (name, v) in [
+        ("lift", &lift),
+        ("tilt", &tilt),
+        ("smooth-lift", &s_lift),
+        ("smooth-tilt", &s_tilt),
+    ] {
+        eprintln!(
+            "trough, {name}: worst excess {:.2} um, rms {:.2} um, gouges {}",
+            1e3 * f(v, "max_excess_mm"),
+            1e3 * f(v, "rms_mm"),
+            v["gouge"]
+        );
+    }
     assert!(
         f(&s_tilt, "max_excess_mm") < f(&s_lift, "max_excess_mm"),
         "{s_tilt} {s_lift}"
