@@ -143,6 +143,19 @@ impl SettleReport {
     }
 }
 
+/// `f` on every location of `runs` with its contact, in parallel; the
+/// results by run, in order.
+pub(super) fn map_located<T: Send>(
+    contacts: &[Vec<Contact>],
+    runs: &[Vec<Location>],
+    f: impl Fn(&Location, &Contact) -> T + Sync,
+) -> Vec<Vec<T>> {
+    runs.par_iter()
+        .zip(contacts.par_iter())
+        .map(|(run, cs)| run.par_iter().zip(cs.par_iter()).map(|(l, c)| f(l, c)).collect())
+        .collect()
+}
+
 /// `l` moved `depth` up its own axis.
 pub(super) fn lifted(l: &Location, depth: f64) -> Location {
     let a = (l.axis_point - l.cl).normalize();
@@ -326,18 +339,10 @@ impl<'a> GougeCheck<'a> {
         runs: &[Vec<Location>],
         length: f64,
     ) -> Vec<Vec<Settled>> {
-        runs.par_iter()
-            .zip(contacts.par_iter())
-            .map(|(run, cs)| {
-                run.par_iter()
-                    .zip(cs.par_iter())
-                    .map(|(l, c)| {
-                        crate::progress::advance(1);
-                        self.settle_one(l, c, length)
-                    })
-                    .collect()
-            })
-            .collect()
+        map_located(contacts, runs, |l, c| {
+            crate::progress::advance(1);
+            self.settle_one(l, c, length)
+        })
     }
 
     /// Set every location of `runs` (with their `contacts`) down on the

@@ -17,7 +17,7 @@
 
 use super::DropError;
 use super::fiveaxis::{Contact, FiveAxis, Location};
-use super::gouge::{GOUGE_TOL, GougeCheck, GougeReport, Placement, SettleReport, lifted};
+use super::gouge::{GOUGE_TOL, GougeCheck, GougeReport, Placement, SettleReport, lifted, map_located};
 use rayon::prelude::*;
 
 /// How far the tilt search goes (all angles in radians, lengths in mm).
@@ -150,18 +150,10 @@ impl GougeCheck<'_> {
                 })
                 .collect()
         } else {
-            runs.par_iter()
-                .zip(contacts.par_iter())
-                .map(|(run, cs)| {
-                    run.par_iter()
-                        .zip(cs.par_iter())
-                        .map(|(l, c)| {
-                            let (_, d, lift) = place(l, c);
-                            (d, lift)
-                        })
-                        .collect()
-                })
-                .collect()
+            map_located(contacts, runs, |l, c| {
+                let (_, d, lift) = place(l, c);
+                (d, lift)
+            })
         };
         let sizes = if search.step > 0.0 && search.max > 0.0 {
             ((search.max / search.step) + 1e-9).floor() as usize
