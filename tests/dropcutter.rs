@@ -152,6 +152,55 @@ fn waterlines_circle_a_hemisphere_at_each_level() {
 }
 
 #[test]
+fn chord_tol_refines_waterlines_between_fibres() {
+    // Fibres 1 mm apart round a hemisphere of radius 5: the chords between
+    // them sag by about chord² / 8r inside the loop of radius ~5 (some
+    // 0.05 mm). With --chord-tol 0.001 every chord's middle lies on the
+    // offset circle within the tessellation's sag and the tolerance.
+    let dir = tempfile::tempdir().unwrap();
+    let stl = dir.path().join("s.stl");
+    write_stl(&stl, &hemisphere(5.0, 128, 32));
+    let run = |extra: &[&str]| {
+        let out = pathgen()
+            .args(["dropcutter", stl.to_str().unwrap(), "-q", "--tool", "ball:1"])
+            .args(["--waterline", "2", "--step-over", "1", "--safe-z", "7"])
+            .args(extra)
+            .output()
+            .unwrap();
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        read_cldata(&out.stdout[..])
+            .unwrap()
+            .points
+            .into_iter()
+            .filter(|p| p.z == 2.0)
+            .collect::<Vec<_>>()
+    };
+    let want = (5.5f64 * 5.5 - 2.5f64.powi(2)).sqrt();
+    let sag = 5.0 * (1.0 - (std::f64::consts::PI / 64.0).cos());
+    let worst_middle = |lp: &[microcam::geometry::P3]| {
+        lp.windows(2)
+            .map(|w| {
+                let m = (w[0].coords + w[1].coords) * 0.5;
+                (want - m.x.hypot(m.y)).max(0.0)
+            })
+            .fold(0.0, f64::max)
+    };
+    let plain = run(&[]);
+    let fine = run(&["--chord-tol", "0.001"]);
+    assert!(worst_middle(&plain) > 0.03, "{}", worst_middle(&plain));
+    assert!(
+        worst_middle(&fine) <= 2.0 * sag + 0.001 + 1e-5,
+        "{} > {}",
+        worst_middle(&fine),
+        2.0 * sag + 0.001
+    );
+    assert!(fine.len() > plain.len());
+    for p in &fine {
+        assert!(p.x.hypot(p.y) <= want + 1e-5, "{p:?} inside the offset");
+    }
+}
+
+#[test]
 fn toolpath_gcode_adaptive_and_five_axis_outputs() {
     let dir = tempfile::tempdir().unwrap();
     let stl = dir.path().join("s.stl");
@@ -252,6 +301,26 @@ fn bad_input_exits_2_and_writes_nothing() {
             "0.1",
             "--waterline",
             "0.5",
+            "--chord-tol",
+            "0",
+        ],
+        vec![
+            "--tool",
+            "ball:1",
+            "--step-over",
+            "0.1",
+            "--waterline",
+            "0.5",
+            "--chord-tol",
+            "1e-9",
+        ],
+        vec![
+            "--tool",
+            "ball:1",
+            "--step-over",
+            "0.1",
+            "--waterline",
+            "0.5",
             "--five-axis",
         ],
     ] {
@@ -304,8 +373,9 @@ fn every_corpus_stl_drops_or_is_refused() {
 
 #[test]
 fn every_corpus_stl_gives_closed_waterlines_or_is_refused() {
-    // Levels every 0.5 mm down each real mesh, fibres 0.2 mm apart: every
-    // loop closed and at its level, the levels top down.
+    // Levels every 0.5 mm down each real mesh, fibres 0.2 mm apart, the
+    // chords as they are and refined: every loop closed and at its level,
+    // the levels top down.
     let args = [
         "-q",
         "--tool",
@@ -317,7 +387,11 @@ fn every_corpus_stl_gives_closed_waterlines_or_is_refused() {
         "--safe-z",
         "1e6",
     ];
-    for (f, o) in on_every_corpus_stl("waterline_corpus", &args) {
+    let refined = [&args[..], &["--chord-tol", "0.002"]].concat();
+    let runs = on_every_corpus_stl("waterline_corpus", &args)
+        .into_iter()
+        .chain(on_every_corpus_stl("waterline_corpus_refined", &refined));
+    for (f, o) in runs {
         if o.status.code() == Some(2) {
             assert!(!o.stderr.is_empty() && o.stdout.is_empty(), "{f:?}");
             continue;

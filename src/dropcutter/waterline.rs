@@ -31,7 +31,11 @@
 //! meets is missed, one that meets a single fibre only is left out (its
 //! "loop" would run through it and back), and a corner of the waterline is
 //! cut by at most the chord's sag. Choose the sampling below the smallest
-//! feature to keep.
+//! feature to keep. With [`Waterline::chord_tol`] the chords are refined:
+//! points found across each chord's middle (see `split_chord`) are added
+//! until every chord is within the tolerance of the waterline; those
+//! points lie between the fibres, each a free point within `tol` of a
+//! blocked one.
 
 use super::fibre::{FibreEdge, Stretch, blocked_stretches};
 use super::{DropCutter, DropError};
@@ -46,7 +50,16 @@ pub struct Waterline {
     /// Bisection stops when a loop vertex is known within this along its
     /// fibre, mm.
     pub tol: f64,
+    /// When set, points are added between fibres until the middle of
+    /// every chord lies within this of the waterline (mm): OpenCAMLib's
+    /// adaptive waterline refines its fibres for the same reason. `None`:
+    /// the fibre points joined by chords.
+    pub chord_tol: Option<f64>,
 }
+
+/// How many times a chord is halved at most by the refinement: 2^10
+/// pieces between two fibre points.
+const MAX_REFINE_DEPTH: u32 = 10;
 
 /// More fibre grid nodes than this are refused (a node height is 8 bytes;
 /// minutes of drops on two cores).
@@ -84,6 +97,13 @@ impl Waterline {
                 self.tol
             )));
         }
+        if let Some(t) = self.chord_tol
+            && !(t.is_finite() && t > 0.0)
+        {
+            return Err(DropError::Option(format!(
+                "the waterline chord tolerance must be positive, got {t}"
+            )));
+        }
         Ok(())
     }
 
@@ -115,11 +135,79 @@ impl Waterline {
         let share = nodes / zs.len() as u64;
         let mut out = Vec::with_capacity(zs.len());
         for (k, &z) in zs.iter().enumerate() {
-            out.push(self.trace(dc, &grid, &heights, z));
+            let mut loops = self.trace(dc, &grid, &heights, z);
+            if let Some(chord_tol) = self.chord_tol {
+                let blocked = |p: P2| dc.drop_above(p.x, p.y, z) > z;
+                loops
+                    .par_iter_mut()
+                    .for_each(|lp| *lp = self.refine(&blocked, lp, chord_tol));
+            }
+            out.push(loops);
             let last = k + 1 == zs.len();
             crate::progress::advance(if last { nodes - share * k as u64 } else { share });
         }
         Ok(out)
+    }
+
+    /// `lp` (closed, the blocked side on its right) with points added
+    /// between its vertices until the middle of every chord is within
+    /// `chord_tol` of the waterline, or a chord has been halved
+    /// [`MAX_REFINE_DEPTH`] times.
+    fn refine(&self, blocked: &(impl Fn(P2) -> bool + Sync), lp: &[P2], chord_tol: f64) -> Vec<P2> {
+        let mut out = Vec::with_capacity(lp.len() * 2);
+        for w in lp.windows(2) {
+            out.push(w[0]);
+            self.split_chord(blocked, w[0], w[1], chord_tol, MAX_REFINE_DEPTH, &mut out);
+        }
+        out.extend(lp.last());
+        out
+    }
+
+    /// Push the points that chord `a`-`b` needs between its ends.
+    ///
+    /// The waterline near the chord's middle `m` is found along the
+    /// chord's normal: when `m` is free the chord runs outside the blocked
+    /// set and the waterline lies to its right (the blocked side), when `m`
+    /// is blocked it lies to the left. One drop at `chord_tol` that way
+    /// settles most chords (the waterline is that close); otherwise the
+    /// crossing is bisected between there and half the chord's length out
+    /// (a circular arc's sag is at most that), to `tol` like the fibre
+    /// points, the free end kept (every vertex is a free point). A chord
+    /// whose far probe finds no crossing is left as it is: the waterline
+    /// there is farther than the chord's reach, which a finer sampling,
+    /// not a refinement, has to catch.
+    fn split_chord(&self, blocked: &impl Fn(P2) -> bool, a: P2, b: P2, chord_tol: f64, depth: u32, out: &mut Vec<P2>) {
+        let d = b - a;
+        let len = d.norm();
+        // A chord no longer than twice the tolerance is within it of any
+        // curve through its ends that it bounds with a sag of at most half
+        // its length.
+        if depth == 0 || len <= 2.0 * chord_tol {
+            return;
+        }
+        let m = a + d * 0.5;
+        let right = crate::geometry::V2::new(d.y, -d.x) / len;
+        let inside = blocked(m);
+        let way = if inside { -right } else { right };
+        if blocked(m + way * chord_tol) != inside {
+            return;
+        }
+        let (mut near, mut far) = (m + way * chord_tol, m + way * (0.5 * len));
+        if blocked(far) == inside {
+            return;
+        }
+        while (far - near).norm() > self.tol {
+            let mid = near + (far - near) * 0.5;
+            if blocked(mid) == inside {
+                near = mid;
+            } else {
+                far = mid;
+            }
+        }
+        let p = if inside { far } else { near };
+        self.split_chord(blocked, a, p, chord_tol, depth - 1, out);
+        out.push(p);
+        self.split_chord(blocked, p, b, chord_tol, depth - 1, out);
     }
 
     /// The loops at `z` from the node heights.

@@ -10,7 +10,11 @@ use crate::mesh::solids::{cuboid, sphere};
 const TOL: f64 = 1e-7;
 
 fn wl(sampling: f64) -> Waterline {
-    Waterline { sampling, tol: TOL }
+    Waterline {
+        sampling,
+        tol: TOL,
+        chord_tol: None,
+    }
 }
 
 /// Distance in XY from `p` to the rectangle [0, a] x [0, b].
@@ -254,6 +258,15 @@ fn bad_options_are_refused() {
         Waterline {
             sampling: 0.1,
             tol: 0.0,
+            chord_tol: None,
+        },
+        Waterline {
+            chord_tol: Some(0.0),
+            ..wl(0.1)
+        },
+        Waterline {
+            chord_tol: Some(f64::NAN),
+            ..wl(0.1)
         },
         wl(1e-6),
     ] {
@@ -392,6 +405,7 @@ fn corpus_meshes_put_every_fibre_crossing_on_a_loop() {
                 let w = Waterline {
                     sampling: h,
                     tol: 1e-6 * h,
+                    chord_tol: None,
                 };
                 let loops = w.loops(&dc, z).unwrap();
                 for lp in &loops {
@@ -408,4 +422,113 @@ fn corpus_meshes_put_every_fibre_crossing_on_a_loop() {
     }
     crate::corpus::record("corpus_meshes_put_every_fibre_crossing_on_a_loop", checked);
     assert!(checked > 0);
+}
+
+/// The largest distance from the offset rectangle's boundary (`d` out
+/// from [0, a] x [0, b]) of the loop's vertices and of points along its
+/// chords (every tenth of each).
+fn worst_off_offset(lp: &[P2], a: f64, b: f64, d: f64) -> f64 {
+    lp.windows(2)
+        .flat_map(|w| (0..10).map(move |k| w[0] + (w[1] - w[0]) * (k as f64 / 10.0)))
+        .map(|p| (to_rect(p, a, b) - d).abs())
+        .fold(0.0, f64::max)
+}
+
+#[test]
+fn refined_chords_follow_the_rounded_corners_within_the_tolerance() {
+    // A flat cutter round a block: the waterline is the block offset by
+    // the radius, its corners quarter circles of that radius, which the
+    // fibres 0.2 apart cut with chords. Refined, every point of every
+    // chord is within the chord tolerance of the exact offset.
+    let m = cuboid(P3::new(0.0, 0.0, 0.0), P3::new(4.0, 3.0, 2.0));
+    let dc = DropCutter::new(&m, Cutter::Flat { radius: 0.5 }).unwrap();
+    let coarse = wl(0.2).loops(&dc, 1.0).unwrap();
+    assert_eq!(coarse.len(), 1);
+    let before = worst_off_offset(&coarse[0], 4.0, 3.0, 0.5);
+    for chord_tol in [1e-2, 1e-3, 1e-4] {
+        let w = Waterline {
+            chord_tol: Some(chord_tol),
+            ..wl(0.2)
+        };
+        let fine = w.loops(&dc, 1.0).unwrap();
+        assert_eq!(fine.len(), 1);
+        let lp = &fine[0];
+        assert_eq!(lp.first(), lp.last());
+        let after = worst_off_offset(lp, 4.0, 3.0, 0.5);
+        println!(
+            "chord tolerance {chord_tol}: worst {after:.2e} mm with {} points, {before:.2e} mm with {} unrefined",
+            lp.len(),
+            coarse[0].len()
+        );
+        assert!(after <= chord_tol + 2.0 * TOL, "{chord_tol}: {after}");
+        assert!(
+            before > 10.0 * chord_tol.min(1e-3),
+            "the test must have sag to remove: {before}"
+        );
+        // Every fibre point is kept, in order; the points added are free
+        // points on the offset, and only where the corners bend.
+        let mut it = lp.iter();
+        for p in &coarse[0] {
+            assert!(it.any(|q| q == p), "{p:?} of the unrefined loop is missing");
+        }
+        for p in lp {
+            assert_eq!(dc.drop_above(p.x, p.y, 1.0), 1.0, "{p:?} is blocked");
+            assert!(
+                (to_rect(*p, 4.0, 3.0) - 0.5).abs() <= 2.0 * TOL,
+                "{p:?} is off the offset"
+            );
+        }
+        // Straight sides need no point: a quarter circle of radius 0.5
+        // within a tolerance t needs about (pi / 4) / acos(1 - t / 0.5)
+        // chords a corner.
+        let per_corner = std::f64::consts::FRAC_PI_4 / (1.0 - chord_tol / 0.5).acos();
+        assert!(
+            (lp.len() as f64) < coarse[0].len() as f64 + 4.0 * (2.0 * per_corner + 4.0),
+            "{chord_tol}: {} points",
+            lp.len()
+        );
+    }
+}
+
+#[test]
+fn refinement_follows_a_pocket_wall_and_an_island_alike() {
+    // The bowl of `a_pocket_wall_is_followed_counter_clockwise`, sampled
+    // coarsely: round the pocket (counter-clockwise) the chords run through
+    // the free set and the waterline lies on their right; round the island
+    // (clockwise) through the blocked set, the waterline on their left.
+    // Refined, the middle of every chord has the waterline within the
+    // tolerance across it.
+    let m = surface(3.0, 60, |x, y| (x * x + y * y) / 4.0);
+    let dc = DropCutter::new(&m, Cutter::Ball { radius: 0.25 }).unwrap();
+    let chord_tol = 1e-3;
+    let plain = wl(0.3).loops(&dc, 1.0).unwrap();
+    let w = Waterline {
+        chord_tol: Some(chord_tol),
+        ..wl(0.3)
+    };
+    let fine = w.loops(&dc, 1.0).unwrap();
+    assert_eq!(plain.len(), 2);
+    assert_eq!(fine.len(), 2);
+    let blocked = |p: P2| dc.drop_above(p.x, p.y, 1.0) > 1.0;
+    let far_chords = |lp: &[P2]| {
+        lp.windows(2)
+            .filter(|c| {
+                let d = c[1] - c[0];
+                let n = crate::geometry::V2::new(d.y, -d.x) / d.norm();
+                let m = c[0] + d * 0.5;
+                let t = chord_tol + 2.0 * TOL;
+                blocked(m + n * t) == blocked(m - n * t)
+            })
+            .count()
+    };
+    for (p, f) in plain.iter().zip(&fine) {
+        assert_eq!(f.first(), f.last());
+        assert!(f.len() > p.len());
+        assert_eq!(area2(p).signum(), area2(f).signum(), "same direction");
+        for q in f {
+            assert!(!blocked(*q), "{q:?} is blocked");
+        }
+        assert!(far_chords(p) > 10, "the coarse loop has chords to refine");
+        assert_eq!(far_chords(f), 0, "every refined chord is within the tolerance");
+    }
 }

@@ -137,7 +137,7 @@ pub struct DropcutterArgs {
     /// Drop along these chains (microcam.chains/1, '-' for stdin) instead of a raster.
     #[arg(long, value_name = "FILE")]
     chains: Option<PathBuf>,
-    /// Add points where the surface bends so the CL polyline is within this of the true CL curve (mm).
+    /// Add points where the surface bends so the CL polyline is within this of the true CL curve (mm); with waterlines, points between fibres.
     #[arg(long)]
     chord_tol: Option<f64>,
     /// Adaptive sampling splits no span shorter than this (mm; default chord-tol).
@@ -165,10 +165,10 @@ pub struct DropcutterArgs {
     #[arg(long)]
     plunge_feed: Option<f64>,
     /// Waterlines at these tip heights (Z1,Z2,...; mm) instead of a raster.
-    #[arg(long, value_delimiter = ',', allow_hyphen_values = true, value_name = "Z", conflicts_with_all = ["chains", "five_axis", "waterline_step", "region", "chord_tol", "min_step", "step_forward", "direction", "pattern"])]
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true, value_name = "Z", conflicts_with_all = ["chains", "five_axis", "waterline_step", "region", "min_step", "step_forward", "direction", "pattern"])]
     waterline: Option<Vec<f64>>,
     /// Waterlines every DZ down from the mesh top to the floor.
-    #[arg(long, value_name = "DZ", conflicts_with_all = ["chains", "five_axis", "region", "chord_tol", "min_step", "step_forward", "direction", "pattern"])]
+    #[arg(long, value_name = "DZ", conflicts_with_all = ["chains", "five_axis", "region", "min_step", "step_forward", "direction", "pattern"])]
     waterline_step: Option<f64>,
     /// 5-axis CL data: flat or torus cutter along the surface normal.
     #[arg(long)]
@@ -551,18 +551,8 @@ pub fn run(a: DropcutterArgs) -> Result<(), CliError> {
         write_cldata5(&mut w, &runs, safe_z)?;
         w.finish()?;
     } else {
-        let adaptive = match a.chord_tol {
+        let adaptive = match chord_tol_arg(&a)? {
             Some(t) => {
-                let t = positive("chord-tol", t)?;
-                // Below a nanometre the test is below the float precision of
-                // an STL mesh, and below 0.1 µm a span is shorter than any
-                // stage can move: both would split spans until the depth
-                // limit, 2^60 points.
-                if t < 1e-6 {
-                    return Err(CliError::input(format!(
-                        "--chord-tol {t}: below 1e-6 mm, finer than the mesh's float precision"
-                    )));
-                }
                 let min_step = positive("min-step", a.min_step.unwrap_or(t.max(1e-4)))?;
                 if min_step < 1e-4 {
                     return Err(CliError::input(format!(
@@ -650,6 +640,21 @@ fn write_passes(
     Ok(())
 }
 
+/// `--chord-tol`, checked: positive and not below a nanometre.
+fn chord_tol_arg(a: &DropcutterArgs) -> Result<Option<f64>, CliError> {
+    let Some(t) = a.chord_tol else { return Ok(None) };
+    let t = positive("chord-tol", t)?;
+    // Below a nanometre the test is below the float precision of an STL
+    // mesh, and below 0.1 µm a span is shorter than any stage can move:
+    // both would split spans until the depth limit.
+    if t < 1e-6 {
+        return Err(CliError::input(format!(
+            "--chord-tol {t}: below 1e-6 mm, finer than the mesh's float precision"
+        )));
+    }
+    Ok(Some(t))
+}
+
 /// `--waterline` / `--waterline-step`: closed loops at each level, top
 /// down, sampled on fibres `--step-over` apart.
 fn run_waterlines(
@@ -665,6 +670,7 @@ fn run_waterlines(
         a.step_over
             .ok_or_else(|| CliError::input("--step-over (the waterline's fibre spacing) is required"))?,
     )?;
+    let chord_tol = chord_tol_arg(a)?;
     let top = dc.bbox().max.z;
     let mut levels: Vec<f64> = match (&a.waterline, a.waterline_step) {
         (Some(zs), _) => {
@@ -694,6 +700,7 @@ fn run_waterlines(
         sampling,
         // Far below any stage's resolution, and a few bisection steps.
         tol: (sampling * 1e-6).max(1e-9),
+        chord_tol,
     };
     // Dropping the fibre grid is most of the work: the meter counts its
     // nodes, then the levels traced.
