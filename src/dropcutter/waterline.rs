@@ -138,9 +138,10 @@ impl Waterline {
             let mut loops = self.trace(dc, &grid, &heights, z);
             if let Some(chord_tol) = self.chord_tol {
                 let blocked = |p: P2| dc.drop_above(p.x, p.y, z) > z;
-                loops
-                    .par_iter_mut()
-                    .for_each(|lp| *lp = self.refine(&blocked, lp, chord_tol));
+                loops = loops
+                    .into_par_iter()
+                    .filter_map(|lp| self.refine(&blocked, &lp, chord_tol))
+                    .collect();
             }
             out.push(loops);
             let last = k + 1 == zs.len();
@@ -153,14 +154,27 @@ impl Waterline {
     /// between its vertices until the middle of every chord is within
     /// `chord_tol` of the waterline, or a chord has been halved
     /// [`MAX_REFINE_DEPTH`] times.
-    fn refine(&self, blocked: &(impl Fn(P2) -> bool + Sync), lp: &[P2], chord_tol: f64) -> Vec<P2> {
+    ///
+    /// A loop on one fibre (a feature that meets no other: there and back
+    /// along its stretch) is refined like any other, its two chords probed
+    /// out to the neighbouring fibres on either side (the feature meets
+    /// neither, so it ends before them), which turns it into a loop round
+    /// the feature; `None` when that finds nothing, and the loop is left
+    /// out as without refinement.
+    fn refine(&self, blocked: &(impl Fn(P2) -> bool + Sync), lp: &[P2], chord_tol: f64) -> Option<Vec<P2>> {
+        let one_fibre = on_one_fibre(lp);
         let mut out = Vec::with_capacity(lp.len() * 2);
         for w in lp.windows(2) {
             out.push(w[0]);
-            self.split_chord(blocked, w[0], w[1], chord_tol, MAX_REFINE_DEPTH, &mut out);
+            let reach = if one_fibre {
+                self.sampling
+            } else {
+                0.5 * (w[1] - w[0]).norm()
+            };
+            self.split_chord(blocked, w[0], w[1], chord_tol, reach, MAX_REFINE_DEPTH, &mut out);
         }
         out.extend(lp.last());
-        out
+        (!on_one_fibre(&out)).then_some(out)
     }
 
     /// Push the points that chord `a`-`b` needs between its ends.
@@ -168,31 +182,47 @@ impl Waterline {
     /// The waterline near the chord's middle `m` is found along the
     /// chord's normal: when `m` is free the chord runs outside the blocked
     /// set and the waterline lies to its right (the blocked side), when `m`
-    /// is blocked it lies to the left. One drop at `chord_tol` that way
-    /// settles most chords (the waterline is that close); otherwise the
-    /// crossing is bisected between there and half the chord's length out
-    /// (a circular arc's sag is at most that), to `tol` like the fibre
-    /// points, the free end kept (every vertex is a free point). A chord
-    /// whose far probe finds no crossing is left as it is: the waterline
-    /// there is farther than the chord's reach, which a finer sampling,
-    /// not a refinement, has to catch.
-    fn split_chord(&self, blocked: &impl Fn(P2) -> bool, a: P2, b: P2, chord_tol: f64, depth: u32, out: &mut Vec<P2>) {
+    /// is blocked it lies to the left. One drop at half of `chord_tol`
+    /// that way settles most chords (the waterline is that close, and so
+    /// within the tolerance along the whole chord where it bends one way);
+    /// otherwise the crossing is bisected between there and `reach` out
+    /// (half the chord's length: a circular arc's sag is at most that), to
+    /// `tol` like the fibre points, the free end kept (every vertex is a
+    /// free point). A chord whose far probe finds no crossing is left as it
+    /// is: the waterline there is farther than the chord's reach, which a
+    /// finer sampling, not a refinement, has to catch.
+    #[allow(clippy::too_many_arguments)]
+    fn split_chord(
+        &self,
+        blocked: &impl Fn(P2) -> bool,
+        a: P2,
+        b: P2,
+        chord_tol: f64,
+        reach: f64,
+        depth: u32,
+        out: &mut Vec<P2>,
+    ) {
         let d = b - a;
         let len = d.norm();
-        // A chord no longer than twice the tolerance is within it of any
-        // curve through its ends that it bounds with a sag of at most half
-        // its length.
-        if depth == 0 || len <= 2.0 * chord_tol {
+        // A chord no longer than the tolerance is within it of any curve
+        // through its ends that it bounds with a sag of at most half its
+        // length.
+        if depth == 0 || len <= chord_tol || reach <= 0.5 * chord_tol {
             return;
         }
         let m = a + d * 0.5;
         let right = crate::geometry::V2::new(d.y, -d.x) / len;
         let inside = blocked(m);
         let way = if inside { -right } else { right };
-        if blocked(m + way * chord_tol) != inside {
+        // Half the tolerance at the middle: over a span that bends one way
+        // the gap between chord and curve is a concave function along the
+        // chord, zero at its ends, so nowhere more than twice its value at
+        // the middle.
+        let settled = m + way * (0.5 * chord_tol);
+        if blocked(settled) != inside {
             return;
         }
-        let (mut near, mut far) = (m + way * chord_tol, m + way * (0.5 * len));
+        let (mut near, mut far) = (settled, m + way * reach);
         if blocked(far) == inside {
             return;
         }
@@ -205,9 +235,10 @@ impl Waterline {
             }
         }
         let p = if inside { far } else { near };
-        self.split_chord(blocked, a, p, chord_tol, depth - 1, out);
+        let half = |u: P2, v: P2| 0.5 * (v - u).norm();
+        self.split_chord(blocked, a, p, chord_tol, half(a, p), depth - 1, out);
         out.push(p);
-        self.split_chord(blocked, p, b, chord_tol, depth - 1, out);
+        self.split_chord(blocked, p, b, chord_tol, half(p, b), depth - 1, out);
     }
 
     /// The loops at `z` from the node heights.
@@ -327,7 +358,8 @@ impl Waterline {
         // Follow the segments into loops. A loop whose points all lie on
         // one fibre is a blocked stretch that no other fibre meets: its
         // "loop" would run through it and back, so it is left out (the
-        // feature is narrower than the sampling).
+        // feature is narrower than the sampling), unless the loops are
+        // refined, which traces it (`refine`).
         let mut used = vec![false; points.len()];
         let mut loops = Vec::new();
         for &start in &starts {
@@ -341,8 +373,8 @@ impl Waterline {
                 lp.push(points[k]);
                 k = next[k];
             }
-            let flat = lp.iter().all(|p| p.x == lp[0].x) || lp.iter().all(|p| p.y == lp[0].y);
-            if k == start && lp.len() >= 2 && !flat {
+            let kept = self.chord_tol.is_some() || !on_one_fibre(&lp);
+            if k == start && lp.len() >= 2 && kept {
                 lp.push(lp[0]);
                 loops.push(lp);
             }
@@ -400,6 +432,11 @@ impl Waterline {
         // The free end: the cutter there touches, never cuts.
         vec![lo]
     }
+}
+
+/// Whether every point of `lp` lies on one line along X or along Y.
+fn on_one_fibre(lp: &[P2]) -> bool {
+    lp.iter().all(|p| p.x == lp[0].x) || lp.iter().all(|p| p.y == lp[0].y)
 }
 
 /// Whether the fibre position `p` lies inside one of the stretches

@@ -532,3 +532,43 @@ fn refinement_follows_a_pocket_wall_and_an_island_alike() {
         assert_eq!(far_chords(f), 0, "every refined chord is within the tolerance");
     }
 }
+
+#[test]
+fn refinement_traces_a_pin_that_meets_one_fibre_only() {
+    // A block and a pin 0.1 mm square beside it; flat cutter of radius
+    // 0.05, fibres 0.5 apart from x, y = -0.1: the pin's blocked set,
+    // x 5.25..5.45 and y 0.95..1.15, meets the fibre x = 5.4 and no other.
+    // Plain, the pin has no loop (a stretch on one fibre); refined, a loop
+    // round it at the cutter's radius, clockwise, within the tolerance.
+    let mut tris: Vec<_> = cuboid(P3::new(0.0, 0.0, 0.0), P3::new(4.0, 3.0, 2.0))
+        .iter_triangles()
+        .collect();
+    tris.extend(cuboid(P3::new(5.3, 1.0, 0.0), P3::new(5.4, 1.1, 2.0)).iter_triangles());
+    let m = crate::mesh::Mesh::from_triangles(&tris);
+    let dc = DropCutter::new(&m, Cutter::Flat { radius: 0.05 }).unwrap();
+    assert_eq!(wl(0.5).loops(&dc, 1.0).unwrap().len(), 1, "the block's loop only");
+    let chord_tol = 1e-3;
+    let w = Waterline {
+        chord_tol: Some(chord_tol),
+        ..wl(0.5)
+    };
+    let loops = w.loops(&dc, 1.0).unwrap();
+    assert_eq!(loops.len(), 2, "the block's loop and the pin's");
+    let pin = loops.iter().find(|l| l[0].x > 5.0).expect("a loop round the pin");
+    assert_eq!(pin.first(), pin.last());
+    assert!(area2(pin) < 0.0, "clockwise round the pin");
+    let off = |p: P2| to_rect(P2::new(p.x - 5.3, p.y - 1.0), 0.1, 0.1) - 0.05;
+    for p in pin {
+        assert!(off(*p).abs() <= 2.0 * TOL, "{p:?} off the pin's offset by {}", off(*p));
+    }
+    let worst = worst_off_offset(
+        &pin.iter().map(|p| P2::new(p.x - 5.3, p.y - 1.0)).collect::<Vec<_>>(),
+        0.1,
+        0.1,
+        0.05,
+    );
+    assert!(worst <= chord_tol + 2.0 * TOL, "{worst}");
+    // It goes round: points on all four sides of the pin.
+    assert!(pin.iter().any(|p| p.x < 5.3) && pin.iter().any(|p| p.x > 5.4));
+    assert!(pin.iter().any(|p| p.y < 1.0) && pin.iter().any(|p| p.y > 1.1));
+}
