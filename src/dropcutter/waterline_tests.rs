@@ -572,3 +572,45 @@ fn refinement_traces_a_pin_that_meets_one_fibre_only() {
     assert!(pin.iter().any(|p| p.x < 5.3) && pin.iter().any(|p| p.x > 5.4));
     assert!(pin.iter().any(|p| p.y < 1.0) && pin.iter().any(|p| p.y > 1.1));
 }
+
+#[test]
+fn refinement_traces_a_hole_that_meets_one_fibre_only() {
+    // A frame of four blocks round a square hole 0.3 mm wide; flat cutter
+    // of radius 0.05, fibres 0.5 apart from x, y = -0.1: the free square
+    // inside the hole, x 1.3..1.5 and y 1.1..1.3, meets the fibre x = 1.4
+    // and no other. Plain, only the frame's outer loop; refined, a pocket
+    // loop round the free square too, counter-clockwise, on its edges.
+    let mut tris = Vec::new();
+    for (lo, hi) in [
+        ((0.0, 0.0), (1.25, 3.0)),
+        ((1.55, 0.0), (3.0, 3.0)),
+        ((1.25, 0.0), (1.55, 1.05)),
+        ((1.25, 1.35), (1.55, 3.0)),
+    ] {
+        tris.extend(cuboid(P3::new(lo.0, lo.1, 0.0), P3::new(hi.0, hi.1, 2.0)).iter_triangles());
+    }
+    let m = crate::mesh::Mesh::from_triangles(&tris);
+    let dc = DropCutter::new(&m, Cutter::Flat { radius: 0.05 }).unwrap();
+    assert_eq!(wl(0.5).loops(&dc, 1.0).unwrap().len(), 1, "the outer loop only");
+    let w = Waterline {
+        chord_tol: Some(1e-3),
+        ..wl(0.5)
+    };
+    let loops = w.loops(&dc, 1.0).unwrap();
+    assert_eq!(loops.len(), 2, "the outer loop and the hole's");
+    let hole = loops
+        .iter()
+        .find(|l| l.iter().all(|p| p.x > 1.0 && p.x < 2.0 && p.y > 1.0 && p.y < 1.5))
+        .expect("a loop in the hole");
+    assert_eq!(hole.first(), hole.last());
+    assert!(area2(hole) > 0.0, "counter-clockwise round a pocket");
+    for p in hole {
+        let to_edge = (p.x - 1.3).min(1.5 - p.x).min(p.y - 1.1).min(1.3 - p.y);
+        assert!(
+            (-1e-12..=2.0 * TOL).contains(&to_edge),
+            "{p:?}: {to_edge} from the edge"
+        );
+    }
+    assert!(hole.iter().any(|p| p.x < 1.31) && hole.iter().any(|p| p.x > 1.49));
+    assert!(hole.iter().any(|p| p.y < 1.11) && hole.iter().any(|p| p.y > 1.29));
+}
