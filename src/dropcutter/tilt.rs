@@ -81,8 +81,10 @@ impl GougeCheck<'_> {
     /// As [`GougeCheck::check`] with [`super::gouge::GougeRule::Lift`], but
     /// a gouging location first tries other orientations for the same
     /// contact: the lead or the tilt changed by `step`, then `2 step`, ...
-    /// up to `max`, one angle at a time, both ways, in that order (tilt
-    /// before lead at each size); the first that clears the part is taken.
+    /// up to `max`, one angle at a time, both ways (tilt before lead at
+    /// each size); of the turns of the smallest size that clears the part,
+    /// the one that keeps the turn steadiest along the pass is taken
+    /// (`choose_along`).
     /// (Both angles together were tried: fewer locations are lifted, but
     /// neighbours then alternate between a turn of both and a slightly
     /// larger turn of one, and the axis swings 10-20 degrees between
@@ -160,33 +162,45 @@ impl GougeCheck<'_> {
         } else {
             0
         };
-        let turns: Vec<[f64; 2]> = (1..=sizes)
-            .flat_map(|k| {
-                let a = search.step * k as f64;
-                [[0.0, a], [0.0, -a], [a, 0.0], [-a, 0.0]]
-            })
-            .collect();
         let outcomes: Vec<Vec<(f64, Outcome)>> = own_placed
             .par_iter()
             .zip(contacts.par_iter())
             .map(|(placed, cs)| {
-                let own: Vec<(f64, Outcome)> = placed
+                // The turns that clear each gouging location, from the
+                // smallest size that does to EXTRA_SIZES steps more; then
+                // one of them for each, chosen along the pass.
+                let found: Vec<(f64, Found)> = placed
                     .par_iter()
                     .zip(cs.par_iter())
                     .map(|(&(d, lift), c)| {
                         crate::progress::advance(1);
                         if d <= GOUGE_TOL {
-                            return (d, Outcome::Clear);
+                            return (d, Found::Clear);
                         }
-                        for &t in &turns {
-                            if let Some(other) = clear_turn(c, t) {
-                                return (d, Outcome::Tilted(other, t));
+                        let mut clear: Vec<(Location, [f64; 2])> = Vec::new();
+                        let mut last_size = sizes;
+                        for k in 1..=sizes {
+                            if k > last_size {
+                                break;
+                            }
+                            let a = search.step * k as f64;
+                            for t in [[0.0, a], [0.0, -a], [a, 0.0], [-a, 0.0]] {
+                                if let Some(l) = clear_turn(c, t) {
+                                    if clear.is_empty() {
+                                        last_size = sizes.min(k + EXTRA_SIZES);
+                                    }
+                                    clear.push((l, t));
+                                }
                             }
                         }
-                        (d, Outcome::Lifted(lift))
+                        if clear.is_empty() {
+                            (d, Found::Lifted(lift))
+                        } else {
+                            (d, Found::Turns(clear))
+                        }
                     })
                     .collect();
-                ease(own, cs, search.ramp, clear_turn)
+                ease(choose_along(found), cs, search.ramp, clear_turn)
             })
             .collect();
         let mut report = GougeReport::default();
@@ -220,6 +234,103 @@ impl GougeCheck<'_> {
         }
         Ok((report, tilt, settling))
     }
+}
+
+/// How many sizes past the smallest that clears a location are searched
+/// for turns a pass may prefer: a neighbour's turn is often one step larger
+/// the other way.
+const EXTRA_SIZES: usize = 2;
+
+/// What a larger turn costs in [`choose_along`], per radian of its size,
+/// against a radian of change between neighbours: under one, so a pass
+/// takes a turn a step larger where that spares it a change of way.
+const SIZE_WEIGHT: f64 = 0.5;
+
+/// What the search found for one location, before the pass chooses.
+enum Found {
+    /// The tool clears the part as asked.
+    Clear,
+    /// Every turn that clears the part, from the smallest size that does
+    /// to [`EXTRA_SIZES`] more (by size, then tilt before lead, + before
+    /// -), with the location it gives.
+    Turns(Vec<(Location, [f64; 2])>),
+    /// No turn within reach clears it: lifted by this depth.
+    Lifted(f64),
+}
+
+/// One turn for each location of a pass, out of the turns that clear it,
+/// so that the turn changes as little as it can along the pass and stays
+/// small: the least sum, over the pass, of the changes between
+/// consecutive locations (the larger of lead's and tilt's change, as
+/// [`TiltReport::largest_jump`] counts them) plus [`SIZE_WEIGHT`] times
+/// each turn's size, by dynamic programming over the few turns each
+/// location offers; of equal sums, the turns earlier in the search's
+/// order. Searched alone, each location took the first turn that cleared
+/// it: where one side of a trough needs +15 degrees of lead and a location
+/// in it clears with -10 as well as with +15, the pass went +15, -10, +15,
+/// a 25-degree swing each way.
+fn choose_along(found: Vec<(f64, Found)>) -> Vec<(f64, Outcome)> {
+    // The turns a location may take, as (turn, index into its choices).
+    let options = |f: &Found| -> Vec<[f64; 2]> {
+        match f {
+            Found::Turns(v) => v.iter().map(|&(_, t)| t).collect(),
+            Found::Clear | Found::Lifted(_) => vec![[0.0; 2]],
+        }
+    };
+    let change = |a: [f64; 2], b: [f64; 2]| size([a[0] - b[0], a[1] - b[1]]);
+    // cost[i][k]: the least sum of changes up to location i taking its
+    // option k; from[i][k] the option of location i - 1 it came from.
+    let mut cost: Vec<Vec<f64>> = Vec::with_capacity(found.len());
+    let mut from: Vec<Vec<usize>> = Vec::with_capacity(found.len());
+    let mut prev: Vec<[f64; 2]> = Vec::new();
+    for (i, (_, f)) in found.iter().enumerate() {
+        let opts = options(f);
+        let mut c = Vec::with_capacity(opts.len());
+        let mut fr = Vec::with_capacity(opts.len());
+        for &t in &opts {
+            let (best, arg) = if i == 0 {
+                (SIZE_WEIGHT * size(t), 0)
+            } else {
+                prev.iter()
+                    .enumerate()
+                    .map(|(j, &p)| (cost[i - 1][j] + change(p, t) + SIZE_WEIGHT * size(t), j))
+                    .fold((f64::INFINITY, 0), |a, b| if b.0 < a.0 { b } else { a })
+            };
+            c.push(best);
+            fr.push(arg);
+        }
+        cost.push(c);
+        from.push(fr);
+        prev = opts;
+    }
+    // Back from the cheapest end (the first of equal ones).
+    let mut pick = vec![0usize; found.len()];
+    if let Some(last) = cost.last() {
+        let mut k = last
+            .iter()
+            .enumerate()
+            .fold((f64::INFINITY, 0), |a, (j, &c)| if c < a.0 { (c, j) } else { a })
+            .1;
+        for i in (0..found.len()).rev() {
+            pick[i] = k;
+            k = from[i][k];
+        }
+    }
+    found
+        .into_iter()
+        .zip(pick)
+        .map(|((d, f), k)| {
+            let o = match f {
+                Found::Clear => Outcome::Clear,
+                Found::Lifted(lift) => Outcome::Lifted(lift),
+                Found::Turns(v) => {
+                    let (l, t) = v[k];
+                    Outcome::Tilted(l, t)
+                }
+            };
+            (d, o)
+        })
+        .collect()
 }
 
 /// Ease one pass's turns in and out over `ramp` (mm along the contacts):

@@ -124,6 +124,14 @@ fn eased_turns_keep_the_part_clear_and_shrink_the_jumps() {
         .check_tilting(&fa, &contacts, &mut eased, &search(30.0, 5.0, 1.0), Placement::Tangent)
         .unwrap();
     assert_eq!(r_sharp, r_eased, "the same gouges found");
+    // Chosen along the pass, the turns keep one way across the trough: the
+    // axis changes by a step at most even without easing (25 degrees when
+    // each location took the first turn that cleared it: +15, -10, +15).
+    assert!(
+        t_sharp.largest_jump <= 5f64.to_radians() + 1e-9,
+        "sharp {:.2} deg",
+        t_sharp.largest_jump.to_degrees()
+    );
     assert!(t_sharp.tilted > 0 && t_sharp.eased == 0, "{t_sharp:?}");
     assert!(t_eased.eased > 0, "{t_eased:?}");
     // Every turned location needed its turn or is within the ramp; no
@@ -321,4 +329,61 @@ fn the_envelope_of_offers_is_the_best_of_every_pair() {
             );
         }
     }
+}
+
+/// A location's search outcome with these turns (degrees: lead, tilt)
+/// clearing it; the locations are placeholders (the choice reads the
+/// turns only).
+fn turns(ts: &[[f64; 2]]) -> (f64, Found) {
+    let l = Location {
+        cl: crate::geometry::P3::origin(),
+        axis_point: crate::geometry::P3::new(0.0, 0.0, 1.0),
+    };
+    let f = Found::Turns(ts.iter().map(|t| (l, [t[0].to_radians(), t[1].to_radians()])).collect());
+    (1.0, f)
+}
+
+/// The turns chosen, in degrees (0 for clear and lifted locations).
+fn chosen(found: Vec<(f64, Found)>) -> Vec<[f64; 2]> {
+    choose_along(found)
+        .iter()
+        .map(|(_, o)| {
+            let t = o.turn();
+            [t[0].to_degrees().round(), t[1].to_degrees().round()]
+        })
+        .collect()
+}
+
+#[test]
+fn the_pass_keeps_one_way_where_a_location_offers_both() {
+    let clear = || (0.0, Found::Clear);
+    // A stretch needing +15 of lead whose middle also clears with -10:
+    // +15 throughout, not a swing of 25 degrees each way.
+    let got = chosen(vec![
+        clear(),
+        turns(&[[15.0, 0.0]]),
+        turns(&[[-10.0, 0.0], [15.0, 0.0]]),
+        turns(&[[15.0, 0.0]]),
+        clear(),
+    ]);
+    assert_eq!(got, [[0.0, 0.0], [15.0, 0.0], [15.0, 0.0], [15.0, 0.0], [0.0, 0.0]]);
+    // Either way serves every location: the search's order decides (tilt
+    // +, the first tried), the same way throughout.
+    let both = || turns(&[[0.0, 5.0], [0.0, -5.0]]);
+    assert_eq!(chosen(vec![both(), both(), both()]), [[0.0, 5.0]; 3]);
+    // One location can only go one way: its neighbours follow it.
+    let got = chosen(vec![both(), turns(&[[0.0, -5.0]]), both()]);
+    assert_eq!(got, [[0.0, -5.0]; 3]);
+    // A turn much larger than needed is not worth a small change saved:
+    // the size counts, at half the weight of a change.
+    let got = chosen(vec![clear(), turns(&[[5.0, 0.0], [30.0, 0.0]]), clear()]);
+    assert_eq!(got[1], [5.0, 0.0]);
+    // Lifted locations count as no turn; an empty pass is empty.
+    let got = chosen(vec![
+        turns(&[[10.0, 0.0]]),
+        (2.0, Found::Lifted(0.1)),
+        turns(&[[10.0, 0.0]]),
+    ]);
+    assert_eq!(got, [[10.0, 0.0], [0.0, 0.0], [10.0, 0.0]]);
+    assert!(chosen(Vec::new()).is_empty());
 }
