@@ -82,8 +82,9 @@ impl GougeCheck<'_> {
     /// a gouging location first tries other orientations for the same
     /// contact: the lead or the tilt changed by `step`, then `2 step`, ...
     /// up to `max`, one angle at a time, both ways (tilt before lead at
-    /// each size); of the turns of the smallest size that clears the part,
-    /// the one that keeps the turn steadiest along the pass is taken
+    /// each size); of the turns that clear the part, from the smallest
+    /// size that does to [`EXTRA_SIZES`] steps more, the pass takes for
+    /// each location the one that keeps the turn steadiest along it
     /// (`choose_along`).
     /// (Both angles together were tried: fewer locations are lifted, but
     /// neighbours then alternate between a turn of both and a slightly
