@@ -35,6 +35,7 @@ Examples:
   pathgen dropcutter part.stl --tool torus:1:0.2 --step-over 0.2 --five-axis --gouge report > raw5.cl
   pathgen dropcutter part.stl --tool flat:1 --step-over 0.1 --five-axis --lead 3 --normals smooth > smooth5.cl
   pathgen dropcutter part.stl --tool ball:1 --waterline-step 0.2 --step-over 0.02 --gcode iso > walls.ngc
+  pathgen dropcutter part.stl --tool flat:1 --waterline 2,1 --step-over 0.2 --chord-tol 0.001 > wl.cl
 
 The mesh is STL (ASCII or binary) or OBJ in mm unless --units says otherwise.
 CL data rows are 'x y z' (tool tip) or, with --five-axis, 'x y z x1 y1 z1'
@@ -48,7 +49,8 @@ reported (--gouge report). The axis follows each facet's normal, or with
 at facet edges), each tool then set down on the mesh along its axis.
 Passes are joined at the safe Z. Waterlines (--waterline, --waterline-step)
 are closed loops at constant Z round the model, the model on the right of
-the travel (climb milling with M3), found on fibres --step-over apart.
+the travel (climb milling with M3), found on fibres --step-over apart;
+--chord-tol adds points between the fibres where the loop bends.
 A summary goes to stderr.
 Exit status: 0 ok, 1 failure, 2 bad usage or bad input.";
 
