@@ -83,7 +83,7 @@ impl GougeCheck<'_> {
     /// contact: the lead or the tilt changed by `step`, then `2 step`, ...
     /// up to `max`, one angle at a time, both ways (tilt before lead at
     /// each size); of the turns that clear the part, from the smallest
-    /// size that does to [`EXTRA_SIZES`] steps more, the pass takes for
+    /// size that does to two steps more (`EXTRA_SIZES`), the pass takes for
     /// each location the one that keeps the turn steadiest along it
     /// (`choose_along`).
     /// (Both angles together were tried: fewer locations are lifted, but
