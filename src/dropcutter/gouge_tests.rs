@@ -584,18 +584,17 @@ fn smoothed_locations_in_a_trough_are_turned_or_lifted_clear() {
     }
 }
 
-#[test]
-fn on_every_corpus_mesh_set_down_tools_touch_it_and_are_nowhere_in_it() {
-    // The meshes other programs wrote (open, non-manifold, degenerate
-    // triangles, vertices written more than once): smoothed-normal
-    // locations on passes across each, a torus of 5 % of the part, set
-    // down. Each one clears the part, and each one that found the part
-    // below touches it (lowered a little, it is in it).
-    let Some(meshes) = crate::mesh::read_corpus_meshes() else {
-        crate::corpus::skip("corpus_meshes_set_down_tools_touch_them");
-        return;
-    };
-    let mut checked = 0;
+/// The 5-axis job the corpus tests run on every corpus mesh (other
+/// programs' files: open, non-manifold, degenerate triangles, vertices
+/// written more than once): a torus of 5 % of the part, lead 5 and tilt -3
+/// degrees, twice the part's size plus its height of tool checked, passes
+/// along X at 30, 50 and 70 % of its depth, 41 points each. `pass` gets the
+/// mesh's file, its gouge check, the part's size, the orientation and the
+/// pass's points. `None` when the corpus is absent.
+pub(crate) fn on_corpus_passes(
+    mut pass: impl FnMut(&std::path::Path, &GougeCheck, f64, &FiveAxis, &[P2]),
+) -> Option<()> {
+    let meshes = crate::mesh::read_corpus_meshes()?;
     for (f, mesh) in &meshes {
         let bb = mesh.bbox();
         let size = (bb.max.x - bb.min.x).max(bb.max.y - bb.min.y);
@@ -610,35 +609,51 @@ fn on_every_corpus_mesh_set_down_tools_touch_it_and_are_nowhere_in_it() {
             continue;
         };
         let gc = GougeCheck::new(&dc);
-        let length = 2.0 * size + (bb.max.z - bb.min.z);
         let fa = FiveAxis {
             lead: 5f64.to_radians(),
             tilt: -3f64.to_radians(),
-            axis_length: length,
+            axis_length: 2.0 * size + (bb.max.z - bb.min.z),
         };
-        let eps = 1e-4 * size;
         for frac in [0.3, 0.5, 0.7] {
             let y = bb.min.y + frac * (bb.max.y - bb.min.y);
             let xy: Vec<P2> = (0..=40)
                 .map(|i| P2::new(bb.min.x + (bb.max.x - bb.min.x) * i as f64 / 40.0, y))
                 .collect();
-            let (contacts, runs) = smooth_pass(&dc, &fa, &xy);
-            for (run, settled) in runs.iter().zip(gc.settle_all(&contacts, &runs, length)) {
-                for (l, s) in run.iter().zip(settled) {
-                    let a = (l.axis_point - l.cl).normalize();
-                    let at = s.location;
-                    assert!(
-                        gc.clearance(at.cl, a, length) <= GOUGE_TOL * size.max(1.0),
-                        "{f:?}: {at:?}"
-                    );
-                    if s.raise.is_some() {
-                        let lower = gc.clearance(at.cl - a * eps, a, length);
-                        assert!(lower > 0.5 * eps, "{f:?}: {at:?} lowered {eps} is {lower} in the part");
-                    }
-                    checked += 1;
+            pass(f, &gc, size, &fa, &xy);
+        }
+    }
+    Some(())
+}
+
+#[test]
+fn on_every_corpus_mesh_set_down_tools_touch_it_and_are_nowhere_in_it() {
+    // Smoothed-normal locations on passes across each corpus mesh, set
+    // down. Each one clears the part, and each one that found the part
+    // below touches it (lowered a little, it is in it).
+    let mut checked = 0;
+    let ran = on_corpus_passes(|f, gc, size, fa, xy| {
+        let length = fa.axis_length;
+        let eps = 1e-4 * size;
+        let (contacts, runs) = smooth_pass(gc.drop_cutter(), fa, xy);
+        for (run, settled) in runs.iter().zip(gc.settle_all(&contacts, &runs, length)) {
+            for (l, s) in run.iter().zip(settled) {
+                let a = (l.axis_point - l.cl).normalize();
+                let at = s.location;
+                assert!(
+                    gc.clearance(at.cl, a, length) <= GOUGE_TOL * size.max(1.0),
+                    "{f:?}: {at:?}"
+                );
+                if s.raise.is_some() {
+                    let lower = gc.clearance(at.cl - a * eps, a, length);
+                    assert!(lower > 0.5 * eps, "{f:?}: {at:?} lowered {eps} is {lower} in the part");
                 }
+                checked += 1;
             }
         }
+    });
+    if ran.is_none() {
+        crate::corpus::skip("corpus_meshes_set_down_tools_touch_them");
+        return;
     }
     crate::corpus::record("corpus_meshes_set_down_tools_touch_them", checked);
     assert!(checked > 100, "{checked}");

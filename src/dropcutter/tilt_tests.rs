@@ -6,7 +6,7 @@ use super::*;
 use crate::cutter::Cutter;
 use crate::dropcutter::DropCutter;
 use crate::dropcutter::gouge::GougeRule;
-use crate::dropcutter::gouge::tests::{inside_tool, samples, trough_pass};
+use crate::dropcutter::gouge::tests::{inside_tool, on_corpus_passes, samples, trough_pass};
 use crate::geometry::V3;
 
 /// A search in degrees (max, step) with a ramp in mm.
@@ -390,64 +390,39 @@ fn the_pass_keeps_one_way_where_a_location_offers_both() {
 
 #[test]
 fn on_every_corpus_mesh_the_tilt_search_leaves_no_gouge() {
-    // The meshes other programs wrote, passes across each with the axis
-    // along the facets' normals, lead 5 and tilt -3 degrees, a torus of 5 %
-    // of the part: after the search (turns chosen along each pass, eased,
-    // the rest lifted) every location clears the part, and each turn taken
-    // is a whole number of steps within the reach.
-    let Some(meshes) = crate::mesh::read_corpus_meshes() else {
-        crate::corpus::skip("corpus_meshes_tilt_search_clears_them");
-        return;
-    };
+    // Passes across each corpus mesh with the axis along the facets'
+    // normals: after the search (turns chosen along each pass, eased, the
+    // rest lifted) every location clears the part, and no turn taken goes
+    // past the reach.
     let mut checked = 0;
     let mut turned = 0;
-    for (f, mesh) in &meshes {
-        let bb = mesh.bbox();
-        let size = (bb.max.x - bb.min.x).max(bb.max.y - bb.min.y);
-        if size <= 0.0 || !size.is_finite() {
-            continue;
+    let ran = on_corpus_passes(|f, gc, size, fa, xy| {
+        let dc = gc.drop_cutter();
+        let contacts = FiveAxis::contacts(dc, xy);
+        let Ok(mut runs) = fa.pass(dc, xy) else { return };
+        let (_, report, _) = gc
+            .check_tilting(
+                fa,
+                &contacts,
+                &mut runs,
+                &search(30.0, 5.0, 0.1 * size),
+                Placement::Tangent,
+            )
+            .unwrap();
+        assert!(report.largest_turn <= 30f64.to_radians() + 1e-12, "{f:?}: {report:?}");
+        turned += report.tilted;
+        for l in runs.iter().flatten() {
+            let a = (l.axis_point - l.cl).normalize();
+            assert!(
+                gc.clearance(l.cl, a, fa.axis_length) <= GOUGE_TOL * size.max(1.0),
+                "{f:?}: {l:?} cuts into the part"
+            );
+            checked += 1;
         }
-        let cutter = Cutter::Torus {
-            radius: 0.05 * size,
-            corner: 0.01 * size,
-        };
-        let Ok(dc) = DropCutter::new(mesh, cutter) else {
-            continue;
-        };
-        let gc = GougeCheck::new(&dc);
-        let length = 2.0 * size + (bb.max.z - bb.min.z);
-        let fa = FiveAxis {
-            lead: 5f64.to_radians(),
-            tilt: -3f64.to_radians(),
-            axis_length: length,
-        };
-        for frac in [0.3, 0.5, 0.7] {
-            let y = bb.min.y + frac * (bb.max.y - bb.min.y);
-            let xy: Vec<crate::geometry::P2> = (0..=40)
-                .map(|i| crate::geometry::P2::new(bb.min.x + (bb.max.x - bb.min.x) * i as f64 / 40.0, y))
-                .collect();
-            let contacts = FiveAxis::contacts(&dc, &xy);
-            let Ok(mut runs) = fa.pass(&dc, &xy) else { continue };
-            let (_, report, _) = gc
-                .check_tilting(
-                    &fa,
-                    &contacts,
-                    &mut runs,
-                    &search(30.0, 5.0, 0.1 * size),
-                    Placement::Tangent,
-                )
-                .unwrap();
-            assert!(report.largest_turn <= 30f64.to_radians() + 1e-12, "{f:?}: {report:?}");
-            turned += report.tilted;
-            for l in runs.iter().flatten() {
-                let a = (l.axis_point - l.cl).normalize();
-                assert!(
-                    gc.clearance(l.cl, a, length) <= GOUGE_TOL * size.max(1.0),
-                    "{f:?}: {l:?} cuts into the part"
-                );
-                checked += 1;
-            }
-        }
+    });
+    if ran.is_none() {
+        crate::corpus::skip("corpus_meshes_tilt_search_clears_them");
+        return;
     }
     crate::corpus::record("corpus_meshes_tilt_search_clears_them", checked);
     assert!(checked > 100, "{checked}");
