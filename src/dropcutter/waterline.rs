@@ -51,9 +51,11 @@ pub struct Waterline {
     /// fibre, mm.
     pub tol: f64,
     /// When set, points are added between fibres until the middle of
-    /// every chord lies within this of the waterline (mm): OpenCAMLib's
-    /// adaptive waterline refines its fibres for the same reason. `None`:
-    /// the fibre points joined by chords.
+    /// every chord lies within half of this of the waterline, which puts
+    /// the whole chord within this where the waterline bends one way
+    /// between its ends (mm): OpenCAMLib's adaptive waterline refines its
+    /// fibres for the same reason. `None`: the fibre points joined by
+    /// chords.
     pub chord_tol: Option<f64>,
 }
 
@@ -152,7 +154,7 @@ impl Waterline {
 
     /// `lp` (closed, the blocked side on its right) with points added
     /// between its vertices until the middle of every chord is within
-    /// `chord_tol` of the waterline, or a chord has been halved
+    /// half of `chord_tol` of the waterline, or a chord has been halved
     /// [`MAX_REFINE_DEPTH`] times.
     ///
     /// A loop on one fibre (a feature that meets no other: there and back
@@ -161,7 +163,7 @@ impl Waterline {
     /// neither, so it ends before them), which turns it into a loop round
     /// the feature; `None` when that finds nothing, and the loop is left
     /// out as without refinement.
-    fn refine(&self, blocked: &(impl Fn(P2) -> bool + Sync), lp: &[P2], chord_tol: f64) -> Option<Vec<P2>> {
+    fn refine(&self, blocked: &impl Fn(P2) -> bool, lp: &[P2], chord_tol: f64) -> Option<Vec<P2>> {
         let one_fibre = on_one_fibre(lp);
         let mut out = Vec::with_capacity(lp.len() * 2);
         for w in lp.windows(2) {
