@@ -512,6 +512,96 @@ fn five_axis_locations_that_would_gouge_are_lifted_or_reported() {
     }
 }
 
+/// A roof along x: two planes rising 40 degrees from y = -3 and y = 3 to a
+/// ridge at y = 0, z = 3 tan 40.
+fn roof() -> Vec<[[f64; 3]; 3]> {
+    let h = 3.0 * 40f64.to_radians().tan();
+    vec![
+        [[-3.0, -3.0, 0.0], [3.0, -3.0, 0.0], [3.0, 0.0, h]],
+        [[-3.0, -3.0, 0.0], [3.0, 0.0, h], [-3.0, 0.0, h]],
+        [[-3.0, 0.0, h], [3.0, 0.0, h], [3.0, 3.0, 0.0]],
+        [[-3.0, 0.0, h], [3.0, 3.0, 0.0], [-3.0, 3.0, 0.0]],
+    ]
+}
+
+/// `--max-axis-change`: across the ridge of a roof the facet normals turn
+/// the tool axis by 80 degrees between two neighbours; with a limit of 30
+/// each crossing ends a run, and the tool is lifted to the safe Z, turned
+/// there and put down again. Every contact location is kept, in order.
+#[test]
+fn a_large_change_of_the_tool_axis_lifts_the_tool_instead_of_swinging_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let stl = dir.path().join("roof.stl");
+    write_stl(&stl, &roof());
+    let job = |extra: &[&str]| {
+        let mut c = pathgen();
+        c.arg("dropcutter")
+            .arg(&stl)
+            .args([
+                "--tool",
+                "flat:0.5",
+                "--step-over",
+                "0.5",
+                "--step-forward",
+                "0.25",
+                "--direction",
+                "y",
+                "--region",
+                "-1,-2,1,2",
+                "--five-axis",
+                "--gouge",
+                "off",
+                "--safe-z",
+                "10",
+            ])
+            .args(extra);
+        c
+    };
+    let angle = |d: &microcam::formats::cldata::ClData, i: usize, j: usize| {
+        let (u, v) = (
+            (d.axis[i] - d.points[i]).normalize(),
+            (d.axis[j] - d.points[j]).normalize(),
+        );
+        u.cross(&v).norm().atan2(u.dot(&v)).to_degrees()
+    };
+    let (plain, e_plain) = cl_run(job(&[]), "plain");
+    assert!(e_plain.contains("the tool axis turns by up to 80.0 deg"), "{e_plain}");
+    let (split, e_split) = cl_run(job(&["--max-axis-change", "30"]), "split");
+    // The zigzag crosses the ridge at x = -1, -0.5, 0, 0.5 and 1.
+    let crossings = 5;
+    assert!(
+        e_split.contains(&format!("{crossings} places where the tool axis turns by more than 30.0 deg between neighbours (up to 80.0 deg) end a run")),
+        "{e_split}"
+    );
+    // The contacts are the same locations in the same order; the links
+    // (tips at the safe Z) are two more per split, and one at the end
+    // (the one run of the plain job had none).
+    let contacts = |d: &microcam::formats::cldata::ClData| -> Vec<usize> {
+        (0..d.points.len()).filter(|&i| d.points[i].z < 10.0 - 1e-9).collect()
+    };
+    let (pc, sc) = (contacts(&plain), contacts(&split));
+    assert_eq!(pc.len(), sc.len());
+    for (&i, &j) in pc.iter().zip(&sc) {
+        assert_eq!((plain.points[i], plain.axis[i]), (split.points[j], split.axis[j]));
+    }
+    assert_eq!(split.points.len(), plain.points.len() + 2 * crossings + 1);
+    // Between two contacts in a row the axis turns by at most the limit
+    // (no swing in the cut); without the limit it swung by 80.
+    let worst = |d: &microcam::formats::cldata::ClData, c: &[usize]| {
+        c.windows(2)
+            .filter(|w| w[1] == w[0] + 1)
+            .map(|w| angle(d, w[0], w[1]))
+            .fold(0.0, f64::max)
+    };
+    assert!((worst(&plain, &pc) - 80.0).abs() < 1e-6);
+    assert!(worst(&split, &sc) <= 30.0);
+    for bad in ["0", "181", "nan"] {
+        let o = job(&["--max-axis-change", bad]).output().unwrap();
+        assert_eq!(o.status.code(), Some(2), "{bad}");
+        assert!(o.stdout.is_empty(), "{bad}");
+    }
+}
+
 /// A floor with a block standing on it, 5 mm tall, its near face at
 /// x = 1 (the 5-axis holder tests).
 fn floor_and_wall() -> Vec<[[f64; 3]; 3]> {

@@ -6,7 +6,7 @@ use clap::{Args as ClapArgs, ValueEnum};
 use microcam::cli::{self, CliError, Output};
 use microcam::cutter::Cutter;
 use microcam::dropcutter::adaptive::Adaptive;
-use microcam::dropcutter::fiveaxis::{Contact, FiveAxis, Location};
+use microcam::dropcutter::fiveaxis::{AxisSplit, Contact, FiveAxis, Location, split_at_axis_changes};
 use microcam::dropcutter::gouge::{GougeCheck, GougeReport, GougeRule, Holder, Placement, SettleReport};
 use microcam::dropcutter::normals::DEFAULT_CREASE_DEG;
 use microcam::dropcutter::output::{Feeds, toolpath_records, write_cldata, write_cldata5};
@@ -34,6 +34,7 @@ Examples:
   pathgen dropcutter part.stl --tool flat:2 --step-over 0.5 --five-axis --lead 5 --tilt 0 > part5.cl
   pathgen dropcutter part.stl --tool torus:1:0.2 --step-over 0.2 --five-axis --gouge report > raw5.cl
   pathgen dropcutter part.stl --tool flat:1 --step-over 0.1 --five-axis --lead 3 --normals smooth > smooth5.cl
+  pathgen dropcutter part.stl --tool flat:1 --step-over 0.1 --five-axis --gouge tilt --max-axis-change 20 > lifts5.cl
   pathgen dropcutter part.stl --tool ball:1 --waterline-step 0.2 --step-over 0.02 --gcode iso > walls.ngc
   pathgen dropcutter part.stl --tool flat:1 --waterline 2,1 --step-over 0.2 --chord-tol 0.001 > wl.cl
 
@@ -202,6 +203,12 @@ pub struct DropcutterArgs {
     /// cutter's diameter; 0 turns only the locations that need it).
     #[arg(long, value_name = "MM", requires = "five_axis")]
     turn_ramp: Option<f64>,
+    /// 5-axis: where the tool axis would turn by more than this between
+    /// two neighbouring locations, end the run there: the tool is drawn
+    /// back along its axis to the safe Z, turned, and put down again,
+    /// instead of swinging in the cut (degrees, above 0 to 180).
+    #[arg(long, value_name = "DEG", requires = "five_axis")]
+    max_axis_change: Option<f64>,
     /// 5-axis: check the tool holder too, a cylinder of diameter D whose
     /// face is H mm up the axis from the tool tip (the stick-out), up to
     /// --axis-length (D:H, mm; D at least the cutter's).
@@ -308,6 +315,24 @@ fn tilt_summary(r: &GougeReport, t: &TiltReport, length: f64) -> String {
         t.eased,
         t.largest_jump.to_degrees()
     )
+}
+
+/// One line on how far the tool axis turns between neighbours, and where
+/// `--max-axis-change` ended runs.
+fn axis_change_summary(s: &AxisSplit, max: Option<f64>) -> String {
+    match max {
+        None => format!(
+            "the tool axis turns by up to {:.1} deg between neighbouring locations (--max-axis-change lifts the tool where it would turn more)",
+            s.largest_kept.to_degrees()
+        ),
+        Some(m) => format!(
+            "{} places where the tool axis turns by more than {:.1} deg between neighbours (up to {:.1} deg) end a run: the tool is drawn back to the safe Z, turned and put down again; within runs it turns by up to {:.1} deg",
+            s.splits,
+            m.to_degrees(),
+            s.largest_split.to_degrees(),
+            s.largest_kept.to_degrees()
+        ),
+    }
 }
 
 fn positive(name: &str, v: f64) -> Result<f64, CliError> {
@@ -431,6 +456,15 @@ pub fn run(a: DropcutterArgs) -> Result<(), CliError> {
         if !(turn_ramp.is_finite() && turn_ramp >= 0.0) {
             return Err(CliError::input(format!("--turn-ramp {turn_ramp}: mm, 0 or more")));
         }
+        let max_axis_change = match a.max_axis_change {
+            Some(d) if d > 0.0 && d <= 180.0 => Some(d.to_radians()),
+            Some(d) => {
+                return Err(CliError::input(format!(
+                    "--max-axis-change {d}: degrees, above 0 to 180"
+                )));
+            }
+            None => None,
+        };
         let (max_turn, turn_step) = (a.max_turn.unwrap_or(30.0), a.turn_step.unwrap_or(5.0));
         let in_range = (0.0..=90.0).contains(&max_turn) && turn_step > 0.0 && turn_step <= 90.0;
         if !in_range {
@@ -528,9 +562,15 @@ pub fn run(a: DropcutterArgs) -> Result<(), CliError> {
         if let Some(line) = summary {
             microcam::diag!("pathgen: dropcutter: 5-axis: {line}");
         }
+        // After every check: the splits keep each location as it was left.
+        let split = split_at_axis_changes(&mut runs, max_axis_change.unwrap_or(std::f64::consts::PI));
+        microcam::diag!(
+            "pathgen: dropcutter: 5-axis: {}",
+            axis_change_summary(&split, max_axis_change)
+        );
         let mut w = ClWriter::new(&mut out);
         w.comment(&format!(
-            "microcam 5-axis CL data: x y z (tool tip) x1 y1 z1 (point on the tool axis), mm; cutter {cutter}, lead {} deg, tilt {} deg, gouge check {}{}{}, from {name}",
+            "microcam 5-axis CL data: x y z (tool tip) x1 y1 z1 (point on the tool axis), mm; cutter {cutter}, lead {} deg, tilt {} deg, gouge check {}{}{}{}, from {name}",
             a.lead,
             a.tilt,
             match a.gouge {
@@ -548,6 +588,9 @@ pub fn run(a: DropcutterArgs) -> Result<(), CliError> {
             )),
             smooth.as_ref().map_or(String::new(), |(_, deg)| format!(
                 ", axes from smoothed normals (crease {deg} deg)"
+            )),
+            a.max_axis_change.map_or(String::new(), |d| format!(
+                ", the tool lifted where its axis turns by more than {d} deg"
             ))
         ))?;
         write_cldata5(&mut w, &runs, safe_z)?;
