@@ -3,6 +3,7 @@
 
 use microcam::corpus;
 use microcam::formats::cldata::read_cldata;
+use microcam::geometry::V3;
 use std::path::Path;
 use std::process::Command;
 
@@ -525,11 +526,14 @@ fn roof() -> Vec<[[f64; 3]; 3]> {
 }
 
 /// `--max-axis-change`: across the ridge of a roof the facet normals turn
-/// the tool axis by 80 degrees between two neighbours; with a limit of 30
-/// each crossing ends a run, and the tool is lifted to the safe Z, turned
-/// there and put down again. Every contact location is kept, in order.
+/// the tool axis by 80 degrees between two neighbours. With a limit of 30
+/// the tool turns over the ridge in steps (each set down on the part); with
+/// `--axis-change lift` each crossing ends a run and the tool is lifted to
+/// the safe Z, turned there and put down again. Either way every location
+/// of the plain job is kept, in order, and no two neighbours in the cut
+/// have axes more than 30 degrees apart.
 #[test]
-fn a_large_change_of_the_tool_axis_lifts_the_tool_instead_of_swinging_it() {
+fn a_large_change_of_the_tool_axis_is_stepped_or_lifted_instead_of_swung() {
     let dir = tempfile::tempdir().unwrap();
     let stl = dir.path().join("roof.stl");
     write_stl(&stl, &roof());
@@ -557,48 +561,87 @@ fn a_large_change_of_the_tool_axis_lifts_the_tool_instead_of_swinging_it() {
             .args(extra);
         c
     };
-    let angle = |d: &microcam::formats::cldata::ClData, i: usize, j: usize| {
+    type Cl = microcam::formats::cldata::ClData;
+    let angle = |d: &Cl, i: usize, j: usize| {
         let (u, v) = (
             (d.axis[i] - d.points[i]).normalize(),
             (d.axis[j] - d.points[j]).normalize(),
         );
         u.cross(&v).norm().atan2(u.dot(&v)).to_degrees()
     };
-    let (plain, e_plain) = cl_run(job(&[]), "plain");
-    assert!(e_plain.contains("the tool axis turns by up to 80.0 deg"), "{e_plain}");
-    let (split, e_split) = cl_run(job(&["--max-axis-change", "30"]), "split");
-    // The zigzag crosses the ridge at x = -1, -0.5, 0, 0.5 and 1.
-    let crossings = 5;
-    assert!(
-        e_split.contains(&format!("{crossings} places where the tool axis turns by more than 30.0 deg between neighbours (up to 80.0 deg) end a run")),
-        "{e_split}"
-    );
-    // The contacts are the same locations in the same order; the links
-    // (tips at the safe Z) are two more per split, and one at the end
-    // (the one run of the plain job had none).
-    let contacts = |d: &microcam::formats::cldata::ClData| -> Vec<usize> {
-        (0..d.points.len()).filter(|&i| d.points[i].z < 10.0 - 1e-9).collect()
-    };
-    let (pc, sc) = (contacts(&plain), contacts(&split));
-    assert_eq!(pc.len(), sc.len());
-    for (&i, &j) in pc.iter().zip(&sc) {
-        assert_eq!((plain.points[i], plain.axis[i]), (split.points[j], split.axis[j]));
-    }
-    assert_eq!(split.points.len(), plain.points.len() + 2 * crossings + 1);
-    // Between two contacts in a row the axis turns by at most the limit
-    // (no swing in the cut); without the limit it swung by 80.
-    let worst = |d: &microcam::formats::cldata::ClData, c: &[usize]| {
+    // Rows in the cut (tips below the safe Z), and the largest change
+    // between two such rows in a row.
+    let contacts = |d: &Cl| -> Vec<usize> { (0..d.points.len()).filter(|&i| d.points[i].z < 10.0 - 1e-9).collect() };
+    let worst = |d: &Cl, c: &[usize]| {
         c.windows(2)
             .filter(|w| w[1] == w[0] + 1)
             .map(|w| angle(d, w[0], w[1]))
             .fold(0.0, f64::max)
     };
-    assert!((worst(&plain, &pc) - 80.0).abs() < 1e-6);
-    assert!(worst(&split, &sc) <= 30.0);
-    for bad in ["0", "181", "nan"] {
-        let o = job(&["--max-axis-change", bad]).output().unwrap();
-        assert_eq!(o.status.code(), Some(2), "{bad}");
-        assert!(o.stdout.is_empty(), "{bad}");
+    // Every row of `a` is in `b`, in order.
+    let kept_in_order = |a: &Cl, b: &Cl| {
+        let mut j = 0;
+        a.points.iter().zip(&a.axis).all(|(p, x)| {
+            while j < b.points.len() && (b.points[j], b.axis[j]) != (*p, *x) {
+                j += 1;
+            }
+            j < b.points.len()
+        })
+    };
+    let (plain, e_plain) = cl_run(job(&[]), "plain");
+    assert!(e_plain.contains("the tool axis turns by up to 80.0 deg"), "{e_plain}");
+    assert!((worst(&plain, &contacts(&plain)) - 80.0).abs() < 1e-6);
+    // The zigzag crosses the ridge at x = -1, -0.5, 0, 0.5 and 1.
+    let crossings = 5;
+
+    let (stepped, e_steps) = cl_run(job(&["--max-axis-change", "30"]), "steps");
+    assert!(
+        e_steps.contains(&format!(
+            "{crossings} places where the tool axis turns by more than 30.0 deg between neighbours (up to 80.0 deg): {crossings} turned in {} added steps set down on the part, 0 ending a run",
+            2 * crossings
+        )),
+        "{e_steps}"
+    );
+    // Two steps of 26.7 degrees added at each crossing, no lift.
+    assert_eq!(stepped.points.len(), plain.points.len() + 2 * crossings);
+    assert_eq!(contacts(&stepped).len(), stepped.points.len());
+    assert!(kept_in_order(&plain, &stepped));
+    assert!(worst(&stepped, &contacts(&stepped)) <= 30.0);
+    // The steps ride over the ridge: none below the two slopes.
+    let h = 3.0 * 40f64.to_radians().tan();
+    for (p, x) in stepped.points.iter().zip(&stepped.axis) {
+        let a = (x - p).normalize();
+        // The flat bottom's rim: the lowest point round the tip.
+        let u = (V3::z() - a * a.z).normalize() * -0.25;
+        let low = p + u;
+        assert!(low.z >= h - h / 3.0 * low.y.abs() - 1e-6, "{p:?} {a:?}");
+    }
+
+    let (lifted, e_lift) = cl_run(job(&["--max-axis-change", "30", "--axis-change", "lift"]), "lift");
+    assert!(
+        e_lift.contains(&format!("{crossings} places where the tool axis turns by more than 30.0 deg between neighbours (up to 80.0 deg): 0 turned in 0 added steps set down on the part, {crossings} ending a run")),
+        "{e_lift}"
+    );
+    // The contacts are the same locations in the same order; the links
+    // (tips at the safe Z) are two more per split, and one at the end
+    // (the one run of the plain job had none).
+    let (pc, lc) = (contacts(&plain), contacts(&lifted));
+    assert_eq!(pc.len(), lc.len());
+    for (&i, &j) in pc.iter().zip(&lc) {
+        assert_eq!((plain.points[i], plain.axis[i]), (lifted.points[j], lifted.axis[j]));
+    }
+    assert_eq!(lifted.points.len(), plain.points.len() + 2 * crossings + 1);
+    assert!(worst(&lifted, &lc) <= 30.0);
+
+    for bad in [
+        &["--max-axis-change", "0"][..],
+        &["--max-axis-change", "181"],
+        &["--max-axis-change", "nan"],
+        &["--axis-change", "lift"],
+    ] {
+        let o = job(bad).output().unwrap();
+        assert_eq!(o.status.code(), Some(2), "{bad:?}");
+        assert!(o.stdout.is_empty(), "{bad:?}");
     }
 }
 

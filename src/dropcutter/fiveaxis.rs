@@ -181,55 +181,6 @@ pub fn axis_change(a: &Location, b: &Location) -> f64 {
     u.cross(&v).norm().atan2(u.dot(&v))
 }
 
-/// What [`split_at_axis_changes`] did.
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
-pub struct AxisSplit {
-    /// Places where a run was split.
-    pub splits: usize,
-    /// The largest axis change at a split (radians; 0 without splits).
-    pub largest_split: f64,
-    /// The largest axis change left between neighbours of a run
-    /// (radians): at most the limit.
-    pub largest_kept: f64,
-}
-
-/// Split every run where the tool axis turns by more than `max` (radians)
-/// between two neighbouring locations.
-///
-/// A 5-axis machine follows such a change by swinging its rotary axes
-/// while the tool stays in the cut: a swing of tens of degrees between two
-/// points a step apart stops the feed, marks the surface, and sweeps the
-/// tool through whatever lies beside the two locations, which neither
-/// location's gouge check saw. Split there, the two locations end and
-/// start runs, and the writer ([`super::output::write_cldata5`]) draws the
-/// tool back along its axis to the safe Z, turns it there, and puts it
-/// down along the new axis. Every location is kept, in order.
-pub fn split_at_axis_changes(runs: &mut Vec<Vec<Location>>, max: f64) -> AxisSplit {
-    let mut report = AxisSplit::default();
-    let mut out: Vec<Vec<Location>> = Vec::with_capacity(runs.len());
-    for run in runs.drain(..) {
-        let mut from = 0;
-        for i in 1..run.len() {
-            let change = axis_change(&run[i - 1], &run[i]);
-            if change > max {
-                report.splits += 1;
-                report.largest_split = report.largest_split.max(change);
-                out.push(run[from..i].to_vec());
-                from = i;
-            } else {
-                report.largest_kept = report.largest_kept.max(change);
-            }
-        }
-        if from == 0 {
-            out.push(run);
-        } else {
-            out.push(run[from..].to_vec());
-        }
-    }
-    *runs = out;
-    report
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -252,38 +203,6 @@ mod tests {
             let want: f64 = (b - a).abs();
             assert!((got - want).abs() < 1e-9, "{a} -> {b}: {got}");
         }
-    }
-
-    #[test]
-    fn runs_are_split_only_where_the_axis_turns_more_than_the_limit() {
-        let angles = [0.0, 5.0, 10.0, 70.0, 65.0, 5.0, 5.0, 14.9];
-        let run: Vec<Location> = angles.iter().enumerate().map(|(i, &a)| leaning(i as f64, a)).collect();
-        let mut runs = vec![run.clone(), Vec::new(), vec![leaning(9.0, 40.0)]];
-        let r = split_at_axis_changes(&mut runs, 10.0_f64.to_radians());
-        // 10 -> 70 and 65 -> 5 are split; 0 -> 5 -> 10, 70 -> 65 and
-        // 5 -> 14.9 (the largest kept) are not.
-        assert_eq!(r.splits, 2);
-        assert!((r.largest_split.to_degrees() - 60.0).abs() < 1e-9);
-        assert!((r.largest_kept.to_degrees() - 9.9).abs() < 1e-9);
-        let lens: Vec<usize> = runs.iter().map(Vec::len).collect();
-        assert_eq!(lens, vec![3, 2, 3, 0, 1]);
-        // Every location kept, in order.
-        let flat: Vec<Location> = runs.iter().flatten().copied().collect();
-        let want: Vec<Location> = run.iter().chain([leaning(9.0, 40.0)].iter()).copied().collect();
-        assert_eq!(flat, want);
-    }
-
-    #[test]
-    fn a_limit_of_half_a_turn_splits_nothing() {
-        let run: Vec<Location> = [0.0, 90.0, -90.0, 0.0]
-            .iter()
-            .enumerate()
-            .map(|(i, &a)| leaning(i as f64, a))
-            .collect();
-        let mut runs = vec![run.clone()];
-        let r = split_at_axis_changes(&mut runs, std::f64::consts::PI);
-        assert_eq!(r.splits, 0);
-        assert_eq!(runs, vec![run]);
     }
 
     #[test]

@@ -26,6 +26,7 @@ pub mod index;
 pub mod normals;
 pub mod output;
 pub mod raster;
+pub mod swing;
 pub mod tilt;
 pub mod waterline;
 

@@ -6,11 +6,12 @@ use clap::{Args as ClapArgs, ValueEnum};
 use microcam::cli::{self, CliError, Output};
 use microcam::cutter::Cutter;
 use microcam::dropcutter::adaptive::Adaptive;
-use microcam::dropcutter::fiveaxis::{AxisSplit, Contact, FiveAxis, Location, split_at_axis_changes};
+use microcam::dropcutter::fiveaxis::{Contact, FiveAxis, Location};
 use microcam::dropcutter::gouge::{GougeCheck, GougeReport, GougeRule, Holder, Placement, SettleReport};
 use microcam::dropcutter::normals::DEFAULT_CREASE_DEG;
 use microcam::dropcutter::output::{Feeds, toolpath_records, write_cldata, write_cldata5};
 use microcam::dropcutter::raster::{Direction, Pattern, Raster, chain_passes};
+use microcam::dropcutter::swing::{AxisLimit, AxisReport};
 use microcam::dropcutter::tilt::{TiltReport, TiltSearch};
 use microcam::dropcutter::waterline::Waterline;
 use microcam::dropcutter::{DropCutter, DropError};
@@ -34,7 +35,7 @@ Examples:
   pathgen dropcutter part.stl --tool flat:2 --step-over 0.5 --five-axis --lead 5 --tilt 0 > part5.cl
   pathgen dropcutter part.stl --tool torus:1:0.2 --step-over 0.2 --five-axis --gouge report > raw5.cl
   pathgen dropcutter part.stl --tool flat:1 --step-over 0.1 --five-axis --lead 3 --normals smooth > smooth5.cl
-  pathgen dropcutter part.stl --tool flat:1 --step-over 0.1 --five-axis --gouge tilt --max-axis-change 20 > lifts5.cl
+  pathgen dropcutter part.stl --tool flat:1 --step-over 0.1 --five-axis --gouge tilt --max-axis-change 20 > stepped5.cl
   pathgen dropcutter part.stl --tool ball:1 --waterline-step 0.2 --step-over 0.02 --gcode iso > walls.ngc
   pathgen dropcutter part.stl --tool flat:1 --waterline 2,1 --step-over 0.2 --chord-tol 0.001 > wl.cl
 
@@ -99,6 +100,17 @@ pub enum GougeArg {
     Tilt,
     /// No check.
     Off,
+}
+
+/// What --max-axis-change does where the tool axis would turn more.
+#[derive(Clone, Copy, ValueEnum, PartialEq)]
+pub enum AxisChangeArg {
+    /// Turn in steps of at most the limit, each set down on the part and
+    /// checked; lift where a step cannot be made.
+    Steps,
+    /// End the run: the tool is drawn back to the safe Z, turned and put
+    /// down again.
+    Lift,
 }
 
 /// Units of the mesh file.
@@ -204,11 +216,17 @@ pub struct DropcutterArgs {
     #[arg(long, value_name = "MM", requires = "five_axis")]
     turn_ramp: Option<f64>,
     /// 5-axis: where the tool axis would turn by more than this between
-    /// two neighbouring locations, end the run there: the tool is drawn
-    /// back along its axis to the safe Z, turned, and put down again,
-    /// instead of swinging in the cut (degrees, above 0 to 180).
+    /// two neighbouring locations, turn it in steps of at most this, each
+    /// set down on the part and checked; where a step cannot be made, end
+    /// the run there (the tool is drawn back along its axis to the safe Z,
+    /// turned and put down again) instead of swinging it in the cut
+    /// (degrees, above 0 to 180).
     #[arg(long, value_name = "DEG", requires = "five_axis")]
     max_axis_change: Option<f64>,
+    /// 5-axis, --max-axis-change: turn in checked steps where they can be
+    /// made, else lift (steps, the default), or always lift (lift).
+    #[arg(long, value_enum, default_value_t = AxisChangeArg::Steps, requires = "max_axis_change")]
+    axis_change: AxisChangeArg,
     /// 5-axis: check the tool holder too, a cylinder of diameter D whose
     /// face is H mm up the axis from the tool tip (the stick-out), up to
     /// --axis-length (D:H, mm; D at least the cutter's).
@@ -317,20 +335,23 @@ fn tilt_summary(r: &GougeReport, t: &TiltReport, length: f64) -> String {
     )
 }
 
-/// One line on how far the tool axis turns between neighbours, and where
-/// `--max-axis-change` ended runs.
-fn axis_change_summary(s: &AxisSplit, max: Option<f64>) -> String {
+/// One line on how far the tool axis turns between neighbours, and what
+/// `--max-axis-change` did where it turned more.
+fn axis_change_summary(r: &AxisReport, max: Option<f64>) -> String {
     match max {
         None => format!(
-            "the tool axis turns by up to {:.1} deg between neighbouring locations (--max-axis-change lifts the tool where it would turn more)",
-            s.largest_kept.to_degrees()
+            "the tool axis turns by up to {:.1} deg between neighbouring locations (--max-axis-change turns it in steps or lifts the tool where it would turn more)",
+            r.largest_kept.to_degrees()
         ),
         Some(m) => format!(
-            "{} places where the tool axis turns by more than {:.1} deg between neighbours (up to {:.1} deg) end a run: the tool is drawn back to the safe Z, turned and put down again; within runs it turns by up to {:.1} deg",
-            s.splits,
+            "{} places where the tool axis turns by more than {:.1} deg between neighbours (up to {:.1} deg): {} turned in {} added steps set down on the part, {} ending a run (the tool drawn back to the safe Z, turned and put down again); within runs it turns by up to {:.1} deg",
+            r.stepped + r.split,
             m.to_degrees(),
-            s.largest_split.to_degrees(),
-            s.largest_kept.to_degrees()
+            r.largest_over.to_degrees(),
+            r.stepped,
+            r.inserted,
+            r.split,
+            r.largest_kept.to_degrees()
         ),
     }
 }
@@ -562,11 +583,20 @@ pub fn run(a: DropcutterArgs) -> Result<(), CliError> {
         if let Some(line) = summary {
             microcam::diag!("pathgen: dropcutter: 5-axis: {line}");
         }
-        // After every check: the splits keep each location as it was left.
-        let split = split_at_axis_changes(&mut runs, max_axis_change.unwrap_or(std::f64::consts::PI));
+        // After every check: the steps are set down and checked on their
+        // own, and the locations the checks left are kept as they are.
+        let limit = AxisLimit {
+            max: max_axis_change.unwrap_or(std::f64::consts::PI),
+            length: fa.axis_length,
+            steps: a.axis_change == AxisChangeArg::Steps,
+        };
+        let axis_report = match max_axis_change {
+            Some(_) if limit.steps => limit.apply(Some(&checker()?), &mut runs),
+            _ => limit.apply(None, &mut runs),
+        };
         microcam::diag!(
             "pathgen: dropcutter: 5-axis: {}",
-            axis_change_summary(&split, max_axis_change)
+            axis_change_summary(&axis_report, max_axis_change)
         );
         let mut w = ClWriter::new(&mut out);
         w.comment(&format!(
@@ -590,7 +620,11 @@ pub fn run(a: DropcutterArgs) -> Result<(), CliError> {
                 ", axes from smoothed normals (crease {deg} deg)"
             )),
             a.max_axis_change.map_or(String::new(), |d| format!(
-                ", the tool lifted where its axis turns by more than {d} deg"
+                ", axis changes over {d} deg {}",
+                match a.axis_change {
+                    AxisChangeArg::Steps => "turned in checked steps (else lifted)",
+                    AxisChangeArg::Lift => "lifted",
+                }
             ))
         ))?;
         write_cldata5(&mut w, &runs, safe_z)?;
