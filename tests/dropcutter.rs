@@ -645,6 +645,96 @@ fn a_large_change_of_the_tool_axis_is_stepped_or_lifted_instead_of_swung() {
     }
 }
 
+/// Machined in simulation (`stlverify`), the roof of the test above with
+/// a 1 mm end mill: swung from one slope's normal to the other's between
+/// two neighbours, the tool cuts into the ridge; turned in steps set down
+/// on the part it cuts nothing away and leaves nothing (the ridge within
+/// the band); lifted, it cuts nothing away but leaves the ridge standing.
+#[test]
+fn stlverify_finds_the_swing_gouge_at_a_ridge_and_none_after_the_steps() {
+    let dir = tempfile::tempdir().unwrap();
+    let stl = dir.path().join("roof.stl");
+    write_stl(&stl, &roof());
+    let verify = |extra: &[&str]| {
+        let cl = dir.path().join("roof.cl");
+        let o = pathgen()
+            .arg("dropcutter")
+            .arg(&stl)
+            .args([
+                "--tool",
+                "flat:1",
+                "--step-over",
+                "0.1",
+                "--step-forward",
+                "0.05",
+                "--direction",
+                "y",
+                "--region",
+                "-1,-2,1,2",
+                "--five-axis",
+                "--gouge",
+                "off",
+                "-o",
+            ])
+            .arg(&cl)
+            .args(extra)
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let v = Command::new(env!("CARGO_BIN_EXE_stlverify"))
+            .args([
+                "--quiet",
+                "--stock",
+                "-3,-3,-1,3,3,4",
+                "--tool",
+                "flat:1",
+                "--flute-length",
+                "5",
+            ])
+            .arg("--design")
+            .arg(&stl)
+            .args([
+                "--region",
+                "-0.8,0.8,-1.5,1.5",
+                "--step-forward",
+                "0.02",
+                "--step-over",
+                "0.02",
+            ])
+            .args(["--band", "0.01"])
+            .arg(&cl)
+            .output()
+            .unwrap();
+        let r: serde_json::Value = serde_json::from_slice(&v.stdout).unwrap();
+        (v.status.code(), r["verification"].clone())
+    };
+    let f = |v: &serde_json::Value, k: &str| v[k].as_f64().unwrap();
+    let (code, swung) = verify(&[]);
+    assert_eq!(code, Some(1), "{swung}");
+    assert!(
+        f(&swung, "gouge") > 10.0 && f(&swung, "max_gouge_mm") > 0.015,
+        "{swung}"
+    );
+    let (code, stepped) = verify(&["--max-axis-change", "20"]);
+    assert_eq!(code, Some(0), "{stepped}");
+    assert_eq!((f(&stepped, "gouge"), f(&stepped, "excess")), (0.0, 0.0), "{stepped}");
+    let (code, lifted) = verify(&["--max-axis-change", "20", "--axis-change", "lift"]);
+    assert_eq!(code, Some(1), "{lifted}");
+    assert_eq!(f(&lifted, "gouge"), 0.0, "{lifted}");
+    assert!(f(&lifted, "max_excess_mm") > 1.0, "{lifted}");
+    // The figures docs/dropcutter.md quotes (`-- --nocapture` shows them).
+    for (name, v) in [("swung", &swung), ("stepped", &stepped), ("lifted", &lifted)] {
+        eprintln!(
+            "roof, {name}: {} points, gouges {} (worst {:.4} mm), excess {} (worst {:.4} mm)",
+            v["points"],
+            v["gouge"],
+            f(v, "max_gouge_mm"),
+            v["excess"],
+            f(v, "max_excess_mm")
+        );
+    }
+}
+
 /// A floor with a block standing on it, 5 mm tall, its near face at
 /// x = 1 (the 5-axis holder tests).
 fn floor_and_wall() -> Vec<[[f64; 3]; 3]> {
