@@ -807,6 +807,28 @@ fn the_holder_is_checked_against_the_part() {
         }
     }
     assert!(rose > 0);
+    // A stepped holder: a nut too narrow to reach the wall under the
+    // same holder (either way of writing it) lifts the same locations by
+    // the same amount as that holder alone; a wider nose from 3 mm up
+    // lifts more of them, its face to the wall's top (2 mm).
+    for stepped in [
+        &["--holder", "1.1:1,3:2"][..],
+        &["--holder", "1.1:1", "--holder", "3:2"],
+    ] {
+        let (two, e_two) = run(stepped);
+        assert!(e_two.contains("lifted"), "{e_two}");
+        assert_eq!(two.points, lifted.points, "{stepped:?}");
+    }
+    let (nosed, _) = run(&["--holder", "3:2,5:3"]);
+    let mut nose_rose = 0;
+    for ((n, l), p) in nosed.points.iter().zip(&lifted.points).zip(&plain.points) {
+        assert!(n.z >= l.z - 1e-9, "{p:?}: {n:?} below {l:?}");
+        if n.z - l.z > 1e-3 {
+            assert!((n.z - p.z - 2.0).abs() < 1e-5 && p.x <= -0.5 + 1e-9, "{p:?} -> {n:?}");
+            nose_rose += 1;
+        }
+    }
+    assert!(nose_rose > 0);
     let (_, e_tilt) = run(&["--gouge", "tilt", "--holder", "3:2"]);
     let turned: usize = e_tilt
         .split(" turned to clear it")
@@ -822,6 +844,8 @@ fn the_holder_is_checked_against_the_part() {
         &["--holder", "3:-1"],
         &["--holder", "3:10"],
         &["--holder", "3:2", "--gouge", "off"],
+        &["--holder", "3:2,0.5:4"],
+        &["--holder", "3:2,5:10"],
     ] {
         let o = job().args(["--step-over", "0.4"]).args(bad).output().unwrap();
         assert_eq!(o.status.code(), Some(2), "{bad:?}");

@@ -17,7 +17,9 @@
 //! What counts as the tool: the cutter's profile from its tip up to
 //! `length` along the axis (pathgen's `--axis-length`, the second point of
 //! Singh 2014's 5-axis row), with the cutter's radius all the way up, and,
-//! when given ([`Holder`]), a wider cylinder from the holder's height up.
+//! when given ([`Holder`]), a wider cylinder from the holder's height up
+//! (several for a stepped holder: a collet nut, the holder's body, the
+//! spindle nose, each from its own height up).
 //! Triangles are cut at `length`, so a part of the mesh beyond it (the
 //! far wall of a bowl across the axis) is not a gouge. The holder's
 //! clearance is a drop too: a flat cutter of the holder's radius dropped
@@ -173,8 +175,9 @@ pub(super) fn lifted(l: &Location, depth: f64) -> Location {
 pub struct GougeCheck<'a> {
     dc: &'a DropCutter,
     bvh: Bvh,
-    /// The holder, and a flat cutter of its radius to drop.
-    holder: Option<(Holder, ContactCutter)>,
+    /// The holder's cylinders (more than one for a stepped holder), each
+    /// with a flat cutter of its radius to drop.
+    holder: Vec<(Holder, ContactCutter)>,
 }
 
 /// A tool holder (or a shank wider than the cutter): a cylinder about the
@@ -203,13 +206,15 @@ impl<'a> GougeCheck<'a> {
         GougeCheck {
             dc,
             bvh: Bvh::new(&Mesh::from_triangles(&tris)),
-            holder: None,
+            holder: Vec::new(),
         }
     }
 
     /// Check the holder too: the tool is the cutter up to `h.height` and a
-    /// cylinder of `h.radius` above. A holder narrower than the cutter, or
-    /// not above the tip, is refused.
+    /// cylinder of `h.radius` above. Called again, a further cylinder: a
+    /// stepped holder is the union of its cylinders, each from its own
+    /// height up to the checked length. A cylinder narrower than the
+    /// cutter, or not above the tip, is refused.
     pub fn with_holder(mut self, h: Holder) -> Result<Self, super::DropError> {
         let r = self.dc.shape.r;
         if !(h.radius.is_finite() && h.radius >= r && h.height.is_finite() && h.height > 0.0) {
@@ -219,7 +224,7 @@ impl<'a> GougeCheck<'a> {
             )));
         }
         let flat = ContactCutter::new(crate::cutter::Cutter::Flat { radius: h.radius });
-        self.holder = Some((h, flat));
+        self.holder.push((h, flat));
         Ok(self)
     }
 
@@ -241,15 +246,15 @@ impl<'a> GougeCheck<'a> {
         }
         let frame = ToolFrame::new(tip, axis / n, length);
         let cutter = self.drop_in(&frame, &self.dc.shape, 0.0, 0.0);
-        match &self.holder {
-            // The holder's face must rise above the highest point within
-            // its radius (a flat cutter of that radius, dropped): by that
-            // height less the face's.
-            Some((h, flat)) if h.height < length => {
-                cutter.max(self.drop_in(&frame, flat, h.height, cutter + h.height) - h.height)
-            }
-            _ => cutter,
-        }
+        // Each of the holder's faces must rise above the highest point
+        // within its radius (a flat cutter of that radius, dropped): by
+        // that height less the face's.
+        self.holder
+            .iter()
+            .filter(|(h, _)| h.height < length)
+            .fold(cutter, |worst, (h, flat)| {
+                worst.max(self.drop_in(&frame, flat, h.height, worst + h.height) - h.height)
+            })
     }
 
     /// How far the cutter with its tip at `tip` and its axis along `axis`
@@ -290,7 +295,7 @@ impl<'a> GougeCheck<'a> {
         let raise = self.rest_height(l.cl, axis, length, self.dc.shape.r);
         let location = lifted(l, raise.unwrap_or(0.0));
         let own = self.plane_rise(l, c.cc, c.facet);
-        let holder = if self.holder.is_some() {
+        let holder = if !self.holder.is_empty() {
             self.clearance(location.cl, axis, length)
         } else {
             0.0

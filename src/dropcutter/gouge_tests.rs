@@ -329,6 +329,25 @@ fn a_holder_rises_above_a_wall_its_cutter_clears() {
         assert!(close(depth(Some(holder(1.5, 2.0)), away, 10.0), rim));
         assert!(depth(Some(holder(1.5, 2.0)), towards, 10.0) > 3.0);
     }
+    // A stepped holder: a collet nut that does not reach the wall (0.9
+    // mm from 2 mm up) under a body that does (1.5 mm from 4 mm up): the
+    // body's face rises to the wall's top; each cylinder alone gives what
+    // it gives, and the union the worst of them, whatever the order.
+    let mesh = floor_and_wall(nalgebra::Rotation3::identity(), V3::zeros());
+    let dc = DropCutter::new(&mesh, cutter).unwrap();
+    let stepped = |hs: &[Holder]| {
+        hs.iter()
+            .fold(GougeCheck::new(&dc), |c, &h| c.with_holder(h).unwrap())
+            .clearance(P3::origin(), V3::z(), 10.0)
+    };
+    let (nut, body) = (holder(0.9, 2.0), holder(1.5, 4.0));
+    assert_eq!(stepped(&[nut]), 0.0);
+    assert!((stepped(&[body]) - 1.0).abs() < 1e-9);
+    assert!((stepped(&[nut, body]) - 1.0).abs() < 1e-9);
+    assert!((stepped(&[body, nut]) - 1.0).abs() < 1e-9);
+    // A nose wider still, lower than the wall's top: the deepest wins.
+    let nose = holder(2.0, 3.0);
+    assert!((stepped(&[nut, body, nose]) - 2.0).abs() < 1e-9);
     // A holder narrower than the cutter, or at the tip, is refused.
     let mesh = floor_and_wall(nalgebra::Rotation3::identity(), V3::zeros());
     let dc = DropCutter::new(&mesh, cutter).unwrap();

@@ -229,9 +229,11 @@ pub struct DropcutterArgs {
     axis_change: AxisChangeArg,
     /// 5-axis: check the tool holder too, a cylinder of diameter D whose
     /// face is H mm up the axis from the tool tip (the stick-out), up to
-    /// --axis-length (D:H, mm; D at least the cutter's).
-    #[arg(long, value_name = "D:H", value_parser = parse_holder, requires = "five_axis")]
-    holder: Option<Holder>,
+    /// --axis-length (D:H, mm; D at least the cutter's). A stepped holder
+    /// (collet nut, body, spindle nose) is several: D1:H1,D2:H2 or the
+    /// option again.
+    #[arg(long, value_name = "D:H", value_parser = parse_holder, value_delimiter = ',', requires = "five_axis")]
+    holder: Vec<Holder>,
     /// 5-axis: the surface normal the axis follows: each facet's own
     /// (the axis turns in steps at facet edges), or one interpolated
     /// across each facet from its corners' vertex normals (the axis turns
@@ -507,27 +509,21 @@ pub fn run(a: DropcutterArgs) -> Result<(), CliError> {
                 },
             Show::from_flags(a.quiet, false),
         );
-        if a.gouge == GougeArg::Off && a.holder.is_some() {
+        if a.gouge == GougeArg::Off && !a.holder.is_empty() {
             return Err(CliError::input("--holder goes with the gouge check (not --gouge off)"));
         }
-        let holder = match a.holder {
-            Some(h) if h.height >= fa.axis_length => {
-                return Err(CliError::input(format!(
-                    "--holder: its face at {} mm is not below --axis-length {} (the length of tool checked)",
-                    h.height, fa.axis_length
-                )));
-            }
-            h => h,
-        };
+        if let Some(h) = a.holder.iter().find(|h| h.height >= fa.axis_length) {
+            return Err(CliError::input(format!(
+                "--holder: its face at {} mm is not below --axis-length {} (the length of tool checked)",
+                h.height, fa.axis_length
+            )));
+        }
         // Built only when a check or a setting down runs: its 3-D tree
         // takes a quarter of a second on a million triangles.
         let checker = || -> Result<GougeCheck, CliError> {
-            match holder {
-                Some(h) => GougeCheck::new(&dc)
-                    .with_holder(h)
-                    .map_err(|e| CliError::input(format!("--holder: {e}"))),
-                None => Ok(GougeCheck::new(&dc)),
-            }
+            a.holder.iter().try_fold(GougeCheck::new(&dc), |c, &h| {
+                c.with_holder(h).map_err(|e| CliError::input(format!("--holder: {e}")))
+            })
         };
         // With smoothed normals every location is set down on the part
         // (tangent to the smoothed surface, a tool dips into the facets
@@ -611,11 +607,18 @@ pub fn run(a: DropcutterArgs) -> Result<(), CliError> {
                     "tilt up to {max_turn} deg in steps of {turn_step} deg, eased over {turn_ramp} mm"
                 ),
             },
-            a.holder.map_or(String::new(), |h| format!(
-                " with a holder of {} mm diameter from {} mm up the axis",
-                2.0 * h.radius,
-                h.height
-            )),
+            if a.holder.is_empty() {
+                String::new()
+            } else {
+                format!(
+                    " with a holder of {}",
+                    a.holder
+                        .iter()
+                        .map(|h| format!("{} mm diameter from {} mm up the axis", 2.0 * h.radius, h.height))
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                )
+            },
             smooth.as_ref().map_or(String::new(), |(_, deg)| format!(
                 ", axes from smoothed normals (crease {deg} deg)"
             )),
