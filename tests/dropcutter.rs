@@ -988,6 +988,51 @@ fn every_corpus_stl_gets_its_five_axis_locations_checked() {
     // With smoothed normals: the same locations, each tool set down on the
     // part.
     let smooth = on_every_corpus_stl("gouge_corpus_smooth", &[&base[..], &["--normals", "smooth"]].concat());
+    // The tilt search with the axis held to 15 degrees between neighbours:
+    // every row of the tilt search's output kept in order, and no two
+    // rows in the cut (below the safe Z, the highest tip) more than 15
+    // degrees apart.
+    let limited = on_every_corpus_stl(
+        "gouge_corpus_axis_limit",
+        &[&base[..], &["--gouge", "tilt", "--max-axis-change", "15"]].concat(),
+    );
+    let mut limited_places = 0;
+    for ((f, t), (_, m)) in tilt.iter().zip(&limited) {
+        assert_eq!(t.status.code(), m.status.code(), "{f:?}");
+        if t.status.code() != Some(0) {
+            continue;
+        }
+        let (tc, mc) = (read_cldata(&t.stdout[..]).unwrap(), read_cldata(&m.stdout[..]).unwrap());
+        let mut j = 0;
+        for (p, x) in tc.points.iter().zip(&tc.axis) {
+            while j < mc.points.len() && (mc.points[j], mc.axis[j]) != (*p, *x) {
+                j += 1;
+            }
+            assert!(j < mc.points.len(), "{f:?}: {p:?} lost");
+        }
+        let safe = mc.points.iter().map(|p| p.z).fold(f64::NEG_INFINITY, f64::max);
+        for i in 1..mc.points.len() {
+            if mc.points[i].z >= safe - 1e-9 || mc.points[i - 1].z >= safe - 1e-9 {
+                continue;
+            }
+            let (u, v) = (
+                (mc.axis[i - 1] - mc.points[i - 1]).normalize(),
+                (mc.axis[i] - mc.points[i]).normalize(),
+            );
+            let deg = u.cross(&v).norm().atan2(u.dot(&v)).to_degrees();
+            assert!(deg <= 15.0 + 1e-6, "{f:?} row {i}: {deg} deg");
+        }
+        let err = String::from_utf8_lossy(&m.stderr);
+        let places: usize = err
+            .split(" places where the tool axis turns by more than 15.0 deg")
+            .next()
+            .and_then(|head| head.rsplit(' ').next())
+            .and_then(|n| n.parse().ok())
+            .unwrap_or_else(|| panic!("{f:?}: {err}"));
+        limited_places += places;
+    }
+    // The corpus has ridges and creases: the limit had work to do.
+    assert!(limited.is_empty() || limited_places > 100, "{limited_places}");
     for ((((f, o), ((_, l), (_, t))), (_, h)), (_, s)) in off.iter().zip(lift.iter().zip(&tilt)).zip(&held).zip(&smooth)
     {
         assert_eq!(o.status.code(), l.status.code(), "{f:?}");
