@@ -1033,6 +1033,7 @@ fn every_corpus_stl_gets_its_five_axis_locations_checked() {
     }
     // The corpus has ridges and creases: the limit had work to do.
     assert!(limited.is_empty() || limited_places > 100, "{limited_places}");
+    eprintln!("corpus STL, --gouge tilt --max-axis-change 15: {limited_places} places over the limit");
     for ((((f, o), ((_, l), (_, t))), (_, h)), (_, s)) in off.iter().zip(lift.iter().zip(&tilt)).zip(&held).zip(&smooth)
     {
         assert_eq!(o.status.code(), l.status.code(), "{f:?}");
