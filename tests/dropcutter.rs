@@ -43,6 +43,32 @@ fn cl_run(mut job: Command, what: &str) -> (microcam::formats::cldata::ClData, S
     )
 }
 
+/// `stlverify` of the 5-axis CL data `cl` with a 1 mm end mill (5 mm of
+/// flutes) cut from `stock` (X0,Y0,Z0,X1,Y1,Z1), against the design `stl`
+/// on a grid of `step` over `region` (X0,X1,Y0,Y1) with a band of 0.01
+/// mm: its exit status and its verification record.
+fn stlverify_flat_1(stl: &Path, cl: &Path, stock: &str, region: &str, step: &str) -> (Option<i32>, serde_json::Value) {
+    let v = Command::new(env!("CARGO_BIN_EXE_stlverify"))
+        .args(["--quiet", "--stock", stock, "--tool", "flat:1", "--flute-length", "5"])
+        .arg("--design")
+        .arg(stl)
+        .args([
+            "--region",
+            region,
+            "--step-forward",
+            step,
+            "--step-over",
+            step,
+            "--band",
+            "0.01",
+        ])
+        .arg(cl)
+        .output()
+        .unwrap();
+    let r: serde_json::Value = serde_json::from_slice(&v.stdout).unwrap();
+    (v.status.code(), r["verification"].clone())
+}
+
 /// Upper half of a UV sphere of radius `r` about the origin.
 fn hemisphere(r: f64, nu: usize, nv: usize) -> Vec<[[f64; 3]; 3]> {
     let p = |i: usize, j: usize| {
@@ -681,32 +707,7 @@ fn stlverify_finds_the_swing_gouge_at_a_ridge_and_none_after_the_steps() {
             .output()
             .unwrap();
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-        let v = Command::new(env!("CARGO_BIN_EXE_stlverify"))
-            .args([
-                "--quiet",
-                "--stock",
-                "-3,-3,-1,3,3,4",
-                "--tool",
-                "flat:1",
-                "--flute-length",
-                "5",
-            ])
-            .arg("--design")
-            .arg(&stl)
-            .args([
-                "--region",
-                "-0.8,0.8,-1.5,1.5",
-                "--step-forward",
-                "0.02",
-                "--step-over",
-                "0.02",
-            ])
-            .args(["--band", "0.01"])
-            .arg(&cl)
-            .output()
-            .unwrap();
-        let r: serde_json::Value = serde_json::from_slice(&v.stdout).unwrap();
-        (v.status.code(), r["verification"].clone())
+        stlverify_flat_1(&stl, &cl, "-3,-3,-1,3,3,4", "-0.8,0.8,-1.5,1.5", "0.02")
     };
     let f = |v: &serde_json::Value, k: &str| v[k].as_f64().unwrap();
     let (code, swung) = verify(&[]);
@@ -885,32 +886,7 @@ fn stlverify_finds_the_unchecked_gouges_and_none_after_the_lift() {
             .output()
             .unwrap();
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-        let v = Command::new(env!("CARGO_BIN_EXE_stlverify"))
-            .args([
-                "--quiet",
-                "--stock",
-                "-3,-1.7,-1,3,1.7,1",
-                "--tool",
-                "flat:1",
-                "--flute-length",
-                "5",
-            ])
-            .arg("--design")
-            .arg(&stl)
-            .args([
-                "--region",
-                "-1.5,1.5,-1,1",
-                "--step-forward",
-                "0.05",
-                "--step-over",
-                "0.05",
-            ])
-            .args(["--band", "0.01"])
-            .arg(&cl)
-            .output()
-            .unwrap();
-        let r: serde_json::Value = serde_json::from_slice(&v.stdout).unwrap();
-        (v.status.code(), r["verification"].clone())
+        stlverify_flat_1(&stl, &cl, "-3,-1.7,-1,3,1.7,1", "-1.5,1.5,-1,1", "0.05")
     };
     let (code, off) = verify("off");
     assert_eq!(code, Some(1));

@@ -182,12 +182,12 @@ pub fn axis_change(a: &Location, b: &Location) -> f64 {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
 
     /// A location at (x, 0, 0) whose axis leans `deg` degrees from +Z
     /// towards +X.
-    fn leaning(x: f64, deg: f64) -> Location {
+    pub(crate) fn leaning(x: f64, deg: f64) -> Location {
         let (s, c) = deg.to_radians().sin_cos();
         let cl = P3::new(x, 0.0, 0.0);
         Location {

@@ -169,6 +169,7 @@ mod tests {
     use crate::cutter::Cutter;
     use crate::dropcutter::DropCutter;
     use crate::dropcutter::fiveaxis::FiveAxis;
+    use crate::dropcutter::fiveaxis::tests::leaning;
     use crate::dropcutter::gouge::tests::{inside_tool, on_corpus_passes, samples};
     use crate::geometry::P2;
     use crate::mesh::Mesh;
@@ -264,17 +265,6 @@ mod tests {
         let r = lim.apply(Some(&check), &mut runs);
         assert_eq!((r.stepped, r.split, r.inserted), (0, 1, 0));
         assert_eq!(runs.len(), 2);
-    }
-
-    /// A location at (x, 0, 0) whose axis leans `deg` degrees from +Z
-    /// towards +X.
-    fn leaning(x: f64, deg: f64) -> Location {
-        let (s, c) = deg.to_radians().sin_cos();
-        let cl = P3::new(x, 0.0, 0.0);
-        Location {
-            cl,
-            axis_point: cl + V3::new(s, 0.0, c) * 10.0,
-        }
     }
 
     fn lifts(max_deg: f64) -> AxisLimit {
