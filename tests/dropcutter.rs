@@ -661,6 +661,7 @@ fn a_large_change_of_the_tool_axis_is_stepped_or_lifted_instead_of_swung() {
 
     for bad in [
         &["--max-axis-change", "0"][..],
+        &["--max-axis-change", "0.01"],
         &["--max-axis-change", "181"],
         &["--max-axis-change", "nan"],
         &["--axis-change", "lift"],

@@ -56,14 +56,21 @@ pub struct AxisLimit {
 
 /// The steps between two neighbours `a` and `b` whose axes are
 /// `angle` apart, each set down on the part, or `None` when one of them
-/// cannot be: nothing under it within reach, the holder in the part, or
-/// axes too near opposite to interpolate.
+/// cannot be: nothing under it within reach, the holder in the part, axes
+/// too near opposite to interpolate, or more than a thousand steps.
 fn steps_between(check: &GougeCheck, a: &Location, b: &Location, angle: f64, lim: &AxisLimit) -> Option<Vec<Location>> {
     // Half a turn has no one interpolating plane.
     if angle > std::f64::consts::PI - 1e-6 {
         return None;
     }
-    let n = (angle / lim.max).ceil() as usize;
+    // More steps than this (a limit far finer than any rotary axis
+    // needs) are not made: the change ends the run instead.
+    const MAX_STEPS: f64 = 1000.0;
+    let steps = (angle / lim.max).ceil();
+    if steps.is_nan() || steps > MAX_STEPS {
+        return None;
+    }
+    let n = steps as usize;
     let (u, v) = (a.axis(), b.axis());
     let sin = angle.sin();
     let gap = (b.cl - a.cl).norm();
@@ -242,6 +249,22 @@ mod tests {
                 assert!(check.clearance(l.cl - a * 0.01, a, 10.0) > 0.005, "{cutter}: {l:?}");
             }
         }
+    }
+
+    #[test]
+    fn a_limit_too_fine_to_step_ends_the_run_instead() {
+        // 60 degrees at a hundred-thousandth of a degree a step: far more
+        // steps than are made, so the change is a lift, at once.
+        let dc = DropCutter::new(&roof(10.0, true), Cutter::Flat { radius: 0.5 }).unwrap();
+        let check = GougeCheck::new(&dc);
+        let mut runs = vec![vec![leaning(0.0, -30.0), leaning(0.1, 30.0)]];
+        let lim = AxisLimit {
+            max: 1e-5f64.to_radians(),
+            length: 10.0,
+            steps: true,
+        };
+        let r = lim.apply(Some(&check), &mut runs);
+        assert_eq!((r.stepped, r.split, r.inserted), (0, 1, 0));
     }
 
     #[test]

@@ -220,7 +220,7 @@ pub struct DropcutterArgs {
     /// set down on the part and checked; where a step cannot be made, end
     /// the run there (the tool is drawn back along its axis to the safe Z,
     /// turned and put down again) instead of swinging it in the cut
-    /// (degrees, above 0 to 180).
+    /// (degrees, 0.1 to 180).
     #[arg(long, value_name = "DEG", requires = "five_axis")]
     max_axis_change: Option<f64>,
     /// 5-axis, --max-axis-change: turn in checked steps where they can be
@@ -480,12 +480,8 @@ pub fn run(a: DropcutterArgs) -> Result<(), CliError> {
             return Err(CliError::input(format!("--turn-ramp {turn_ramp}: mm, 0 or more")));
         }
         let max_axis_change = match a.max_axis_change {
-            Some(d) if d > 0.0 && d <= 180.0 => Some(d.to_radians()),
-            Some(d) => {
-                return Err(CliError::input(format!(
-                    "--max-axis-change {d}: degrees, above 0 to 180"
-                )));
-            }
+            Some(d) if (0.1..=180.0).contains(&d) => Some(d.to_radians()),
+            Some(d) => return Err(CliError::input(format!("--max-axis-change {d}: degrees, 0.1 to 180"))),
             None => None,
         };
         let (max_turn, turn_step) = (a.max_turn.unwrap_or(30.0), a.turn_step.unwrap_or(5.0));
