@@ -3,7 +3,7 @@
 
 use microcam::corpus;
 use microcam::formats::cldata::read_cldata;
-use microcam::geometry::V3;
+use microcam::geometry::{P3, V3};
 use std::path::Path;
 use std::process::Command;
 
@@ -176,6 +176,112 @@ fn waterlines_circle_a_hemisphere_at_each_level() {
     let t = run(&["--format", "toolpath"]);
     assert!(t.status.success());
     assert!(String::from_utf8_lossy(&t.stdout).starts_with("{"));
+}
+
+/// `--arc-fit`: the hemisphere's waterlines as G2/G3 instead of a line
+/// per point: far fewer moves, each loop at its level, every point of
+/// every arc within the tolerance of where the loop's own points lie.
+#[test]
+fn waterline_loops_are_fitted_with_arcs_within_the_tolerance() {
+    let dir = tempfile::tempdir().unwrap();
+    let stl = dir.path().join("s.stl");
+    write_stl(&stl, &hemisphere(5.0, 128, 32));
+    let run = |fmt: &[&str]| {
+        pathgen()
+            .args(["dropcutter", stl.to_str().unwrap(), "--tool", "ball:1"])
+            .args(["--waterline-step", "1", "--step-over", "0.05", "--safe-z", "7"])
+            .args(fmt)
+            .output()
+            .unwrap()
+    };
+    let tol = 0.002;
+    let out = run(&["--format", "toolpath", "--arc-fit", "0.002"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("arcs fitted within 0.002 mm of the loops' chords"),
+        "{err}"
+    );
+    let recs: Vec<_> = microcam::formats::toolpath::ToolpathReader::new(&out.stdout[..])
+        .unwrap()
+        .map(|r| r.unwrap())
+        .collect();
+    let sag = 5.0 * (1.0 - (std::f64::consts::PI / 64.0).cos());
+    let (mut arcs, mut cuts) = (0, 0);
+    let mut from = P3::new(0.0, 0.0, 7.0);
+    for m in recs.iter().filter_map(|r| r.motion()) {
+        if m.role == Some(microcam::model::toolpath::Role::Cut) {
+            cuts += 1;
+            assert_eq!(m.to.z, from.z, "a loop stays at its level");
+            let want = (5.5f64 * 5.5 - (m.to.z + 0.5).powi(2)).sqrt();
+            let pts: Vec<P3> = match m.arc(from) {
+                Some(a) => {
+                    arcs += 1;
+                    (0..=16).map(|k| a.point_at(k as f64 / 16.0)).collect()
+                }
+                None => vec![m.to],
+            };
+            for p in pts {
+                let r = p.x.hypot(p.y);
+                // The band of the loop's own points (the plain test's),
+                // widened by the tolerance.
+                assert!(
+                    r <= want + 1e-5 + tol && r >= want - 2.0 * sag - 1e-5 - tol,
+                    "{p:?}: r {r} vs {want}"
+                );
+            }
+        }
+        from = m.to;
+    }
+    let points: usize = err
+        .split(" CL points")
+        .next()
+        .and_then(|h| h.rsplit(' ').next())
+        .and_then(|n| n.parse().ok())
+        .unwrap();
+    assert!(
+        arcs * 2 > cuts && cuts * 5 < points,
+        "{arcs} arcs of {cuts} moves for {points} points"
+    );
+    // G-code: arcs written as G2/G3; the same bytes again.
+    let g = run(&["--gcode", "iso", "--arc-fit", "0.002"]);
+    assert!(g.status.success());
+    let text = String::from_utf8_lossy(&g.stdout);
+    assert!(text.contains("G2") || text.contains("G3"), "{text}");
+    assert_eq!(run(&["--gcode", "iso", "--arc-fit", "0.002"]).stdout, g.stdout);
+    // The figures docs/dropcutter.md quotes (`-- --nocapture` shows them).
+    let plain = run(&["--gcode", "iso"]);
+    let lines = |o: &std::process::Output| o.stdout.iter().filter(|&&b| b == b'\n').count();
+    eprintln!(
+        "hemisphere waterlines: {arcs} arcs of {cuts} moves for {points} points; ISO program {} lines, {} with arcs",
+        lines(&plain),
+        lines(&g)
+    );
+    assert!(lines(&g) * 5 < lines(&plain));
+    // Bad usage: CL data has no arcs; rasters are not fitted; T positive.
+    for bad in [
+        &["--arc-fit", "0.002"][..],
+        &["--format", "toolpath", "--arc-fit", "0"],
+        &["--format", "toolpath", "--arc-fit", "nan"],
+    ] {
+        let o = run(bad);
+        assert_eq!(o.status.code(), Some(2), "{bad:?}");
+        assert!(o.stdout.is_empty(), "{bad:?}");
+    }
+    let o = pathgen()
+        .args([
+            "dropcutter",
+            stl.to_str().unwrap(),
+            "--tool",
+            "ball:1",
+            "--step-over",
+            "0.5",
+        ])
+        .args(["--format", "toolpath", "--arc-fit", "0.002"])
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(2));
+    assert!(o.stdout.is_empty());
 }
 
 #[test]

@@ -5,6 +5,7 @@
 use super::fiveaxis::Location;
 use crate::formats::cldata::ClWriter;
 use crate::geometry::P3;
+use crate::model::chain::Segment;
 use crate::model::toolpath::{Motion, MotionKind, Record, Role};
 use std::io::Write;
 
@@ -56,6 +57,26 @@ pub fn toolpath_records(passes: &[Vec<P3>], safe_z: f64, feeds: Feeds) -> Vec<Re
             None,
             Role::Retract,
         ));
+    }
+    recs
+}
+
+/// [`toolpath_records`] of passes made of lines and arcs (waterline loops
+/// with arcs fitted): the same rapids, plunge and retract, and one feed
+/// move per piece, a G2/G3 for each arc.
+pub fn toolpath_records_of_segments(passes: &[Vec<Segment>], safe_z: f64, feeds: Feeds) -> Vec<Record> {
+    let mut recs = Vec::with_capacity(passes.iter().map(|p| p.len() + 3).sum());
+    for pass in passes {
+        let (Some(first), Some(last)) = (pass.first(), pass.last()) else {
+            continue;
+        };
+        let (a, b) = (first.start(), last.end());
+        recs.push(mv(MotionKind::Rapid, P3::new(a.x, a.y, safe_z), None, Role::Link));
+        recs.push(mv(MotionKind::Line, a, Some(feeds.plunge), Role::Plunge));
+        for s in pass {
+            recs.push(mv(MotionKind::of_segment(s), s.end(), Some(feeds.cut), Role::Cut));
+        }
+        recs.push(mv(MotionKind::Rapid, P3::new(b.x, b.y, safe_z), None, Role::Retract));
     }
     recs
 }
@@ -147,5 +168,47 @@ mod tests {
         write_cldata(&mut w, &passes, 5.0).unwrap();
         let t = String::from_utf8(w.finish().unwrap()).unwrap();
         assert_eq!(t, "0 0 1\n1 0 1.5\n1 0 5\n0 1 5\n0 1 0.5\n0 1 5\n");
+    }
+
+    #[test]
+    fn fitted_passes_move_piece_by_piece_with_arcs_as_arcs() {
+        use crate::geometry::{Arc3, Plane};
+        let z = 1.0;
+        let line = Segment::line(P3::new(0.0, 0.0, z), P3::new(1.0, 0.0, z));
+        let arc = Arc3::new(
+            P3::new(1.0, 1.0, z),
+            P3::new(1.0, 0.0, z),
+            P3::new(2.0, 1.0, z),
+            true,
+            Plane::Xy,
+            0,
+        )
+        .unwrap();
+        let recs = toolpath_records_of_segments(
+            &[vec![line, Segment::Arc(arc)], Vec::new()],
+            5.0,
+            Feeds { cut: 2.0, plunge: 1.0 },
+        );
+        let moves: Vec<&Motion> = recs.iter().filter_map(|r| r.motion()).collect();
+        assert_eq!(
+            moves.len(),
+            5,
+            "rapid, plunge, line, arc, retract; nothing for an empty pass"
+        );
+        let to: Vec<P3> = moves.iter().map(|m| m.to).collect();
+        assert_eq!(
+            to,
+            vec![
+                P3::new(0.0, 0.0, 5.0),
+                P3::new(0.0, 0.0, z),
+                P3::new(1.0, 0.0, z),
+                P3::new(2.0, 1.0, z),
+                P3::new(2.0, 1.0, 5.0)
+            ]
+        );
+        assert_eq!(moves[2].kind, MotionKind::Line);
+        assert_eq!(moves[3].arc(moves[2].to), Some(arc));
+        assert_eq!((moves[1].feed, moves[3].feed), (Some(1.0), Some(2.0)));
+        assert_eq!(moves[3].role, Some(Role::Cut));
     }
 }

@@ -9,7 +9,9 @@ use microcam::dropcutter::adaptive::Adaptive;
 use microcam::dropcutter::fiveaxis::{Contact, FiveAxis, Location};
 use microcam::dropcutter::gouge::{GougeCheck, GougeReport, GougeRule, Holder, Placement, SettleReport};
 use microcam::dropcutter::normals::DEFAULT_CREASE_DEG;
-use microcam::dropcutter::output::{Feeds, toolpath_records, write_cldata, write_cldata5};
+use microcam::dropcutter::output::{
+    Feeds, toolpath_records, toolpath_records_of_segments, write_cldata, write_cldata5,
+};
 use microcam::dropcutter::raster::{Direction, Pattern, Raster, chain_passes};
 use microcam::dropcutter::swing::{AxisLimit, AxisReport};
 use microcam::dropcutter::tilt::{TiltReport, TiltSearch};
@@ -20,9 +22,12 @@ use microcam::formats::read_chains;
 use microcam::formats::toolpath::ToolpathWriter;
 use microcam::gcode::Dialect;
 use microcam::geometry::{P2, P3};
+use microcam::laser::arcfit::fit_points;
 use microcam::mesh::{ReadOptions, Units};
-use microcam::model::toolpath::{FeedUnit, Header};
+use microcam::model::chain::Segment;
+use microcam::model::toolpath::{FeedUnit, Header, Record};
 use microcam::progress::{Meter, Show};
+use rayon::prelude::*;
 use std::io::Read;
 use std::path::PathBuf;
 
@@ -38,6 +43,7 @@ Examples:
   pathgen dropcutter part.stl --tool flat:1 --step-over 0.1 --five-axis --gouge tilt --max-axis-change 20 > stepped5.cl
   pathgen dropcutter part.stl --tool ball:1 --waterline-step 0.2 --step-over 0.02 --gcode iso > walls.ngc
   pathgen dropcutter part.stl --tool flat:1 --waterline 2,1 --step-over 0.2 --chord-tol 0.001 > wl.cl
+  pathgen dropcutter part.stl --tool ball:1 --waterline-step 0.2 --step-over 0.02 --arc-fit 0.002 --gcode pmac > walls.pmc
 
 The mesh is STL (ASCII or binary) or OBJ in mm unless --units says otherwise.
 CL data rows are 'x y z' (tool tip) or, with --five-axis, 'x y z x1 y1 z1'
@@ -185,6 +191,11 @@ pub struct DropcutterArgs {
     /// Waterlines every DZ down from the mesh top to the floor.
     #[arg(long, value_name = "DZ", conflicts_with_all = ["chains", "five_axis", "region", "min_step", "step_forward", "direction", "pattern"])]
     waterline_step: Option<f64>,
+    /// Waterlines as toolpath or G-code: fit arcs (G2/G3) to each loop,
+    /// staying within this of its chords both ways (mm), instead of a line
+    /// per point.
+    #[arg(long, value_name = "T")]
+    arc_fit: Option<f64>,
     /// 5-axis CL data: flat or torus cutter along the surface normal.
     #[arg(long)]
     five_axis: bool,
@@ -412,6 +423,9 @@ pub fn run(a: DropcutterArgs) -> Result<(), CliError> {
     }
     if a.waterline.is_some() || a.waterline_step.is_some() {
         return run_waterlines(&a, &dc, floor, safe_z, feeds, &name);
+    }
+    if a.arc_fit.is_some() {
+        return Err(CliError::input("--arc-fit goes with --waterline or --waterline-step"));
     }
     // The XY passes.
     let passes: Vec<Vec<P2>> = if let Some(path) = &a.chains {
@@ -674,6 +688,34 @@ pub fn run(a: DropcutterArgs) -> Result<(), CliError> {
 
 /// 3-axis passes (raster, chains or waterlines) as G-code, toolpath or CL
 /// data, as the flags ask.
+/// Toolpath records out as G-code (`--gcode`) or toolpath JSON.
+fn write_records(a: &DropcutterArgs, recs: Vec<Record>, name: &str, out: &mut Output) -> Result<(), CliError> {
+    match &a.gcode {
+        Some(d) => {
+            let dialect: Dialect = d.parse().map_err(CliError::input)?;
+            write_gcode(
+                recs.into_iter().map(Ok::<_, CliError>),
+                FeedUnit::MmPerS,
+                write_options(dialect, &a.writer),
+                name,
+                out,
+            )?;
+        }
+        None => {
+            let mut w = ToolpathWriter::new(out);
+            w.header(&Header {
+                feed_unit: FeedUnit::MmPerS,
+                source: Some(name.to_string()),
+            })?;
+            for r in &recs {
+                w.record(r)?;
+            }
+            w.finish()?;
+        }
+    }
+    Ok(())
+}
+
 fn write_passes(
     a: &DropcutterArgs,
     cutter: Cutter,
@@ -684,27 +726,8 @@ fn write_passes(
     out: &mut Output,
 ) -> Result<(), CliError> {
     match (&a.gcode, a.format) {
-        (Some(d), _) => {
-            let dialect: Dialect = d.parse().map_err(CliError::input)?;
-            let recs = toolpath_records(cl, safe_z, feeds);
-            write_gcode(
-                recs.into_iter().map(Ok::<_, CliError>),
-                FeedUnit::MmPerS,
-                write_options(dialect, &a.writer),
-                name,
-                out,
-            )?;
-        }
-        (None, FormatArg::Toolpath) => {
-            let mut w = ToolpathWriter::new(out);
-            w.header(&Header {
-                feed_unit: FeedUnit::MmPerS,
-                source: Some(name.to_string()),
-            })?;
-            for r in toolpath_records(cl, safe_z, feeds) {
-                w.record(&r)?;
-            }
-            w.finish()?;
+        (Some(_), _) | (None, FormatArg::Toolpath) => {
+            write_records(a, toolpath_records(cl, safe_z, feeds), name, out)?;
         }
         (None, FormatArg::Cl) => {
             let mut w = ClWriter::new(out);
@@ -797,7 +820,29 @@ fn run_waterlines(
     }
     meter.finish();
     let mut out = Output::new(a.output.as_deref());
-    write_passes(a, dc.cutter(), &cl, safe_z, feeds, name, &mut out)?;
+    let fitted = match a.arc_fit {
+        None => None,
+        Some(t) => {
+            let t = positive("arc-fit", t)?;
+            if a.gcode.is_none() && a.format == FormatArg::Cl {
+                return Err(CliError::input(
+                    "--arc-fit: CL data holds points only; use --format toolpath or --gcode",
+                ));
+            }
+            let loops: Vec<Vec<Segment>> = cl
+                .par_iter()
+                .map(|l| {
+                    let pts: Vec<P2> = l.iter().map(|p| P2::new(p.x, p.y)).collect();
+                    fit_points(&pts, t, l.first().map_or(0.0, |p| p.z), true)
+                })
+                .collect();
+            Some((loops, t))
+        }
+    };
+    match &fitted {
+        Some((loops, _)) => write_records(a, toolpath_records_of_segments(loops, safe_z, feeds), name, &mut out)?,
+        None => write_passes(a, dc.cutter(), &cl, safe_z, feeds, name, &mut out)?,
+    }
     out.commit()?;
     microcam::diag!(
         "pathgen: dropcutter: {} waterline levels, {} loops, {} CL points",
@@ -805,5 +850,13 @@ fn run_waterlines(
         cl.len(),
         cl.iter().map(Vec::len).sum::<usize>()
     );
+    if let Some((loops, t)) = &fitted {
+        let arcs = loops.iter().flatten().filter(|s| matches!(s, Segment::Arc(_))).count();
+        microcam::diag!(
+            "pathgen: dropcutter: arcs fitted within {t} mm of the loops' chords: {} moves ({arcs} arcs) for {} points",
+            loops.iter().map(Vec::len).sum::<usize>(),
+            cl.iter().map(Vec::len).sum::<usize>()
+        );
+    }
     Ok(())
 }
