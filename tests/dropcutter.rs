@@ -521,10 +521,9 @@ fn every_corpus_stl_gives_closed_waterlines_or_is_refused() {
         "1e6",
     ];
     let refined = [&args[..], &["--chord-tol", "0.002"]].concat();
-    let runs = on_every_corpus_stl("waterline_corpus", &args)
-        .into_iter()
-        .chain(on_every_corpus_stl("waterline_corpus_refined", &refined));
-    for (f, o) in runs {
+    let plain = on_every_corpus_stl("waterline_corpus", &args);
+    let refined = on_every_corpus_stl("waterline_corpus_refined", &refined);
+    for (f, o) in plain.iter().chain(&refined) {
         if o.status.code() == Some(2) {
             assert!(!o.stderr.is_empty() && o.stdout.is_empty(), "{f:?}");
             continue;
@@ -537,6 +536,40 @@ fn every_corpus_stl_gives_closed_waterlines_or_is_refused() {
             assert!(pass.iter().all(|p| p.z == pass[0].z), "{f:?}: a loop off its level");
             assert!(pass[0].z <= prev_z, "{f:?}: levels not top down");
             prev_z = pass[0].z;
+        }
+    }
+    // With arcs fitted (toolpath): the same meshes read or are refused
+    // alike; each loop's feed moves start and end where its points do,
+    // at its level.
+    let fitted = [&args[..], &["--format", "toolpath", "--arc-fit", "0.002"]].concat();
+    let arcs = on_every_corpus_stl("waterline_corpus_arcs", &fitted);
+    for ((f, p), (_, a)) in plain.iter().zip(&arcs) {
+        assert_eq!(p.status.code(), a.status.code(), "{f:?}");
+        if p.status.code() != Some(0) {
+            continue;
+        }
+        let d = read_cldata(&p.stdout[..]).unwrap();
+        let loops: Vec<&[P3]> = d.points.split(|q| q.z == 1e6).filter(|l| !l.is_empty()).collect();
+        let recs: Vec<_> = microcam::formats::toolpath::ToolpathReader::new(&a.stdout[..])
+            .unwrap()
+            .map(|r| r.unwrap())
+            .collect();
+        // One plunge per loop, each onto the loop's first point; the cuts
+        // after it stay at that level and close the loop.
+        let moves: Vec<_> = recs.iter().filter_map(|r| r.motion()).collect();
+        let plunges: Vec<usize> = (0..moves.len())
+            .filter(|&i| moves[i].role == Some(microcam::model::toolpath::Role::Plunge))
+            .collect();
+        assert_eq!(plunges.len(), loops.len(), "{f:?}");
+        for (&i, l) in plunges.iter().zip(&loops) {
+            assert!((moves[i].to - l[0]).norm() < 1e-6, "{f:?}");
+            let cut: Vec<_> = moves[i + 1..]
+                .iter()
+                .take_while(|m| m.role == Some(microcam::model::toolpath::Role::Cut))
+                .collect();
+            assert!(cut.iter().all(|m| m.to.z == l[0].z), "{f:?}: off its level");
+            let end = cut.last().map_or(moves[i].to, |m| m.to);
+            assert!((end - l[l.len() - 1]).norm() < 1e-6, "{f:?}: loop not closed");
         }
     }
 }
