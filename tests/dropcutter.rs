@@ -258,6 +258,37 @@ fn waterline_loops_are_fitted_with_arcs_within_the_tolerance() {
         lines(&g)
     );
     assert!(lines(&g) * 5 < lines(&plain));
+    // Run by the controller model (gsim, PMAC, the micro-mill): a G1
+    // per point makes blocks shorter than the stage's least move time, so
+    // nearly every one runs slow; the arcs do not.
+    let gsim = |prog: &[u8]| -> serde_json::Value {
+        let path = dir.path().join("w.pmc");
+        std::fs::write(&path, prog).unwrap();
+        let o = Command::new(env!("CARGO_BIN_EXE_gsim"))
+            .args(["--machine", "micro-mill"])
+            .arg(&path)
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        serde_json::from_slice(&o.stdout).unwrap()
+    };
+    let (p_sim, a_sim) = (
+        gsim(&run(&["--gcode", "pmac"]).stdout),
+        gsim(&run(&["--gcode", "pmac", "--arc-fit", "0.002"]).stdout),
+    );
+    let f = |v: &serde_json::Value, k: &str| v[k].as_f64().unwrap();
+    eprintln!(
+        "gsim: G1 per point {} of {} blocks slowed, {:.1} s; arcs {} of {}, {:.1} s (ideal {:.1} s)",
+        p_sim["limited_blocks"],
+        p_sim["feed_blocks"],
+        f(&p_sim, "cycle_time_s"),
+        a_sim["limited_blocks"],
+        a_sim["feed_blocks"],
+        f(&a_sim, "cycle_time_s"),
+        f(&a_sim, "ideal_cutting_time_s")
+    );
+    assert!(f(&a_sim, "limited_blocks") * 10.0 < f(&p_sim, "limited_blocks"));
+    assert!(f(&a_sim, "cycle_time_s") * 1.5 < f(&p_sim, "cycle_time_s"));
     // Bad usage: CL data has no arcs; rasters are not fitted; T positive.
     for bad in [
         &["--arc-fit", "0.002"][..],
