@@ -69,6 +69,18 @@ fn stlverify_flat_1(stl: &Path, cl: &Path, stock: &str, region: &str, step: &str
     (v.status.code(), r["verification"].clone())
 }
 
+/// A job refused as bad usage or bad input: exit 2 and nothing on stdout
+/// (`what` names the job in a failure).
+fn assert_refused(o: &std::process::Output, what: &str) {
+    assert_eq!(
+        o.status.code(),
+        Some(2),
+        "{what}: {}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    assert!(o.stdout.is_empty(), "{what}");
+}
+
 /// Upper half of a UV sphere of radius `r` about the origin.
 fn hemisphere(r: f64, nu: usize, nv: usize) -> Vec<[[f64; 3]; 3]> {
     let p = |i: usize, j: usize| {
@@ -296,8 +308,7 @@ fn waterline_loops_are_fitted_with_arcs_within_the_tolerance() {
         &["--format", "toolpath", "--arc-fit", "nan"],
     ] {
         let o = run(bad);
-        assert_eq!(o.status.code(), Some(2), "{bad:?}");
-        assert!(o.stdout.is_empty(), "{bad:?}");
+        assert_refused(&o, &format!("{bad:?}"));
     }
     let o = pathgen()
         .args([
@@ -311,8 +322,7 @@ fn waterline_loops_are_fitted_with_arcs_within_the_tolerance() {
         .args(["--format", "toolpath", "--arc-fit", "0.002"])
         .output()
         .unwrap();
-    assert_eq!(o.status.code(), Some(2));
-    assert!(o.stdout.is_empty());
+    assert_refused(&o, "");
 }
 
 #[test]
@@ -489,8 +499,7 @@ fn bad_input_exits_2_and_writes_nothing() {
         ],
     ] {
         let o = pathgen().arg("dropcutter").arg(&stl).args(&args).output().unwrap();
-        assert_eq!(o.status.code(), Some(2), "{args:?}");
-        assert!(o.stdout.is_empty());
+        assert_refused(&o, &format!("{args:?}"));
     }
 }
 
@@ -704,8 +713,7 @@ fn five_axis_locations_that_would_gouge_are_lifted_or_reported() {
             .args(bad)
             .output()
             .unwrap();
-        assert_eq!(o.status.code(), Some(2), "{bad:?}");
-        assert!(o.stdout.is_empty(), "{bad:?}");
+        assert_refused(&o, &format!("{bad:?}"));
     }
 }
 
@@ -837,8 +845,7 @@ fn a_large_change_of_the_tool_axis_is_stepped_or_lifted_instead_of_swung() {
         &["--axis-change", "lift"],
     ] {
         let o = job(bad).output().unwrap();
-        assert_eq!(o.status.code(), Some(2), "{bad:?}");
-        assert!(o.stdout.is_empty(), "{bad:?}");
+        assert_refused(&o, &format!("{bad:?}"));
     }
 }
 
@@ -1020,8 +1027,7 @@ fn the_holder_is_checked_against_the_part() {
         &["--holder", "3:2,5:10"],
     ] {
         let o = job().args(["--step-over", "0.4"]).args(bad).output().unwrap();
-        assert_eq!(o.status.code(), Some(2), "{bad:?}");
-        assert!(o.stdout.is_empty(), "{bad:?}");
+        assert_refused(&o, &format!("{bad:?}"));
     }
 }
 
@@ -1348,7 +1354,6 @@ fn smoothed_normals_follow_the_surface_and_the_tools_rest_on_it() {
             .args(&bad)
             .output()
             .unwrap();
-        assert_eq!(o.status.code(), Some(2), "{bad:?}");
-        assert!(o.stdout.is_empty(), "{bad:?}");
+        assert_refused(&o, &format!("{bad:?}"));
     }
 }
