@@ -106,34 +106,33 @@ impl AxisLimit {
     /// or split into two runs. Every location is kept, in order.
     pub fn apply(&self, check: Option<&GougeCheck>, runs: &mut Vec<Vec<Location>>) -> AxisReport {
         let mut report = AxisReport::default();
-        // The steps of each run's changes over the limit, worked out on
-        // the pool: (index of the second location, angle, steps or None).
+        // Each run's largest change within the limit, and the steps of its
+        // changes over it (index of the second location, angle, steps or
+        // None), worked out on the pool, each change measured once.
         type Over = Vec<(usize, f64, Option<Vec<Location>>)>;
-        let overs: Vec<Over> = runs
+        let overs: Vec<(f64, Over)> = runs
             .par_iter()
             .map(|run| {
-                (1..run.len())
-                    .filter_map(|i| {
-                        let angle = axis_change(&run[i - 1], &run[i]);
-                        (angle > self.max).then(|| {
-                            let steps = match check {
-                                Some(c) if self.steps => steps_between(c, &run[i - 1], &run[i], angle, self),
-                                _ => None,
-                            };
-                            (i, angle, steps)
-                        })
-                    })
-                    .collect()
+                let mut kept = 0.0f64;
+                let mut over = Over::new();
+                for i in 1..run.len() {
+                    let angle = axis_change(&run[i - 1], &run[i]);
+                    if angle <= self.max {
+                        kept = kept.max(angle);
+                        continue;
+                    }
+                    let steps = match check {
+                        Some(c) if self.steps => steps_between(c, &run[i - 1], &run[i], angle, self),
+                        _ => None,
+                    };
+                    over.push((i, angle, steps));
+                }
+                (kept, over)
             })
             .collect();
         let mut out: Vec<Vec<Location>> = Vec::with_capacity(runs.len());
-        for (run, over) in runs.drain(..).zip(overs) {
-            for w in run.windows(2) {
-                let angle = axis_change(&w[0], &w[1]);
-                if angle <= self.max {
-                    report.largest_kept = report.largest_kept.max(angle);
-                }
-            }
+        for (run, (kept, over)) in runs.drain(..).zip(overs) {
+            report.largest_kept = report.largest_kept.max(kept);
             if over.is_empty() {
                 out.push(run);
                 continue;
