@@ -772,6 +772,16 @@ fn run_waterlines(
             .ok_or_else(|| CliError::input("--step-over (the waterline's fibre spacing) is required"))?,
     )?;
     let chord_tol = chord_tol_arg(a)?;
+    // Checked before the waterlines are traced: they are most of the work.
+    let arc_fit = match a.arc_fit {
+        None => None,
+        Some(_) if a.gcode.is_none() && a.format == FormatArg::Cl => {
+            return Err(CliError::input(
+                "--arc-fit: CL data holds points only; use --format toolpath or --gcode",
+            ));
+        }
+        Some(t) => Some(positive("arc-fit", t)?),
+    };
     let top = dc.bbox().max.z;
     let mut levels: Vec<f64> = match (&a.waterline, a.waterline_step) {
         (Some(zs), _) => {
@@ -820,15 +830,9 @@ fn run_waterlines(
     }
     meter.finish();
     let mut out = Output::new(a.output.as_deref());
-    let fitted = match a.arc_fit {
+    let fitted = match arc_fit {
         None => None,
         Some(t) => {
-            let t = positive("arc-fit", t)?;
-            if a.gcode.is_none() && a.format == FormatArg::Cl {
-                return Err(CliError::input(
-                    "--arc-fit: CL data holds points only; use --format toolpath or --gcode",
-                ));
-            }
             let loops: Vec<Vec<Segment>> = cl
                 .par_iter()
                 .map(|l| {
