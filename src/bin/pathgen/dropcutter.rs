@@ -833,13 +833,19 @@ fn run_waterlines(
     let fitted = match arc_fit {
         None => None,
         Some(t) => {
+            // Seconds on a large mesh (a few times the trace): shown by points fitted.
+            let points = cl.iter().map(Vec::len).sum::<usize>() as u64;
+            let meter = Meter::start("pathgen", "fitting arcs", points, Show::from_flags(a.quiet, false));
             let loops: Vec<Vec<Segment>> = cl
                 .par_iter()
                 .map(|l| {
                     let pts: Vec<P2> = l.iter().map(|p| P2::new(p.x, p.y)).collect();
-                    fit_points(&pts, t, l.first().map_or(0.0, |p| p.z), true)
+                    let fit = fit_points(&pts, t, l.first().map_or(0.0, |p| p.z), true);
+                    microcam::progress::advance(l.len() as u64);
+                    fit
                 })
                 .collect();
+            meter.finish();
             Some((loops, t))
         }
     };
