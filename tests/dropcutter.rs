@@ -792,7 +792,7 @@ fn a_large_change_of_the_tool_axis_is_stepped_or_lifted_instead_of_swung() {
             j < b.points.len()
         })
     };
-    let (plain, e_plain) = cl_run(job(&[]), "plain");
+    let (plain, e_plain) = cl_run(job(&["--max-axis-change", "off"]), "plain");
     assert!(e_plain.contains("the tool axis turns by up to 80.0 deg"), "{e_plain}");
     assert!((worst(&plain, &contacts(&plain)) - 80.0).abs() < 1e-6);
     // The zigzag crosses the ridge at x = -1, -0.5, 0, 0.5 and 1.
@@ -837,12 +837,26 @@ fn a_large_change_of_the_tool_axis_is_stepped_or_lifted_instead_of_swung() {
     assert_eq!(lifted.points.len(), plain.points.len() + 2 * crossings + 1);
     assert!(worst(&lifted, &lc) <= 30.0);
 
+    // By default the limit is 20 degrees, in steps; 180 is no limit.
+    let (default, e_default) = cl_run(job(&[]), "default");
+    let (twenty, _) = cl_run(job(&["--max-axis-change", "20"]), "20");
+    assert_eq!((&default.points, &default.axis), (&twenty.points, &twenty.axis));
+    assert!(
+        e_default.contains(&format!(
+            "{crossings} places where the tool axis turns by more than 20.0 deg"
+        )),
+        "{e_default}"
+    );
+    assert!(worst(&default, &contacts(&default)) <= 20.0);
+    let (half_turn, _) = cl_run(job(&["--max-axis-change", "180"]), "180");
+    assert_eq!((&half_turn.points, &half_turn.axis), (&plain.points, &plain.axis));
+
     for bad in [
         &["--max-axis-change", "0"][..],
         &["--max-axis-change", "0.01"],
         &["--max-axis-change", "181"],
         &["--max-axis-change", "nan"],
-        &["--axis-change", "lift"],
+        &["--max-axis-change", "of"],
     ] {
         let o = job(bad).output().unwrap();
         assert_refused(&o, &format!("{bad:?}"));
@@ -888,13 +902,14 @@ fn stlverify_finds_the_swing_gouge_at_a_ridge_and_none_after_the_steps() {
         stlverify_flat_1(&stl, &cl, "-3,-3,-1,3,3,4", "-0.8,0.8,-1.5,1.5", "0.02")
     };
     let f = |v: &serde_json::Value, k: &str| v[k].as_f64().unwrap();
-    let (code, swung) = verify(&[]);
+    let (code, swung) = verify(&["--max-axis-change", "off"]);
     assert_eq!(code, Some(1), "{swung}");
     assert!(
         f(&swung, "gouge") > 10.0 && f(&swung, "max_gouge_mm") > 0.015,
         "{swung}"
     );
-    let (code, stepped) = verify(&["--max-axis-change", "20"]);
+    // The default: steps of at most 20 degrees.
+    let (code, stepped) = verify(&[]);
     assert_eq!(code, Some(0), "{stepped}");
     assert_eq!((f(&stepped, "gouge"), f(&stepped, "excess")), (0.0, 0.0), "{stepped}");
     let (code, lifted) = verify(&["--max-axis-change", "20", "--axis-change", "lift"]);
@@ -1123,7 +1138,7 @@ fn stlverify_finds_the_unchecked_gouges_and_none_after_the_lift() {
 /// summary counts the locations moved, and `--gouge tilt` runs too.
 #[test]
 fn every_corpus_stl_gets_its_five_axis_locations_checked() {
-    let base = [
+    let raw = [
         "--tool",
         "torus:1:0.2",
         "--step-over",
@@ -1132,6 +1147,8 @@ fn every_corpus_stl_gets_its_five_axis_locations_checked() {
         "--lead",
         "10",
     ];
+    // The checks compared location by location: no steps added between.
+    let base = [&raw[..], &["--max-axis-change", "off"]].concat();
     let off: Vec<_> = on_every_corpus_stl("gouge_corpus_off", &[&base[..], &["--gouge", "off"]].concat());
     let lift = on_every_corpus_stl("gouge_corpus_lift", &base);
     let tilt = on_every_corpus_stl("gouge_corpus_tilt", &[&base[..], &["--gouge", "tilt"]].concat());
@@ -1147,7 +1164,7 @@ fn every_corpus_stl_gets_its_five_axis_locations_checked() {
     // degrees apart.
     let limited = on_every_corpus_stl(
         "gouge_corpus_axis_limit",
-        &[&base[..], &["--gouge", "tilt", "--max-axis-change", "15"]].concat(),
+        &[&raw[..], &["--gouge", "tilt", "--max-axis-change", "15"]].concat(),
     );
     let mut limited_places = 0;
     for ((f, t), (_, m)) in tilt.iter().zip(&limited) {

@@ -40,7 +40,7 @@ Examples:
   pathgen dropcutter part.stl --tool flat:2 --step-over 0.5 --five-axis --lead 5 --tilt 0 > part5.cl
   pathgen dropcutter part.stl --tool torus:1:0.2 --step-over 0.2 --five-axis --gouge report > raw5.cl
   pathgen dropcutter part.stl --tool flat:1 --step-over 0.1 --five-axis --lead 3 --normals smooth > smooth5.cl
-  pathgen dropcutter part.stl --tool flat:1 --step-over 0.1 --five-axis --gouge tilt --max-axis-change 20 > stepped5.cl
+  pathgen dropcutter part.stl --tool flat:1 --step-over 0.1 --five-axis --gouge tilt --max-axis-change 10 > stepped5.cl
   pathgen dropcutter part.stl --tool ball:1 --waterline-step 0.2 --step-over 0.02 --gcode iso > walls.ngc
   pathgen dropcutter part.stl --tool flat:1 --waterline 2,1 --step-over 0.2 --chord-tol 0.001 > wl.cl
   pathgen dropcutter part.stl --tool ball:1 --waterline-step 0.2 --step-over 0.02 --arc-fit 0.002 --gcode pmac > walls.pmc
@@ -231,12 +231,13 @@ pub struct DropcutterArgs {
     /// set down on the part and checked; where a step cannot be made, end
     /// the run there (the tool is drawn back along its axis to the safe Z,
     /// turned and put down again) instead of swinging it in the cut
-    /// (degrees, 0.1 to 180).
-    #[arg(long, value_name = "DEG", requires = "five_axis")]
-    max_axis_change: Option<f64>,
-    /// 5-axis, --max-axis-change: turn in checked steps where they can be
-    /// made, else lift (steps, the default), or always lift (lift).
-    #[arg(long, value_enum, default_value_t = AxisChangeArg::Steps, requires = "max_axis_change")]
+    /// (degrees, 0.1 to 180; `off` or 180 keeps every change as computed).
+    #[arg(long, value_name = "DEG|off", default_value = "20", value_parser = axis_limit_arg, requires = "five_axis")]
+    max_axis_change: f64,
+    /// 5-axis: where the axis would turn more than --max-axis-change, turn
+    /// it in checked steps where they can be made, else lift (steps, the
+    /// default), or always lift (lift).
+    #[arg(long, value_enum, default_value_t = AxisChangeArg::Steps, requires = "five_axis")]
     axis_change: AxisChangeArg,
     /// 5-axis: check the tool holder too, a cylinder of diameter D whose
     /// face is H mm up the axis from the tool tip (the stick-out), up to
@@ -353,7 +354,7 @@ fn tilt_summary(r: &GougeReport, t: &TiltReport, length: f64) -> String {
 fn axis_change_summary(r: &AxisReport, max: Option<f64>) -> String {
     match max {
         None => format!(
-            "the tool axis turns by up to {:.1} deg between neighbouring locations (--max-axis-change turns it in steps or lifts the tool where it would turn more)",
+            "the tool axis turns by up to {:.1} deg between neighbouring locations (--max-axis-change off: every change kept as computed)",
             r.largest_kept.to_degrees()
         ),
         Some(m) => format!(
@@ -367,6 +368,17 @@ fn axis_change_summary(r: &AxisReport, max: Option<f64>) -> String {
             r.largest_kept.to_degrees()
         ),
     }
+}
+
+/// `--max-axis-change`: degrees, or `off` (180: no change is larger).
+/// The range is checked with the other options, so that a number out of
+/// it gets the same message as the other angles.
+fn axis_limit_arg(s: &str) -> Result<f64, String> {
+    if s.eq_ignore_ascii_case("off") {
+        return Ok(180.0);
+    }
+    s.parse::<f64>()
+        .map_err(|_| format!("{s:?}: degrees (0.1 to 180) or off"))
 }
 
 fn positive(name: &str, v: f64) -> Result<f64, CliError> {
@@ -493,10 +505,15 @@ pub fn run(a: DropcutterArgs) -> Result<(), CliError> {
         if !(turn_ramp.is_finite() && turn_ramp >= 0.0) {
             return Err(CliError::input(format!("--turn-ramp {turn_ramp}: mm, 0 or more")));
         }
+        // No two axes are more than 180 degrees apart: that limit is none.
         let max_axis_change = match a.max_axis_change {
-            Some(d) if (0.1..=180.0).contains(&d) => Some(d.to_radians()),
-            Some(d) => return Err(CliError::input(format!("--max-axis-change {d}: degrees, 0.1 to 180"))),
-            None => None,
+            d if d == 180.0 => None,
+            d if (0.1..180.0).contains(&d) => Some(d.to_radians()),
+            d => {
+                return Err(CliError::input(format!(
+                    "--max-axis-change {d}: degrees, 0.1 to 180, or off"
+                )));
+            }
         };
         let (max_turn, turn_step) = (a.max_turn.unwrap_or(30.0), a.turn_step.unwrap_or(5.0));
         let in_range = (0.0..=90.0).contains(&max_turn) && turn_step > 0.0 && turn_step <= 90.0;
@@ -632,8 +649,9 @@ pub fn run(a: DropcutterArgs) -> Result<(), CliError> {
             smooth.as_ref().map_or(String::new(), |(_, deg)| format!(
                 ", axes from smoothed normals (crease {deg} deg)"
             )),
-            a.max_axis_change.map_or(String::new(), |d| format!(
-                ", axis changes over {d} deg {}",
+            max_axis_change.map_or(String::new(), |_| format!(
+                ", axis changes over {} deg {}",
+                a.max_axis_change,
                 match a.axis_change {
                     AxisChangeArg::Steps => "turned in checked steps (else lifted)",
                     AxisChangeArg::Lift => "lifted",
