@@ -507,7 +507,7 @@ pub fn run(a: DropcutterArgs) -> Result<(), CliError> {
         }
         // No two axes are more than 180 degrees apart: that limit is none.
         let max_axis_change = match a.max_axis_change {
-            d if d == 180.0 => None,
+            180.0 => None,
             d if (0.1..180.0).contains(&d) => Some(d.to_radians()),
             d => {
                 return Err(CliError::input(format!(
