@@ -13,7 +13,7 @@ use crate::geometry::{P2, P3, Plane, V2};
 use std::f64::consts::TAU;
 
 mod deviation;
-pub use deviation::{Grid, elem_box, max_deviation, point_deviation, trace_elem, work_done};
+pub use deviation::{Grid, deviation_within, elem_box, max_deviation, point_deviation, trace_elem, work_done};
 use deviation::{Probe, all_within};
 
 fn lift(p: &P2, z: f64) -> P3 {
@@ -275,7 +275,7 @@ fn fit_chain(pts: &[P2], tol: f64, z: f64, polyline: bool, cap: f64, eps: f64) -
         .collect();
     let within = |f: &[Segment], i: usize, j: usize| {
         if polyline {
-            return max_deviation(f, &pts[i..=j], 32) <= limit;
+            return deviation_within(f, &pts[i..=j], 32, limit);
         }
         // The point checks are one-sided: a loop out and back through the
         // points passes them. A fit of a curve the points sample is no

@@ -4,6 +4,8 @@
 //! points and from the curve between them.
 
 use super::*;
+use crate::geometry::arc::ArcFrame;
+use crate::geometry::segment::length_fraction;
 
 /// Pieces (fit pieces or polyline segments) bucketed on a uniform grid, for
 /// exact nearest-distance queries: rings of cells are searched outwards
@@ -462,12 +464,8 @@ pub fn point_deviation(fit: &[Segment], pts: &[P2]) -> f64 {
 /// polyline's vertices against the fit. Exact for those samples; the work
 /// is about one distance per sample on any input (see [`Grid::max_nearest`]).
 pub fn max_deviation(fit: &[Segment], pts: &[P2], samples_per_piece: usize) -> f64 {
-    let n = samples_per_piece.max(1);
-    let lens: Vec<f64> = fit.iter().map(Segment::length).collect();
-    let sample = |q: usize| {
-        let (k, i) = (q / (n + 1), q % (n + 1));
-        fit[k].point_at_length(lens[k] * i as f64 / n as f64).xy()
-    };
+    let samples = Samples::new(fit, samples_per_piece);
+    let (n, sample) = (samples.n, |q: usize| samples.at(q));
     let queries = fit.len() * (n + 1);
     let mut worst: f64 = 0.0;
     if queries * pts.len() <= BRUTE || pts.len() < 2 {
@@ -494,4 +492,94 @@ pub fn max_deviation(fit: &[Segment], pts: &[P2], samples_per_piece: usize) -> f
         );
     }
     worst.max(point_deviation(fit, pts))
+}
+
+/// The points [`max_deviation`] samples a fit at: `n + 1` a piece, evenly
+/// by length. Each arc's frame is made once, not once a sample
+/// (`point_at_length` would redo the arc's length and angles, four
+/// `atan2`, for each of its samples); the same points, bit for bit.
+struct Samples<'a> {
+    fit: &'a [Segment],
+    n: usize,
+    lens: Vec<f64>,
+    frames: Vec<Option<ArcFrame>>,
+}
+
+impl<'a> Samples<'a> {
+    fn new(fit: &'a [Segment], samples_per_piece: usize) -> Samples<'a> {
+        Samples {
+            fit,
+            n: samples_per_piece.max(1),
+            lens: fit.iter().map(Segment::length).collect(),
+            frames: fit
+                .iter()
+                .map(|s| match s {
+                    Segment::Arc(a) => Some(ArcFrame::new(a)),
+                    Segment::Line(_) => None,
+                })
+                .collect(),
+        }
+    }
+
+    fn count(&self) -> usize {
+        self.fit.len() * (self.n + 1)
+    }
+
+    fn at(&self, q: usize) -> P2 {
+        let (k, i) = (q / (self.n + 1), q % (self.n + 1));
+        let t = length_fraction(self.lens[k] * i as f64 / self.n as f64, self.lens[k]);
+        match &self.frames[k] {
+            Some(f) => f.point_at(t).xy(),
+            None => self.fit[k].point_at(t).xy(),
+        }
+    }
+}
+
+/// `max_deviation(fit, pts, samples_per_piece) <= limit`, the same verdict
+/// on any input, sooner: a fit is accepted or refused thousands of times
+/// while it grows, and only the verdict is wanted. On the small fits that
+/// [`max_deviation`] measures by brute force, each sample stops at the
+/// first chord within `limit` (tried from the chord the sample before it
+/// found, which is where the next one usually lies), each point at the
+/// first piece within it, and the answer is no at the first sample or
+/// point beyond it. A distance is the same function of the same points
+/// either way, so the verdict is too (a NaN distance counts as beyond, as
+/// `max_deviation`'s folds leave it out).
+pub fn deviation_within(fit: &[Segment], pts: &[P2], samples_per_piece: usize, limit: f64) -> bool {
+    let samples = Samples::new(fit, samples_per_piece);
+    let queries = samples.count();
+    if pts.len() < 2 || queries * pts.len() > BRUTE {
+        return max_deviation(fit, pts, samples_per_piece) <= limit;
+    }
+    let chords = pts.len() - 1;
+    let mut evals = 0u64;
+    let mut hint = 0;
+    let mut ok = true;
+    for q in 0..queries {
+        let p = samples.at(q);
+        let near = (hint..chords).chain(0..hint).find(|&k| {
+            evals += 1;
+            point_segment_distance(&p, &pts[k], &pts[k + 1]) <= limit
+        });
+        match near {
+            Some(k) => hint = k,
+            None => {
+                ok = false;
+                break;
+            }
+        }
+    }
+    if ok {
+        let probes: Vec<Probe> = fit.iter().map(Probe::new).collect();
+        let mut hint = 0;
+        ok = pts.iter().all(|p| {
+            let near = (hint..probes.len()).chain(0..hint).find(|&k| {
+                evals += 1;
+                probes[k].dist(p) <= limit
+            });
+            near.inspect(|&k| hint = k).is_some()
+        });
+    }
+    count_work(evals);
+    ok
 }

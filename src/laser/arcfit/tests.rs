@@ -205,3 +205,65 @@ fn noisy_points_cost_near_linear_work() {
         assert!(per_point[1] < 1.5 * per_point[0], "work per point grew {per_point:?}");
     }
 }
+
+/// `deviation_within` gives `max_deviation`'s verdict on every fit, at
+/// every limit: below, at and above the exact deviation, and on fits that
+/// stray from the points, that miss them or have no pieces at all.
+#[test]
+fn the_early_verdict_is_the_measured_one() {
+    let mut seed = 0x2545_f491_4f6c_dd1du64;
+    let mut rnd = move || {
+        seed ^= seed << 13;
+        seed ^= seed >> 7;
+        seed ^= seed << 17;
+        (seed >> 11) as f64 / (1u64 << 53) as f64
+    };
+    let mut checked = [0usize; 2];
+    for case in 0..400 {
+        // Every tenth large enough for the grid (delegated to max_deviation).
+        let n = if case % 10 == 0 {
+            300
+        } else {
+            2 + (rnd() * 60.0) as usize
+        };
+        let noise = [0.0, 1e-4, 1e-2][case % 3];
+        // Points on a wavy curve, with noise; the fit is the package's own
+        // (polyline mode), a fit of other points, or none.
+        let pts: Vec<P2> = (0..n)
+            .map(|i| {
+                let x = i as f64 * 0.1;
+                P2::new(
+                    x + noise * rnd(),
+                    (x * (1.0 + case as f64 * 0.01)).sin() + noise * rnd(),
+                )
+            })
+            .collect();
+        let fit = match case % 4 {
+            3 => Vec::new(),
+            2 => fit_points(
+                &pts.iter().map(|p| p + V2::new(0.0, 0.003)).collect::<Vec<_>>(),
+                1e-3,
+                0.0,
+                true,
+            ),
+            _ => fit_points(&pts, [1e-4, 1e-3, 1e-2][case % 3], 0.0, true),
+        };
+        let samples = [1, 8, 32][case % 3];
+        let exact = max_deviation(&fit, &pts, samples);
+        let mut limits = vec![0.0, 1e-4, 1e-3, 1e-2, 1.0, f64::NAN];
+        if exact.is_finite() {
+            limits.extend([exact, exact * (1.0 - 1e-12), exact * (1.0 + 1e-12)]);
+        }
+        for limit in limits {
+            let want = exact <= limit;
+            assert_eq!(
+                deviation_within(&fit, &pts, samples, limit),
+                want,
+                "case {case}, limit {limit}, exact {exact}"
+            );
+            checked[usize::from(want)] += 1;
+        }
+    }
+    // Both verdicts, many times.
+    assert!(checked[0] > 500 && checked[1] > 500, "{checked:?}");
+}
