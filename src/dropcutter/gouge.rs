@@ -192,6 +192,20 @@ pub struct Holder {
     pub height: f64,
 }
 
+impl Holder {
+    /// Whether this holder can hold a cutter of `cutter_radius` (mm): at
+    /// least as wide, its face above the tip, both finite.
+    pub fn fits(&self, cutter_radius: f64) -> Result<(), super::DropError> {
+        if self.radius.is_finite() && self.radius >= cutter_radius && self.height.is_finite() && self.height > 0.0 {
+            return Ok(());
+        }
+        Err(super::DropError::Option(format!(
+            "holder of radius {} at {} mm up the tool: needs a radius of at least the cutter's ({cutter_radius} mm) and a height above 0",
+            self.radius, self.height
+        )))
+    }
+}
+
 impl<'a> GougeCheck<'a> {
     /// Prepare checks of `dc`'s cutter against its mesh.
     pub fn new(dc: &'a DropCutter) -> GougeCheck<'a> {
@@ -216,13 +230,7 @@ impl<'a> GougeCheck<'a> {
     /// height up to the checked length. A cylinder narrower than the
     /// cutter, or not above the tip, is refused.
     pub fn with_holder(mut self, h: Holder) -> Result<Self, super::DropError> {
-        let r = self.dc.shape.r;
-        if !(h.radius.is_finite() && h.radius >= r && h.height.is_finite() && h.height > 0.0) {
-            return Err(super::DropError::Option(format!(
-                "holder of radius {} at {} mm up the tool: needs a radius of at least the cutter's ({r} mm) and a height above 0",
-                h.radius, h.height
-            )));
-        }
+        h.fits(self.dc.shape.r)?;
         let flat = ContactCutter::new(crate::cutter::Cutter::Flat { radius: h.radius });
         self.holder.push((h, flat));
         Ok(self)

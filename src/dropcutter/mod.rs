@@ -23,6 +23,7 @@ mod fibre;
 pub mod fiveaxis;
 pub mod gouge;
 pub mod index;
+pub mod job5;
 pub mod normals;
 pub mod output;
 pub mod raster;

@@ -1,33 +1,28 @@
 //! `pathgen dropcutter`: CL data, a toolpath or G-code from a mesh by
 //! dropping a flat, ball or torus cutter (the library's `dropcutter`).
 
+#[path = "dropcutter/five.rs"]
+mod five;
+#[path = "dropcutter/waterline.rs"]
+mod waterline;
+
 use super::common::{WriterArgs, write_gcode, write_options};
 use clap::{Args as ClapArgs, ValueEnum};
 use microcam::cli::{self, CliError, Output};
 use microcam::cutter::Cutter;
 use microcam::dropcutter::adaptive::Adaptive;
-use microcam::dropcutter::fiveaxis::{Contact, FiveAxis, Location};
-use microcam::dropcutter::gouge::{GougeCheck, GougeReport, GougeRule, Holder, Placement, SettleReport};
-use microcam::dropcutter::normals::DEFAULT_CREASE_DEG;
-use microcam::dropcutter::output::{
-    Feeds, toolpath_records, toolpath_records_of_segments, write_cldata, write_cldata5,
-};
+use microcam::dropcutter::gouge::Holder;
+use microcam::dropcutter::output::{Feeds, toolpath_records, write_cldata};
 use microcam::dropcutter::raster::{Direction, Pattern, Raster, chain_passes};
-use microcam::dropcutter::swing::{AxisLimit, AxisReport};
-use microcam::dropcutter::tilt::{TiltReport, TiltSearch};
-use microcam::dropcutter::waterline::Waterline;
 use microcam::dropcutter::{DropCutter, DropError};
 use microcam::formats::cldata::ClWriter;
 use microcam::formats::read_chains;
 use microcam::formats::toolpath::ToolpathWriter;
 use microcam::gcode::Dialect;
 use microcam::geometry::{P2, P3};
-use microcam::laser::arcfit::fit_points;
 use microcam::mesh::{ReadOptions, Units};
-use microcam::model::chain::Segment;
 use microcam::model::toolpath::{FeedUnit, Header, Record};
 use microcam::progress::{Meter, Show};
-use rayon::prelude::*;
 use std::io::Read;
 use std::path::PathBuf;
 
@@ -296,80 +291,6 @@ fn bad(e: DropError) -> CliError {
     CliError::input(e.to_string())
 }
 
-/// One line on how the smooth-normal locations were set down on the part.
-fn settle_summary(r: &SettleReport, crease_deg: f64) -> String {
-    let mut line = format!(
-        "axes from smoothed normals (crease {crease_deg} deg): {} locations set down on the part along their axes, {} of them raised out of it (up to {:.6} mm: the facets under a smoothed tangent plane, and where the part is tighter than the tool)",
-        r.settled, r.raised, r.highest
-    );
-    if r.nothing_below > 0 {
-        line.push_str(&format!("; {} with no part below left as they were", r.nothing_below));
-    }
-    line
-}
-
-/// One line on what the gouge check found and did.
-fn gouge_summary(r: &GougeReport, rule: GougeRule, length: f64) -> String {
-    let Some(at) = r.deepest_at else {
-        return format!(
-            "gouge check: none of {} locations cuts into the part (tool checked {length} mm up its axis)",
-            r.checked
-        );
-    };
-    format!(
-        "gouge check: {} of {} locations cut into the part (up to {:.6} mm along the tool axis, the deepest with its tip at {:.6} {:.6} {:.6}); {}",
-        r.gouging,
-        r.checked,
-        r.deepest,
-        at.x,
-        at.y,
-        at.z,
-        match rule {
-            GougeRule::Lift => "lifted along the axis until the tool only touches (material is left there)",
-            GougeRule::Report => "left as they are (--gouge report)",
-        }
-    )
-}
-
-/// One line on what the tilt search found and did.
-fn tilt_summary(r: &GougeReport, t: &TiltReport, length: f64) -> String {
-    if r.gouging == 0 {
-        return gouge_summary(r, GougeRule::Lift, length);
-    }
-    format!(
-        "gouge check: {} of {} locations cut into the part (up to {:.6} mm along the tool axis); {} turned to clear it (lead or tilt changed by up to {:.1} deg), {} lifted along the axis where no turn within reach cleared it; {} more turned part way to ease the axis in and out (the turn changes by at most {:.1} deg between neighbours)",
-        r.gouging,
-        r.checked,
-        r.deepest,
-        t.tilted,
-        t.largest_turn.to_degrees(),
-        t.lifted,
-        t.eased,
-        t.largest_jump.to_degrees()
-    )
-}
-
-/// One line on how far the tool axis turns between neighbours, and what
-/// `--max-axis-change` did where it turned more.
-fn axis_change_summary(r: &AxisReport, max: Option<f64>) -> String {
-    match max {
-        None => format!(
-            "the tool axis turns by up to {:.1} deg between neighbouring locations (--max-axis-change off: every change kept as computed)",
-            r.largest_kept.to_degrees()
-        ),
-        Some(m) => format!(
-            "{} places where the tool axis turns by more than {:.1} deg between neighbours (up to {:.1} deg): {} turned in {} added steps set down on the part, {} ending a run (the tool drawn back to the safe Z, turned and put down again); within runs it turns by up to {:.1} deg",
-            r.stepped + r.split,
-            m.to_degrees(),
-            r.largest_over.to_degrees(),
-            r.stepped,
-            r.inserted,
-            r.split,
-            r.largest_kept.to_degrees()
-        ),
-    }
-}
-
 /// `--max-axis-change`: degrees, or `off` (180: no change is larger).
 /// The range is checked with the other options, so that a number out of
 /// it gets the same message as the other angles.
@@ -434,7 +355,7 @@ pub fn run(a: DropcutterArgs) -> Result<(), CliError> {
         );
     }
     if a.waterline.is_some() || a.waterline_step.is_some() {
-        return run_waterlines(&a, &dc, floor, safe_z, feeds, &name);
+        return waterline::run(&a, &dc, floor, safe_z, feeds, &name);
     }
     if a.arc_fit.is_some() {
         return Err(CliError::input("--arc-fit goes with --waterline or --waterline-step"));
@@ -470,196 +391,7 @@ pub fn run(a: DropcutterArgs) -> Result<(), CliError> {
     let mut out = Output::new(a.output.as_deref());
     let n_points: usize;
     if a.five_axis {
-        let fa = FiveAxis {
-            lead: a.lead.to_radians(),
-            tilt: a.tilt.to_radians(),
-            axis_length: positive("axis-length", a.axis_length)?,
-        };
-        let (r, rc) = FiveAxis::radii(&dc).map_err(bad)?;
-        let smooth = match (a.normals, a.crease) {
-            (NormalsArg::Facet, Some(_)) => return Err(CliError::input("--crease goes with --normals smooth")),
-            (NormalsArg::Facet, None) => None,
-            (NormalsArg::Smooth, crease) => {
-                let deg = crease.unwrap_or(DEFAULT_CREASE_DEG);
-                if !(0.0..=180.0).contains(&deg) {
-                    return Err(CliError::input(format!("--crease {deg}: degrees, 0 to 180")));
-                }
-                Some((dc.smooth_normals(deg.to_radians()), deg))
-            }
-        };
-        let contacts: Vec<Vec<Contact>> = passes
-            .iter()
-            .flat_map(|p| FiveAxis::contacts_with(&dc, p, smooth.as_ref().map(|(n, _)| n)))
-            .collect();
-        let mut runs: Vec<Vec<Location>> = contacts
-            .iter()
-            .map(|run| run.iter().map(|c| fa.location(c.cc, c.normal, c.feed, r, rc)).collect())
-            .collect();
-        n_points = runs.iter().map(Vec::len).sum();
-        if a.gouge != GougeArg::Tilt && (a.max_turn.is_some() || a.turn_step.is_some() || a.turn_ramp.is_some()) {
-            return Err(CliError::input(
-                "--max-turn, --turn-step and --turn-ramp go with --gouge tilt",
-            ));
-        }
-        let turn_ramp = a.turn_ramp.unwrap_or(2.0 * cutter.radius());
-        if !(turn_ramp.is_finite() && turn_ramp >= 0.0) {
-            return Err(CliError::input(format!("--turn-ramp {turn_ramp}: mm, 0 or more")));
-        }
-        // No two axes are more than 180 degrees apart: that limit is none.
-        let max_axis_change = match a.max_axis_change {
-            180.0 => None,
-            d if (0.1..180.0).contains(&d) => Some(d.to_radians()),
-            d => {
-                return Err(CliError::input(format!(
-                    "--max-axis-change {d}: degrees, 0.1 to 180, or off"
-                )));
-            }
-        };
-        let (max_turn, turn_step) = (a.max_turn.unwrap_or(30.0), a.turn_step.unwrap_or(5.0));
-        let in_range = (0.0..=90.0).contains(&max_turn) && turn_step > 0.0 && turn_step <= 90.0;
-        if !in_range {
-            return Err(CliError::input(format!(
-                "--max-turn {max_turn} and --turn-step {turn_step}: degrees, 0 to 90 and above 0 to 90"
-            )));
-        }
-        let meter = Meter::start(
-            "pathgen",
-            "checking the tool against the part",
-            // Setting down (smoothed normals) and checking count a
-            // location each; the tilt search with smoothed normals does
-            // both.
-            n_points as u64
-                * match (a.gouge, smooth.is_some()) {
-                    (GougeArg::Off, false) => 0,
-                    (GougeArg::Tilt, true) => 2,
-                    _ => 1,
-                },
-            Show::from_flags(a.quiet, false),
-        );
-        if a.gouge == GougeArg::Off && !a.holder.is_empty() {
-            return Err(CliError::input("--holder goes with the gouge check (not --gouge off)"));
-        }
-        if let Some(h) = a.holder.iter().find(|h| h.height >= fa.axis_length) {
-            return Err(CliError::input(format!(
-                "--holder: its face at {} mm is not below --axis-length {} (the length of tool checked)",
-                h.height, fa.axis_length
-            )));
-        }
-        // Built only when a check or a setting down runs: its 3-D tree
-        // takes a quarter of a second on a million triangles.
-        let checker = || -> Result<GougeCheck, CliError> {
-            a.holder.iter().try_fold(GougeCheck::new(&dc), |c, &h| {
-                c.with_holder(h).map_err(|e| CliError::input(format!("--holder: {e}")))
-            })
-        };
-        // With smoothed normals every location is set down on the part
-        // (tangent to the smoothed surface, a tool dips into the facets
-        // round its contact); the gouges are then what lies beyond that.
-        let settling = smooth.is_some();
-        let rule = if a.gouge == GougeArg::Lift {
-            GougeRule::Lift
-        } else {
-            GougeRule::Report
-        };
-        let (summary, settled) = match a.gouge {
-            GougeArg::Off if settling => {
-                let (_, s) = checker()?.check_settling(&contacts, &mut runs, fa.axis_length, GougeRule::Report);
-                (None, Some(s))
-            }
-            GougeArg::Off => (None, None),
-            GougeArg::Lift | GougeArg::Report if settling => {
-                let (report, s) = checker()?.check_settling(&contacts, &mut runs, fa.axis_length, rule);
-                (Some(gouge_summary(&report, rule, fa.axis_length)), Some(s))
-            }
-            GougeArg::Lift | GougeArg::Report => {
-                let report = checker()?.check(&mut runs, fa.axis_length, rule);
-                (Some(gouge_summary(&report, rule, fa.axis_length)), None)
-            }
-            GougeArg::Tilt => {
-                let (report, tilt, s) = checker()?
-                    .check_tilting(
-                        &fa,
-                        &contacts,
-                        &mut runs,
-                        &TiltSearch {
-                            max: max_turn.to_radians(),
-                            step: turn_step.to_radians(),
-                            ramp: turn_ramp,
-                        },
-                        if settling {
-                            Placement::SetDown
-                        } else {
-                            Placement::Tangent
-                        },
-                    )
-                    .map_err(bad)?;
-                (
-                    Some(tilt_summary(&report, &tilt, fa.axis_length)),
-                    settling.then_some(s),
-                )
-            }
-        };
-        if let (Some(s), Some((_, deg))) = (settled, &smooth) {
-            microcam::diag!("pathgen: dropcutter: 5-axis: {}", settle_summary(&s, *deg));
-        }
-        meter.finish();
-        if let Some(line) = summary {
-            microcam::diag!("pathgen: dropcutter: 5-axis: {line}");
-        }
-        // After every check: the steps are set down and checked on their
-        // own, and the locations the checks left are kept as they are.
-        let limit = AxisLimit {
-            max: max_axis_change.unwrap_or(std::f64::consts::PI),
-            length: fa.axis_length,
-            steps: a.axis_change == AxisChangeArg::Steps,
-        };
-        let axis_report = match max_axis_change {
-            Some(_) if limit.steps => limit.apply(Some(&checker()?), &mut runs),
-            _ => limit.apply(None, &mut runs),
-        };
-        microcam::diag!(
-            "pathgen: dropcutter: 5-axis: {}",
-            axis_change_summary(&axis_report, max_axis_change)
-        );
-        let mut w = ClWriter::new(&mut out);
-        w.comment(&format!(
-            "microcam 5-axis CL data: x y z (tool tip) x1 y1 z1 (point on the tool axis), mm; cutter {cutter}, lead {} deg, tilt {} deg, gouge check {}{}{}{}, from {name}",
-            a.lead,
-            a.tilt,
-            match a.gouge {
-                GougeArg::Lift => "lift".to_string(),
-                GougeArg::Report => "report".to_string(),
-                GougeArg::Off => "off".to_string(),
-                GougeArg::Tilt => format!(
-                    "tilt up to {max_turn} deg in steps of {turn_step} deg, eased over {turn_ramp} mm"
-                ),
-            },
-            if a.holder.is_empty() {
-                String::new()
-            } else {
-                format!(
-                    " with a holder of {}",
-                    a.holder
-                        .iter()
-                        .map(|h| format!("{} mm diameter from {} mm up the axis", 2.0 * h.radius, h.height))
-                        .collect::<Vec<_>>()
-                        .join(", ")
-                )
-            },
-            smooth.as_ref().map_or(String::new(), |(_, deg)| format!(
-                ", axes from smoothed normals (crease {deg} deg)"
-            )),
-            max_axis_change.map_or(String::new(), |_| format!(
-                ", axis changes over {} deg {}",
-                a.max_axis_change,
-                match a.axis_change {
-                    AxisChangeArg::Steps => "turned in checked steps (else lifted)",
-                    AxisChangeArg::Lift => "lifted",
-                }
-            ))
-        ))?;
-        write_cldata5(&mut w, &runs, safe_z)?;
-        w.finish()?;
+        n_points = five::run(&a, &dc, &passes, safe_z, &name, &mut out)?;
     } else {
         let adaptive = match chord_tol_arg(&a)? {
             Some(t) => {
@@ -772,119 +504,4 @@ fn chord_tol_arg(a: &DropcutterArgs) -> Result<Option<f64>, CliError> {
         )));
     }
     Ok(Some(t))
-}
-
-/// `--waterline` / `--waterline-step`: closed loops at each level, top
-/// down, sampled on fibres `--step-over` apart.
-fn run_waterlines(
-    a: &DropcutterArgs,
-    dc: &DropCutter,
-    floor: f64,
-    safe_z: f64,
-    feeds: Feeds,
-    name: &str,
-) -> Result<(), CliError> {
-    let sampling = positive(
-        "step-over",
-        a.step_over
-            .ok_or_else(|| CliError::input("--step-over (the waterline's fibre spacing) is required"))?,
-    )?;
-    let chord_tol = chord_tol_arg(a)?;
-    // Checked before the waterlines are traced: they are most of the work.
-    let arc_fit = match a.arc_fit {
-        None => None,
-        Some(_) if a.gcode.is_none() && a.format == FormatArg::Cl => {
-            return Err(CliError::input(
-                "--arc-fit: CL data holds points only; use --format toolpath or --gcode",
-            ));
-        }
-        Some(t) => Some(positive("arc-fit", t)?),
-    };
-    let top = dc.bbox().max.z;
-    let mut levels: Vec<f64> = match (&a.waterline, a.waterline_step) {
-        (Some(zs), _) => {
-            if let Some(z) = zs.iter().find(|z| !z.is_finite() || **z < floor) {
-                return Err(CliError::input(format!(
-                    "--waterline {z}: not a finite height at or above the floor {floor}"
-                )));
-            }
-            zs.clone()
-        }
-        (None, Some(dz)) => {
-            let dz = positive("waterline-step", dz)?;
-            let n = ((top - floor) / dz * (1.0 + 1e-12)).floor();
-            if n > 100_000.0 {
-                return Err(CliError::input(format!(
-                    "--waterline-step {dz}: {n:.0} levels from {top} down to {floor}, more than 100000"
-                )));
-            }
-            (1..=n as usize).map(|k| top - k as f64 * dz).collect()
-        }
-        (None, None) => Vec::new(),
-    };
-    // Top down, each level once.
-    levels.sort_by(|p, q| q.total_cmp(p));
-    levels.dedup();
-    let wl = Waterline {
-        sampling,
-        // Far below any stage's resolution, and a few bisection steps.
-        tol: (sampling * 1e-6).max(1e-9),
-        chord_tol,
-    };
-    // Dropping the fibre grid is most of the work: the meter counts its
-    // nodes, then the levels traced.
-    let units = 2 * wl.grid_nodes(dc).map_err(|e| CliError::input(format!("{name}: {e}")))?;
-    let meter = Meter::start("pathgen", "waterlines", units, Show::from_flags(a.quiet, false));
-    let per_level = wl
-        .levels(dc, &levels)
-        .map_err(|e| CliError::input(format!("{name}: {e}")))?;
-    let mut cl: Vec<Vec<P3>> = Vec::new();
-    for (loops, &z) in per_level.into_iter().zip(&levels) {
-        cl.extend(
-            loops
-                .into_iter()
-                .map(|l| l.into_iter().map(|p| P3::new(p.x, p.y, z)).collect()),
-        );
-    }
-    meter.finish();
-    let mut out = Output::new(a.output.as_deref());
-    let fitted = match arc_fit {
-        None => None,
-        Some(t) => {
-            // Seconds on a large mesh (a few times the trace): shown by points fitted.
-            let points = cl.iter().map(Vec::len).sum::<usize>() as u64;
-            let meter = Meter::start("pathgen", "fitting arcs", points, Show::from_flags(a.quiet, false));
-            let loops: Vec<Vec<Segment>> = cl
-                .par_iter()
-                .map(|l| {
-                    let pts: Vec<P2> = l.iter().map(|p| P2::new(p.x, p.y)).collect();
-                    let fit = fit_points(&pts, t, l.first().map_or(0.0, |p| p.z), true);
-                    microcam::progress::advance(l.len() as u64);
-                    fit
-                })
-                .collect();
-            meter.finish();
-            Some((loops, t))
-        }
-    };
-    match &fitted {
-        Some((loops, _)) => write_records(a, toolpath_records_of_segments(loops, safe_z, feeds), name, &mut out)?,
-        None => write_passes(a, dc.cutter(), &cl, safe_z, feeds, name, &mut out)?,
-    }
-    out.commit()?;
-    microcam::diag!(
-        "pathgen: dropcutter: {} waterline levels, {} loops, {} CL points",
-        levels.len(),
-        cl.len(),
-        cl.iter().map(Vec::len).sum::<usize>()
-    );
-    if let Some((loops, t)) = &fitted {
-        let arcs = loops.iter().flatten().filter(|s| matches!(s, Segment::Arc(_))).count();
-        microcam::diag!(
-            "pathgen: dropcutter: arcs fitted within {t} mm of the loops' chords: {} moves ({arcs} arcs) for {} points",
-            loops.iter().map(Vec::len).sum::<usize>(),
-            cl.iter().map(Vec::len).sum::<usize>()
-        );
-    }
-    Ok(())
 }
