@@ -466,7 +466,7 @@ pub fn point_deviation(fit: &[Segment], pts: &[P2]) -> f64 {
 pub fn max_deviation(fit: &[Segment], pts: &[P2], samples_per_piece: usize) -> f64 {
     let samples = Samples::new(fit, samples_per_piece);
     let (n, sample) = (samples.n, |q: usize| samples.at(q));
-    let queries = fit.len() * (n + 1);
+    let queries = samples.count();
     let mut worst: f64 = 0.0;
     if queries * pts.len() <= BRUTE || pts.len() < 2 {
         count_work((queries * pts.len()) as u64);
@@ -546,11 +546,11 @@ impl<'a> Samples<'a> {
 /// either way, so the verdict is too (a NaN distance counts as beyond, as
 /// `max_deviation`'s folds leave it out).
 pub fn deviation_within(fit: &[Segment], pts: &[P2], samples_per_piece: usize, limit: f64) -> bool {
-    let samples = Samples::new(fit, samples_per_piece);
-    let queries = samples.count();
+    let queries = fit.len() * (samples_per_piece.max(1) + 1);
     if pts.len() < 2 || queries * pts.len() > BRUTE {
         return max_deviation(fit, pts, samples_per_piece) <= limit;
     }
+    let samples = Samples::new(fit, samples_per_piece);
     let chords = pts.len() - 1;
     let mut evals = 0u64;
     let mut hint = 0;
