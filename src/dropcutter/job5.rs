@@ -122,12 +122,19 @@ impl FiveAxisJob {
     /// Steps 3 and 4: the gouge check, then the axis-change limit.
     pub fn check(&self, dc: &DropCutter, located: Located) -> Result<FiveAxisOutcome, DropError> {
         let Located { contacts, mut runs } = located;
-        // Built only when a check or a setting down runs: its 3-D tree
-        // takes a quarter of a second on a million triangles.
-        let checker = || {
-            self.holders
+        // Built only when a check, a setting down or the axis steps run,
+        // and once for all of them: its 3-D tree takes a quarter of a
+        // second on a million triangles.
+        let built = std::cell::OnceCell::new();
+        let checker = || -> Result<&GougeCheck, DropError> {
+            if let Some(c) = built.get() {
+                return Ok(c);
+            }
+            let c = self
+                .holders
                 .iter()
-                .try_fold(GougeCheck::new(dc), |c, &h| c.with_holder(h))
+                .try_fold(GougeCheck::new(dc), |c, &h| c.with_holder(h))?;
+            Ok(built.get_or_init(|| c))
         };
         let length = self.five.axis_length;
         let settling = self.smooth_crease.is_some();
@@ -168,7 +175,7 @@ impl FiveAxisJob {
             steps: self.axis_steps,
         };
         let axes = match self.max_axis_change {
-            Some(_) if limit.steps => limit.apply(Some(&checker()?), &mut runs),
+            Some(_) if limit.steps => limit.apply(Some(checker()?), &mut runs),
             _ => limit.apply(None, &mut runs),
         };
         Ok(FiveAxisOutcome {
