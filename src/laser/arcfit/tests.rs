@@ -211,13 +211,7 @@ fn noisy_points_cost_near_linear_work() {
 /// stray from the points, that miss them or have no pieces at all.
 #[test]
 fn the_early_verdict_is_the_measured_one() {
-    let mut seed = 0x2545_f491_4f6c_dd1du64;
-    let mut rnd = move || {
-        seed ^= seed << 13;
-        seed ^= seed >> 7;
-        seed ^= seed << 17;
-        (seed >> 11) as f64 / (1u64 << 53) as f64
-    };
+    let mut rnd = crate::geometry::test_rng::unit_rng(0x2545_f491_4f6c_dd1d);
     let mut checked = [0usize; 2];
     for case in 0..400 {
         // Every tenth large enough for the grid (delegated to max_deviation).
