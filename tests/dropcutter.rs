@@ -3,7 +3,7 @@
 
 use microcam::corpus;
 use microcam::formats::cldata::read_cldata;
-use microcam::geometry::{P3, V3};
+use microcam::geometry::{Line3, P3, Plane, V3};
 use std::path::Path;
 use std::process::Command;
 
@@ -310,19 +310,150 @@ fn waterline_loops_are_fitted_with_arcs_within_the_tolerance() {
         let o = run(bad);
         assert_refused(&o, &format!("{bad:?}"));
     }
+    // Passes along drawn chains lie in no one plane G2/G3 can name.
+    let chains = dir.path().join("c.jsonl");
+    std::fs::write(&chains, "").unwrap();
     let o = pathgen()
-        .args([
-            "dropcutter",
-            stl.to_str().unwrap(),
-            "--tool",
-            "ball:1",
-            "--step-over",
-            "0.5",
-        ])
-        .args(["--format", "toolpath", "--arc-fit", "0.002"])
+        .args(["dropcutter", stl.to_str().unwrap(), "--tool", "ball:1", "--chains"])
+        .arg(&chains)
+        .args(["--step-forward", "0.1", "--format", "toolpath", "--arc-fit", "0.002"])
         .output()
         .unwrap();
-    assert_refused(&o, "");
+    assert_refused(&o, "--chains with --arc-fit");
+    assert!(String::from_utf8_lossy(&o.stderr).contains("--arc-fit goes with a raster or waterlines"));
+}
+
+/// `--arc-fit` on a raster: each pass fitted in its own vertical plane
+/// (G18 along X, G19 along Y; a zigzag's links along the region's edge in
+/// the other), every sampled point of every move within the tolerance of
+/// the plain job's CL polyline, the same bytes twice, and the micro-mill
+/// (gsim, PMAC) no longer slowed at every block.
+#[test]
+fn raster_passes_are_fitted_with_arcs_in_their_planes() {
+    let dir = tempfile::tempdir().unwrap();
+    let stl = dir.path().join("s.stl");
+    write_stl(&stl, &hemisphere(5.0, 128, 32));
+    let tol = 0.001;
+    for (direction, pattern, along) in [("x", "zigzag", Plane::Xz), ("y", "one-way", Plane::Yz)] {
+        let run = |extra: &[&str]| {
+            pathgen()
+                .args(["dropcutter", stl.to_str().unwrap(), "--tool", "ball:1"])
+                .args(["--step-over", "1", "--step-forward", "0.02", "--region", "-3,-3,3,3"])
+                .args(["--direction", direction, "--pattern", pattern, "--safe-z", "7"])
+                .args(extra)
+                .output()
+                .unwrap()
+        };
+        let plain = run(&[]);
+        assert!(plain.status.success());
+        let cl = read_cldata(&plain.stdout[..]).unwrap().points;
+        // The plain job's passes: CL points below the safe Z, split where
+        // the tool goes up to it.
+        let mut passes: Vec<Vec<P3>> = vec![Vec::new()];
+        for p in &cl {
+            if p.z >= 7.0 - 1e-9 {
+                if passes.last().is_some_and(|p| !p.is_empty()) {
+                    passes.push(Vec::new());
+                }
+            } else if let Some(pass) = passes.last_mut() {
+                pass.push(*p);
+            }
+        }
+        passes.retain(|p| !p.is_empty());
+        let near = |q: &P3| {
+            passes
+                .iter()
+                .flat_map(|p| p.windows(2))
+                .map(|w| Line3::new(w[0], w[1]).distance(q))
+                .fold(f64::INFINITY, f64::min)
+        };
+        let out = run(&["--format", "toolpath", "--arc-fit", "0.001"]);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(out.status.success(), "{err}");
+        assert!(
+            err.contains("arcs fitted within 0.001 mm of the passes' chords"),
+            "{err}"
+        );
+        let recs: Vec<_> = microcam::formats::toolpath::ToolpathReader::new(&out.stdout[..])
+            .unwrap()
+            .map(|r| r.unwrap())
+            .collect();
+        let (mut arcs, mut along_arcs, mut cuts, mut worst) = (0, 0, 0, 0.0f64);
+        let mut from = P3::new(0.0, 0.0, 7.0);
+        for m in recs.iter().filter_map(|r| r.motion()) {
+            if m.role == Some(microcam::model::toolpath::Role::Cut) {
+                cuts += 1;
+                let pts: Vec<P3> = match m.arc(from) {
+                    Some(a) => {
+                        arcs += 1;
+                        along_arcs += usize::from(a.plane == along);
+                        // Along a pass (its line of the raster, 1 mm
+                        // apart), or along the region's edge on a
+                        // zigzag's link.
+                        let h = a.plane.normal_coord(&a.start);
+                        assert_eq!(a.plane.normal_coord(&a.end), h);
+                        if a.plane == along {
+                            assert_eq!(h, h.round(), "{a:?}");
+                        } else {
+                            assert!(pattern == "zigzag" && h.abs() == 3.0, "{a:?}");
+                        }
+                        (0..=16).map(|k| a.point_at(k as f64 / 16.0)).collect()
+                    }
+                    None => vec![m.to],
+                };
+                for p in pts {
+                    worst = worst.max(near(&p));
+                }
+            }
+            from = m.to;
+        }
+        assert!(worst <= tol * 1.0001, "{direction}: {worst}");
+        assert!(
+            along_arcs * 4 > arcs * 3,
+            "{direction}: {along_arcs} of {arcs} arcs along the passes"
+        );
+        let points: usize = passes.iter().map(Vec::len).sum();
+        assert!(cuts * 5 < points, "{direction}: {cuts} moves for {points} points");
+        // G-code names the plane; the same bytes again.
+        let g = run(&["--gcode", "iso", "--arc-fit", "0.001"]);
+        let text = String::from_utf8_lossy(&g.stdout);
+        assert!(
+            text.contains(if along == Plane::Xz { "G18" } else { "G19" }),
+            "{direction}"
+        );
+        assert_eq!(run(&["--gcode", "iso", "--arc-fit", "0.001"]).stdout, g.stdout);
+        // The controller model: a G1 per point is slowed at nearly every
+        // block; the arcs run near the feed.
+        let gsim = |prog: &[u8]| -> serde_json::Value {
+            let path = dir.path().join("r.pmc");
+            std::fs::write(&path, prog).unwrap();
+            let o = Command::new(env!("CARGO_BIN_EXE_gsim"))
+                .args(["--machine", "micro-mill"])
+                .arg(&path)
+                .output()
+                .unwrap();
+            assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+            serde_json::from_slice(&o.stdout).unwrap()
+        };
+        let (p_sim, a_sim) = (
+            gsim(&run(&["--gcode", "pmac"]).stdout),
+            gsim(&run(&["--gcode", "pmac", "--arc-fit", "0.001"]).stdout),
+        );
+        let f = |v: &serde_json::Value, k: &str| v[k].as_f64().unwrap();
+        // The figures docs/dropcutter.md quotes (`-- --nocapture` shows them).
+        eprintln!(
+            "raster along {direction}, {pattern}: {arcs} arcs of {cuts} moves for {points} points, worst {worst:.6} mm; gsim micro-mill: G1 per point {} of {} blocks slowed, {:.1} s; arcs {} of {}, {:.1} s (ideal {:.1} s)",
+            p_sim["limited_blocks"],
+            p_sim["feed_blocks"],
+            f(&p_sim, "cycle_time_s"),
+            a_sim["limited_blocks"],
+            a_sim["feed_blocks"],
+            f(&a_sim, "cycle_time_s"),
+            f(&a_sim, "ideal_cutting_time_s")
+        );
+        assert!(f(&a_sim, "cycle_time_s") * 2.0 < f(&p_sim, "cycle_time_s"));
+        assert!(f(&a_sim, "limited_blocks") * 5.0 < f(&p_sim, "limited_blocks"));
+    }
 }
 
 #[test]
@@ -531,7 +662,18 @@ fn on_every_corpus_stl(test: &str, args: &[&str]) -> Vec<(std::path::PathBuf, st
 
 #[test]
 fn every_corpus_stl_drops_or_is_refused() {
-    for (f, o) in on_every_corpus_stl("dropcutter_corpus", &["--tool", "torus:1:0.2", "--step-over", "0.5"]) {
+    let args = [
+        "--tool",
+        "torus:1:0.2",
+        "--step-over",
+        "0.5",
+        "--step-forward",
+        "0.05",
+        "--safe-z",
+        "1e6",
+    ];
+    let plain = on_every_corpus_stl("dropcutter_corpus", &args);
+    for (f, o) in &plain {
         if o.status.code() == Some(2) {
             assert!(!o.stderr.is_empty(), "{f:?}");
             continue;
@@ -541,6 +683,45 @@ fn every_corpus_stl_drops_or_is_refused() {
             !d.points.is_empty() && d.points.iter().all(|p| p.z.is_finite()),
             "{f:?}"
         );
+    }
+    // With arcs fitted (toolpath): the same meshes read or refused alike;
+    // one plunge per pass onto its first point, its cuts ending on its
+    // last, and every cut's end within the tolerance of the pass's chords.
+    let tol = 0.002;
+    let fitted = [&args[..], &["-q", "--format", "toolpath", "--arc-fit", "0.002"]].concat();
+    let arcs = on_every_corpus_stl("dropcutter_corpus_arcs", &fitted);
+    for ((f, p), (_, a)) in plain.iter().zip(&arcs) {
+        assert_eq!(p.status.code(), a.status.code(), "{f:?}");
+        if p.status.code() != Some(0) {
+            continue;
+        }
+        let d = read_cldata(&p.stdout[..]).unwrap();
+        let passes: Vec<&[P3]> = d.points.split(|q| q.z == 1e6).filter(|l| !l.is_empty()).collect();
+        let recs: Vec<_> = microcam::formats::toolpath::ToolpathReader::new(&a.stdout[..])
+            .unwrap()
+            .map(|r| r.unwrap())
+            .collect();
+        let moves: Vec<_> = recs.iter().filter_map(|r| r.motion()).collect();
+        let plunges: Vec<usize> = (0..moves.len())
+            .filter(|&i| moves[i].role == Some(microcam::model::toolpath::Role::Plunge))
+            .collect();
+        assert_eq!(plunges.len(), passes.len(), "{f:?}");
+        for (&i, pass) in plunges.iter().zip(&passes) {
+            assert!((moves[i].to - pass[0]).norm() < 1e-6, "{f:?}");
+            let cut: Vec<_> = moves[i + 1..]
+                .iter()
+                .take_while(|m| m.role == Some(microcam::model::toolpath::Role::Cut))
+                .collect();
+            let end = cut.last().map_or(moves[i].to, |m| m.to);
+            assert!((end - pass[pass.len() - 1]).norm() < 1e-6, "{f:?}: pass not ended");
+            for m in cut {
+                let d = pass
+                    .windows(2)
+                    .map(|w| Line3::new(w[0], w[1]).distance(&m.to))
+                    .fold(f64::INFINITY, f64::min);
+                assert!(d <= tol * 1.0001, "{f:?}: {:?} {d} off the pass", m.to);
+            }
+        }
     }
 }
 

@@ -18,6 +18,7 @@
 #![warn(missing_docs)]
 
 pub mod adaptive;
+pub mod arcs;
 pub mod cutter_vs_triangle;
 mod fibre;
 pub mod fiveaxis;

@@ -11,8 +11,9 @@ use clap::{Args as ClapArgs, ValueEnum};
 use microcam::cli::{self, CliError, Output};
 use microcam::cutter::Cutter;
 use microcam::dropcutter::adaptive::Adaptive;
+use microcam::dropcutter::arcs::fit_pass;
 use microcam::dropcutter::gouge::Holder;
-use microcam::dropcutter::output::{Feeds, toolpath_records, write_cldata};
+use microcam::dropcutter::output::{Feeds, toolpath_records, toolpath_records_of_segments, write_cldata};
 use microcam::dropcutter::raster::{Direction, Pattern, Raster, chain_passes};
 use microcam::dropcutter::{DropCutter, DropError};
 use microcam::formats::cldata::ClWriter;
@@ -21,8 +22,10 @@ use microcam::formats::toolpath::ToolpathWriter;
 use microcam::gcode::Dialect;
 use microcam::geometry::{P2, P3};
 use microcam::mesh::{ReadOptions, Units};
+use microcam::model::chain::Segment;
 use microcam::model::toolpath::{FeedUnit, Header, Record};
 use microcam::progress::{Meter, Show};
+use rayon::prelude::*;
 use std::io::Read;
 use std::path::PathBuf;
 
@@ -39,6 +42,7 @@ Examples:
   pathgen dropcutter part.stl --tool ball:1 --waterline-step 0.2 --step-over 0.02 --gcode iso > walls.ngc
   pathgen dropcutter part.stl --tool flat:1 --waterline 2,1 --step-over 0.2 --chord-tol 0.001 > wl.cl
   pathgen dropcutter part.stl --tool ball:1 --waterline-step 0.2 --step-over 0.02 --arc-fit 0.002 --gcode pmac > walls.pmc
+  pathgen dropcutter part.stl --tool ball:0.5 --step-over 0.05 --step-forward 0.01 --arc-fit 0.001 --gcode iso > finish.ngc
 
 The mesh is STL (ASCII or binary) or OBJ in mm unless --units says otherwise.
 CL data rows are 'x y z' (tool tip) or, with --five-axis, 'x y z x1 y1 z1'
@@ -186,9 +190,10 @@ pub struct DropcutterArgs {
     /// Waterlines every DZ down from the mesh top to the floor.
     #[arg(long, value_name = "DZ", conflicts_with_all = ["chains", "five_axis", "region", "min_step", "step_forward", "direction", "pattern"])]
     waterline_step: Option<f64>,
-    /// Waterlines as toolpath or G-code: fit arcs (G2/G3) to each loop,
-    /// staying within this of its chords both ways (mm), instead of a line
-    /// per point.
+    /// Waterlines or a raster as toolpath or G-code: fit arcs (G2/G3) to
+    /// each loop or pass in its own plane (G17 for a waterline, G18 for a
+    /// pass along X, G19 along Y), staying within this of its chords both
+    /// ways (mm), instead of a line per point.
     #[arg(long, value_name = "T")]
     arc_fit: Option<f64>,
     /// 5-axis CL data: flat or torus cutter along the surface normal.
@@ -357,9 +362,8 @@ pub fn run(a: DropcutterArgs) -> Result<(), CliError> {
     if a.waterline.is_some() || a.waterline_step.is_some() {
         return waterline::run(&a, &dc, floor, safe_z, feeds, &name);
     }
-    if a.arc_fit.is_some() {
-        return Err(CliError::input("--arc-fit goes with --waterline or --waterline-step"));
-    }
+    // Checked before the drop: it is most of the work.
+    let arc_fit = arc_fit_arg(&a)?;
     // The XY passes.
     let passes: Vec<Vec<P2>> = if let Some(path) = &a.chains {
         let input = cli::open_input(Some(path))?;
@@ -390,6 +394,7 @@ pub fn run(a: DropcutterArgs) -> Result<(), CliError> {
     };
     let mut out = Output::new(a.output.as_deref());
     let n_points: usize;
+    let mut fit_line = None;
     if a.five_axis {
         n_points = five::run(&a, &dc, &passes, safe_z, &name, &mut out)?;
     } else {
@@ -425,7 +430,19 @@ pub fn run(a: DropcutterArgs) -> Result<(), CliError> {
             });
         }
         n_points = cl.iter().map(Vec::len).sum();
-        write_passes(&a, cutter, &cl, safe_z, feeds, &name, &mut out)?;
+        match arc_fit {
+            Some(t) => {
+                let fitted = fit_passes(&a, &cl, |p| fit_pass(p, t));
+                write_records(
+                    &a,
+                    toolpath_records_of_segments(&fitted, safe_z, feeds),
+                    &name,
+                    &mut out,
+                )?;
+                fit_line = Some(fit_summary(&fitted, t, "passes", &cl));
+            }
+            None => write_passes(&a, cutter, &cl, safe_z, feeds, &name, &mut out)?,
+        }
     }
     out.commit()?;
     microcam::diag!(
@@ -433,7 +450,55 @@ pub fn run(a: DropcutterArgs) -> Result<(), CliError> {
         loaded.mesh.triangles.len(),
         passes.len(),
     );
+    if let Some(line) = fit_line {
+        microcam::diag!("pathgen: dropcutter: {line}");
+    }
     Ok(())
+}
+
+/// `--arc-fit`, checked: only where the output can hold arcs (a toolpath
+/// or G-code) and the passes lie in planes G2/G3 can name (waterlines, a
+/// raster; not the points along a drawn chain).
+fn arc_fit_arg(a: &DropcutterArgs) -> Result<Option<f64>, CliError> {
+    let Some(t) = a.arc_fit else { return Ok(None) };
+    if a.chains.is_some() {
+        return Err(CliError::input(
+            "--arc-fit goes with a raster or waterlines (the points along a chain lie in no one plane of G17/G18/G19)",
+        ));
+    }
+    if a.gcode.is_none() && a.format == FormatArg::Cl {
+        return Err(CliError::input(
+            "--arc-fit: CL data holds points only; use --format toolpath or --gcode",
+        ));
+    }
+    Ok(Some(positive("arc-fit", t)?))
+}
+
+/// Each pass (or loop) fitted with lines and arcs by `fit`, on the pool,
+/// with a meter: seconds on a large job, about as long again as the drop.
+fn fit_passes(a: &DropcutterArgs, passes: &[Vec<P3>], fit: impl Fn(&[P3]) -> Vec<Segment> + Sync) -> Vec<Vec<Segment>> {
+    let points = passes.iter().map(Vec::len).sum::<usize>() as u64;
+    let meter = Meter::start("pathgen", "fitting arcs", points, Show::from_flags(a.quiet, false));
+    let fitted = passes
+        .par_iter()
+        .map(|p| {
+            let f = fit(p);
+            microcam::progress::advance(p.len() as u64);
+            f
+        })
+        .collect();
+    meter.finish();
+    fitted
+}
+
+/// The stderr line on a fit: moves and arcs written for the points.
+fn fit_summary(fitted: &[Vec<Segment>], t: f64, what: &str, points: &[Vec<P3>]) -> String {
+    let arcs = fitted.iter().flatten().filter(|s| matches!(s, Segment::Arc(_))).count();
+    format!(
+        "arcs fitted within {t} mm of the {what}' chords: {} moves ({arcs} arcs) for {} points",
+        fitted.iter().map(Vec::len).sum::<usize>(),
+        points.iter().map(Vec::len).sum::<usize>()
+    )
 }
 
 /// 3-axis passes (raster, chains or waterlines) as G-code, toolpath or CL

@@ -1,16 +1,16 @@
 //! `pathgen dropcutter --waterline` / `--waterline-step`: closed loops at
 //! constant Z, written point by point or fitted with arcs (`--arc-fit`).
 
-use super::{DropcutterArgs, FormatArg, chord_tol_arg, positive, write_passes, write_records};
+use super::{
+    DropcutterArgs, arc_fit_arg, chord_tol_arg, fit_passes, fit_summary, positive, write_passes, write_records,
+};
 use microcam::cli::{CliError, Output};
 use microcam::dropcutter::DropCutter;
 use microcam::dropcutter::output::{Feeds, toolpath_records_of_segments};
 use microcam::dropcutter::waterline::Waterline;
 use microcam::geometry::{P2, P3};
 use microcam::laser::arcfit::fit_points;
-use microcam::model::chain::Segment;
 use microcam::progress::{Meter, Show};
-use rayon::prelude::*;
 
 /// `--waterline` / `--waterline-step`: closed loops at each level, top
 /// down, sampled on fibres `--step-over` apart.
@@ -29,15 +29,7 @@ pub(super) fn run(
     )?;
     let chord_tol = chord_tol_arg(a)?;
     // Checked before the waterlines are traced: they are most of the work.
-    let arc_fit = match a.arc_fit {
-        None => None,
-        Some(_) if a.gcode.is_none() && a.format == FormatArg::Cl => {
-            return Err(CliError::input(
-                "--arc-fit: CL data holds points only; use --format toolpath or --gcode",
-            ));
-        }
-        Some(t) => Some(positive("arc-fit", t)?),
-    };
+    let arc_fit = arc_fit_arg(a)?;
     let top = dc.bbox().max.z;
     let mut levels: Vec<f64> = match (&a.waterline, a.waterline_step) {
         (Some(zs), _) => {
@@ -86,25 +78,13 @@ pub(super) fn run(
     }
     meter.finish();
     let mut out = Output::new(a.output.as_deref());
-    let fitted = match arc_fit {
-        None => None,
-        Some(t) => {
-            // Seconds on a large mesh (a few times the trace): shown by points fitted.
-            let points = cl.iter().map(Vec::len).sum::<usize>() as u64;
-            let meter = Meter::start("pathgen", "fitting arcs", points, Show::from_flags(a.quiet, false));
-            let loops: Vec<Vec<Segment>> = cl
-                .par_iter()
-                .map(|l| {
-                    let pts: Vec<P2> = l.iter().map(|p| P2::new(p.x, p.y)).collect();
-                    let fit = fit_points(&pts, t, l.first().map_or(0.0, |p| p.z), true);
-                    microcam::progress::advance(l.len() as u64);
-                    fit
-                })
-                .collect();
-            meter.finish();
-            Some((loops, t))
-        }
-    };
+    let fitted = arc_fit.map(|t| {
+        let loops = fit_passes(a, &cl, |l| {
+            let pts: Vec<P2> = l.iter().map(|p| P2::new(p.x, p.y)).collect();
+            fit_points(&pts, t, l.first().map_or(0.0, |p| p.z), true)
+        });
+        (loops, t)
+    });
     match &fitted {
         Some((loops, _)) => write_records(a, toolpath_records_of_segments(loops, safe_z, feeds), name, &mut out)?,
         None => write_passes(a, dc.cutter(), &cl, safe_z, feeds, name, &mut out)?,
@@ -117,12 +97,7 @@ pub(super) fn run(
         cl.iter().map(Vec::len).sum::<usize>()
     );
     if let Some((loops, t)) = &fitted {
-        let arcs = loops.iter().flatten().filter(|s| matches!(s, Segment::Arc(_))).count();
-        microcam::diag!(
-            "pathgen: dropcutter: arcs fitted within {t} mm of the loops' chords: {} moves ({arcs} arcs) for {} points",
-            loops.iter().map(Vec::len).sum::<usize>(),
-            cl.iter().map(Vec::len).sum::<usize>()
-        );
+        microcam::diag!("pathgen: dropcutter: {}", fit_summary(loops, *t, "loops", &cl));
     }
     Ok(())
 }
