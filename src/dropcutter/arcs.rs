@@ -45,6 +45,26 @@ fn into_plane(s: Segment, plane: Plane) -> Segment {
     }
 }
 
+/// Below this fraction of the tolerance an arc's sagitta makes it a line.
+const FLAT_ARC: f64 = 0.01;
+
+/// `s` as a line when it is an arc that bows from its chord by less than
+/// `FLAT_ARC` of `tol`: the biarc fit gives a straight stretch of points
+/// (a flat floor) radii of hundreds of metres where its end tangents lean
+/// a little, which a controller then computes through a far-away centre.
+/// The line is within `FLAT_ARC · tol` of the arc, so the piece stays
+/// within the tolerance of the chords, and the tangent breaks by a few
+/// microradians.
+pub fn straightened(s: Segment, tol: f64) -> Segment {
+    let Segment::Arc(a) = s else { return s };
+    let half = (0.5 * a.sweep().abs()).min(std::f64::consts::FRAC_PI_2);
+    if a.radius() * (1.0 - half.cos()) < FLAT_ARC * tol {
+        Segment::line(a.start, a.end)
+    } else {
+        s
+    }
+}
+
 /// `pass` (CL points in order) as lines and arcs within `tol` of its
 /// chords: each maximal stretch of points in one plane of constant X, Y or
 /// Z is fitted in that plane; a chord in none of them is a line. The
@@ -65,7 +85,11 @@ pub fn fit_pass(pass: &[P3], tol: f64) -> Vec<Segment> {
             j += 1;
         }
         let pts: Vec<P2> = pass[i..=j].iter().map(|p| plane.project(p)).collect();
-        out.extend(fit_points(&pts, tol, h, true).into_iter().map(|s| into_plane(s, plane)));
+        out.extend(
+            fit_points(&pts, tol, h, true)
+                .into_iter()
+                .map(|s| into_plane(straightened(s, tol), plane)),
+        );
         i = j;
     }
     out
@@ -158,6 +182,47 @@ mod tests {
             let d = fit.iter().filter_map(|s| s.distance(p)).fold(f64::INFINITY, f64::min);
             assert!(d <= tol * 1.0001, "{p:?}: {d}");
         }
+    }
+
+    /// A flat floor between two slopes: the fit's near-straight arcs there
+    /// become lines; the curved arcs stay.
+    #[test]
+    fn flat_stretches_are_lines() {
+        let z = |x: f64| {
+            if x.abs() <= 2.0 {
+                -3.0
+            } else {
+                -3.0 + (x.abs() - 2.0).powi(2)
+            }
+        };
+        let pass: Vec<P3> = (0..=80)
+            .map(|i| -4.0 + i as f64 * 0.1)
+            .map(|x| P3::new(x, 0.5, z(x)))
+            .collect();
+        let tol = 0.001;
+        let fit = fit_pass(&pass, tol);
+        let floor: Vec<&Segment> = fit.iter().filter(|s| s.start().x >= -2.0 && s.end().x <= 2.0).collect();
+        assert!(!floor.is_empty());
+        for s in &floor {
+            assert!(matches!(s, Segment::Line(_)), "{s:?}");
+        }
+        assert!(fit.iter().any(|s| matches!(s, Segment::Arc(_))));
+        for s in &fit {
+            if let Segment::Arc(a) = s {
+                assert!(a.radius() < 1e3, "{a:?}");
+            }
+        }
+        // Straightening keeps what bows by more and turns what bows by less.
+        let arc = |r: f64| {
+            let (c, half) = (P3::new(0.0, 0.0, -r), 0.01f64);
+            let at = |t: f64| P3::new(r * t.sin(), 0.0, -r + r * t.cos());
+            Segment::Arc(Arc3::new(c, at(-half), at(half), true, Plane::Xz, 0).unwrap())
+        };
+        // Sagitta r (1 - cos 0.01) = 5e-5 r (the short way, counter-
+        // clockwise about +Y from -0.01 to 0.01 rad off +Z).
+        assert!((arc(1.0).length() - 0.02).abs() < 1e-12);
+        assert!(matches!(straightened(arc(0.1), tol), Segment::Line(_)));
+        assert!(matches!(straightened(arc(1.0), tol), Segment::Arc(_)));
     }
 
     /// A pass in no plane of constant coordinate stays lines, one a chord;
