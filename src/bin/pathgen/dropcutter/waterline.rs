@@ -6,6 +6,7 @@ use super::{
 };
 use microcam::cli::{CliError, Output};
 use microcam::dropcutter::DropCutter;
+use microcam::dropcutter::arcs::straightened;
 use microcam::dropcutter::output::{Feeds, toolpath_records_of_segments};
 use microcam::dropcutter::waterline::Waterline;
 use microcam::geometry::{P2, P3};
@@ -82,6 +83,9 @@ pub(super) fn run(
         let loops = fit_passes(a, &cl, |l| {
             let pts: Vec<P2> = l.iter().map(|p| P2::new(p.x, p.y)).collect();
             fit_points(&pts, t, l.first().map_or(0.0, |p| p.z), true)
+                .into_iter()
+                .map(|s| straightened(s, t))
+                .collect()
         });
         (loops, t)
     });
