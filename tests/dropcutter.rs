@@ -1555,3 +1555,74 @@ fn smoothed_normals_follow_the_surface_and_the_tools_rest_on_it() {
         assert_refused(&o, &format!("{bad:?}"));
     }
 }
+
+/// Machined in simulation (`stlverify` reading the G-code): a ball raster
+/// over the hemisphere written a G1 per point and with `--arc-fit 0.001`
+/// (G18 arcs) cuts the same part; the arcs cut in by at most their
+/// tolerance more, plus the tenth of the band within which stlverify
+/// chords arcs when it has a design (with its old quarter spacing,
+/// 0.00625 mm here, the chords' own sag was what it reported).
+#[test]
+fn raster_arcs_machine_the_part_within_their_tolerance() {
+    let dir = tempfile::tempdir().unwrap();
+    let stl = dir.path().join("s.stl");
+    write_stl(&stl, &hemisphere(5.0, 128, 32));
+    let (tol, band) = (0.001, 0.01);
+    let verify = |extra: &[&str]| -> (Option<i32>, serde_json::Value) {
+        let prog = dir.path().join("r.ngc");
+        let o = pathgen()
+            .args(["dropcutter", stl.to_str().unwrap(), "--tool", "ball:1", "-q"])
+            .args([
+                "--step-over",
+                "0.1",
+                "--step-forward",
+                "0.02",
+                "--region",
+                "-3,-3,3,3",
+                "--gcode",
+                "iso",
+            ])
+            .args(extra)
+            .arg("-o")
+            .arg(&prog)
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let v = Command::new(env!("CARGO_BIN_EXE_stlverify"))
+            .args([
+                "--quiet",
+                "--stock",
+                "-3.5,-3.5,0,3.5,3.5,6",
+                "--tool",
+                "ball:1",
+                "--flute-length",
+                "6",
+            ])
+            .arg("--design")
+            .arg(&stl)
+            .args(["--region", "-2,2,-2,2", "--step-forward", "0.05", "--step-over", "0.05"])
+            .args(["--band", &band.to_string(), "--format", "gcode"])
+            .arg(&prog)
+            .output()
+            .unwrap();
+        let r: serde_json::Value = serde_json::from_slice(&v.stdout).unwrap();
+        (v.status.code(), r["verification"].clone())
+    };
+    let f = |v: &serde_json::Value, k: &str| v[k].as_f64().unwrap();
+    let (code, plain) = verify(&[]);
+    assert_eq!(code, Some(0), "{plain}");
+    let (code, arcs) = verify(&["--arc-fit", "0.001"]);
+    assert_eq!(code, Some(0), "{arcs}");
+    eprintln!(
+        "hemisphere raster, stlverify: G1 per point max gouge {:.6} mm, rms {:.6}; arcs max gouge {:.6} mm, rms {:.6}",
+        f(&plain, "max_gouge_mm"),
+        f(&plain, "rms_mm"),
+        f(&arcs, "max_gouge_mm"),
+        f(&arcs, "rms_mm")
+    );
+    assert!(
+        f(&arcs, "max_gouge_mm") <= f(&plain, "max_gouge_mm") + tol + 0.1 * band + 1e-6,
+        "{plain} {arcs}"
+    );
+    assert!((f(&arcs, "rms_mm") - f(&plain, "rms_mm")).abs() < tol, "{plain} {arcs}");
+}

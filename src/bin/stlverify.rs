@@ -192,7 +192,16 @@ fn run(args: Args) -> Result<(), CliError> {
         Format::Cl => cl::read_cl(input.reader).map_err(|e| CliError::in_file(&name, e))?,
         Format::Gcode => {
             let src = ToolpathSource::open(input, &cl::program_options())?;
-            let v = cl::program_locations(src, 0.25 * spacing).map_err(|e| CliError::in_file(&name, e))?;
+            // Arcs as chords: within a quarter of the spacing, and with a
+            // design, a tenth of the band, so that the chords' own sag
+            // (which cuts a convex arc's inside) is not what the check
+            // reports; a band of 0 leaves the quarter spacing.
+            let sag = if args.design.is_some() && band > 0.0 {
+                (0.25 * spacing).min(0.1 * band)
+            } else {
+                0.25 * spacing
+            };
+            let v = cl::program_locations(src, sag).map_err(|e| CliError::in_file(&name, e))?;
             (v, false)
         }
     };
