@@ -4,6 +4,7 @@
 use microcam::corpus;
 use microcam::formats::cldata::read_cldata;
 use microcam::geometry::{Line3, P3, Plane, V3};
+use microcam::model::toolpath::{Motion, Record, Role};
 use std::path::Path;
 use std::process::Command;
 
@@ -79,6 +80,58 @@ fn assert_refused(o: &std::process::Output, what: &str) {
         String::from_utf8_lossy(&o.stderr)
     );
     assert!(o.stdout.is_empty(), "{what}");
+}
+
+/// The records of a toolpath (JSON Lines) output.
+fn toolpath_records(bytes: &[u8]) -> Vec<Record> {
+    microcam::formats::toolpath::ToolpathReader::new(bytes)
+        .unwrap()
+        .map(|r| r.unwrap())
+        .collect()
+}
+
+/// A toolpath's passes in order: each plunge with the cut moves after it.
+fn plunged_passes(recs: &[Record]) -> Vec<(&Motion, Vec<&Motion>)> {
+    let moves: Vec<&Motion> = recs.iter().filter_map(|r| r.motion()).collect();
+    (0..moves.len())
+        .filter(|&i| moves[i].role == Some(Role::Plunge))
+        .map(|i| {
+            let cut = moves[i + 1..]
+                .iter()
+                .copied()
+                .take_while(|m| m.role == Some(Role::Cut))
+                .collect();
+            (moves[i], cut)
+        })
+        .collect()
+}
+
+/// gsim's report of `prog` (PMAC text) on the micro-mill.
+fn gsim_micro_mill(dir: &Path, prog: &[u8]) -> serde_json::Value {
+    let path = dir.join("sim.pmc");
+    std::fs::write(&path, prog).unwrap();
+    let o = Command::new(env!("CARGO_BIN_EXE_gsim"))
+        .args(["--machine", "micro-mill"])
+        .arg(&path)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    serde_json::from_slice(&o.stdout).unwrap()
+}
+
+/// Two gsim reports side by side: a G1 per point against arcs.
+fn gsim_comparison(plain: &serde_json::Value, arcs: &serde_json::Value) -> String {
+    let f = |v: &serde_json::Value, k: &str| v[k].as_f64().unwrap();
+    format!(
+        "G1 per point {} of {} blocks slowed, {:.1} s; arcs {} of {}, {:.1} s (ideal {:.1} s)",
+        plain["limited_blocks"],
+        plain["feed_blocks"],
+        f(plain, "cycle_time_s"),
+        arcs["limited_blocks"],
+        arcs["feed_blocks"],
+        f(arcs, "cycle_time_s"),
+        f(arcs, "ideal_cutting_time_s")
+    )
 }
 
 /// Upper half of a UV sphere of radius `r` about the origin.
@@ -214,15 +267,12 @@ fn waterline_loops_are_fitted_with_arcs_within_the_tolerance() {
         err.contains("arcs fitted within 0.002 mm of the loops' chords"),
         "{err}"
     );
-    let recs: Vec<_> = microcam::formats::toolpath::ToolpathReader::new(&out.stdout[..])
-        .unwrap()
-        .map(|r| r.unwrap())
-        .collect();
+    let recs = toolpath_records(&out.stdout);
     let sag = 5.0 * (1.0 - (std::f64::consts::PI / 64.0).cos());
     let (mut arcs, mut cuts) = (0, 0);
     let mut from = P3::new(0.0, 0.0, 7.0);
     for m in recs.iter().filter_map(|r| r.motion()) {
-        if m.role == Some(microcam::model::toolpath::Role::Cut) {
+        if m.role == Some(Role::Cut) {
             cuts += 1;
             assert_eq!(m.to.z, from.z, "a loop stays at its level");
             let want = (5.5f64 * 5.5 - (m.to.z + 0.5).powi(2)).sqrt();
@@ -273,32 +323,12 @@ fn waterline_loops_are_fitted_with_arcs_within_the_tolerance() {
     // Run by the controller model (gsim, PMAC, the micro-mill): a G1
     // per point makes blocks shorter than the stage's least move time, so
     // nearly every one runs slow; the arcs do not.
-    let gsim = |prog: &[u8]| -> serde_json::Value {
-        let path = dir.path().join("w.pmc");
-        std::fs::write(&path, prog).unwrap();
-        let o = Command::new(env!("CARGO_BIN_EXE_gsim"))
-            .args(["--machine", "micro-mill"])
-            .arg(&path)
-            .output()
-            .unwrap();
-        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-        serde_json::from_slice(&o.stdout).unwrap()
-    };
     let (p_sim, a_sim) = (
-        gsim(&run(&["--gcode", "pmac"]).stdout),
-        gsim(&run(&["--gcode", "pmac", "--arc-fit", "0.002"]).stdout),
+        gsim_micro_mill(dir.path(), &run(&["--gcode", "pmac"]).stdout),
+        gsim_micro_mill(dir.path(), &run(&["--gcode", "pmac", "--arc-fit", "0.002"]).stdout),
     );
     let f = |v: &serde_json::Value, k: &str| v[k].as_f64().unwrap();
-    eprintln!(
-        "gsim: G1 per point {} of {} blocks slowed, {:.1} s; arcs {} of {}, {:.1} s (ideal {:.1} s)",
-        p_sim["limited_blocks"],
-        p_sim["feed_blocks"],
-        f(&p_sim, "cycle_time_s"),
-        a_sim["limited_blocks"],
-        a_sim["feed_blocks"],
-        f(&a_sim, "cycle_time_s"),
-        f(&a_sim, "ideal_cutting_time_s")
-    );
+    eprintln!("gsim: {}", gsim_comparison(&p_sim, &a_sim));
     assert!(f(&a_sim, "limited_blocks") * 10.0 < f(&p_sim, "limited_blocks"));
     assert!(f(&a_sim, "cycle_time_s") * 1.5 < f(&p_sim, "cycle_time_s"));
     // Bad usage: CL data has no arcs; rasters are not fitted; T positive.
@@ -374,14 +404,11 @@ fn raster_passes_are_fitted_with_arcs_in_their_planes() {
             err.contains("arcs fitted within 0.001 mm of the passes' chords"),
             "{err}"
         );
-        let recs: Vec<_> = microcam::formats::toolpath::ToolpathReader::new(&out.stdout[..])
-            .unwrap()
-            .map(|r| r.unwrap())
-            .collect();
+        let recs = toolpath_records(&out.stdout);
         let (mut arcs, mut along_arcs, mut cuts, mut worst) = (0, 0, 0, 0.0f64);
         let mut from = P3::new(0.0, 0.0, 7.0);
         for m in recs.iter().filter_map(|r| r.motion()) {
-            if m.role == Some(microcam::model::toolpath::Role::Cut) {
+            if m.role == Some(Role::Cut) {
                 cuts += 1;
                 let pts: Vec<P3> = match m.arc(from) {
                     Some(a) => {
@@ -424,32 +451,15 @@ fn raster_passes_are_fitted_with_arcs_in_their_planes() {
         assert_eq!(run(&["--gcode", "iso", "--arc-fit", "0.001"]).stdout, g.stdout);
         // The controller model: a G1 per point is slowed at nearly every
         // block; the arcs run near the feed.
-        let gsim = |prog: &[u8]| -> serde_json::Value {
-            let path = dir.path().join("r.pmc");
-            std::fs::write(&path, prog).unwrap();
-            let o = Command::new(env!("CARGO_BIN_EXE_gsim"))
-                .args(["--machine", "micro-mill"])
-                .arg(&path)
-                .output()
-                .unwrap();
-            assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-            serde_json::from_slice(&o.stdout).unwrap()
-        };
         let (p_sim, a_sim) = (
-            gsim(&run(&["--gcode", "pmac"]).stdout),
-            gsim(&run(&["--gcode", "pmac", "--arc-fit", "0.001"]).stdout),
+            gsim_micro_mill(dir.path(), &run(&["--gcode", "pmac"]).stdout),
+            gsim_micro_mill(dir.path(), &run(&["--gcode", "pmac", "--arc-fit", "0.001"]).stdout),
         );
         let f = |v: &serde_json::Value, k: &str| v[k].as_f64().unwrap();
         // The figures docs/dropcutter.md quotes (`-- --nocapture` shows them).
         eprintln!(
-            "raster along {direction}, {pattern}: {arcs} arcs of {cuts} moves for {points} points, worst {worst:.6} mm; gsim micro-mill: G1 per point {} of {} blocks slowed, {:.1} s; arcs {} of {}, {:.1} s (ideal {:.1} s)",
-            p_sim["limited_blocks"],
-            p_sim["feed_blocks"],
-            f(&p_sim, "cycle_time_s"),
-            a_sim["limited_blocks"],
-            a_sim["feed_blocks"],
-            f(&a_sim, "cycle_time_s"),
-            f(&a_sim, "ideal_cutting_time_s")
+            "raster along {direction}, {pattern}: {arcs} arcs of {cuts} moves for {points} points, worst {worst:.6} mm; gsim micro-mill: {}",
+            gsim_comparison(&p_sim, &a_sim)
         );
         assert!(f(&a_sim, "cycle_time_s") * 2.0 < f(&p_sim, "cycle_time_s"));
         assert!(f(&a_sim, "limited_blocks") * 5.0 < f(&p_sim, "limited_blocks"));
@@ -697,22 +707,12 @@ fn every_corpus_stl_drops_or_is_refused() {
         }
         let d = read_cldata(&p.stdout[..]).unwrap();
         let passes: Vec<&[P3]> = d.points.split(|q| q.z == 1e6).filter(|l| !l.is_empty()).collect();
-        let recs: Vec<_> = microcam::formats::toolpath::ToolpathReader::new(&a.stdout[..])
-            .unwrap()
-            .map(|r| r.unwrap())
-            .collect();
-        let moves: Vec<_> = recs.iter().filter_map(|r| r.motion()).collect();
-        let plunges: Vec<usize> = (0..moves.len())
-            .filter(|&i| moves[i].role == Some(microcam::model::toolpath::Role::Plunge))
-            .collect();
-        assert_eq!(plunges.len(), passes.len(), "{f:?}");
-        for (&i, pass) in plunges.iter().zip(&passes) {
-            assert!((moves[i].to - pass[0]).norm() < 1e-6, "{f:?}");
-            let cut: Vec<_> = moves[i + 1..]
-                .iter()
-                .take_while(|m| m.role == Some(microcam::model::toolpath::Role::Cut))
-                .collect();
-            let end = cut.last().map_or(moves[i].to, |m| m.to);
+        let recs = toolpath_records(&a.stdout);
+        let fitted = plunged_passes(&recs);
+        assert_eq!(fitted.len(), passes.len(), "{f:?}");
+        for ((plunge, cut), pass) in fitted.into_iter().zip(&passes) {
+            assert!((plunge.to - pass[0]).norm() < 1e-6, "{f:?}");
+            let end = cut.last().map_or(plunge.to, |m| m.to);
             assert!((end - pass[pass.len() - 1]).norm() < 1e-6, "{f:?}: pass not ended");
             for m in cut {
                 let d = pass
@@ -771,25 +771,15 @@ fn every_corpus_stl_gives_closed_waterlines_or_is_refused() {
         }
         let d = read_cldata(&p.stdout[..]).unwrap();
         let loops: Vec<&[P3]> = d.points.split(|q| q.z == 1e6).filter(|l| !l.is_empty()).collect();
-        let recs: Vec<_> = microcam::formats::toolpath::ToolpathReader::new(&a.stdout[..])
-            .unwrap()
-            .map(|r| r.unwrap())
-            .collect();
+        let recs = toolpath_records(&a.stdout);
         // One plunge per loop, each onto the loop's first point; the cuts
         // after it stay at that level and close the loop.
-        let moves: Vec<_> = recs.iter().filter_map(|r| r.motion()).collect();
-        let plunges: Vec<usize> = (0..moves.len())
-            .filter(|&i| moves[i].role == Some(microcam::model::toolpath::Role::Plunge))
-            .collect();
-        assert_eq!(plunges.len(), loops.len(), "{f:?}");
-        for (&i, l) in plunges.iter().zip(&loops) {
-            assert!((moves[i].to - l[0]).norm() < 1e-6, "{f:?}");
-            let cut: Vec<_> = moves[i + 1..]
-                .iter()
-                .take_while(|m| m.role == Some(microcam::model::toolpath::Role::Cut))
-                .collect();
+        let fitted = plunged_passes(&recs);
+        assert_eq!(fitted.len(), loops.len(), "{f:?}");
+        for ((plunge, cut), l) in fitted.into_iter().zip(&loops) {
+            assert!((plunge.to - l[0]).norm() < 1e-6, "{f:?}");
             assert!(cut.iter().all(|m| m.to.z == l[0].z), "{f:?}: off its level");
-            let end = cut.last().map_or(moves[i].to, |m| m.to);
+            let end = cut.last().map_or(plunge.to, |m| m.to);
             assert!((end - l[l.len() - 1]).norm() < 1e-6, "{f:?}: loop not closed");
         }
     }
