@@ -65,6 +65,16 @@ pub fn straightened(s: Segment, tol: f64) -> Segment {
     }
 }
 
+/// A waterline loop (CL points at one Z) as lines and arcs in its level
+/// plane, within `tol` of its chords, the flat arcs straightened.
+pub fn fit_loop(points: &[P3], tol: f64) -> Vec<Segment> {
+    let pts: Vec<P2> = points.iter().map(|p| P2::new(p.x, p.y)).collect();
+    fit_points(&pts, tol, points.first().map_or(0.0, |p| p.z), true)
+        .into_iter()
+        .map(|s| straightened(s, tol))
+        .collect()
+}
+
 /// `pass` (CL points in order) as lines and arcs within `tol` of its
 /// chords: each maximal stretch of points in one plane of constant X, Y or
 /// Z is fitted in that plane; a chord in none of them is a line. The

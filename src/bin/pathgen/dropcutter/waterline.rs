@@ -6,11 +6,10 @@ use super::{
 };
 use microcam::cli::{CliError, Output};
 use microcam::dropcutter::DropCutter;
-use microcam::dropcutter::arcs::straightened;
+use microcam::dropcutter::arcs::fit_loop;
 use microcam::dropcutter::output::{Feeds, toolpath_records_of_segments};
 use microcam::dropcutter::waterline::Waterline;
-use microcam::geometry::{P2, P3};
-use microcam::laser::arcfit::fit_points;
+use microcam::geometry::P3;
 use microcam::progress::{Meter, Show};
 
 /// `--waterline` / `--waterline-step`: closed loops at each level, top
@@ -80,13 +79,7 @@ pub(super) fn run(
     meter.finish();
     let mut out = Output::new(a.output.as_deref());
     let fitted = arc_fit.map(|t| {
-        let loops = fit_passes(a, &cl, |l| {
-            let pts: Vec<P2> = l.iter().map(|p| P2::new(p.x, p.y)).collect();
-            fit_points(&pts, t, l.first().map_or(0.0, |p| p.z), true)
-                .into_iter()
-                .map(|s| straightened(s, t))
-                .collect()
-        });
+        let loops = fit_passes(a, &cl, |l| fit_loop(l, t));
         (loops, t)
     });
     match &fitted {
