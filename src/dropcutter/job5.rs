@@ -174,8 +174,13 @@ impl FiveAxisJob {
             length,
             steps: self.axis_steps,
         };
+        // The checker is built for the steps only when a change is over
+        // the limit: with `--gouge off` on a gentle part nothing else
+        // needs it (0.13 s against 0.08 s on the bench sphere).
         let axes = match self.max_axis_change {
-            Some(_) if limit.steps => limit.apply(Some(checker()?), &mut runs),
+            Some(_) if limit.steps && (built.get().is_some() || limit.exceeded(&runs)) => {
+                limit.apply(Some(checker()?), &mut runs)
+            }
             _ => limit.apply(None, &mut runs),
         };
         Ok(FiveAxisOutcome {

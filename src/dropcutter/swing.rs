@@ -101,6 +101,13 @@ fn steps_between(check: &GougeCheck, a: &Location, b: &Location, angle: f64, lim
 }
 
 impl AxisLimit {
+    /// Whether any change between neighbours in `runs` is over the limit
+    /// (the steps need a gouge checker only then).
+    pub fn exceeded(&self, runs: &[Vec<Location>]) -> bool {
+        runs.par_iter()
+            .any(|run| run.windows(2).any(|w| axis_change(&w[0], &w[1]) > self.max))
+    }
+
     /// Apply the limit to every run: each change over it turned in steps
     /// (when `steps` and `check` is given and the steps can be set down)
     /// or split into two runs. Every location is kept, in order.
@@ -314,6 +321,28 @@ mod tests {
         let flat: Vec<Location> = runs.iter().flatten().copied().collect();
         let want: Vec<Location> = run.iter().chain([leaning(9.0, 40.0)].iter()).copied().collect();
         assert_eq!(flat, want);
+    }
+
+    #[test]
+    fn a_limit_is_exceeded_only_by_a_change_over_it() {
+        let run: Vec<Location> = [0.0, 5.0, 10.0, 70.0]
+            .iter()
+            .enumerate()
+            .map(|(i, &a)| leaning(i as f64, a))
+            .collect();
+        let runs = vec![Vec::new(), vec![leaning(0.0, 80.0)], run];
+        // 10 -> 70 is the only change over 20 degrees; none is over 61.
+        assert!(lifts(20.0).exceeded(&runs));
+        assert!(lifts(59.9).exceeded(&runs));
+        assert!(!lifts(60.1).exceeded(&runs));
+        // A lone location turns nowhere, whatever its neighbour run holds.
+        assert!(!lifts(1.0).exceeded(&runs[..2]));
+        // And `exceeded` agrees with what `apply` does.
+        for max in [1.0, 20.0, 59.9, 60.1, 180.0] {
+            let mut r = runs.clone();
+            let report = lifts(max).apply(None, &mut r);
+            assert_eq!(lifts(max).exceeded(&runs), report.split > 0, "limit {max}");
+        }
     }
 
     #[test]

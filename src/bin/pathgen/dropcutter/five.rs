@@ -253,6 +253,11 @@ fn axis_change_summary(r: &AxisReport, max: Option<f64>) -> String {
             "the tool axis turns by up to {:.1} deg between neighbouring locations (--max-axis-change off: every change kept as computed)",
             r.largest_kept.to_degrees()
         ),
+        Some(m) if r.stepped + r.split == 0 => format!(
+            "the tool axis turns by up to {:.1} deg between neighbouring locations, within --max-axis-change {:.1}: nothing stepped or lifted",
+            r.largest_kept.to_degrees(),
+            m.to_degrees()
+        ),
         Some(m) => format!(
             "{} places where the tool axis turns by more than {:.1} deg between neighbours (up to {:.1} deg): {} turned in {} added steps set down on the part, {} ending a run (the tool drawn back to the safe Z, turned and put down again); within runs it turns by up to {:.1} deg",
             r.stepped + r.split,
