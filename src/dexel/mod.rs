@@ -89,6 +89,31 @@ impl std::ops::Add for CutStats {
     }
 }
 
+/// How many bytes of prepared pieces one family's cut holds at a time
+/// (64 MiB).
+const PREPARED_BYTES: usize = 1 << 26;
+
+/// The moves cut together: consecutive runs whose prepared pieces take at
+/// most `budget` bytes (a single move may take more), in order.
+fn prepare_batches(sweeps: &[MoveSweep], budget: usize) -> Vec<std::ops::Range<usize>> {
+    let piece = std::mem::size_of::<axis::AxisPiece>();
+    let mut out = Vec::new();
+    let (mut start, mut bytes) = (0, 0);
+    for (k, s) in sweeps.iter().enumerate() {
+        let pieces = s.fine.len() + s.groups.len() + s.coarse.as_ref().map_or(0, Vec::len);
+        let b = pieces * piece + std::mem::size_of::<AxisMove>();
+        if k > start && bytes + b > budget {
+            out.push(start..k);
+            (start, bytes) = (k, 0);
+        }
+        bytes += b;
+    }
+    if start < sweeps.len() {
+        out.push(start..sweeps.len());
+    }
+    out
+}
+
 impl Family {
     fn new(dir: usize, min: &P3, max: &P3, h: f64) -> Result<Family, DexelError> {
         let (p, q) = match dir {
@@ -152,7 +177,9 @@ impl Family {
         if a < b { (a as usize, b as usize) } else { (0, 0) }
     }
 
-    fn cut(&mut self, sweeps: &[MoveSweep]) -> CutStats {
+    /// Cut `sweeps`, their pieces prepared at most `budget` bytes at a
+    /// time.
+    fn cut(&mut self, sweeps: &[MoveSweep], budget: usize) -> CutStats {
         let mut bins: Vec<Vec<u32>> = vec![Vec::new(); self.tiles.len()];
         for (k, s) in sweeps.iter().enumerate() {
             if s.hi[self.dir] < self.lo || s.lo[self.dir] > self.hi {
@@ -171,23 +198,40 @@ impl Family {
         }
         // Progress in (tile, move) pairs: the unit of work below.
         crate::progress::add_total(bins.iter().map(|b| b.len() as u64).sum());
-        // Every move's pieces prepared for this family's ray direction.
-        let prepared: Vec<AxisMove> = sweeps.par_iter().map(|s| AxisMove::new(s, self.dir)).collect();
+        // The moves' pieces prepared for this family's ray direction, a
+        // batch at a time: a prepared piece is some 600 bytes, and a torus
+        // move has a ring of a hundred balls, so all 80,801 moves of a
+        // torus raster over the dome sample took 10.7 GB at once. Each
+        // tile still meets its moves in drawing order (batch after batch),
+        // so the material and the counts are those of one pass.
         let mut tiles = std::mem::take(&mut self.tiles);
         let fam = &*self;
         let (lo, hi) = (self.lo as f32, self.hi as f32);
-        let stats = tiles
-            .par_iter_mut()
-            .zip(bins.par_iter())
-            .enumerate()
-            .filter(|(_, (_, b))| !b.is_empty())
-            .map(|(t, (slot, bin))| {
-                let tile = slot.get_or_insert_with(|| Box::new(Tile::full(lo, hi)));
-                let st = fam.cut_tile(t, tile, bin, sweeps, &prepared);
-                crate::progress::advance(bin.len() as u64);
-                st
-            })
-            .reduce(CutStats::default, |a, b| a + b);
+        let mut stats = CutStats::default();
+        for batch in prepare_batches(sweeps, budget) {
+            let prepared: Vec<AxisMove> = sweeps[batch.clone()]
+                .par_iter()
+                .map(|s| AxisMove::new(s, self.dir))
+                .collect();
+            stats = stats
+                + tiles
+                    .par_iter_mut()
+                    .zip(bins.par_iter())
+                    .enumerate()
+                    .map(|(t, (slot, bin))| {
+                        // A bin lists its moves in increasing order.
+                        let a = bin.partition_point(|&k| (k as usize) < batch.start);
+                        let b = a + bin[a..].partition_point(|&k| (k as usize) < batch.end);
+                        if a == b {
+                            return CutStats::default();
+                        }
+                        let tile = slot.get_or_insert_with(|| Box::new(Tile::full(lo, hi)));
+                        let st = fam.cut_tile(t, tile, &bin[a..b], sweeps, &prepared, batch.start);
+                        crate::progress::advance((b - a) as u64);
+                        st
+                    })
+                    .reduce(CutStats::default, |a, b| a + b);
+        }
         self.tiles = tiles;
         stats
     }
@@ -199,12 +243,13 @@ impl Family {
         bin: &[u32],
         sweeps: &[MoveSweep],
         prepared: &[AxisMove],
+        first: usize,
     ) -> CutStats {
         let (ti, tj) = (t % self.tp, t / self.tp);
         let mut st = CutStats::default();
         let mut scratch = Vec::new();
         for &k in bin {
-            let (s, sp) = (&sweeps[k as usize], &prepared[k as usize]);
+            let (s, sp) = (&sweeps[k as usize], &prepared[k as usize - first]);
             let (i0, i1) = Self::range(self.p0, self.hp, self.np, s.lo[self.p], s.hi[self.p]);
             let (j0, j1) = Self::range(self.q0, self.hq, self.nq, s.lo[self.q], s.hi[self.q]);
             let (i0, i1) = (i0.max(ti * TILE), i1.min((ti + 1) * TILE));
@@ -323,7 +368,7 @@ impl TriDexel {
     pub fn cut(&mut self, sweeps: &[MoveSweep]) -> CutStats {
         let mut st = CutStats::default();
         for f in self.families.iter_mut() {
-            st = st + f.cut(sweeps);
+            st = st + f.cut(sweeps, PREPARED_BYTES);
         }
         st
     }
@@ -387,6 +432,94 @@ mod tests {
     use crate::cutter::Cutter;
     use crate::geometry::V3;
     use tool::{Location, ToolShape};
+
+    /// Every ray's material in every family.
+    fn all_intervals(d: &TriDexel) -> Vec<Vec<[f64; 2]>> {
+        d.families
+            .iter()
+            .flat_map(|f| (0..f.nq).flat_map(move |j| (0..f.np).map(move |i| f.intervals(i, j))))
+            .collect()
+    }
+
+    #[test]
+    fn moves_cut_in_batches_leave_what_one_pass_leaves() {
+        // A torus (a ring of balls a move) on a zigzag whose axis turns
+        // (sub-moves, groups), cut with every move prepared at once, one
+        // move a batch, and batches of a few moves.
+        let tool = ToolShape {
+            cutter: Cutter::Torus {
+                radius: 0.5,
+                corner: 0.2,
+            },
+            length: 3.0,
+        };
+        let locs: Vec<Location> = (0..36)
+            .map(|k| {
+                let (row, col) = (k / 12, k % 12);
+                let x = if row % 2 == 0 { col } else { 11 - col } as f64 * 0.3 - 1.6;
+                let tilt = 0.05 * ((k as f64) * 0.7).sin();
+                Location {
+                    tip: P3::new(x, row as f64 * 0.35 - 0.7, -0.3 - 0.05 * row as f64),
+                    axis: V3::new(tilt.sin(), 0.0, tilt.cos()),
+                }
+            })
+            .collect();
+        let sweeps: Vec<MoveSweep> = std::iter::once((0, 0))
+            .chain((1..locs.len()).map(|k| (k - 1, k)))
+            .map(|(a, b)| MoveSweep::new(&tool, &locs[a], &locs[b], 0.02))
+            .collect();
+        assert!(sweeps.iter().any(|s| s.substeps > 1), "some axis must turn");
+        let cut = |budget: usize| {
+            let mut d = TriDexel::new(P3::new(-2.5, -1.5, -1.5), P3::new(2.5, 1.5, 0.0), 0.05).unwrap();
+            let mut st = CutStats::default();
+            for f in d.families.iter_mut() {
+                st = st + f.cut(&sweeps, budget);
+            }
+            (st, all_intervals(&d), d.volumes())
+        };
+        let one_pass = cut(usize::MAX);
+        let move_size = prepare_batches(&sweeps[1..2], usize::MAX).len();
+        assert_eq!(move_size, 1);
+        assert_eq!(prepare_batches(&sweeps, 0).len(), sweeps.len());
+        let few = std::mem::size_of::<axis::AxisPiece>() * sweeps[1].fine.len() * 5;
+        assert!(prepare_batches(&sweeps, few).len() > 5);
+        for budget in [0, few] {
+            let batched = cut(budget);
+            assert_eq!(batched.0, one_pass.0, "budget {budget}");
+            assert_eq!(batched.2, one_pass.2, "budget {budget}");
+            assert!(batched.1 == one_pass.1, "budget {budget}: the material differs");
+        }
+        // Something was cut.
+        assert!(one_pass.2[2] < 5.0 * 3.0 * 1.5 - 0.5);
+    }
+
+    #[test]
+    fn prepare_batches_cover_the_moves_in_order_within_the_budget() {
+        let tool = ToolShape {
+            cutter: Cutter::Torus {
+                radius: 0.5,
+                corner: 0.2,
+            },
+            length: 3.0,
+        };
+        let at = |x: f64| Location {
+            tip: P3::new(x, 0.0, 0.0),
+            axis: V3::z(),
+        };
+        let sweeps: Vec<MoveSweep> = (0..10)
+            .map(|k| MoveSweep::new(&tool, &at(k as f64), &at(k as f64 + 1.0), 0.01))
+            .collect();
+        let per = std::mem::size_of::<axis::AxisPiece>() * sweeps[0].fine.len() + std::mem::size_of::<AxisMove>();
+        assert!(sweeps.iter().all(|s| s.coarse.is_none() && s.groups.is_empty()));
+        for (budget, want) in [
+            (usize::MAX, std::iter::once(0..10).collect()),
+            (3 * per, vec![0..3, 3..6, 6..9, 9..10]),
+            (per - 1, (0..10).map(|k| k..k + 1).collect()),
+        ] {
+            assert_eq!(prepare_batches(&sweeps, budget), want, "budget {budget}");
+        }
+        assert!(prepare_batches(&[], 1).is_empty());
+    }
 
     #[test]
     fn straight_slot_removes_the_stadium_volume_in_every_family() {
