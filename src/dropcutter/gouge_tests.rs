@@ -579,6 +579,7 @@ fn smoothed_locations_in_a_trough_are_turned_or_lifted_clear() {
         max: 30f64.to_radians(),
         step: 5f64.to_radians(),
         ramp: 2.0,
+        both: true,
     };
     let (report, tilt, settling) = gc
         .check_tilting(&fa, &contacts, &mut turned, &search, Placement::SetDown)

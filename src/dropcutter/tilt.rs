@@ -30,6 +30,9 @@ pub struct TiltSearch {
     /// The distance along a pass over which a turn is eased in and out
     /// (0: no easing).
     pub ramp: f64,
+    /// Where no turn of one angle clears the part, turn both by the same
+    /// size (the four diagonals) before lifting the tool.
+    pub both: bool,
 }
 
 /// What the tilt search did with the gouging locations
@@ -38,6 +41,10 @@ pub struct TiltSearch {
 pub struct TiltReport {
     /// Gouging locations given another orientation that clears the part.
     pub tilted: usize,
+    /// Of those, the ones only a turn of both lead and tilt cleared
+    /// ([`TiltSearch::both`]). (Easing may still offer a neighbour's turn
+    /// of both, scaled, to a location one angle cleared.)
+    pub both: usize,
     /// Gouging locations no orientation within reach cleared: lifted.
     pub lifted: usize,
     /// The largest change of lead or tilt taken (radians).
@@ -86,11 +93,14 @@ impl GougeCheck<'_> {
     /// size that does to two steps more (`EXTRA_SIZES`), the pass takes for
     /// each location the one that keeps the turn steadiest along it
     /// (`choose_along`).
-    /// (Both angles together were tried: fewer locations are lifted, but
-    /// neighbours then alternate between a turn of both and a slightly
-    /// larger turn of one, and the axis swings 10-20 degrees between
-    /// them; docs/dropcutter.md.)
-    /// When none does, the location is lifted. Then the turns are eased
+    /// (Both angles together at each size were tried: fewer locations are
+    /// lifted, but neighbours then alternate between a turn of both and a
+    /// slightly larger turn of one, and the axis swings 10-20 degrees
+    /// between them; docs/dropcutter.md.) With [`TiltSearch::both`], a
+    /// location that no turn of one angle clears tries both angles turned
+    /// together (the four diagonals, size by size, the same way) before it
+    /// is lifted: only there, so a stretch that one angle clears keeps its
+    /// steady turn. When nothing clears, the location is lifted. Then the turns are eased
     /// in and out over `ramp` along each pass (the module's doc).
     /// `contacts` are the runs' contacts ([`FiveAxis::contacts`]), `fa` the
     /// orientation asked for. With [`Placement::SetDown`] (contacts with
@@ -163,6 +173,8 @@ impl GougeCheck<'_> {
         } else {
             0
         };
+        // Locations only a turn of both angles cleared.
+        let both_found = std::sync::atomic::AtomicUsize::new(0);
         let outcomes: Vec<Vec<(f64, Outcome)>> = own_placed
             .par_iter()
             .zip(contacts.par_iter())
@@ -179,20 +191,33 @@ impl GougeCheck<'_> {
                             return (d, Found::Clear);
                         }
                         let mut clear: Vec<(Location, [f64; 2])> = Vec::new();
-                        let mut last_size = sizes;
-                        for k in 1..=sizes {
-                            if k > last_size {
-                                break;
-                            }
-                            let a = search.step * k as f64;
-                            for t in [[0.0, a], [0.0, -a], [a, 0.0], [-a, 0.0]] {
-                                if let Some(l) = clear_turn(c, t) {
-                                    if clear.is_empty() {
-                                        last_size = sizes.min(k + EXTRA_SIZES);
+                        // Turns of one angle; where none clears, of both.
+                        let ways: &[TurnsOfSize] = if search.both {
+                            &[single_turns, both_turns]
+                        } else {
+                            &[single_turns]
+                        };
+                        for turns in ways {
+                            let mut last_size = sizes;
+                            for k in 1..=sizes {
+                                if k > last_size {
+                                    break;
+                                }
+                                for t in turns(search.step * k as f64) {
+                                    if let Some(l) = clear_turn(c, t) {
+                                        if clear.is_empty() {
+                                            last_size = sizes.min(k + EXTRA_SIZES);
+                                        }
+                                        clear.push((l, t));
                                     }
-                                    clear.push((l, t));
                                 }
                             }
+                            if !clear.is_empty() {
+                                break;
+                            }
+                        }
+                        if clear.first().is_some_and(|(_, t)| t[0] != 0.0 && t[1] != 0.0) {
+                            both_found.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
                         }
                         if clear.is_empty() {
                             (d, Found::Lifted(lift))
@@ -205,7 +230,10 @@ impl GougeCheck<'_> {
             })
             .collect();
         let mut report = GougeReport::default();
-        let mut tilt = TiltReport::default();
+        let mut tilt = TiltReport {
+            both: both_found.into_inner(),
+            ..Default::default()
+        };
         for (run, outs) in runs.iter_mut().zip(outcomes) {
             let mut last: Option<[f64; 2]> = None;
             for (l, (d, out)) in run.iter_mut().zip(outs) {
@@ -235,6 +263,21 @@ impl GougeCheck<'_> {
         }
         Ok((report, tilt, settling))
     }
+}
+
+/// The four turns of one size `a` tried together, (lead, tilt) each.
+type TurnsOfSize = fn(f64) -> [[f64; 2]; 4];
+
+/// The turns of one angle by `a` (lead, tilt): tilt before lead, + before
+/// -.
+fn single_turns(a: f64) -> [[f64; 2]; 4] {
+    [[0.0, a], [0.0, -a], [a, 0.0], [-a, 0.0]]
+}
+
+/// The turns of both angles by `a`: the four diagonals, the axis some
+/// 1.4 `a` off its asked orientation.
+fn both_turns(a: f64) -> [[f64; 2]; 4] {
+    [[a, a], [a, -a], [-a, a], [-a, -a]]
 }
 
 /// How many sizes past the smallest that clears a location are searched

@@ -15,6 +15,7 @@ fn search(max_deg: f64, step_deg: f64, ramp: f64) -> TiltSearch {
         max: max_deg.to_radians(),
         step: step_deg.to_radians(),
         ramp,
+        both: true,
     }
 }
 
@@ -427,4 +428,85 @@ fn on_every_corpus_mesh_the_tilt_search_leaves_no_gouge() {
     crate::corpus::record("corpus_meshes_tilt_search_clears_them", checked);
     assert!(checked > 100, "{checked}");
     println!("{checked} locations on the corpus meshes, {turned} turned to clear them");
+}
+
+/// A floor with two walls 5 mm tall meeting in a corner: faces at x = 0.8
+/// (ahead of a pass along +X) and at y = 0.8 (to its left).
+fn corner() -> crate::mesh::Mesh {
+    use crate::mesh::Triangle;
+    let mut tris = Vec::new();
+    let mut quad = |a: [f64; 3], b: [f64; 3], c: [f64; 3], d: [f64; 3]| {
+        let [a, b, c, d] = [a, b, c, d].map(|p| crate::geometry::P3::new(p[0], p[1], p[2]));
+        tris.push(Triangle::new(a, b, c));
+        tris.push(Triangle::new(a, c, d));
+    };
+    quad([-3.0, -3.0, 0.0], [0.8, -3.0, 0.0], [0.8, 0.8, 0.0], [-3.0, 0.8, 0.0]);
+    quad([0.8, -3.0, 0.0], [0.8, 0.8, 0.0], [0.8, 0.8, 5.0], [0.8, -3.0, 5.0]);
+    quad([-3.0, 0.8, 0.0], [-3.0, 0.8, 5.0], [0.8, 0.8, 5.0], [0.8, 0.8, 0.0]);
+    crate::mesh::Mesh::from_triangles(&tris)
+}
+
+#[test]
+fn both_angles_turn_only_where_one_angle_cannot_clear() {
+    let mesh = corner();
+    let xy: Vec<crate::geometry::P2> = (0..=16)
+        .map(|i| crate::geometry::P2::new(-1.5 + 0.1 * i as f64, 0.1))
+        .collect();
+    let mut some_both = false;
+    for cutter in [
+        Cutter::Flat { radius: 0.6 },
+        Cutter::Torus {
+            radius: 0.6,
+            corner: 0.2,
+        },
+    ] {
+        for (lead, tilt) in [(5.0f64, 3.0f64), (5.0, -3.0), (-5.0, 3.0), (-5.0, -3.0)] {
+            let dc = DropCutter::new(&mesh, cutter).unwrap();
+            let gc = GougeCheck::new(&dc);
+            let fa = FiveAxis {
+                lead: lead.to_radians(),
+                tilt: tilt.to_radians(),
+                axis_length: 6.0,
+            };
+            let (contacts, raw) = (FiveAxis::contacts(&dc, &xy), fa.pass(&dc, &xy).unwrap());
+            let run = |both: bool| {
+                let mut runs = raw.clone();
+                let s = TiltSearch {
+                    both,
+                    ..search(30.0, 5.0, 0.0)
+                };
+                let (report, tilt, _) = gc
+                    .check_tilting(&fa, &contacts, &mut runs, &s, Placement::Tangent)
+                    .unwrap();
+                (report, tilt, runs)
+            };
+            let (r1, one, runs1) = run(false);
+            let (r2, two, runs2) = run(true);
+            assert_eq!(r1, r2, "the same gouges found");
+            assert_eq!(one.both, 0);
+            // The locations one angle clears are turned by one angle still; of
+            // those it could not, some now turn both, the rest are lifted.
+            assert_eq!(two.tilted - two.both, one.tilted, "{cutter:?}");
+            assert_eq!(two.both + two.lifted, one.lifted, "{cutter:?}");
+            some_both |= two.both > 0;
+            // No turn goes past the reach (each angle within 30 degrees, so
+            // the axis within about 42 of where it was asked), and every
+            // location clears the part.
+            let axis = |l: &Location| (l.axis_point - l.cl).normalize();
+            for (a, r) in runs2.iter().flatten().zip(raw.iter().flatten()) {
+                assert!(gc.clearance(a.cl, axis(a), 6.0) <= GOUGE_TOL);
+                assert!(axis(a).angle(&axis(r)) <= 42.5f64.to_radians(), "{a:?}");
+            }
+            assert_eq!(runs1.len(), runs2.len());
+            // Leaning into the corner (lead -5, tilt -3): turning one angle
+            // away from one wall leaves the tool on the other; both clear.
+            if (lead, tilt) == (-5.0, -3.0) {
+                assert!(
+                    one.lifted > 0 && two.lifted == 0 && two.both == one.lifted,
+                    "{cutter:?}: {two:?}"
+                );
+            }
+        }
+    }
+    assert!(some_both, "the trough should have locations one angle cannot clear");
 }

@@ -101,7 +101,8 @@ pub enum GougeArg {
     /// Keep every location as computed; only report the gouges.
     Report,
     /// Try other orientations first: lead or tilt changed in steps of
-    /// --turn-step up to --max-turn; lift where none clears the part.
+    /// --turn-step up to --max-turn (both, where neither alone clears);
+    /// lift where none clears the part.
     Tilt,
     /// No check.
     Off,

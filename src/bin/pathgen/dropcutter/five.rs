@@ -91,6 +91,7 @@ fn options(a: &DropcutterArgs, cutter_radius: f64) -> Result<Options, CliError> 
             max: max_turn.to_radians(),
             step: turn_step.to_radians(),
             ramp: turn_ramp,
+            both: true,
         }),
     };
     Ok(Options {
@@ -233,12 +234,13 @@ fn tilt_summary(r: &GougeReport, t: &TiltReport, length: f64) -> String {
         return gouge_summary(r, GougeRule::Lift, length);
     }
     format!(
-        "gouge check: {} of {} locations cut into the part (up to {:.6} mm along the tool axis); {} turned to clear it (lead or tilt changed by up to {:.1} deg), {} lifted along the axis where no turn within reach cleared it; {} more turned part way to ease the axis in and out (the turn changes by at most {:.1} deg between neighbours)",
+        "gouge check: {} of {} locations cut into the part (up to {:.6} mm along the tool axis); {} turned to clear it (lead or tilt changed by up to {:.1} deg; {} of them both, where no turn of one cleared), {} lifted along the axis where no turn within reach cleared it; {} more turned part way to ease the axis in and out (the turn changes by at most {:.1} deg between neighbours)",
         r.gouging,
         r.checked,
         r.deepest,
         t.tilted,
         t.largest_turn.to_degrees(),
+        t.both,
         t.lifted,
         t.eased,
         t.largest_jump.to_degrees()
