@@ -175,8 +175,8 @@ impl FiveAxisJob {
             steps: self.axis_steps,
         };
         // The checker is built for the steps only when a change is over
-        // the limit: with `--gouge off` on a gentle part nothing else
-        // needs it (0.13 s against 0.08 s on the bench sphere).
+        // the limit: with `--gouge off` on a part whose axis never turns
+        // that far, nothing else needs it.
         let axes = match self.max_axis_change {
             Some(_) if limit.steps && (built.get().is_some() || limit.exceeded(&runs)) => {
                 limit.apply(Some(checker()?), &mut runs)

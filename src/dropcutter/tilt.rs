@@ -100,8 +100,9 @@ impl GougeCheck<'_> {
     /// location that no turn of one angle clears tries both angles turned
     /// together (the four diagonals, size by size, the same way) before it
     /// is lifted: only there, so a stretch that one angle clears keeps its
-    /// steady turn. When nothing clears, the location is lifted. Then the turns are eased
-    /// in and out over `ramp` along each pass (the module's doc).
+    /// steady turn. When nothing clears, the location is lifted. Then the
+    /// turns are eased in and out over `ramp` along each pass (the
+    /// module's doc).
     /// `contacts` are the runs' contacts ([`FiveAxis::contacts`]), `fa` the
     /// orientation asked for. With [`Placement::SetDown`] (contacts with
     /// smoothed normals) every location, as asked or turned, is set down
