@@ -90,8 +90,8 @@ impl std::ops::Add for CutStats {
 }
 
 /// How many bytes of prepared pieces one family's cut holds at a time
-/// (256 MiB: batches of 64 MiB cost the dome sample's torus raster 19 %
-/// in time, the last tiles of each batch running alone).
+/// (256 MiB: with 64 the dome sample's torus raster took 432 s against
+/// 376, the last tiles of each batch running alone; docs/stlverify.md).
 const PREPARED_BYTES: usize = 1 << 28;
 
 /// The moves cut together: consecutive runs whose prepared pieces take at
