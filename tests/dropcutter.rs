@@ -153,11 +153,18 @@ fn hemisphere(r: f64, nu: usize, nv: usize) -> Vec<[[f64; 3]; 3]> {
     t
 }
 
-#[test]
-fn ball_on_a_sphere_gives_the_offset_sphere() {
+/// The tests' hemisphere (radius 5, 128 x 32 facets) as `s.stl` in a new
+/// temporary directory, kept alive by the returned handle.
+fn hemisphere_stl() -> (tempfile::TempDir, std::path::PathBuf) {
     let dir = tempfile::tempdir().unwrap();
     let stl = dir.path().join("s.stl");
     write_stl(&stl, &hemisphere(5.0, 128, 32));
+    (dir, stl)
+}
+
+#[test]
+fn ball_on_a_sphere_gives_the_offset_sphere() {
+    let (_dir, stl) = hemisphere_stl();
     let out = pathgen()
         .args([
             "dropcutter",
@@ -199,9 +206,7 @@ fn waterlines_circle_a_hemisphere_at_each_level() {
     // height z the loop is the circle of radius sqrt(5.5² - (z + 0.5)²),
     // within the tessellation's sag; levels every 1 mm from the top down to
     // the floor (the table, z 0), top down, the part on the right.
-    let dir = tempfile::tempdir().unwrap();
-    let stl = dir.path().join("s.stl");
-    write_stl(&stl, &hemisphere(5.0, 128, 32));
+    let (_dir, stl) = hemisphere_stl();
     let run = |fmt: &[&str]| {
         pathgen()
             .args(["dropcutter", stl.to_str().unwrap(), "-q", "--tool", "ball:1"])
@@ -248,9 +253,7 @@ fn waterlines_circle_a_hemisphere_at_each_level() {
 /// every arc within the tolerance of where the loop's own points lie.
 #[test]
 fn waterline_loops_are_fitted_with_arcs_within_the_tolerance() {
-    let dir = tempfile::tempdir().unwrap();
-    let stl = dir.path().join("s.stl");
-    write_stl(&stl, &hemisphere(5.0, 128, 32));
+    let (dir, stl) = hemisphere_stl();
     let run = |fmt: &[&str]| {
         pathgen()
             .args(["dropcutter", stl.to_str().unwrap(), "--tool", "ball:1"])
@@ -360,9 +363,7 @@ fn waterline_loops_are_fitted_with_arcs_within_the_tolerance() {
 /// (gsim, PMAC) no longer slowed at every block.
 #[test]
 fn raster_passes_are_fitted_with_arcs_in_their_planes() {
-    let dir = tempfile::tempdir().unwrap();
-    let stl = dir.path().join("s.stl");
-    write_stl(&stl, &hemisphere(5.0, 128, 32));
+    let (dir, stl) = hemisphere_stl();
     let tol = 0.001;
     for (direction, pattern, along) in [("x", "zigzag", Plane::Xz), ("y", "one-way", Plane::Yz)] {
         let run = |extra: &[&str]| {
@@ -472,9 +473,7 @@ fn chord_tol_refines_waterlines_between_fibres() {
     // them sag by about chord² / 8r inside the loop of radius ~5 (some
     // 0.05 mm). With --chord-tol 0.001 every chord's middle lies on the
     // offset circle within the tessellation's sag and the tolerance.
-    let dir = tempfile::tempdir().unwrap();
-    let stl = dir.path().join("s.stl");
-    write_stl(&stl, &hemisphere(5.0, 128, 32));
+    let (_dir, stl) = hemisphere_stl();
     let run = |extra: &[&str]| {
         let out = pathgen()
             .args(["dropcutter", stl.to_str().unwrap(), "-q", "--tool", "ball:1"])
@@ -1564,9 +1563,7 @@ fn smoothed_normals_follow_the_surface_and_the_tools_rest_on_it() {
 /// 0.00625 mm here, the chords' own sag was what it reported).
 #[test]
 fn raster_arcs_machine_the_part_within_their_tolerance() {
-    let dir = tempfile::tempdir().unwrap();
-    let stl = dir.path().join("s.stl");
-    write_stl(&stl, &hemisphere(5.0, 128, 32));
+    let (dir, stl) = hemisphere_stl();
     let (tol, band) = (0.001, 0.01);
     let verify = |extra: &[&str]| -> (Option<i32>, serde_json::Value) {
         let prog = dir.path().join("r.ngc");
