@@ -502,8 +502,6 @@ fn fit_summary(fitted: &[Vec<Segment>], t: f64, what: &str, points: &[Vec<P3>]) 
     )
 }
 
-/// 3-axis passes (raster, chains or waterlines) as G-code, toolpath or CL
-/// data, as the flags ask.
 /// Toolpath records out as G-code (`--gcode`) or toolpath JSON.
 fn write_records(a: &DropcutterArgs, recs: Vec<Record>, name: &str, out: &mut Output) -> Result<(), CliError> {
     match &a.gcode {
@@ -532,6 +530,8 @@ fn write_records(a: &DropcutterArgs, recs: Vec<Record>, name: &str, out: &mut Ou
     Ok(())
 }
 
+/// 3-axis passes (raster, chains or waterlines) as G-code, toolpath or CL
+/// data, as the flags ask.
 fn write_passes(
     a: &DropcutterArgs,
     cutter: Cutter,
