@@ -178,9 +178,7 @@ impl FiveAxisJob {
         // the limit: with `--gouge off` on a part whose axis never turns
         // that far, nothing else needs it.
         let axes = match self.max_axis_change {
-            Some(_) if limit.steps && (built.get().is_some() || limit.exceeded(&runs)) => {
-                limit.apply(Some(checker()?), &mut runs)
-            }
+            Some(_) if limit.steps && limit.exceeded(&runs) => limit.apply(Some(checker()?), &mut runs),
             _ => limit.apply(None, &mut runs),
         };
         Ok(FiveAxisOutcome {
