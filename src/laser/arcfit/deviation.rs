@@ -522,7 +522,13 @@ impl<'a> Samples<'a> {
     }
 
     fn count(&self) -> usize {
-        self.fit.len() * (self.n + 1)
+        Self::count_of(self.fit.len(), self.n)
+    }
+
+    /// How many samples `pieces` pieces at `samples_per_piece` give,
+    /// without building the frames.
+    fn count_of(pieces: usize, samples_per_piece: usize) -> usize {
+        pieces * (samples_per_piece.max(1) + 1)
     }
 
     fn at(&self, q: usize) -> P2 {
@@ -546,7 +552,7 @@ impl<'a> Samples<'a> {
 /// either way, so the verdict is too (a NaN distance counts as beyond, as
 /// `max_deviation`'s folds leave it out).
 pub fn deviation_within(fit: &[Segment], pts: &[P2], samples_per_piece: usize, limit: f64) -> bool {
-    let queries = fit.len() * (samples_per_piece.max(1) + 1);
+    let queries = Samples::count_of(fit.len(), samples_per_piece);
     if pts.len() < 2 || queries * pts.len() > BRUTE {
         return max_deviation(fit, pts, samples_per_piece) <= limit;
     }
