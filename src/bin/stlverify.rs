@@ -81,7 +81,8 @@ struct Args {
     #[arg(long)]
     spacing: Option<f64>,
     /// Largest distance between the true swept volume and the one cut
-    /// (turning axes, torus corners), mm (default: spacing / 2).
+    /// (turning axes, torus corners), mm (default: spacing / 2). With
+    /// --design, a torus corner is held to a tenth of --band as well.
     #[arg(long)]
     sweep_tol: Option<f64>,
     /// Write the machined part as binary STL.
@@ -212,6 +213,10 @@ fn run(args: Args) -> Result<(), CliError> {
         tool,
         spacing,
         sweep_tol,
+        // With a design, a torus corner's ring within a tenth of the band
+        // (as the arcs' chords): the ring leaves material, which would
+        // otherwise read as excess when the band is near the spacing.
+        ring_tol: (args.design.is_some() && band > 0.0).then_some(0.1 * band),
         locations,
     };
     let meter = Meter::start(

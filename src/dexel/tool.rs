@@ -4,8 +4,9 @@
 //! Flat end mill: one cylinder. Ball: a ball on a cylinder. Torus: an
 //! inner cylinder, an outer cylinder above the corner, and the corner
 //! (a tube around the axis) as a ring of balls; the ring lies inside the
-//! tube and every point of the tube is within `π·(R - r)/k` of it for `k`
-//! balls (stated as [`MoveSweep::shape_error_mm`]).
+//! tube and every point of the tube is within [`ring_error`] of it for `k`
+//! balls, about `(R - r)·R·(π/k)²/(2r)` (stated as
+//! [`MoveSweep::shape_error_mm`]).
 //!
 //! A move whose tool axis turns (5-axis) is split into `n` sub-moves with
 //! the axis fixed at each sub-move's middle direction (spherical
@@ -48,16 +49,31 @@ impl ToolShape {
         self.length.hypot(self.cutter.radius())
     }
 
-    /// Number of balls in a torus corner ring for a shape error `tol`.
+    /// Number of balls in a torus corner ring for a shape error `tol`:
+    /// the fewest whose [`ring_error`] is at most `tol`.
     fn ring_count(&self, tol: f64) -> usize {
         match self.cutter {
             Cutter::Torus { radius, corner } => {
                 let rho = radius - corner;
                 if rho <= 0.0 {
-                    1
-                } else {
-                    ((std::f64::consts::TAU * rho / tol).ceil() as usize).clamp(8, 2880)
+                    return 1;
                 }
+                // The along-the-ring bound alone: k ≥ πρ/tol.
+                let linear = (std::f64::consts::PI * rho / tol).ceil();
+                // The sagitta bound, solved for the half-angle δ = π/k:
+                // 2ρ(ρ + r)(1 - cos δ) ≤ (r + tol)² - r².
+                let room = (tol * (2.0 * corner + tol)) / (2.0 * rho * (rho + corner));
+                let sag = if room >= 2.0 {
+                    1.0
+                } else {
+                    (std::f64::consts::PI / (1.0 - room).acos()).ceil()
+                };
+                let mut k = linear.min(sag).clamp(8.0, 2880.0) as usize;
+                // Rounding in the formulas: step until the bound holds.
+                while k < 2880 && ring_error(rho, corner, k) > tol {
+                    k += 1;
+                }
+                k
             }
             _ => 0,
         }
@@ -118,6 +134,30 @@ impl ToolShape {
     }
 }
 
+/// The farthest a point of a torus corner (a tube of radius `r` about a
+/// circle of radius `rho`) lies from the nearest of `k` balls of radius
+/// `r` centred evenly on that circle, mm.
+///
+/// A tube point `q` is `a` out from the circle and `b` along the axis
+/// (a² + b² ≤ r²) in the meridian of some circle point; the nearest ball
+/// centre `c` is at most δ = π/k round the circle from it, so
+/// |q − c|² = a² + b² + 2ρ(ρ + a)(1 − cos δ) ≤ r² + 2ρ(ρ + r)(1 − cos δ):
+/// `q` is within √(r² + 2ρ(ρ + r)(1 − cos δ)) − r of that ball, about
+/// ρ(ρ + r)δ²/(2r). The plainer bound, `q` within the arc ρδ of the
+/// centre's ball, is kept where it is smaller (a thin corner). The
+/// nearest point of the ball lies between `q` and `c`, so a ball clipped
+/// at its equator (the lower half-tube's balls) gives the same bound.
+///
+/// Before 8 December 2026 only the arc bound was used: a torus 1 mm
+/// across with a 0.25 mm corner took 126 balls at a tolerance of
+/// 0.0125 mm, where 20 keep the same bound.
+pub(crate) fn ring_error(rho: f64, r: f64, k: usize) -> f64 {
+    let delta = std::f64::consts::PI / k.max(1) as f64;
+    let one_minus_cos = 2.0 * (0.5 * delta).sin().powi(2);
+    let sag = (r * r + 2.0 * rho * (rho + r) * one_minus_cos).sqrt() - r;
+    sag.min(rho * delta)
+}
+
 /// Two unit vectors across `a` (and each other).
 pub fn perpendiculars(a: &V3) -> (V3, V3) {
     let helper = if a.x.abs() < 0.9 { V3::x() } else { V3::y() };
@@ -173,12 +213,23 @@ pub struct MoveSweep {
 }
 
 impl MoveSweep {
-    /// The sweep of `tool` from `from` to `to`, within `tol` mm.
+    /// The sweep of `tool` from `from` to `to`, within `tol` mm; a torus
+    /// corner ring takes at most half of `tol`.
     pub fn new(tool: &ToolShape, from: &Location, to: &Location, tol: f64) -> MoveSweep {
+        MoveSweep::with_ring_tol(tool, from, to, tol, 0.5 * tol)
+    }
+
+    /// The sweep of `tool` from `from` to `to`, within `tol` mm, its torus
+    /// corner ring within `ring_tol` (at most `tol / 2`): a tight bound
+    /// for the ring alone is cheap, its error falling with the square of
+    /// the ball count, where a tight `tol` multiplies a turning axis's
+    /// sub-moves.
+    pub fn with_ring_tol(tool: &ToolShape, from: &Location, to: &Location, tol: f64, ring_tol: f64) -> MoveSweep {
         let theta = from.axis.dot(&to.axis).clamp(-1.0, 1.0).acos();
-        let ring = tool.ring_count(tol);
+        let ring = tool.ring_count(ring_tol.min(0.5 * tol));
         let ring_err = if ring > 0 {
-            std::f64::consts::PI * (tool.cutter.radius() - tool.cutter.corner_radius()) / ring as f64
+            let corner = tool.cutter.corner_radius();
+            ring_error(tool.cutter.radius() - corner, corner, ring)
         } else {
             0.0
         };
@@ -376,6 +427,78 @@ pub fn hull_of(pieces: &[Piece], o: &P3, e: &V3) -> Option<(f64, f64)> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Every point of the lower half-tube, on a fine grid of its meridian
+    /// discs and round the circle, against the `k` balls themselves.
+    #[test]
+    fn ring_error_bounds_the_distance_from_every_tube_point() {
+        for &(rho, r) in &[(0.25, 0.25), (1.5, 0.5), (0.1, 0.5), (2.0, 0.05), (0.5, 1e-4)] {
+            for k in [8usize, 11, 14, 40, 126] {
+                let bound = ring_error(rho, r, k);
+                let centres: Vec<(f64, f64)> = (0..k)
+                    .map(|i| {
+                        let phi = std::f64::consts::TAU * i as f64 / k as f64;
+                        (rho * phi.cos(), rho * phi.sin())
+                    })
+                    .collect();
+                let mut worst = 0.0f64;
+                for ia in 0..=20 {
+                    for ib in 0..=10 {
+                        let (a, b) = (r * (ia as f64 / 10.0 - 1.0), -r * ib as f64 / 10.0);
+                        if a * a + b * b > r * r * (1.0 + 1e-12) {
+                            continue;
+                        }
+                        for ip in 0..=64 {
+                            // From one centre to the next, the middle included.
+                            let phi = std::f64::consts::TAU / k as f64 * ip as f64 / 64.0;
+                            let (x, y) = ((rho + a) * phi.cos(), (rho + a) * phi.sin());
+                            let d = centres
+                                .iter()
+                                .map(|&(cx, cy)| ((x - cx).powi(2) + (y - cy).powi(2) + b * b).sqrt() - r)
+                                .fold(f64::INFINITY, f64::min)
+                                .max(0.0);
+                            worst = worst.max(d);
+                        }
+                    }
+                }
+                assert!(worst <= bound + 1e-12, "rho {rho} r {r} k {k}: {worst} > {bound}");
+                // Tight: the worst point (the outer rim, half-way between
+                // two balls) is on the sampling grid.
+                assert!(worst >= 0.9 * bound, "rho {rho} r {r} k {k}: {worst} << {bound}");
+            }
+        }
+    }
+
+    #[test]
+    fn ring_count_is_the_fewest_balls_within_the_tolerance() {
+        for &(radius, corner) in &[(0.5, 0.25), (2.0, 0.5), (3.0, 2.9), (1.0, 0.01)] {
+            let tool = ToolShape {
+                cutter: Cutter::Torus { radius, corner },
+                length: 5.0,
+            };
+            let rho = radius - corner;
+            for tol in [0.1, 0.0125, 0.005, 0.001] {
+                let k = tool.ring_count(tol);
+                assert!(ring_error(rho, corner, k) <= tol, "{radius} {corner} {tol}: {k}");
+                assert!(
+                    k == 8 || ring_error(rho, corner, k - 1) > tol,
+                    "{radius} {corner} {tol}: {k}"
+                );
+                // Never more than the arc bound alone asked for.
+                assert!(k <= ((std::f64::consts::PI * rho / tol).ceil() as usize).max(8));
+            }
+        }
+        // The dome sample's torus at half the default tolerance of a
+        // 0.025 mm spacing: 20 balls, where the arc bound took 126.
+        let dome = ToolShape {
+            cutter: Cutter::Torus {
+                radius: 0.5,
+                corner: 0.25,
+            },
+            length: 5.0,
+        };
+        assert_eq!(dome.ring_count(0.00625), 20);
+    }
 
     #[test]
     fn flat_tool_vertical_ray_hits_bottom_and_top() {

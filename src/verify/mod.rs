@@ -37,6 +37,11 @@ pub struct VerifyJob {
     /// Largest allowed distance between the true swept volume and the one
     /// cut (5-axis axis steps, torus corner ring), mm.
     pub sweep_tol: f64,
+    /// A tighter bound for a torus corner's ring of balls alone, mm (it
+    /// takes at most `sweep_tol / 2` in any case). The ring's error leaves
+    /// material, which a verification reads as excess; a tight ring costs
+    /// little (its error falls with the square of its ball count).
+    pub ring_tol: Option<f64>,
     /// Tool locations in cutting order (tip and axis).
     pub locations: Vec<Location>,
 }
@@ -63,7 +68,10 @@ pub fn sweeps(job: &VerifyJob) -> Vec<MoveSweep> {
     pairs.extend((1..locs.len()).map(|k| (k - 1, k)));
     pairs
         .par_iter()
-        .map(|&(a, b)| MoveSweep::new(&job.tool, &locs[a], &locs[b], job.sweep_tol))
+        .map(|&(a, b)| {
+            let ring_tol = job.ring_tol.unwrap_or(f64::INFINITY);
+            MoveSweep::with_ring_tol(&job.tool, &locs[a], &locs[b], job.sweep_tol, ring_tol)
+        })
         .collect()
 }
 
@@ -216,6 +224,7 @@ mod tests {
             },
             spacing: 0.1,
             sweep_tol: 0.01,
+            ring_tol: None,
             locations: vec![loc(2.0, 2.0, -1.0), loc(8.0, 5.0, -1.5), loc(3.0, 8.0, -0.5)],
         };
         let sim = simulate(&job).unwrap();
