@@ -398,3 +398,125 @@ fn drop_cutter_data_of_a_part_verify_without_gouges_and_with_analytic_scallops()
         eprintln!("{name}: scallop {got:.5} mm, analytic {want:.5} mm");
     }
 }
+
+/// CAM programs from the corpus (Fusion 360 adaptive clearing with
+/// helical ramps, a Fusion contour, CamBam, jscut), read as stlverify reads
+/// a program, cut by a flat end mill and a torus: the material left is the
+/// same whether each family's pieces are prepared all at once, in a few
+/// batches or one move a batch, and the tool's tip has cleared the
+/// material above it at every location inside the stock.
+#[test]
+fn corpus_programs_cut_in_batches_leave_what_one_pass_leaves() {
+    use microcam::cutter::Cutter;
+    use microcam::dexel::TriDexel;
+    use microcam::dexel::tool::ToolShape;
+    use microcam::geometry::P3;
+    use microcam::verify::{self, VerifyJob};
+    const NAME: &str = "stlverify_corpus_programs_in_batches";
+    let names = [
+        "SergeyPopovGit_CNC__HeatSink_mill.tap",
+        "shooshx_led_floor__1108_wall_better_m4_m6_holes.nc",
+        "winder_Universal-G-Code-Sender__Gates_combined_R12.nc",
+        "cncjs_cncjs__jsdc.gcode",
+    ];
+    let files: Vec<PathBuf> = names
+        .iter()
+        .filter_map(|n| microcam::corpus::file(&format!("gcode-cam/{n}")))
+        .filter(|p| p.exists())
+        .collect();
+    if files.len() < names.len() {
+        microcam::corpus::skip(NAME);
+        return;
+    }
+    let mut cases = 0;
+    for path in &files {
+        let input = microcam::cli::open_input(Some(path)).unwrap();
+        let src = microcam::source::ToolpathSource::open(input, &verify::cl::program_options()).unwrap();
+        let locations = verify::cl::program_locations(src, 0.01).unwrap();
+        let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
+        for l in &locations {
+            for k in 0..3 {
+                lo[k] = lo[k].min(l.tip[k]);
+                hi[k] = hi[k].max(l.tip[k]);
+            }
+        }
+        assert!(lo[2] < -0.1, "{}: the program never goes below z = 0", path.display());
+        for cutter in [
+            Cutter::Flat { radius: 1.5 },
+            Cutter::Torus {
+                radius: 1.5,
+                corner: 0.4,
+            },
+        ] {
+            let tool = ToolShape { cutter, length: 10.0 };
+            // The stock: the program's box grown by the tool, top at z = 0.
+            let (smin, smax) = (
+                P3::new(lo[0] - 2.0, lo[1] - 2.0, lo[2] - 1.0),
+                P3::new(hi[0] + 2.0, hi[1] + 2.0, 0.0),
+            );
+            // Fine enough across the depth for the X and Y rays (at cell
+            // centres in Z) to see the same volume as the Z rays.
+            let spacing = (((hi[0] - lo[0]).max(hi[1] - lo[1]) + 4.0) / 250.0).min(-lo[2] / 10.0);
+            let job = VerifyJob {
+                stock_min: smin,
+                stock_max: smax,
+                tool,
+                spacing,
+                sweep_tol: spacing / 2.0,
+                ring_tol: None,
+                locations: locations.clone(),
+            };
+            // One pass: the whole job's pieces are well under the 256 MiB
+            // that `simulate` prepares at a time.
+            let sim = verify::simulate(&job).unwrap();
+            let one_pass = (sim.stats, sim.dexels.volumes(), sim.dexels.heights());
+            let cut = |budget: usize| {
+                let mut d = TriDexel::new(smin, smax, spacing).unwrap();
+                let st = d.cut_in_batches(&sim.sweeps, budget);
+                (st, d.volumes(), d.heights())
+            };
+            let tag = format!("{} {:?}", path.display(), cutter);
+            // Pieces of some 300 moves a batch, then (the flat cutter's, the
+            // cheaper) of some 10. One move a batch is the unit test's, on
+            // generated moves: here it would take seconds.
+            let few = sim.sweeps.iter().take(300).map(|s| s.fine.len()).sum::<usize>() * 600;
+            assert!(few < 1 << 28);
+            let budgets = match cutter {
+                Cutter::Flat { .. } => vec![few, few / 30],
+                _ => vec![few],
+            };
+            for budget in budgets {
+                let batched = cut(budget);
+                assert_eq!(batched.0, one_pass.0, "{tag}: budget {budget}");
+                assert_eq!(batched.1, one_pass.1, "{tag}: budget {budget}");
+                assert!(batched.2 == one_pass.2, "{tag}: budget {budget}: the tops differ");
+            }
+            let stock = (smax.x - smin.x) * (smax.y - smin.y) * (smax.z - smin.z);
+            let removed = one_pass.1.map(|v| stock - v);
+            assert!(removed[2] > 1.0, "{tag}: removed {removed:?}");
+            // The three families see the same part, to their resolution.
+            for k in 0..2 {
+                assert!(
+                    (removed[k] - removed[2]).abs() <= 0.05 * removed[2],
+                    "{tag}: removed by family {removed:?}"
+                );
+            }
+            // Wherever the tip went inside the stock, nothing is left above it.
+            let mut checked = 0;
+            for l in locations.iter().step_by(13) {
+                if l.tip.z < smax.z - 1e-6 && l.tip.z > smin.z {
+                    let top = sim.top_at(l.tip.x, l.tip.y).unwrap();
+                    assert!(
+                        top <= l.tip.z + 1e-9,
+                        "{tag}: material at {top} above the tip at {:?}",
+                        l.tip
+                    );
+                    checked += 1;
+                }
+            }
+            assert!(checked > 10, "{tag}: {checked} locations inside the stock");
+            cases += 1;
+        }
+    }
+    microcam::corpus::record(NAME, cases);
+}

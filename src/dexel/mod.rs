@@ -367,9 +367,18 @@ impl TriDexel {
 
     /// Remove every move's swept volume.
     pub fn cut(&mut self, sweeps: &[MoveSweep]) -> CutStats {
+        self.cut_in_batches(sweeps, PREPARED_BYTES)
+    }
+
+    /// Remove every move's swept volume, preparing each family's pieces
+    /// at most `budget` bytes at a time (a single move may take more; 0 is
+    /// one move a batch). The material left does not depend on `budget`:
+    /// each tile meets its moves in the same order, batch after batch.
+    /// [`TriDexel::cut`] takes 256 MiB.
+    pub fn cut_in_batches(&mut self, sweeps: &[MoveSweep], budget: usize) -> CutStats {
         let mut st = CutStats::default();
         for f in self.families.iter_mut() {
-            st = st + f.cut(sweeps, PREPARED_BYTES);
+            st = st + f.cut(sweeps, budget);
         }
         st
     }
