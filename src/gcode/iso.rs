@@ -557,6 +557,14 @@ impl LineInterpreter for IsoInterpreter {
             };
         }
         if self.norm[0] == b'%' {
+            if self.norm.len() > 1 {
+                // '%' with text after it is not the tape's delimiter but a
+                // remark: Fusion 360's MPCNC post writes "% vfd enable" and
+                // "% LED ON" between the code (LinuxCNC refuses the line).
+                // Read as a delimiter, the first such line ended the
+                // program before its first move.
+                return Ok(());
+            }
             // A '%' before any code opens the program; one after code ends it.
             if self.any_code_seen || self.percent_seen {
                 self.ended = true;

@@ -105,6 +105,19 @@ fn beam_follows_spindle_and_program_ends() {
     assert!(m[0].beam && !m[1].beam);
 }
 
+/// A '%' line with text after it (Fusion 360's MPCNC post writes "% vfd
+/// enable") is a remark, not the end of the program; a bare '%', after a
+/// comment or not, still is.
+#[test]
+fn percent_with_text_is_a_remark_and_a_bare_percent_ends() {
+    let m = moves("%\n(head)\nG0 X1\n% vfd enable\nG1 X2 F100\n%( *** START end ***)\nG1 X9\n");
+    assert_eq!(m.len(), 2, "{m:?}");
+    assert!(close(&m[1].to, [2.0, 0.0, 0.0]));
+    let m = moves("%\n% LED ON\nG0 X1\n%%\nG1 X3 F100\n%\nG1 X9\n");
+    assert_eq!(m.len(), 2, "{m:?}");
+    assert!(close(&m[1].to, [3.0, 0.0, 0.0]));
+}
+
 #[test]
 fn offsets_keep_moves_continuous() {
     let m = moves("G0 X10\nG92 X0\nG0 X5\nG92.1\nG0 X1\nG10 L2 P2 X100\nG55 G0 X1\n");
