@@ -265,6 +265,36 @@ impl<'a> GougeCheck<'a> {
             })
     }
 
+    /// Whether the tool clears the part within `tol`: the same answer as
+    /// `clearance(tip, axis, length) <= tol`, found sooner where it does
+    /// not (the search stops at the first contact deeper than `tol`). The
+    /// tilt search asks this of every turn it tries, and most of the
+    /// turns it tries at a location that stays lifted cut in.
+    pub fn clears(&self, tip: P3, axis: V3, length: f64, tol: f64) -> bool {
+        let n = axis.norm();
+        let usable = n.is_finite() && n > 0.0 && length > 0.0 && tip.coords.iter().all(|c| c.is_finite());
+        if !usable {
+            return 0.0 <= tol;
+        }
+        let frame = ToolFrame::new(tip, axis / n, length);
+        let cutter = self.drop_in_until(&frame, &self.dc.shape, 0.0, 0.0, tol);
+        if cutter > tol {
+            return false;
+        }
+        // As in `clearance`: each holder face from the worst so far, which
+        // is at most `tol` here, so a face is over `tol` exactly when its
+        // own rise is.
+        let mut worst = cutter;
+        for (h, flat) in self.holder.iter().filter(|(h, _)| h.height < length) {
+            let rise = self.drop_in_until(&frame, flat, h.height, worst + h.height, tol + h.height) - h.height;
+            worst = worst.max(rise);
+            if worst > tol {
+                return false;
+            }
+        }
+        true
+    }
+
     /// How far the cutter with its tip at `tip` and its axis along `axis`
     /// must move along that axis (up positive, down negative) to rest on
     /// the mesh: touching it, nowhere in it, from the tip to `length` up
@@ -394,18 +424,25 @@ impl<'a> GougeCheck<'a> {
     /// candidates come from a capsule query on the mesh's 3-D tree along
     /// the stretch of the axis that can reach the mesh.
     fn drop_in(&self, f: &ToolFrame, shape: &ContactCutter, from: f64, floor: f64) -> f64 {
+        self.drop_in_until(f, shape, from, floor, f64::INFINITY)
+    }
+
+    /// [`GougeCheck::drop_in`], stopping as soon as a contact is above
+    /// `stop`: the result is then some height above `stop`, not the
+    /// highest; at or below `stop` it is exact.
+    fn drop_in_until(&self, f: &ToolFrame, shape: &ContactCutter, from: f64, floor: f64, stop: f64) -> f64 {
         let (r, length) = (shape.r, f.length);
         let Some((s0, s1)) = self.dc.bbox.clip_line(&f.tip, &f.a, (from, length), r) else {
             return floor;
         };
         let mut best = floor;
         self.bvh
-            .for_each_near_segment(f.tip + f.a * s0, f.tip + f.a * s1, r, |_, c| {
+            .try_for_each_near_segment(f.tip + f.a * s0, f.tip + f.a * s1, r, |_, c| {
                 let [p, q, w] = [f.local(&c[0]), f.local(&c[1]), f.local(&c[2])];
                 // Wholly beyond the checked length, or wholly below the
                 // highest contact found: nothing to add.
                 if p.z.min(q.z).min(w.z) > length || p.z.max(q.z).max(w.z) <= best {
-                    return;
+                    return std::ops::ControlFlow::Continue(());
                 }
                 let (count, parts) = clip_below(Triangle::new(p, q, w), length);
                 for tri in &parts[..count] {
@@ -413,6 +450,11 @@ impl<'a> GougeCheck<'a> {
                     if tri.zmax > best && tri.near(0.0, 0.0, r) {
                         drop_on(shape, 0.0, 0.0, &tri, &mut best);
                     }
+                }
+                if best > stop {
+                    std::ops::ControlFlow::Break(())
+                } else {
+                    std::ops::ControlFlow::Continue(())
                 }
             });
         best

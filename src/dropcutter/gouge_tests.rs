@@ -678,3 +678,63 @@ fn on_every_corpus_mesh_set_down_tools_touch_it_and_are_nowhere_in_it() {
     crate::corpus::record("corpus_meshes_set_down_tools_touch_them", checked);
     assert!(checked > 100, "{checked}");
 }
+
+/// `clears` is `clearance <= tol` found sooner: the same answer for tools
+/// with and without a holder, at tolerances either side of each depth.
+#[test]
+fn clears_answers_as_clearance_does() {
+    let mesh = floor_and_wall(nalgebra::Rotation3::identity(), V3::zeros());
+    for cutter in [
+        Cutter::Flat { radius: 0.5 },
+        Cutter::Torus {
+            radius: 0.5,
+            corner: 0.2,
+        },
+    ] {
+        let dc = DropCutter::new(&mesh, cutter).unwrap();
+        let holder = Holder {
+            radius: 1.25,
+            height: 1.5,
+        };
+        let checks = [
+            GougeCheck::new(&dc),
+            GougeCheck::new(&dc).with_holder(holder).unwrap(),
+            GougeCheck::new(&dc)
+                .with_holder(holder)
+                .unwrap()
+                .with_holder(Holder {
+                    radius: 2.0,
+                    height: 3.0,
+                })
+                .unwrap(),
+        ];
+        let (mut clear, mut cut) = (0, 0);
+        for gc in &checks {
+            for i in 0..12 {
+                for j in 0..5 {
+                    let tip = P3::new(
+                        -0.2 + 0.08 * i as f64,
+                        0.3 * j as f64 - 0.6,
+                        0.25 * (i % 4) as f64 - 0.02,
+                    );
+                    let (th, ph) = (0.35 * (j as f64 - 2.0), 0.7 * i as f64);
+                    let a = V3::new(th.sin() * ph.cos(), th.sin() * ph.sin(), th.cos());
+                    let d = gc.clearance(tip, a, 8.0);
+                    for tol in [GOUGE_TOL, 0.5 * d, d, d * (1.0 + 1e-9) + 1e-12, 2.0 * d + 0.01] {
+                        assert_eq!(
+                            gc.clears(tip, a, 8.0, tol),
+                            d <= tol,
+                            "tip {tip:?} axis {a:?} depth {d} tol {tol}"
+                        );
+                    }
+                    if d <= GOUGE_TOL {
+                        clear += 1;
+                    } else {
+                        cut += 1;
+                    }
+                }
+            }
+        }
+        assert!(clear > 10 && cut > 10, "{cutter:?}: {clear} clear, {cut} cut");
+    }
+}

@@ -141,10 +141,17 @@ impl GougeCheck<'_> {
                 (*l, d, d)
             }
         };
-        // A turned location, where it clears the part.
+        // A turned location, where it clears the part (as the tool
+        // stands: a yes-or-no check, which stops at the first contact
+        // deeper than the tolerance).
         let clear_turn = |c: &Contact, t: [f64; 2]| {
-            let (l, d, _) = place(&turned(c, t), c);
-            (d <= GOUGE_TOL).then_some(l)
+            if settle {
+                let (l, d, _) = place(&turned(c, t), c);
+                (d <= GOUGE_TOL).then_some(l)
+            } else {
+                let l = turned(c, t);
+                self.clears(l.cl, l.axis_point - l.cl, length, GOUGE_TOL).then_some(l)
+            }
         };
         // The locations as asked, placed, with their depths and lifts.
         let mut settling = SettleReport::default();

@@ -305,6 +305,21 @@ impl Bvh {
     /// on the 3-D tree, where a grid over the XY plane would list every
     /// triangle under a steep tool's whole shadow.
     pub fn for_each_near_segment(&self, p0: P3, p1: P3, r: f64, mut f: impl FnMut(u32, &[P3; 3])) {
+        self.try_for_each_near_segment(p0, p1, r, |i, t| {
+            f(i, t);
+            std::ops::ControlFlow::Continue(())
+        });
+    }
+
+    /// [`Bvh::for_each_near_segment`], stopping at the first triangle for
+    /// which `f` breaks (a yes-or-no query that has its answer).
+    pub fn try_for_each_near_segment(
+        &self,
+        p0: P3,
+        p1: P3,
+        r: f64,
+        mut f: impl FnMut(u32, &[P3; 3]) -> std::ops::ControlFlow<()>,
+    ) {
         if self.nodes.is_empty() || r.is_nan() || r < 0.0 {
             return;
         }
@@ -323,7 +338,9 @@ impl Bvh {
             if meets(nd) {
                 if nd.n > 0 {
                     for i in nd.a..nd.a + nd.n {
-                        f(self.ids[i as usize], &self.tris[i as usize]);
+                        if f(self.ids[i as usize], &self.tris[i as usize]).is_break() {
+                            return;
+                        }
                     }
                 } else {
                     stack.push(nd.a);
