@@ -187,21 +187,20 @@ fn run(args: Args) -> Result<(), CliError> {
     } else {
         Format::Cl
     });
+    // With a design, what the simulation's own approximations may take:
+    // a tenth of the band (arcs' chords and a torus corner's ring, both
+    // of which would otherwise read as the part's gouge or excess); a
+    // band of 0 leaves them to the spacing.
+    let band_tenth = (args.design.is_some() && band > 0.0).then_some(0.1 * band);
     let input = cli::open_input(args.file.as_deref())?;
     let name = input.name.clone();
     let (locations, five_axis) = match format {
         Format::Cl => cl::read_cl(input.reader).map_err(|e| CliError::in_file(&name, e))?,
         Format::Gcode => {
             let src = ToolpathSource::open(input, &cl::program_options())?;
-            // Arcs as chords: within a quarter of the spacing, and with a
-            // design, a tenth of the band, so that the chords' own sag
-            // (which cuts a convex arc's inside) is not what the check
-            // reports; a band of 0 leaves the quarter spacing.
-            let sag = if args.design.is_some() && band > 0.0 {
-                (0.25 * spacing).min(0.1 * band)
-            } else {
-                0.25 * spacing
-            };
+            // Arcs as chords: within a quarter of the spacing and the band's
+            // tenth (a chord cuts a convex arc's inside by its sag).
+            let sag = band_tenth.map_or(0.25 * spacing, |b| b.min(0.25 * spacing));
             let v = cl::program_locations(src, sag).map_err(|e| CliError::in_file(&name, e))?;
             (v, false)
         }
@@ -213,10 +212,9 @@ fn run(args: Args) -> Result<(), CliError> {
         tool,
         spacing,
         sweep_tol,
-        // With a design, a torus corner's ring within a tenth of the band
-        // (as the arcs' chords): the ring leaves material, which would
-        // otherwise read as excess when the band is near the spacing.
-        ring_tol: (args.design.is_some() && band > 0.0).then_some(0.1 * band),
+        // The ring leaves material, which would read as excess when the
+        // band is near the spacing.
+        ring_tol: band_tenth,
         locations,
     };
     let meter = Meter::start(

@@ -247,22 +247,7 @@ impl<'a> GougeCheck<'a> {
     /// surface: 0 when it is clear already (or touches only), else the
     /// depth of the deepest penetration measured along the axis.
     pub fn clearance(&self, tip: P3, axis: V3, length: f64) -> f64 {
-        let n = axis.norm();
-        let usable = n.is_finite() && n > 0.0 && length > 0.0 && tip.coords.iter().all(|c| c.is_finite());
-        if !usable {
-            return 0.0;
-        }
-        let frame = ToolFrame::new(tip, axis / n, length);
-        let cutter = self.drop_in(&frame, &self.dc.shape, 0.0, 0.0);
-        // Each of the holder's faces must rise above the highest point
-        // within its radius (a flat cutter of that radius, dropped): by
-        // that height less the face's.
-        self.holder
-            .iter()
-            .filter(|(h, _)| h.height < length)
-            .fold(cutter, |worst, (h, flat)| {
-                worst.max(self.drop_in(&frame, flat, h.height, worst + h.height) - h.height)
-            })
+        self.depth_until(tip, axis, length, f64::INFINITY)
     }
 
     /// Whether the tool clears the part within `tol`: the same answer as
@@ -271,28 +256,29 @@ impl<'a> GougeCheck<'a> {
     /// tilt search asks this of every turn it tries, and most of the
     /// turns it tries at a location that stays lifted cut in.
     pub fn clears(&self, tip: P3, axis: V3, length: f64, tol: f64) -> bool {
+        self.depth_until(tip, axis, length, tol) <= tol
+    }
+
+    /// [`GougeCheck::clearance`], exact where it is at most `stop`; above
+    /// that, some depth above `stop` (the search stops there).
+    fn depth_until(&self, tip: P3, axis: V3, length: f64, stop: f64) -> f64 {
         let n = axis.norm();
         let usable = n.is_finite() && n > 0.0 && length > 0.0 && tip.coords.iter().all(|c| c.is_finite());
         if !usable {
-            return 0.0 <= tol;
+            return 0.0;
         }
         let frame = ToolFrame::new(tip, axis / n, length);
-        let cutter = self.drop_in_until(&frame, &self.dc.shape, 0.0, 0.0, tol);
-        if cutter > tol {
-            return false;
-        }
-        // As in `clearance`: each holder face from the worst so far, which
-        // is at most `tol` here, so a face is over `tol` exactly when its
-        // own rise is.
-        let mut worst = cutter;
+        let mut worst = self.drop_in_until(&frame, &self.dc.shape, 0.0, 0.0, stop);
+        // Each of the holder's faces must rise above the highest point
+        // within its radius (a flat cutter of that radius, dropped): by
+        // that height less the face's.
         for (h, flat) in self.holder.iter().filter(|(h, _)| h.height < length) {
-            let rise = self.drop_in_until(&frame, flat, h.height, worst + h.height, tol + h.height) - h.height;
-            worst = worst.max(rise);
-            if worst > tol {
-                return false;
+            if worst > stop {
+                break;
             }
+            worst = worst.max(self.drop_in_until(&frame, flat, h.height, worst + h.height, stop + h.height) - h.height);
         }
-        true
+        worst
     }
 
     /// How far the cutter with its tip at `tip` and its axis along `axis`
