@@ -151,7 +151,7 @@ impl ToolShape {
 /// Until the eighth session of 7 December 2026 only the arc bound was
 /// used: a torus 1 mm across with a 0.25 mm corner took 126 balls at a
 /// tolerance of 0.0125 mm, where 20 keep the same bound.
-pub(crate) fn ring_error(rho: f64, r: f64, k: usize) -> f64 {
+pub fn ring_error(rho: f64, r: f64, k: usize) -> f64 {
     let delta = std::f64::consts::PI / k.max(1) as f64;
     let one_minus_cos = 2.0 * (0.5 * delta).sin().powi(2);
     let sag = (r * r + 2.0 * rho * (rho + r) * one_minus_cos).sqrt() - r;
