@@ -481,10 +481,7 @@ mod tests {
         assert!(sweeps.iter().any(|s| s.substeps > 1), "some axis must turn");
         let cut = |budget: usize| {
             let mut d = TriDexel::new(P3::new(-2.5, -1.5, -1.5), P3::new(2.5, 1.5, 0.0), 0.05).unwrap();
-            let mut st = CutStats::default();
-            for f in d.families.iter_mut() {
-                st = st + f.cut(&sweeps, budget);
-            }
+            let st = d.cut_in_batches(&sweeps, budget);
             (st, all_intervals(&d), d.volumes())
         };
         let one_pass = cut(usize::MAX);
