@@ -469,17 +469,18 @@ fn corpus_programs_cut_in_batches_leave_what_one_pass_leaves() {
             // One pass: the whole job's pieces are well under the 256 MiB
             // that `simulate` prepares at a time.
             let sim = verify::simulate(&job).unwrap();
+            let sweeps = verify::sweeps(&job);
             let one_pass = (sim.stats, sim.dexels.volumes(), sim.dexels.heights());
             let cut = |budget: usize| {
                 let mut d = TriDexel::new(smin, smax, spacing).unwrap();
-                let st = d.cut_in_batches(&sim.sweeps, budget);
+                let st = d.cut_in_batches(&sweeps, budget);
                 (st, d.volumes(), d.heights())
             };
             let tag = format!("{} {:?}", path.display(), cutter);
             // Pieces of some 300 moves a batch, then (the flat cutter's, the
             // cheaper) of some 10. One move a batch is the unit test's, on
             // generated moves: here it would take seconds.
-            let few = sim.sweeps.iter().take(300).map(|s| s.fine.len()).sum::<usize>() * 600;
+            let few = sweeps.iter().take(300).map(|s| s.fine.len()).sum::<usize>() * 600;
             assert!(few < 1 << 28);
             let budgets = match cutter {
                 Cutter::Flat { .. } => vec![few, few / 30],

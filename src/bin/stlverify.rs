@@ -247,7 +247,7 @@ fn run(args: Args) -> Result<(), CliError> {
         "dexel_spacing_mm": spacing,
         "dexels": sim.dexels.dexel_count(),
         "dexel_memory_bytes": sim.dexels.bytes(),
-        "sub_moves": sim.sweeps.iter().map(|s| s.substeps).sum::<usize>(),
+        "sub_moves": sim.sub_moves,
         "sweep_shape_error_mm": sim.shape_error_mm,
         "ray_move_tests": sim.stats.ray_tests,
         "ray_submove_tests": sim.stats.fine_tests,

@@ -92,17 +92,22 @@ impl std::ops::Add for CutStats {
 /// How many bytes of prepared pieces one family's cut holds at a time
 /// (256 MiB: with 64 the dome sample's torus raster took 432 s against
 /// 376, the last tiles of each batch running alone; docs/stlverify.md).
-const PREPARED_BYTES: usize = 1 << 28;
+pub const PREPARED_BYTES: usize = 1 << 28;
+
+/// Bytes a move's pieces take once prepared for one family's rays (what
+/// [`PREPARED_BYTES`] bounds).
+pub fn prepared_bytes(s: &MoveSweep) -> usize {
+    let pieces = s.fine.len() + s.groups.len() + s.coarse.as_ref().map_or(0, Vec::len);
+    pieces * std::mem::size_of::<axis::AxisPiece>() + std::mem::size_of::<AxisMove>()
+}
 
 /// The moves cut together: consecutive runs whose prepared pieces take at
 /// most `budget` bytes (a single move may take more), in order.
 fn prepare_batches(sweeps: &[MoveSweep], budget: usize) -> Vec<std::ops::Range<usize>> {
-    let piece = std::mem::size_of::<axis::AxisPiece>();
     let mut out = Vec::new();
     let (mut start, mut bytes) = (0, 0);
     for (k, s) in sweeps.iter().enumerate() {
-        let pieces = s.fine.len() + s.groups.len() + s.coarse.as_ref().map_or(0, Vec::len);
-        let b = pieces * piece + std::mem::size_of::<AxisMove>();
+        let b = prepared_bytes(s);
         if k > start && bytes + b > budget {
             out.push(start..k);
             (start, bytes) = (k, 0);

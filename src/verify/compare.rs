@@ -6,7 +6,6 @@
 use super::Simulation;
 use crate::geometry::{P3, V3};
 use crate::mesh::parallel::{Lattice, ParallelRays};
-use rayon::prelude::*;
 
 /// One comparison point.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -84,16 +83,17 @@ pub fn steps(x0: f64, x1: f64, step: f64) -> Vec<f64> {
 pub fn sample(sim: &Simulation, design: &Design, xs: &[f64], ys: &[f64]) -> Vec<Sample> {
     let tops = design.tops(xs, ys);
     let nx = xs.len().max(1);
-    tops.par_iter()
-        .enumerate()
-        .map(|(k, &design_z)| {
-            let (x, y) = (xs[k % nx], ys[k / nx]);
-            Sample {
-                x,
-                y,
-                design_z,
-                machined_z: sim.top_at(x, y).unwrap_or(f64::NAN),
-            }
+    let points: Vec<(f64, f64)> = (0..tops.len()).map(|k| (xs[k % nx], ys[k / nx])).collect();
+    let machined = sim.tops_at(&points);
+    points
+        .iter()
+        .zip(tops)
+        .zip(machined)
+        .map(|((&(x, y), design_z), m)| Sample {
+            x,
+            y,
+            design_z,
+            machined_z: m.unwrap_or(f64::NAN),
         })
         .collect()
 }
