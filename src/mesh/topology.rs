@@ -113,7 +113,7 @@ pub fn report(m: &Mesh) -> TopologyReport {
     // Closed needs a surface: a mesh of degenerate triangles only has no
     // edges, so none open, and was called watertight with a volume of 0.
     let watertight = boundary == 0 && nonman == 0 && incons == 0 && degenerate < m.triangles.len();
-    let volume = watertight.then(|| signed_volume(m, None));
+    let volume = watertight.then(|| signed_volume(m));
     let mut used = vec![false; m.vertices.len()];
     for t in &m.triangles {
         for &v in t {
@@ -200,18 +200,25 @@ fn components(m: &Mesh, e: &[EdgeRec]) -> (Vec<u32>, usize) {
     (label, count)
 }
 
-fn signed_volume(m: &Mesh, only: Option<(&[u32], u32)>) -> f64 {
+/// Signed volume of the whole mesh.
+fn signed_volume(m: &Mesh) -> f64 {
+    part_volumes(m, &vec![0; m.triangles.len()], 1)[0]
+}
+
+/// Signed volume of each part (`part[i]` the part of triangle i, below
+/// `parts`), in one pass: each part's terms are added in triangle order.
+/// One pass a part, as it was until 8 December 2026, took 11 s for a mesh
+/// of 10,000 separate cubes and 170 s for 40,000 (each pass read every
+/// triangle and the box of every vertex).
+fn part_volumes(m: &Mesh, part: &[u32], parts: usize) -> Vec<f64> {
     // About the box centre, to keep the sum well conditioned far from the origin.
     let c = m.bbox().center().unwrap_or(P3::origin());
-    m.triangles
-        .iter()
-        .enumerate()
-        .filter(|(i, _)| only.is_none_or(|(lab, l)| lab[*i] == l))
-        .map(|(_, t)| {
-            let tr = m.triangle_of(t);
-            (tr.a - c).dot(&(tr.b - c).cross(&(tr.c - c))) / 6.0
-        })
-        .sum()
+    let mut v = vec![0.0; parts];
+    for (t, &p) in m.triangles.iter().zip(part) {
+        let tr = m.triangle_of(t);
+        v[p as usize] += (tr.a - c).dot(&(tr.b - c).cross(&(tr.c - c))) / 6.0;
+    }
+    v
 }
 
 /// Drop degenerate and duplicate triangles, make each part's orientation
@@ -321,18 +328,14 @@ fn orient(m: &mut Mesh) -> (usize, usize) {
             }
         }
     }
-    let mut inverted = 0;
-    for p in 0..parts {
-        if !open_part[p as usize] && signed_volume(m, Some((&part, p))) < 0.0 {
-            inverted += 1;
-            for (t, &l) in m.triangles.iter_mut().zip(&part) {
-                if l == p {
-                    t.swap(1, 2);
-                }
-            }
+    let vols = part_volumes(m, &part, parts as usize);
+    let invert: Vec<bool> = (0..parts as usize).map(|p| !open_part[p] && vols[p] < 0.0).collect();
+    for (t, &l) in m.triangles.iter_mut().zip(&part) {
+        if invert[l as usize] {
+            t.swap(1, 2);
         }
     }
-    (flipped, inverted)
+    (flipped, invert.iter().filter(|&&i| i).count())
 }
 
 /// A mesh welded, reported on and repaired: what `pathgen slice` and
@@ -421,6 +424,61 @@ mod tests {
             vec!["turned 1 closed parts inside out (their volume was negative)".to_string()]
         );
         assert!(report(&fixed).volume_mm3.unwrap() > 0.0);
+    }
+
+    #[test]
+    fn each_inside_out_part_of_many_is_turned_and_only_those() {
+        // 300 separate boxes of different sizes, every third inside out,
+        // and one open box inside out (left as it is: it has no volume).
+        let mut m = Mesh {
+            vertices: vec![],
+            triangles: vec![],
+        };
+        let mut volume = 0.0;
+        for k in 0..300 {
+            let (x, s) = (3.0 * k as f64, 1.0 + (k % 7) as f64 * 0.25);
+            let mut c = solids::cuboid(P3::new(x, 0.0, 0.0), P3::new(x + s, s, 2.0 * s));
+            if k % 3 == 1 {
+                for t in &mut c.triangles {
+                    t.swap(1, 2);
+                }
+            }
+            volume += 2.0 * s * s * s;
+            let base = m.vertices.len() as u32;
+            m.vertices.extend(c.vertices);
+            m.triangles.extend(c.triangles.iter().map(|t| t.map(|v| v + base)));
+        }
+        let mut open = solids::cuboid(P3::new(-5.0, 0.0, 0.0), P3::new(-4.0, 1.0, 1.0));
+        open.triangles.pop();
+        for t in &mut open.triangles {
+            t.swap(1, 2);
+        }
+        let base = m.vertices.len() as u32;
+        m.vertices.extend(open.vertices);
+        let open_tris: Vec<[u32; 3]> = open.triangles.iter().map(|t| t.map(|v| v + base)).collect();
+        m.triangles.extend(open_tris.iter().copied());
+        let (fixed, notes) = repair(&m);
+        assert_eq!(
+            notes,
+            vec!["turned 100 closed parts inside out (their volume was negative)".to_string()]
+        );
+        // The open box's triangles are as they were; every closed box
+        // encloses its volume.
+        assert_eq!(
+            fixed.triangles[fixed.triangles.len() - open_tris.len()..],
+            open_tris[..]
+        );
+        let closed = Mesh {
+            vertices: fixed.vertices.clone(),
+            triangles: fixed.triangles[..fixed.triangles.len() - open_tris.len()].to_vec(),
+        };
+        let r = report(&closed);
+        assert_eq!(r.components, 300);
+        assert!((r.volume_mm3.unwrap() - volume).abs() < 1e-9 * volume, "{r:?}");
+        let e = edge_records(&closed);
+        let labels = components(&closed, &e).0;
+        let vols = part_volumes(&closed, &labels, 300);
+        assert!(vols.iter().all(|&v| v > 0.0), "{vols:?}");
     }
 
     #[test]

@@ -130,3 +130,96 @@ fn levels_by_step() {
     assert_eq!(step_levels(0.0, 1.0, 0.25, false), vec![0.0, 0.25, 0.5, 0.75]);
     assert!(step_levels(0.0, 1.0, 0.0, false).is_empty());
 }
+
+/// A square loop, clockwise or not.
+fn square_loop(x: f64, y: f64, s: f64, cw: bool, closed: bool) -> Loop {
+    let mut points = vec![
+        P2::new(x, y),
+        P2::new(x + s, y),
+        P2::new(x + s, y + s),
+        P2::new(x, y + s),
+    ];
+    if cw {
+        points.reverse();
+    }
+    Loop {
+        points,
+        depth: 0,
+        closed,
+    }
+}
+
+#[test]
+fn many_loops_nest_by_the_grid_as_by_every_pair() {
+    // A frame round 12 x 12 squares; in every second square a hole, in
+    // every third hole an island; a strip of touching squares; open
+    // loops over them; and a second frame the same as the first (each
+    // counts the other). Orientations at random.
+    let mut loops = Vec::new();
+    let mut want = Vec::new();
+    let mut flip = 0u32;
+    let mut cw = || {
+        flip = flip.wrapping_mul(1_103_515_245).wrapping_add(12_345);
+        flip >> 16 & 1 == 1
+    };
+    for _ in 0..2 {
+        loops.push(square_loop(-1.0, -1.0, 40.0, cw(), true));
+        want.push(1);
+    }
+    for i in 0..12 {
+        for j in 0..12 {
+            let (x, y) = (3.0 * i as f64, 3.0 * j as f64);
+            loops.push(square_loop(x, y, 2.5, cw(), true));
+            want.push(2);
+            if (i + j) % 2 == 0 {
+                loops.push(square_loop(x + 0.5, y + 0.5, 1.5, cw(), true));
+                want.push(3);
+                if (i + j) % 3 == 0 {
+                    loops.push(square_loop(x + 1.0, y + 1.0, 0.5, cw(), true));
+                    want.push(4);
+                }
+            }
+        }
+    }
+    for k in 0..10 {
+        loops.push(square_loop(36.5 + 0.25 * k as f64, 0.0, 0.25, cw(), true));
+        want.push(2);
+        loops.push(square_loop(0.3 * k as f64, 37.0, 0.2, cw(), false));
+        want.push(0);
+    }
+    assert!(loops.len() > 200);
+    let mut by_grid = loops.clone();
+    nest(&mut by_grid);
+    let boxes: Vec<(P2, P2)> = loops.iter().map(|l| bbox(&l.points)).collect();
+    assert!(BoxGrid::new(&loops, &boxes).is_some(), "the grid is what is tested");
+    for (i, l) in by_grid.iter().enumerate() {
+        // Every pair, as nest did before the grid.
+        let reference = if loops[i].closed {
+            let p = probe(&loops[i].points);
+            (0..loops.len())
+                .filter(|&j| {
+                    let (lo, hi) = boxes[j];
+                    j != i
+                        && loops[j].closed
+                        && p.x >= lo.x
+                        && p.x <= hi.x
+                        && p.y >= lo.y
+                        && p.y <= hi.y
+                        && inside(&p, &loops[j].points)
+                })
+                .count()
+        } else {
+            0
+        };
+        assert_eq!(l.depth, reference, "loop {i}");
+        // The frames hold each other, so depths count from 1 inside them.
+        assert_eq!(l.depth, want[i], "loop {i}");
+        if l.closed {
+            assert_eq!(
+                l.area() > 0.0,
+                l.depth % 2 == 0,
+                "loop {i}: outer counter-clockwise, holes clockwise"
+            );
+        }
+    }
+}
