@@ -435,6 +435,54 @@ fn cli_refuses_a_pitch_above_d_over_root_two_unless_forced() {
 }
 
 #[test]
+fn cli_warns_that_only_the_first_closed_chain_is_pocketed() {
+    let dir = std::env::temp_dir().join(format!("microcam-pocket-chains-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let square = |id: u32, x: f64, closed: bool| {
+        let p = |a: f64, b: f64| format!("[{a},{b}]");
+        let line = |a: String, b: String| format!(r#"{{"type":"line","start":{a},"end":{b}}}"#);
+        let (c0, c1, c2, c3) = (p(x, 0.0), p(x + 6.0, 0.0), p(x + 6.0, 6.0), p(x, 6.0));
+        let mut segs = vec![line(c0.clone(), c1.clone()), line(c1, c2.clone()), line(c2, c3.clone())];
+        if closed {
+            segs.push(line(c3, c0));
+        }
+        format!(
+            r#"{{"id":{id},"layer":"0","closed":{closed},"segments":[{}]}}"#,
+            segs.join(",")
+        )
+    };
+    let header = r#"{"schema":"microcam.chains/1","units":"mm"}"#;
+    let run = |chains: &[String]| {
+        let f = dir.join("c.jsonl");
+        std::fs::write(&f, format!("{header}\n{}\n", chains.join("\n"))).unwrap();
+        let out = bin("pathgen")
+            .args(["pocket", "--tool", "flat:2", "--grid", "1,1", "--floor-z", "-1"])
+            .arg(&f)
+            .output()
+            .unwrap();
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        (String::from_utf8_lossy(&out.stderr).to_string(), out.stdout)
+    };
+    // An open chain first, then three closed ones: the first closed one
+    // (id 2) is cut, the two others are named as left.
+    let (err, out) = run(&[
+        square(1, -20.0, false),
+        square(2, 0.0, true),
+        square(3, 10.0, true),
+        square(4, 20.0, true),
+    ]);
+    assert!(
+        err.contains("pocketing chain 2") && err.contains("2 other closed chains are not pocketed"),
+        "{err}"
+    );
+    let (alone_err, alone) = run(&[square(2, 0.0, true)]);
+    assert!(!alone_err.contains("warning"), "{alone_err}");
+    // The same program either way (the source line names the same file).
+    assert_eq!(out, alone);
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
 fn cli_programs_are_repeatable_and_rapid_only_above_the_stock_in_gsim() {
     for dialect in ["pmac", "iso"] {
         let run = || {

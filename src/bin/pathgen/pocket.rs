@@ -26,7 +26,7 @@ Examples:
   pathgen pocket --polygon ... --tool ball:2 --grid 1,1 --floor-z -2 --report -     report only
 
 The boundary is the first closed chain of FILE (microcam.chains/1, '-' for
-stdin) or --polygon. The bottom is a Bezier patch (--bezier-z, or --surface
+stdin; a warning counts the other closed chains, not pocketed) or --polygon. The bottom is a Bezier patch (--bezier-z, or --surface
 FILE.json with {\"x\":[x0,x1],\"y\":[y0,y1],\"z\":[16 heights]}), measured grid
 points (--surface FILE.csv, lines x,y,z), or flat (--floor-z). A grid pitch
 above D/sqrt(2) is refused unless --force. Output: microcam.toolpath/1 (feeds
@@ -192,6 +192,16 @@ fn boundary(a: &PocketArgs) -> Result<Polyline<f64>, CliError> {
         .iter()
         .find(|c| c.closed)
         .ok_or_else(|| CliError::input(format!("{name}: no closed chain to pocket")))?;
+    // One region a run: say so when the file holds more, rather than
+    // leave the others uncut without a word.
+    let others = chains.iter().filter(|c| c.closed).count() - 1;
+    if others > 0 {
+        microcam::diag!(
+            "pathgen: pocket: {name}: warning: pocketing chain {} (the first closed chain); {others} other closed chain{} not pocketed (one region a run: split the file, e.g. with jq, to pocket each)",
+            c.id,
+            if others == 1 { " is" } else { "s are" }
+        );
+    }
     Ok(microcam::laser::offset::to_polyline(c))
 }
 
