@@ -290,7 +290,16 @@ fn run(args: Args) -> Result<(), CliError> {
         }
         let xs = steps(r[0], r[1], args.step_forward);
         let ys = steps(r[2], r[3], args.step_over);
+        // The machined top at each point is cut exactly by the moves near
+        // it: at fine steps that takes longer than the cut itself.
+        let meter = Meter::start(
+            "stlverify",
+            "comparing points with the design",
+            (xs.len() * ys.len()) as u64,
+            Show::from_flags(args.quiet, false),
+        );
         let samples = sample(&sim, &design, &xs, &ys);
+        meter.finish();
         let st = Stats::of(&samples, band);
         failed = !st.passed();
         let profiles: Vec<(f64, Vec<Sample>)> = args

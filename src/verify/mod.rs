@@ -211,7 +211,9 @@ impl Simulation {
 
     /// [`Simulation::top_at`] at every point, bit for bit: the points are
     /// taken a bin of the plan view at a time (in parallel), the sweeps
-    /// of the bin's moves built once for all its points.
+    /// of the bin's moves built once for all its points. Advances the
+    /// progress counter by each bin's points (points outside the stock
+    /// are not counted).
     pub fn tops_at(&self, points: &[(f64, f64)]) -> Vec<Option<f64>> {
         let (min, max) = (self.dexels.min, self.dexels.max);
         let inside = |&(x, y): &(f64, f64)| x >= min.x && x <= max.x && y >= min.y && y <= max.y;
@@ -259,6 +261,7 @@ impl Simulation {
                     .collect();
                 let mut scratch = Vec::new();
                 let mut ivs = Vec::new();
+                crate::progress::advance(mine.len() as u64);
                 mine.iter()
                     .map(|&k| {
                         let (x, y) = points[k];
