@@ -255,7 +255,9 @@ fn commanded_on(pieces: &[Piece], lens: &[f64], m: &LaserSetup, notes: &mut Vec<
         on.push((s0, s));
     }
     for &(a, b) in &on {
-        if b - a < m.min_cut() {
+        // `b - a` is a difference of path lengths summed from the start:
+        // a cut exactly the minimum long comes out a few ulps short.
+        if b - a < m.min_cut() - 1e-9 * (1.0 + b.abs()) {
             notes.push(Note::ShortCut {
                 length: b - a,
                 min: m.min_cut(),
