@@ -192,25 +192,21 @@ fn corpus_stl_slices_and_dxf_regions_fill() {
         }
     }
     // A laser-engraved region from a drawing: dxf2chains, then fill.
-    for rel in ["dxf/Polylinie.dxf", "dxf/triangle-with-duplicate-vertex.dxf"] {
+    // Stir_1.dxf's offsets hold almost straight arcs (a centre 1.08e9 mm
+    // away, which the toolpath reader refuses): they come back as lines.
+    for rel in [
+        "dxf/Polylinie.dxf",
+        "dxf/triangle-with-duplicate-vertex.dxf",
+        "dxf/Stir_1.dxf",
+    ] {
         let Some(f) = microcam::corpus::file(rel) else { continue };
         let chains = run(DXF2CHAINS, &["--quiet", f.to_str().unwrap()], b"");
-        let o = run(
-            PATHGEN,
-            &[
-                "fill",
-                "--pattern",
-                "hatch",
-                "--outline",
-                "--beam-diameter",
-                "0.1",
-                "--step-over",
-                "0.2",
-            ],
-            ok(&chains),
-        );
-        check_physics(ok(&o), exposure_tol(&o));
-        cases += 1;
+        for pattern in [&["--pattern", "hatch", "--outline"][..], &["--pattern", "offset"]] {
+            let args = [&["fill", "--beam-diameter", "0.1", "--step-over", "0.2"][..], pattern].concat();
+            let o = run(PATHGEN, &args, ok(&chains));
+            check_physics(ok(&o), exposure_tol(&o));
+            cases += 1;
+        }
     }
     microcam::corpus::record("pathgen_fill_corpus", cases);
 }

@@ -66,7 +66,29 @@ pub fn to_polyline(c: &Chain) -> Polyline<f64> {
     pl
 }
 
-/// Polyline back to path pieces at height `z`.
+/// Largest sagitta (mm) of a polyline arc written as its chord: a
+/// nanometre, far below any stage's resolution.
+const LINE_SAGITTA: f64 = 1e-6;
+
+/// Largest radius (mm) of a polyline arc kept as an arc: the toolpath
+/// reader refuses centres beyond 1e9 mm (no machine means them), and
+/// offsets of long, almost straight arcs come out with centres near that
+/// (a fill of the corpus drawing Stir_1.dxf had one at 1.08e9 mm, a
+/// sagitta of 0.4 nm). Up to a chord of 1 m, the chord of such an arc
+/// lies within 1.25 µm of it.
+const LINE_RADIUS: f64 = 1e8;
+
+/// Whether the polyline piece of `bulge` over a chord of `chord` mm is
+/// written as a line: its sagitta (chord·|bulge|/2) is under
+/// [`LINE_SAGITTA`] or its radius (chord·(1 + bulge²)/(4·|bulge|)) over
+/// [`LINE_RADIUS`].
+fn straight(bulge: f64, chord: f64) -> bool {
+    let b = bulge.abs();
+    b == 0.0 || 0.5 * chord * b <= LINE_SAGITTA || chord * (1.0 + b * b) > 4.0 * b * LINE_RADIUS
+}
+
+/// Polyline back to path pieces at height `z`; arcs all but straight
+/// become lines (see [`LINE_SAGITTA`], [`LINE_RADIUS`]).
 pub fn from_polyline(pl: &Polyline<f64>, z: f64) -> Vec<Segment> {
     let n = pl.vertex_count();
     let segs = if pl.is_closed() { n } else { n.saturating_sub(1) };
@@ -79,7 +101,7 @@ pub fn from_polyline(pl: &Polyline<f64>, z: f64) -> Vec<Segment> {
         if (b - a).norm() <= 1e-9 {
             continue;
         }
-        if v.bulge.abs() < 1e-12 {
+        if straight(v.bulge, (b - a).norm()) {
             out.push(Segment::line(a, b));
         } else if let Some(arc) = arc_from_bulge(&a, &b, v.bulge) {
             out.push(Segment::Arc(arc));
@@ -295,6 +317,45 @@ mod tests {
             let p = e.point_at_length(0.3 * e.length());
             assert!((p.coords.xy().norm() - 1.25).abs() < 1e-9);
             assert_eq!(p.z, 0.5);
+        }
+    }
+
+    #[test]
+    fn all_but_straight_arcs_come_back_as_lines() {
+        // (chord mm, bulge, line expected). The second is the arc a fill
+        // of Stir_1.dxf made: a 64 mm chord with its centre 1.4e9 mm away.
+        let cases = [
+            (1.0, 0.1, false),
+            (64.0, 64.0 / (4.0 * 1.4e9), true),
+            (64.0, 1e-6, false),
+            (64.0, 1e-7, true),
+            (500.0, 500.0 / (4.0 * 2e8), true),
+            (500.0, 500.0 / (4.0 * 5e7), false),
+            (0.01, 1e-5, true),
+        ];
+        for (c, b, line) in cases {
+            let mut pl = Polyline::new();
+            pl.add(0.0, 0.0, b);
+            pl.add(c, 0.0, 0.0);
+            let out = from_polyline(&pl, 0.0);
+            assert_eq!(out.len(), 1);
+            assert_eq!(
+                matches!(out[0], Segment::Line(_)),
+                line,
+                "chord {c} bulge {b}: {:?}",
+                out[0]
+            );
+            assert_eq!((out[0].start(), out[0].end()), (P3::origin(), P3::new(c, 0.0, 0.0)));
+            if line {
+                // The chord lies within the stated bound of the arc.
+                let sagitta = 0.5 * c * b;
+                assert!(
+                    sagitta <= LINE_SAGITTA || (c <= 1000.0 && sagitta <= 1.25e-3),
+                    "{sagitta}"
+                );
+            } else if let Segment::Arc(a) = out[0] {
+                assert!(a.radius() <= LINE_RADIUS && a.center.x.abs() < 1e9 && a.center.y.abs() < 1e9);
+            }
         }
     }
 }
