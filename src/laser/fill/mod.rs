@@ -119,6 +119,20 @@ pub enum FillError {
     /// as their outers).
     #[error("the closed chains enclose no area to fill")]
     Empty,
+    /// Nothing left to fill, and this chain crosses itself at (x, y): its
+    /// loops cancel (a bow tie encloses no net area).
+    #[error(
+        "nothing to fill: chain {chain} crosses itself at ({x:.6}, {y:.6}) and its loops cancel; \
+         fill needs boundaries that do not cross themselves"
+    )]
+    Crosses {
+        /// The chain's id.
+        chain: u64,
+        /// Where (mm).
+        x: f64,
+        /// Where (mm).
+        y: f64,
+    },
     /// The estimate is past [`FillOptions::max_moves`]: the stepover is
     /// too fine for the regions.
     #[error(

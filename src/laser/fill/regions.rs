@@ -8,8 +8,11 @@ use crate::laser::contour::Warning;
 use crate::laser::offset::to_polyline;
 use crate::laser::order;
 use crate::model::chain::{Chain, Segment};
+use cavalier_contours::core::Control;
 use cavalier_contours::core::math::Vector2;
-use cavalier_contours::polyline::{PlineSource, PlineSourceMut, Polyline};
+use cavalier_contours::polyline::{
+    PlineIntersect, PlineSelfIntersectOptions, PlineSource, PlineSourceMut, Polyline, SelfIntersectsInclude,
+};
 use cavalier_contours::shape_algorithms::Shape;
 use rayon::prelude::*;
 
@@ -62,8 +65,10 @@ pub fn prepare(chains: &[Chain], o: &FillOptions) -> Result<Prepared, FillError>
     }
     let mut regions = Vec::new();
     let mut here = P2::origin();
+    // The first chain that crosses itself, to name when nothing is left.
+    let mut crossing = None;
     for (z, level) in &levels {
-        let mut rs = nest_level(level, *z, &mut warnings);
+        let mut rs = nest_level(level, *z, &mut warnings, &mut crossing);
         if rs.is_empty() {
             continue;
         }
@@ -76,7 +81,10 @@ pub fn prepare(chains: &[Chain], o: &FillOptions) -> Result<Prepared, FillError>
         regions.extend(seq.into_iter().filter_map(|i| slots[i].take()));
     }
     if regions.is_empty() {
-        return Err(FillError::Empty);
+        return Err(match crossing {
+            Some((chain, p)) => FillError::Crosses { chain, x: p.x, y: p.y },
+            None => FillError::Empty,
+        });
     }
     let estimate = estimate(&regions, o);
     if estimate.moves > o.max_moves {
@@ -105,9 +113,31 @@ pub(super) fn first_vertex(r: &Region) -> Option<P2> {
     })
 }
 
+/// Where a closed polyline crosses or touches itself (the first such
+/// point found), if it does: between pieces that do not share a joint, so
+/// a chain folded back on itself along a line is not a crossing (it
+/// encloses no area, and is said so).
+pub(super) fn self_crossing(pl: &Polyline<f64>) -> Option<P2> {
+    let mut at = None;
+    let mut opts = PlineSelfIntersectOptions::new();
+    opts.include = SelfIntersectsInclude::Global;
+    let _: Control<()> = pl.visit_self_intersects_opt(
+        &mut |i: PlineIntersect<f64>| {
+            let p = match i {
+                PlineIntersect::Basic(b) => b.point,
+                PlineIntersect::Overlapping(o) => o.point1,
+            };
+            at = Some(P2::new(p.x, p.y));
+            Control::Break(())
+        },
+        &opts,
+    );
+    at
+}
+
 /// Regions of one level: containment by winding number about each
 /// chain's first vertex (boxes first).
-fn nest_level(level: &[&Chain], z: f64, warnings: &mut Vec<Warning>) -> Vec<Region> {
+fn nest_level(level: &[&Chain], z: f64, warnings: &mut Vec<Warning>, crossing: &mut Option<(u64, P2)>) -> Vec<Region> {
     struct Loop {
         id: u64,
         pl: Polyline<f64>,
@@ -118,6 +148,22 @@ fn nest_level(level: &[&Chain], z: f64, warnings: &mut Vec<Warning>) -> Vec<Regi
     let mut loops: Vec<Loop> = Vec::new();
     for c in level {
         let pl = to_polyline(c);
+        if let Some(p) = self_crossing(&pl) {
+            // Sections of real meshes and drawings touch themselves at a
+            // point often enough, and fill well; but where a boundary
+            // crosses itself, cavalier_contours' offsets fill only the
+            // loops turning with the chain's net direction (none when they
+            // cancel, as in a bow tie). Said, not refused.
+            warnings.push(Warning {
+                chain: c.id,
+                message: format!(
+                    "closed chain crosses or touches itself at ({:.6}, {:.6}): a loop of it turning against \
+                     the rest is left uncut",
+                    p.x, p.y
+                ),
+            });
+            crossing.get_or_insert((c.id, p));
+        }
         let area = if pl.vertex_count() >= 2 { pl.area() } else { 0.0 };
         let ext = pl.extents();
         match ext {

@@ -304,3 +304,50 @@ fn a_region_narrower_than_the_beam_makes_nothing_and_says_so() {
             .any(|w| w.message.contains("narrower than the beam"))
     );
 }
+
+#[test]
+fn a_boundary_crossing_itself_is_named_and_its_cuts_stay_inside() {
+    // A bow tie: two triangles wound against each other, no net area. The
+    // error names the crossing instead of saying there is no area.
+    let bow = poly(7, &[(0.0, 0.0), (2.0, 0.0), (0.0, 2.0), (2.0, 2.0)], 0.0);
+    match prepare(&[bow], &FillOptions::default()).unwrap_err() {
+        FillError::Crosses { chain, x, y } => {
+            assert_eq!(chain, 7);
+            assert!((x - 1.0).abs() < 1e-9 && (y - 1.0).abs() < 1e-9, "({x}, {y})");
+        }
+        e => panic!("{e}"),
+    }
+    // Unequal lobes: filled with a warning naming the crossing, and every
+    // cut point lies inside one of the two triangles by the beam radius.
+    let eight = poly(8, &[(0.0, 0.0), (2.0, 0.0), (0.0, 1.0), (1.0, 1.0)], 0.0);
+    let o = FillOptions {
+        beam_radius: 0.025,
+        stepover: 0.05,
+        ..FillOptions::default()
+    };
+    let job = fill(std::slice::from_ref(&eight), &setup(15.0), &o).unwrap();
+    assert!(
+        job.warnings
+            .iter()
+            .any(|w| w.chain == 8 && w.message.contains("crosses or touches itself at (0.666667, 0.666667)")),
+        "{:?}",
+        job.warnings
+    );
+    let x = 2.0 / 3.0;
+    let lobes = [
+        poly(1, &[(0.0, 0.0), (2.0, 0.0), (x, x)], 0.0),
+        poly(2, &[(x, x), (1.0, 1.0), (0.0, 1.0)], 0.0),
+    ];
+    let cut = cuts(&job.records);
+    assert!(!cut.is_empty());
+    for e in &cut {
+        for k in 0..=8 {
+            let p = e.point_at_length(e.length() * k as f64 / 8.0);
+            let d = lobes
+                .iter()
+                .map(|l| inside_distance(std::slice::from_ref(l), &p))
+                .fold(f64::NEG_INFINITY, f64::max);
+            assert!(d >= 0.75 * o.beam_radius, "{p:?} is {d} mm inside");
+        }
+    }
+}
