@@ -25,6 +25,8 @@ pub struct Audit {
     pub off_feed_moves: usize,
     /// PMAC: feed moves shorter in time than their acceleration time, which
     /// the controller stretches to it (so they run slower than V).
+    /// Look-ahead: feed moves shorter than 1 ms at V, which a control that
+    /// computes about 1,000 blocks a second runs slower than V.
     pub stretched_moves: usize,
     /// Joints between feed moves (without a stop between) whose direction
     /// jumps by more than the tangency tolerance: an infinite acceleration
@@ -279,7 +281,11 @@ pub fn audit_at(records: &[Record], m: &LaserSetup, start: P3, precision: f64) -
             a.max_accel_off_cut = a.max_accel_off_cut.max(demand);
         }
         let acc = if pmac { ta.accel_s() } else { m.ramp_time_s() };
-        if pmac && ta.stretches(len, v) {
+        if if pmac {
+            ta.stretches(len, v)
+        } else {
+            under_block_time(len, v)
+        } {
             a.stretched_moves += 1;
         }
         if mv.beam != beam {
@@ -339,7 +345,15 @@ pub fn audit_at(records: &[Record], m: &LaserSetup, start: P3, precision: f64) -
     a
 }
 
-/// Feed moves a Turbo PMAC would stretch (see [`Audit::stretched_moves`])
+/// Whether a move of `len` mm at `feed` mm/s takes less than the 1 ms a
+/// look-ahead control needs to compute a block (about 1,000 blocks a
+/// second), so that it runs slower than V.
+fn under_block_time(len: f64, feed: f64) -> bool {
+    len < feed / 1000.0 * (1.0 - 1e-9)
+}
+
+/// Feed moves a Turbo PMAC would stretch, or a look-ahead control run
+/// slower than V (see [`Audit::stretched_moves`])
 /// and all feed moves: `records` must start where the machine's ramps are
 /// in force (a job, or a chunk of whole paths, which end on them). Only
 /// lengths and TAs are looked at, so this is cheap enough to run on every
@@ -356,7 +370,12 @@ pub fn stretched_blocks(records: &[Record], m: &LaserSetup, start: P3) -> (usize
         let Record::Move(mv) = r else { continue };
         if let Some(e) = feed_elem(pos, mv) {
             feed_moves += 1;
-            if pmac && ta.stretches(e.length(), m.feed) {
+            let len = e.length();
+            if if pmac {
+                ta.stretches(len, m.feed)
+            } else {
+                under_block_time(len, m.feed)
+            } {
                 stretched += 1;
             }
         }

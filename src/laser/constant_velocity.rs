@@ -78,9 +78,10 @@ pub enum Note {
         /// The corner (mm).
         at: P3,
     },
-    /// Shutter commands that act off the point they must (PMAC: the pieces
-    /// next to the switch point are only a few ms long at V, so no block
-    /// boundary with a whole-ms TA fits exactly).
+    /// Shutter commands that act off the point they must: the pieces next
+    /// to the switch point are only a few ms long at V, so no block
+    /// boundary fits exactly (PMAC: with a whole-ms TA; look-ahead: without
+    /// a block shorter than V·1 ms).
     SwitchOff {
         /// How many commands are off.
         count: usize,
@@ -104,7 +105,7 @@ impl std::fmt::Display for Note {
             Note::SwitchOff { count, worst } => write!(
                 f,
                 "{count} shutter switch(es) act up to {:.3} µm off their point: the pieces there last only a few ms \
-                 at V, too short for a block boundary where a whole-ms TA would put it",
+                 at V, too short for a block boundary exactly there",
                 worst * 1000.0
             ),
         }
@@ -270,7 +271,11 @@ fn commanded_on(pieces: &[Piece], lens: &[f64], m: &LaserSetup, notes: &mut Vec<
 }
 
 /// Look-ahead controllers switch at the block boundary: split the pieces
-/// exactly where the commands must act.
+/// exactly where the commands must act, unless a split would leave a piece
+/// shorter than the least block (V·1 ms: a look-ahead control computes
+/// about 1,000 blocks a second and slows down for shorter ones). Then the
+/// piece is not split, and the command acts at its nearer end, less than
+/// a least block off (counted in a [`Note::SwitchOff`]).
 fn time_shutter(pieces: Vec<Piece>, m: &LaserSetup, notes: &mut Vec<Note>) -> Vec<Piece> {
     // Arc lengths cost an atan2 each; a million-segment job asks them once.
     let lens: Vec<f64> = pieces.iter().map(|p| p.elem.length()).collect();
@@ -287,6 +292,9 @@ fn time_shutter(pieces: Vec<Piece>, m: &LaserSetup, notes: &mut Vec<Note>) -> Ve
     let mut out = Vec::with_capacity(pieces.len() + 2 * cmd.len());
     let mut s = 0.0;
     let mut k = 0;
+    let min_block = m.min_block();
+    // Commands that act off their point: count, worst (mm).
+    let mut off = (0usize, 0.0f64);
     for (p, len) in pieces.into_iter().zip(lens) {
         let end = s + len;
         let mut rest = p.elem;
@@ -302,6 +310,16 @@ fn time_shutter(pieces: Vec<Piece>, m: &LaserSetup, notes: &mut Vec<Note>) -> Ve
             continue;
         }
         while k < cuts.len() && cuts[k] < end - MIN_PIECE {
+            let (before, after) = (cuts[k] - rest_s, end - cuts[k]);
+            if before < min_block || after < min_block {
+                // Too near an end of what is left of the piece: no split;
+                // the piece takes the state at its middle, so the switch
+                // acts at one of its ends.
+                off.0 += 1;
+                off.1 = off.1.max(before.min(after));
+                k += 1;
+                continue;
+            }
             if let Some((a, b)) = rest.split_at_length(cuts[k] - rest_s, MIN_PIECE) {
                 let mid = rest_s + 0.5 * a.length();
                 out.push(Piece {
@@ -321,6 +339,12 @@ fn time_shutter(pieces: Vec<Piece>, m: &LaserSetup, notes: &mut Vec<Note>) -> Ve
             ..p
         });
         s = end;
+    }
+    if off.0 > 0 {
+        notes.push(Note::SwitchOff {
+            count: off.0,
+            worst: off.1,
+        });
     }
     out
 }

@@ -315,9 +315,10 @@ fn random_drawings_obey_the_machine() {
                 a.stretched_moves
             );
             // Switches next to drawing pieces only a few ms long at V may
-            // act off by up to V·1 ms; pathgen says so.
+            // act off by up to V·1 ms (a least block on a look-ahead
+            // control); pathgen says so.
             let off = job.warnings.iter().any(|w| w.message.contains("shutter switch"));
-            check_physics(&a, &m, if off { m.feed / 1000.0 + 1e-6 } else { 1e-6 });
+            check_physics(&a, &m, if off { m.switch_off_bound() + 1e-6 } else { 1e-6 });
             for (c, (p, _)) in chains.iter().zip(&paths) {
                 let want: f64 = p.iter().flatten().map(Segment::length).sum();
                 let got = a.cut_length.get(&c.id).copied().unwrap_or(0.0);
@@ -524,12 +525,19 @@ fn corpus_drawings_obey_the_machine_on_every_side() {
         crate::corpus::skip("corpus_drawings_obey_the_machine_on_every_side");
         return;
     };
-    let m = LaserSetup::default();
+    let pmac = LaserSetup::default();
+    // The same stage on a look-ahead control, which switches the shutter
+    // at block boundaries (no block under 1 ms at V there either).
+    let lookahead = LaserSetup {
+        controller: crate::machine::Controller::Lookahead,
+        ..LaserSetup::default()
+    };
     let mut cases = 0;
     let mut failures: Vec<String> = Vec::new();
     let mut holes = 0;
     let mut planar_drawings = 0;
-    for (name, chains, planar) in &drawings {
+    for ((name, chains, planar), m) in drawings.iter().flat_map(|d| [(d, &pmac), (d, &lookahead)]) {
+        let name = format!("{name} ({:?})", m.controller);
         let (chains, planar) = (chains.as_slice(), *planar);
         let plines: Vec<_> = chains
             .iter()
@@ -551,11 +559,11 @@ fn corpus_drawings_obey_the_machine_on_every_side() {
                 distance: 0.005,
                 ..Default::default()
             };
-            let job = contour(chains, &m, &o);
-            let a = audit(&job.records, &m, P3::origin());
+            let job = contour(chains, m, &o);
+            let a = audit(&job.records, m, P3::origin());
             let off = job.warnings.iter().any(|w| w.message.contains("shutter switch"));
             let physics = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-                check_physics(&a, &m, if off { m.feed / 1000.0 + 1e-6 } else { 1e-6 })
+                check_physics(&a, m, if off { m.switch_off_bound() + 1e-6 } else { 1e-6 })
             }));
             if planar && physics.is_err() {
                 failures.push(format!("{name} {side:?}: physics"));
@@ -566,7 +574,7 @@ fn corpus_drawings_obey_the_machine_on_every_side() {
                     a.stretched_moves, job.cleanup.left, job.cleanup.max_dev
                 ));
             }
-            let paths = cut_paths(chains, &m, &o);
+            let paths = cut_paths(chains, m, &o);
             for (i, (c, (p, _))) in chains.iter().zip(&paths).enumerate() {
                 let want: f64 = p.iter().flatten().map(Segment::length).sum();
                 let got = a.cut_length.get(&c.id).copied().unwrap_or(0.0);

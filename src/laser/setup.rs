@@ -235,6 +235,18 @@ impl LaserSetup {
         self.feed / 1000.0 + self.block_margin()
     }
 
+    /// The farthest (mm) a shutter command may act off its point where
+    /// the pieces around it are too short for a block boundary there
+    /// ([`Note::SwitchOff`](super::constant_velocity::Note::SwitchOff)):
+    /// V·1 ms on a Turbo PMAC; on a look-ahead control the least block
+    /// (V·1 ms and the writer's rounding margin), which no split may leave.
+    pub fn switch_off_bound(&self) -> f64 {
+        match self.controller {
+            Controller::Pmac => self.feed / 1000.0,
+            Controller::Lookahead => self.min_block(),
+        }
+    }
+
     /// What every beam-off connection (corner loop, turnaround) must be:
     /// long enough for the shutter window, no piece shorter than
     /// [`min_block`](Self::min_block), its last piece at least

@@ -371,9 +371,14 @@ pub(crate) fn warn_all(warnings: &[Warning]) {
 /// stretch to its least TA (shorter than 1 ms at V).
 pub(crate) fn short_note(short: usize, total: usize, m: &LaserSetup) {
     if short > 0 {
+        let what = match m.controller {
+            microcam::machine::Controller::Pmac => "a Turbo PMAC stretches them to its least TA and slows down there",
+            microcam::machine::Controller::Lookahead => {
+                "a look-ahead control computing about 1,000 blocks a second slows down there"
+            }
+        };
         microcam::diag!(
-            "pathgen: note: {short} of {total} feed moves last less than 1 ms at V ({:.6} mm); a Turbo PMAC \
-             stretches them to its least TA and slows down there",
+            "pathgen: note: {short} of {total} feed moves last less than 1 ms at V ({:.6} mm); {what}",
             m.min_block()
         );
     }

@@ -222,7 +222,7 @@ fn fill_output_obeys_the_machine() {
                 a.max_accel_cut
             );
             let off = job.warnings.iter().any(|w| w.message.contains("shutter switch"));
-            let tol = if off { m.feed / 1000.0 + 1e-6 } else { 1e-6 };
+            let tol = if off { m.switch_off_bound() + 1e-6 } else { 1e-6 };
             assert!(a.exposure_error < tol, "{what}: {}", a.exposure_error);
             assert!(a.min_run_before_open >= m.accel_distance() - 1e-9, "{what}");
             assert!(a.min_run_after_close >= -1e-9, "{what}");
