@@ -88,7 +88,8 @@ fn straight(bulge: f64, chord: f64) -> bool {
 }
 
 /// Polyline back to path pieces at height `z`; arcs all but straight
-/// become lines (see [`LINE_SAGITTA`], [`LINE_RADIUS`]).
+/// become lines (a sagitta under 1 nm, or a radius over 1e8 mm: the
+/// toolpath reader refuses centres beyond 1e9 mm).
 pub fn from_polyline(pl: &Polyline<f64>, z: f64) -> Vec<Segment> {
     let n = pl.vertex_count();
     let segs = if pl.is_closed() { n } else { n.saturating_sub(1) };
