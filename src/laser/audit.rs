@@ -281,11 +281,7 @@ pub fn audit_at(records: &[Record], m: &LaserSetup, start: P3, precision: f64) -
             a.max_accel_off_cut = a.max_accel_off_cut.max(demand);
         }
         let acc = if pmac { ta.accel_s() } else { m.ramp_time_s() };
-        if if pmac {
-            ta.stretches(len, v)
-        } else {
-            under_block_time(len, v)
-        } {
+        if runs_slow(&ta, pmac, len, v) {
             a.stretched_moves += 1;
         }
         if mv.beam != beam {
@@ -345,11 +341,17 @@ pub fn audit_at(records: &[Record], m: &LaserSetup, start: P3, precision: f64) -
     a
 }
 
-/// Whether a move of `len` mm at `feed` mm/s takes less than the 1 ms a
-/// look-ahead control needs to compute a block (about 1,000 blocks a
-/// second), so that it runs slower than V.
-fn under_block_time(len: f64, feed: f64) -> bool {
-    len < feed / 1000.0 * (1.0 - 1e-9)
+/// Whether a feed move of `len` mm at `feed` mm/s runs slower than V: on
+/// a Turbo PMAC (`pmac`) when it is shorter than its TA (`ta`), which
+/// the controller stretches it to; on a look-ahead control when it takes
+/// less than the 1 ms the control needs to compute a block (about 1,000
+/// blocks a second).
+fn runs_slow(ta: &PmacTa, pmac: bool, len: f64, feed: f64) -> bool {
+    if pmac {
+        ta.stretches(len, feed)
+    } else {
+        len < feed / 1000.0 * (1.0 - 1e-9)
+    }
 }
 
 /// Feed moves a Turbo PMAC would stretch, or a look-ahead control run
@@ -370,12 +372,7 @@ pub fn stretched_blocks(records: &[Record], m: &LaserSetup, start: P3) -> (usize
         let Record::Move(mv) = r else { continue };
         if let Some(e) = feed_elem(pos, mv) {
             feed_moves += 1;
-            let len = e.length();
-            if if pmac {
-                ta.stretches(len, m.feed)
-            } else {
-                under_block_time(len, m.feed)
-            } {
+            if runs_slow(&ta, pmac, e.length(), m.feed) {
                 stretched += 1;
             }
         }

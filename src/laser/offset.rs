@@ -74,7 +74,7 @@ const LINE_SAGITTA: f64 = 1e-6;
 /// reader refuses centres beyond 1e9 mm (no machine means them), and
 /// offsets of long, almost straight arcs come out with centres near that
 /// (a fill of the corpus drawing Stir_1.dxf had one at 1.08e9 mm, a
-/// sagitta of 0.4 nm). Up to a chord of 1 m, the chord of such an arc
+/// sagitta of 0.3 nm). Up to a chord of 1 m, the chord of such an arc
 /// lies within 1.25 µm of it.
 const LINE_RADIUS: f64 = 1e8;
 

@@ -117,7 +117,7 @@ pub(super) fn first_vertex(r: &Region) -> Option<P2> {
 /// point found), if it does: between pieces that do not share a joint, so
 /// a chain folded back on itself along a line is not a crossing (it
 /// encloses no area, and is said so).
-pub(super) fn self_crossing(pl: &Polyline<f64>) -> Option<P2> {
+fn self_crossing(pl: &Polyline<f64>) -> Option<P2> {
     let mut at = None;
     let mut opts = PlineSelfIntersectOptions::new();
     opts.include = SelfIntersectsInclude::Global;
