@@ -76,7 +76,9 @@ impl Audit {
             && r_min >= m.min_radius() - 2.0 * precision
             && self.stretched_moves == 0
             && self.min_run_after_close >= -precision
-            && self.min_run_before_open >= m.accel_distance() - precision
+            // The run from the lead-in's start to the switch joins two
+            // printed points, too.
+            && self.min_run_before_open >= m.accel_distance() - 2.0 * precision
             && exposure_ok
     }
 
@@ -499,5 +501,21 @@ mod tests {
             assert!((a.max_accel_cut - cut).abs() < 1e-9, "beam {beam}: {a:?}");
             assert!((a.max_accel_off_cut - off).abs() < 1e-9, "beam {beam}: {a:?}");
         }
+    }
+
+    #[test]
+    fn the_run_before_the_shutter_opens_is_read_between_two_printed_points() {
+        // A program printed at 1e-4 whose lead-in (exactly the distance
+        // to reach V) reads 1.2e-4 short: both its ends were rounded, so
+        // it passes at that precision; 2.5e-4 short does not.
+        let m = LaserSetup::default();
+        let a = |short: f64| Audit {
+            feed_moves: 1,
+            max_accel_off_cut: m.accel(),
+            min_run_before_open: m.accel_distance() - short,
+            ..Default::default()
+        };
+        assert!(a(1.2e-4).passes(&m, 1e-4));
+        assert!(!a(2.5e-4).passes(&m, 1e-4));
     }
 }
